@@ -1,0 +1,33 @@
+#pragma once
+// "A run that fails leaves no partial output file behind": outputs are written under a
+// hidden temporary name next to their destination and renamed into place together at
+// the end. If the transaction is destroyed without commit(), the staged files are
+// deleted.
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace sonotrace::tissue {
+
+class OutputTransaction {
+public:
+    OutputTransaction() = default;
+    OutputTransaction(const OutputTransaction&) = delete;
+    OutputTransaction& operator=(const OutputTransaction&) = delete;
+    ~OutputTransaction();
+
+    // Returns the temporary path to write instead of `final_path`: same directory and
+    // file name (so the extension still selects the format), hidden, unique per process.
+    // Creates the directory if needed.
+    std::string stage(const std::string& final_path);
+    // Renames every staged file to its final path. Throws if a rename fails.
+    void commit();
+    // The final paths staged so far.
+    std::vector<std::string> final_paths() const;
+
+private:
+    std::vector<std::pair<std::string, std::string>> staged_;  // {temporary, final}
+    bool committed_ = false;
+};
+
+}  // namespace sonotrace::tissue

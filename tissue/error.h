@@ -1,0 +1,32 @@
+#pragma once
+// Errors about user input. Every message names the file (or option) and the field
+// that is wrong, so that the CLI can print it verbatim and exit non-zero.
+#include <stdexcept>
+#include <string>
+
+namespace sonotrace::tissue {
+
+class InputError : public std::runtime_error {
+public:
+    // `source` is a file path or an option name such as "--pose"; `field` is the header
+    // field, JSON key or parameter inside it (may be empty).
+    InputError(std::string source, std::string field, const std::string& what)
+        : std::runtime_error(compose(source, field, what)),
+          source_(std::move(source)),
+          field_(std::move(field)) {}
+
+    const std::string& source() const { return source_; }
+    const std::string& field() const { return field_; }
+
+private:
+    static std::string compose(const std::string& source, const std::string& field,
+                               const std::string& what) {
+        std::string msg = source;
+        if (!field.empty()) msg += ": field '" + field + "'";
+        return msg + ": " + what;
+    }
+    std::string source_;
+    std::string field_;
+};
+
+}  // namespace sonotrace::tissue

@@ -1,0 +1,189 @@
+#include "tissue/image_io.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "tissue/atomic_output.h"
+#include "tissue/error.h"
+#include "tissue/memory.h"
+
+namespace sonotrace::tissue {
+
+namespace {
+
+namespace fs = std::filesystem;
+using OIIO::TypeDesc;
+
+std::string lower_extension(const std::string& path) {
+    std::string ext = fs::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    return ext;
+}
+
+template <typename T>
+void reduce_channels(const std::vector<unsigned char>& raw, int channels, float* out,
+                     std::size_t pixels) {
+    const T* in = reinterpret_cast<const T*>(raw.data());
+    for (std::size_t p = 0; p < pixels; ++p) {
+        const T* px = in + p * std::size_t(channels);
+        out[p] = channels >= 3 ? float(0.2126 * double(px[0]) + 0.7152 * double(px[1]) +
+                                       0.0722 * double(px[2]))
+                               : float(px[0]);
+    }
+}
+
+struct ImageSlice {
+    int width = 0, height = 0, channels = 0;
+};
+
+// Reads `path` into `out` (width*height floats). Returns the size it found.
+ImageSlice read_into(const std::string& path, std::vector<float>* out, const ImageSlice* expect) {
+    if (!fs::exists(path)) throw InputError(path, "", "file not found");
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) throw InputError(path, "", "cannot read image: " + OIIO::geterror());
+    const OIIO::ImageSpec& spec = in->spec();
+    ImageSlice slice{spec.width, spec.height, spec.nchannels};
+    if (spec.depth > 1) throw InputError(path, "depth", "volumetric images are not supported");
+    if (expect && (slice.width != expect->width || slice.height != expect->height)) {
+        throw InputError(path, "size",
+                         std::to_string(slice.width) + "x" + std::to_string(slice.height) +
+                             " differs from the first slice's " + std::to_string(expect->width) +
+                             "x" + std::to_string(expect->height));
+    }
+    const std::size_t pixels = std::size_t(slice.width) * slice.height;
+    check_allocation(double(pixels) * slice.channels * 8.0, path, "size");
+
+    // Integers are read raw (no OIIO normalisation to 0..1); floats of any width as float.
+    TypeDesc format = spec.format;
+    const bool integer = spec.channelformats.empty() &&
+                         (format == TypeDesc::UINT8 || format == TypeDesc::INT8 ||
+                          format == TypeDesc::UINT16 || format == TypeDesc::INT16 ||
+                          format == TypeDesc::UINT32 || format == TypeDesc::INT32);
+    if (!integer) format = TypeDesc::FLOAT;
+    std::vector<unsigned char> raw(pixels * slice.channels * format.size());
+    if (!in->read_image(0, 0, 0, slice.channels, format, raw.data())) {
+        throw InputError(path, "data", "cannot decode image: " + in->geterror());
+    }
+    const std::size_t offset = out->size();
+    out->resize(offset + pixels);
+    float* dst = out->data() + offset;
+    if (format == TypeDesc::UINT8) reduce_channels<uint8_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::INT8) reduce_channels<int8_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::UINT16) reduce_channels<uint16_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::INT16) reduce_channels<int16_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::UINT32) reduce_channels<uint32_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::INT32) reduce_channels<int32_t>(raw, slice.channels, dst, pixels);
+    else reduce_channels<float>(raw, slice.channels, dst, pixels);
+    return slice;
+}
+
+VolumeGeometry image_geometry(int width, int height, int slices, const glm::dvec3& spacing,
+                              const std::string& source) {
+    VolumeGeometry g;
+    g.dims = glm::ivec3(width, height, slices);
+    g.spacing = spacing;
+    g.validate(source);
+    return g;
+}
+
+// Natural order: compare the last run of digits numerically, then the whole name.
+long trailing_number(const std::string& name) {
+    const std::string stem = fs::path(name).stem().string();
+    std::size_t end = stem.size();
+    while (end > 0 && !std::isdigit(static_cast<unsigned char>(stem[end - 1]))) --end;
+    std::size_t begin = end;
+    while (begin > 0 && std::isdigit(static_cast<unsigned char>(stem[begin - 1]))) --begin;
+    return begin == end ? -1 : std::stol(stem.substr(begin, std::min<std::size_t>(end - begin, 18)));
+}
+
+}  // namespace
+
+bool has_image_extension(const std::string& path) {
+    static const char* known[] = {".png", ".tif", ".tiff", ".jpg", ".jpeg", ".exr",
+                                  ".bmp", ".pgm", ".ppm", ".hdr", ".dpx", ".tga"};
+    const std::string ext = lower_extension(path);
+    return std::any_of(std::begin(known), std::end(known), [&](const char* k) { return ext == k; });
+}
+
+std::vector<std::string> list_image_stack(const std::string& spec) {
+    std::vector<std::string> files;
+    if (fs::is_directory(spec)) {
+        for (const auto& entry : fs::directory_iterator(spec)) {
+            if (entry.is_regular_file() && has_image_extension(entry.path().string())) {
+                files.push_back(entry.path().string());
+            }
+        }
+        std::sort(files.begin(), files.end(), [](const std::string& a, const std::string& b) {
+            const long na = trailing_number(a), nb = trailing_number(b);
+            return na != nb ? na < nb : a < b;
+        });
+        if (files.empty()) throw InputError(spec, "", "directory holds no image files");
+        return files;
+    }
+    if (spec.find('%') == std::string::npos) {
+        throw InputError(spec, "", "not a directory or a printf pattern such as img_%03d.png");
+    }
+    auto name_for = [&](int index) {
+        std::vector<char> buffer(spec.size() + 32);
+        std::snprintf(buffer.data(), buffer.size(), spec.c_str(), index);
+        return std::string(buffer.data());
+    };
+    int first = 0;
+    while (first < 10000 && !fs::exists(name_for(first))) ++first;
+    if (first == 10000) throw InputError(spec, "", "no file matches the pattern (indices 0..9999)");
+    for (int index = first; fs::exists(name_for(index)); ++index) files.push_back(name_for(index));
+    return files;
+}
+
+Volume read_image(const std::string& path, const glm::dvec3& spacing) {
+    return read_image_stack({path}, spacing, path);
+}
+
+Volume read_image_stack(const std::vector<std::string>& files, const glm::dvec3& spacing,
+                        const std::string& source) {
+    if (files.empty()) throw InputError(source, "", "no image files");
+    std::vector<float> voxels;
+    ImageSlice first;
+    for (std::size_t n = 0; n < files.size(); ++n) {
+        const ImageSlice slice = read_into(files[n], &voxels, n == 0 ? nullptr : &first);
+        if (n == 0) {
+            first = slice;
+            check_allocation(double(slice.width) * slice.height * files.size() * sizeof(float),
+                             source, "size");
+            voxels.reserve(std::size_t(slice.width) * slice.height * files.size());
+        }
+    }
+    Volume volume(image_geometry(first.width, first.height, int(files.size()), spacing, source),
+                  std::move(voxels));
+    volume.require_finite(source);
+    return volume;
+}
+
+void write_gray_image(const std::string& path, int width, int height,
+                      const std::vector<float>& pixels, int bits) {
+    const TypeDesc format = bits == 8 ? TypeDesc::UINT8 : bits == 16 ? TypeDesc::UINT16 : TypeDesc::FLOAT;
+    OutputTransaction transaction;
+    const std::string temporary = transaction.stage(path);
+    auto out = OIIO::ImageOutput::create(temporary);
+    if (!out) throw InputError(path, "", "no image writer for this extension: " + OIIO::geterror());
+    OIIO::ImageSpec spec(width, height, 1, format);
+    // OIIO converts float -> integer by normalising 0..1; pass raw values as float for
+    // float files, otherwise scale so stored integers equal the given values.
+    std::vector<float> scaled(pixels);
+    if (bits != 32) {
+        const float range = bits == 8 ? 255.0f : 65535.0f;
+        for (float& v : scaled) v /= range;
+    }
+    if (!out->open(temporary, spec) || !out->write_image(TypeDesc::FLOAT, scaled.data()) ||
+        !out->close()) {
+        throw InputError(path, "", "cannot write image: " + out->geterror());
+    }
+    transaction.commit();
+}
+
+}  // namespace sonotrace::tissue

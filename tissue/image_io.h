@@ -1,0 +1,35 @@
+#pragma once
+// 2D images and numbered image stacks (PNG, TIFF, JPEG, EXR, and whatever else
+// OpenImageIO reads) as volumes. Images carry no physical size, so the caller gives the
+// pixel spacing (and the slice spacing for stacks).
+//
+// Index i runs along image columns, j along rows (downwards, as stored), k along the
+// stack; the direction is the identity and the origin zero. Integer pixels keep their
+// stored values (0..255 for 8-bit, 0..65535 for 16-bit), so label images stay labels;
+// colour images are reduced to Rec. 709 luminance and alpha is ignored.
+#include <string>
+#include <vector>
+
+#include "tissue/volume.h"
+
+namespace sonotrace::tissue {
+
+// True if `path` names a file OpenImageIO can probably read (by extension).
+bool has_image_extension(const std::string& path);
+
+// Lists the files of a stack: a directory (its image files in natural numeric order)
+// or a printf pattern such as "slices/img_%03d.png" (consecutive indices from the first
+// one found among 0..9999). Throws InputError if nothing matches.
+std::vector<std::string> list_image_stack(const std::string& spec);
+
+// Reads one image (one slice) or a stack into a volume with the given spacing (mm).
+Volume read_image(const std::string& path, const glm::dvec3& spacing);
+Volume read_image_stack(const std::vector<std::string>& files, const glm::dvec3& spacing,
+                        const std::string& source);
+
+// Writes a single-channel image (used by tests and tools); 8- or 16-bit by `bits`,
+// or 32-bit float when bits == 32. Atomic.
+void write_gray_image(const std::string& path, int width, int height,
+                      const std::vector<float>& pixels, int bits);
+
+}  // namespace sonotrace::tissue

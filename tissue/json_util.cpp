@@ -1,0 +1,120 @@
+#include "tissue/json_util.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "tissue/error.h"
+
+namespace sonotrace::tissue::jsonio {
+
+namespace {
+std::string describe(double v) {
+    std::ostringstream s;
+    s << v;
+    return s.str();
+}
+}  // namespace
+
+std::string join(const std::string& where, const std::string& key) {
+    return where.empty() ? key : where + "." + key;
+}
+
+json read_file(const std::string& path) {
+    if (!std::filesystem::exists(path)) throw InputError(path, "", "file not found");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(path, "", "cannot open file");
+    std::stringstream text;
+    text << in.rdbuf();
+    return parse(text.str(), path);
+}
+
+json parse(const std::string& text, const std::string& source) {
+    try {
+        return json::parse(text);
+    } catch (const json::parse_error& e) {
+        // Turn the byte offset into line:column for the message.
+        std::size_t line = 1, column = 1;
+        for (std::size_t n = 0; n + 1 < e.byte && n < text.size(); ++n) {
+            if (text[n] == '\n') {
+                ++line;
+                column = 1;
+            } else {
+                ++column;
+            }
+        }
+        throw InputError(source, "",
+                         "invalid JSON at line " + std::to_string(line) + ", column " +
+                             std::to_string(column) + " (" + e.what() + ")");
+    }
+}
+
+void require_object(const json& value, const std::string& source, const std::string& where) {
+    if (!value.is_object()) {
+        throw InputError(source, where.empty() ? "(top level)" : where, "must be a JSON object");
+    }
+}
+
+void require_known_keys(const json& object, std::initializer_list<std::string_view> known,
+                        const std::string& source, const std::string& where) {
+    require_object(object, source, where);
+    for (const auto& item : object.items()) {
+        bool found = false;
+        for (std::string_view k : known) found = found || item.key() == k;
+        if (!found) {
+            std::string list;
+            for (std::string_view k : known) list += (list.empty() ? "" : ", ") + std::string(k);
+            throw InputError(source, join(where, item.key()),
+                             "unknown key (known keys here: " + list + ")");
+        }
+    }
+}
+
+std::optional<double> get_optional_number(const json& object, const std::string& key,
+                                          const std::string& source, const std::string& where,
+                                          double min, double max) {
+    if (!object.contains(key)) return std::nullopt;
+    const json& value = object.at(key);
+    if (!value.is_number()) throw InputError(source, join(where, key), "must be a number");
+    const double v = value.get<double>();
+    if (!std::isfinite(v) || v < min || v > max) {
+        throw InputError(source, join(where, key),
+                         "value " + describe(v) + " is outside [" + describe(min) + ", " +
+                             describe(max) + "]");
+    }
+    return v;
+}
+
+double get_number(const json& object, const std::string& key, const std::string& source,
+                  const std::string& where, double min, double max) {
+    auto v = get_optional_number(object, key, source, where, min, max);
+    if (!v) throw InputError(source, join(where, key), "is required");
+    return *v;
+}
+
+std::string get_string(const json& object, const std::string& key, const std::string& source,
+                       const std::string& where) {
+    if (!object.contains(key)) throw InputError(source, join(where, key), "is required");
+    if (!object.at(key).is_string()) throw InputError(source, join(where, key), "must be a string");
+    return object.at(key).get<std::string>();
+}
+
+glm::dvec3 get_vec3(const json& object, const std::string& key, const std::string& source,
+                    const std::string& where) {
+    const std::string field = join(where, key);
+    if (!object.contains(key)) throw InputError(source, field, "is required");
+    const json& value = object.at(key);
+    if (!value.is_array() || value.size() != 3) {
+        throw InputError(source, field, "must be an array of 3 numbers");
+    }
+    glm::dvec3 v;
+    for (int a = 0; a < 3; ++a) {
+        if (!value[a].is_number()) throw InputError(source, field, "must be an array of 3 numbers");
+        v[a] = value[a].get<double>();
+        if (!std::isfinite(v[a])) throw InputError(source, field, "is not finite");
+    }
+    return v;
+}
+
+}  // namespace sonotrace::tissue::jsonio

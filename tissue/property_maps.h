@@ -1,0 +1,26 @@
+#pragma once
+// Acoustic property fields on a grid: what a transfer function makes of a (resampled)
+// volume. Planar (one Volume per property) because they are written out as pictures
+// and packed into an AcousticMap for tracing.
+#include <array>
+
+#include "tissue/acoustic_properties.h"
+#include "tissue/transfer_function.h"
+#include "tissue/volume.h"
+
+namespace sonotrace::tissue {
+
+struct PropertyMaps {
+    std::array<Volume, kPropertyCount> fields;
+
+    const Volume& operator[](Property p) const { return fields[std::size_t(p)]; }
+    Volume& operator[](Property p) { return fields[std::size_t(p)]; }
+    const VolumeGeometry& geometry() const { return fields[0].geometry(); }
+    // Z = rho * c in MRayl.
+    Volume impedance() const;
+};
+
+// Applies a bound transfer function to every voxel of `values`.
+PropertyMaps classify(const Volume& values, const TransferFunction& tf);
+
+}  // namespace sonotrace::tissue

@@ -1,0 +1,96 @@
+#pragma once
+// Transfer functions turn voxel values into acoustic properties.
+//
+// Two kinds share one small interface:
+//  - piecewise-linear: control points (intensity -> properties), linear in between and
+//    clamped outside; intensities are "raw" voxel values or "normalized" (0..1 spans the
+//    volume's intensity window between two quantiles, so one preset fits scans with
+//    different scaling);
+//  - labels: a table from integer labels to tissues (label maps, phantoms). Label maps
+//    are sampled nearest-neighbour because interpolating labels would invent tissues.
+// Every control point or label names a tissue from tissue_table.h and/or gives property
+// values explicitly (explicit values override the tissue's).
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "tissue/acoustic_properties.h"
+#include "tissue/volume.h"
+
+namespace sonotrace::tissue {
+
+class TransferFunction {
+public:
+    virtual ~TransferFunction() = default;
+    // Adapts to the volume before use (intensity window, label check). Throws InputError
+    // naming the transfer function's file if the volume does not fit it.
+    virtual void bind(const Volume& volume) = 0;
+    virtual AcousticProperties evaluate(float value) const = 0;
+    virtual bool uses_nearest_sampling() const = 0;
+    // Name, source and parameters, for sidecars.
+    virtual nlohmann::json describe() const = 0;
+};
+
+struct ControlPoint {
+    double intensity = 0.0;
+    std::string tissue;  // may be empty when every property is explicit
+    AcousticProperties properties;
+};
+
+class PiecewiseLinearTransferFunction final : public TransferFunction {
+public:
+    enum class Domain { raw, normalized };
+    PiecewiseLinearTransferFunction(std::string name, std::string source, Domain domain,
+                                    double low_quantile, double high_quantile,
+                                    std::vector<ControlPoint> points);
+
+    void bind(const Volume& volume) override;
+    AcousticProperties evaluate(float value) const override;
+    bool uses_nearest_sampling() const override { return false; }
+    nlohmann::json describe() const override;
+
+    const std::vector<ControlPoint>& points() const { return points_; }
+    // Raw intensities that normalized 0 and 1 map to (identity for the raw domain).
+    double window_low() const { return window_low_; }
+    double window_high() const { return window_high_; }
+
+private:
+    std::string name_, source_;
+    Domain domain_;
+    double low_quantile_, high_quantile_;
+    double window_low_ = 0.0, window_high_ = 1.0;
+    std::vector<ControlPoint> points_;
+};
+
+class LabelTransferFunction final : public TransferFunction {
+public:
+    struct Entry {
+        int label = 0;
+        std::string tissue;
+        AcousticProperties properties;
+    };
+    LabelTransferFunction(std::string name, std::string source, std::vector<Entry> entries);
+
+    void bind(const Volume& volume) override;  // every voxel must be a listed integer label
+    AcousticProperties evaluate(float value) const override;
+    bool uses_nearest_sampling() const override { return true; }
+    nlohmann::json describe() const override;
+
+private:
+    std::string name_, source_;
+    std::vector<Entry> entries_;  // sorted by label
+};
+
+// Names of the presets compiled into the binary (from tissue/presets/*.json).
+std::vector<std::string> transfer_function_presets();
+// `spec` is a preset name or a JSON file path. Throws InputError naming the file/field.
+std::unique_ptr<TransferFunction> load_transfer_function(const std::string& spec);
+// Parses JSON text; `source` names it in messages.
+std::unique_ptr<TransferFunction> parse_transfer_function(const std::string& text,
+                                                          const std::string& source);
+std::unique_ptr<TransferFunction> transfer_function_from_json(const nlohmann::json& j,
+                                                              const std::string& source);
+
+}  // namespace sonotrace::tissue

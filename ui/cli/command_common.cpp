@@ -1,0 +1,67 @@
+#include "ui/cli/command_common.h"
+
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "tissue/error.h"
+
+namespace sonotrace::ui {
+
+void StageTimer::begin(const std::string& stage) {
+    stage_ = stage;
+    start_ = std::chrono::steady_clock::now();
+    if (!quiet_) std::fprintf(stderr, "sonotrace: %s ...", stage.c_str()), std::fflush(stderr);
+}
+
+void StageTimer::end() {
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    timings_[stage_] = seconds;
+    if (!quiet_) std::fprintf(stderr, " %.2f s\n", seconds);
+}
+
+std::unique_ptr<tbb::global_control> limit_threads(int threads) {
+    if (threads <= 0) return nullptr;
+    return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                 std::size_t(threads));
+}
+
+void write_json(const nlohmann::json& record, const std::string& path) {
+    if (path == "-") {
+        std::cout << record.dump(2) << std::endl;
+        return;
+    }
+    std::ofstream out(path);
+    out << record.dump(2) << "\n";
+    if (!out) throw tissue::InputError(path, "", "cannot write JSON");
+}
+
+std::optional<std::string> parse_spacing(const std::string& text, double out[3]) {
+    std::istringstream in(text);
+    std::string part;
+    int count = 0;
+    while (std::getline(in, part, ',')) {
+        if (count == 3) return "at most three values";
+        std::size_t used = 0;
+        double v = 0.0;
+        try {
+            v = std::stod(part, &used);
+        } catch (const std::exception&) {
+            return "'" + part + "' is not a number";
+        }
+        if (used != part.size() || !std::isfinite(v) || v <= 0.0) {
+            return "'" + part + "' is not a positive number of mm";
+        }
+        out[count++] = v;
+    }
+    if (count < 2) return "give at least two values (mm per pixel along x and y)";
+    if (count == 2) out[2] = 1.0;
+    return std::nullopt;
+}
+
+}  // namespace sonotrace::ui

@@ -1,0 +1,56 @@
+#pragma once
+// What every sonotrace subcommand shares: parameters documented once (name, unit,
+// default, meaning) and turned into CLI11 options, stage timing with progress lines on
+// stderr, thread control, and JSON output.
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
+
+namespace sonotrace::ui {
+
+// One documented parameter. The CLI help shows "description [unit] (default: ...)".
+struct ParameterDoc {
+    const char* flag;         // "--depth"
+    const char* unit;         // "mm", or "" for none
+    const char* description;  // what it means
+};
+
+// Adds an option whose help text is built from the doc and the variable's current value.
+template <typename T>
+CLI::Option* add_parameter(CLI::App& app, const ParameterDoc& doc, T& variable) {
+    std::string help = doc.description;
+    if (doc.unit[0] != '\0') help += std::string(" [") + doc.unit + "]";
+    return app.add_option(doc.flag, variable, help)->capture_default_str();
+}
+
+// Times named stages and prints "sonotrace: <stage> ... 0.42 s" lines to stderr.
+class StageTimer {
+public:
+    explicit StageTimer(bool quiet) : quiet_(quiet) {}
+    void begin(const std::string& stage);
+    void end();
+    const nlohmann::json& timings() const { return timings_; }  // seconds per stage
+
+private:
+    bool quiet_;
+    std::string stage_;
+    std::chrono::steady_clock::time_point start_;
+    nlohmann::json timings_ = nlohmann::json::object();
+};
+
+// Limits TBB to `threads` workers for the lifetime of the returned object (0 = all cores).
+std::unique_ptr<tbb::global_control> limit_threads(int threads);
+
+// Writes `record` to `path` (callers stage it through tissue::OutputTransaction), or to
+// stdout when path is "-".
+void write_json(const nlohmann::json& record, const std::string& path);
+
+// Comma-separated numbers ("0.5,0.5" or "1,1,2") for options like --spacing.
+std::optional<std::string> parse_spacing(const std::string& text, double out[3]);
+
+}  // namespace sonotrace::ui

@@ -1,0 +1,39 @@
+// The `sonotrace` command.
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "sonotrace_version.h"
+#include "tissue/error.h"
+#include "ui/cli/tissue_command.h"
+
+int main(int argc, char** argv) {
+    using namespace sonotrace;
+    CLI::App app(
+        "sonotrace " SONOTRACE_VERSION
+        " - ultrasound image simulation by particle tracing through tissue maps.\n"
+        "Units: lengths in mm, time in s, speed of sound in m/s, density in kg/m^3, attenuation "
+        "in dB/(cm*MHz), frequency in MHz.",
+        "sonotrace");
+    app.set_version_flag("-V,--version", "sonotrace " SONOTRACE_VERSION);
+    app.require_subcommand(1);
+
+    ui::TissueOptions tissue_options;
+    CLI::App* tissue_cmd = ui::add_tissue_command(app, tissue_options);
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e);  // prints help/usage; 0 for --help, non-zero for errors
+    }
+    try {
+        if (tissue_cmd->parsed()) return ui::run_tissue_command(tissue_options);
+    } catch (const tissue::InputError& e) {
+        std::cerr << "sonotrace: error: " << e.what() << "\n";
+        return 1;
+    } catch (const std::exception& e) {
+        std::cerr << "sonotrace: internal error: " << e.what() << "\n";
+        return 3;
+    }
+    return 0;
+}
