@@ -111,9 +111,9 @@ Pose parse_pose(const std::string& text, const std::string& source) {
 }
 
 Pose colin27_temporal_pose() {
-    // MNI coordinates: the right temporal squama lies near x = +68 mm at the level of the
-    // midbrain (z ~ 0); the probe face sits on the skin just outside it.
-    return Pose::looking({74.0, -18.0, 2.0}, {-1.0, 0.0, 0.0}, {0.0, 1.0, 0.0});
+    // MNI coordinates, measured on Colin27 along y = -18, z = 2: skin at x = +87 mm, the
+    // temporal squama at x = +72..+75 (3 mm thick), the midbrain around x = 0.
+    return Pose::looking({87.0, -18.0, 2.0}, {-1.0, 0.0, 0.0}, {0.0, 1.0, 0.0});
 }
 
 }  // namespace sonotrace::probe

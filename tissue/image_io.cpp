@@ -44,7 +44,10 @@ struct ImageSlice {
 // Reads `path` into `out` (width*height floats). Returns the size it found.
 ImageSlice read_into(const std::string& path, std::vector<float>* out, const ImageSlice* expect) {
     if (!fs::exists(path)) throw InputError(path, "", "file not found");
-    auto in = OIIO::ImageInput::open(path);
+    // Stored colour values, not premultiplied by alpha (which we ignore).
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    auto in = OIIO::ImageInput::open(path, &config);
     if (!in) throw InputError(path, "", "cannot read image: " + OIIO::geterror());
     const OIIO::ImageSpec& spec = in->spec();
     ImageSlice slice{spec.width, spec.height, spec.nchannels};

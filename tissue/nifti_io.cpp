@@ -73,19 +73,19 @@ void convert(const void* data, std::size_t count, double slope, double inter, fl
     for (std::size_t n = 0; n < count; ++n) out[n] = float(double(in[n]) * slope + inter);
 }
 
-void convert_voxels(const nifti_image& nim, std::size_t count, double slope, double inter,
-                    float* out) {
-    switch (nim.datatype) {
-        case DT_UINT8: convert<uint8_t>(nim.data, count, slope, inter, out); break;
-        case DT_INT8: convert<int8_t>(nim.data, count, slope, inter, out); break;
-        case DT_UINT16: convert<uint16_t>(nim.data, count, slope, inter, out); break;
-        case DT_INT16: convert<int16_t>(nim.data, count, slope, inter, out); break;
-        case DT_UINT32: convert<uint32_t>(nim.data, count, slope, inter, out); break;
-        case DT_INT32: convert<int32_t>(nim.data, count, slope, inter, out); break;
-        case DT_UINT64: convert<uint64_t>(nim.data, count, slope, inter, out); break;
-        case DT_INT64: convert<int64_t>(nim.data, count, slope, inter, out); break;
-        case DT_FLOAT32: convert<float>(nim.data, count, slope, inter, out); break;
-        case DT_FLOAT64: convert<double>(nim.data, count, slope, inter, out); break;
+void convert_voxels(int datatype, const void* data, std::size_t count, double slope,
+                    double inter, float* out) {
+    switch (datatype) {
+        case DT_UINT8: convert<uint8_t>(data, count, slope, inter, out); break;
+        case DT_INT8: convert<int8_t>(data, count, slope, inter, out); break;
+        case DT_UINT16: convert<uint16_t>(data, count, slope, inter, out); break;
+        case DT_INT16: convert<int16_t>(data, count, slope, inter, out); break;
+        case DT_UINT32: convert<uint32_t>(data, count, slope, inter, out); break;
+        case DT_INT32: convert<int32_t>(data, count, slope, inter, out); break;
+        case DT_UINT64: convert<uint64_t>(data, count, slope, inter, out); break;
+        case DT_INT64: convert<int64_t>(data, count, slope, inter, out); break;
+        case DT_FLOAT32: convert<float>(data, count, slope, inter, out); break;
+        case DT_FLOAT64: convert<double>(data, count, slope, inter, out); break;
         default: break;  // refused earlier by is_supported_datatype
     }
 }
@@ -96,6 +96,29 @@ double unit_to_mm(int xyz_units) {
         case NIFTI_UNITS_METER: return 1000.0;
         case NIFTI_UNITS_MICRON: return 0.001;
         default: return 1.0;
+    }
+}
+
+// Reads the voxel bytes from the data file (the .nii itself or the .img of a pair,
+// compressed or not) and refuses short files.
+void read_voxel_bytes(const nifti_image& nim, const std::string& path, std::vector<unsigned char>* bytes) {
+    const std::string data_file = nim.iname ? nim.iname : path;
+    gzFile file = gzopen(data_file.c_str(), "rb");
+    if (!file) throw InputError(data_file, "", "cannot open the voxel data file");
+    std::size_t got = 0;
+    if (gzseek(file, nim.iname_offset, SEEK_SET) == nim.iname_offset) {
+        while (got < bytes->size()) {
+            const unsigned chunk = unsigned(std::min<std::size_t>(bytes->size() - got, 1u << 30));
+            const int n = gzread(file, bytes->data() + got, chunk);
+            if (n <= 0) break;
+            got += std::size_t(n);
+        }
+    }
+    gzclose(file);
+    if (got < bytes->size()) {
+        throw InputError(data_file, "data",
+                         "file is truncated or corrupt: " + std::to_string(got) + " of " +
+                             std::to_string(bytes->size()) + " voxel bytes could be read");
     }
 }
 
@@ -153,13 +176,8 @@ NiftiReadResult read_nifti(const std::string& path) {
     }
     check_allocation(voxel_total * (hdr->bitpix / 8.0 + sizeof(float)), path, "dim");
 
-    NiftiImagePtr nim(nifti_image_read(path.c_str(), 1));
-    if (!nim || !nim->data) {
-        std::ostringstream s;
-        s << "could not read the voxel data (" << voxel_total * hdr->bitpix / 8.0
-          << " bytes expected): the file is truncated or corrupt";
-        throw InputError(path, "data", s.str());
-    }
+    NiftiImagePtr nim(nifti_image_read(path.c_str(), 0));  // header only
+    if (!nim) throw InputError(path, "header", "niftilib could not interpret the header");
 
     VolumeGeometry g;
     g.dims = glm::ivec3(nim->nx, std::max(1, nim->ny), std::max(1, nim->nz));
@@ -209,10 +227,18 @@ NiftiReadResult read_nifti(const std::string& path) {
     g.origin = glm::dvec3(affine[3]) * to_mm;
     g.validate(path);
 
-    // Voxels: scaled to float, NaN/Inf refused (the tracer's gradients would spread them).
-    std::vector<float> voxels(g.voxel_count());
+    // Voxels of the first 3D volume. Read here rather than by nifti_image_load, which
+    // zero-fills a truncated file with only a warning.
+    const std::size_t count = g.voxel_count();
+    std::vector<unsigned char> bytes(count * std::size_t(nim->nbyper));
+    read_voxel_bytes(*nim, path, &bytes);
+    if (nim->nbyper > 1 && nim->byteorder != nifti_short_order()) {
+        nifti_swap_Nbytes(count, nim->nbyper, bytes.data());
+    }
+    // Scaled to float; NaN/Inf refused (the tracer's gradients would spread them).
+    std::vector<float> voxels(count);
     const bool scaled = nim->scl_slope != 0.0f;
-    convert_voxels(*nim, voxels.size(), scaled ? nim->scl_slope : 1.0,
+    convert_voxels(nim->datatype, bytes.data(), count, scaled ? nim->scl_slope : 1.0,
                    scaled ? nim->scl_inter : 0.0, voxels.data());
     result.volume = Volume(g, std::move(voxels));
     result.volume.require_finite(path);
@@ -227,6 +253,7 @@ void write_nifti(const Volume& volume, const std::string& path) {
     int dims[8] = {3, g.dims.x, g.dims.y, g.dims.z, 1, 1, 1, 1};
     NiftiImagePtr nim(nifti_make_new_nim(dims, DT_FLOAT32, 1));
     if (!nim) throw InputError(path, "", "niftilib could not create the image");
+    nim->nifti_type = NIFTI_FTYPE_NIFTI1_1;  // single .nii(.gz) file
     std::memcpy(nim->data, volume.voxels().data(), volume.size() * sizeof(float));
 
     const glm::dmat4 affine = g.index_to_world_matrix();
@@ -257,7 +284,7 @@ void write_nifti(const Volume& volume, const std::string& path) {
     }
     nifti_image_write(nim.get());
     std::error_code ec;
-    if (!fs::exists(temporary, ec) || fs::file_size(temporary, ec) < 352) {
+    if (!fs::exists(temporary, ec) || fs::file_size(temporary, ec) == 0) {
         throw InputError(path, "", "writing the NIfTI file failed");
     }
     transaction.commit();

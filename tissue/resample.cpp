@@ -28,6 +28,12 @@ VolumeGeometry probe_grid(const ProbeFrame& frame, const GridExtent& extent,
     }
     VolumeGeometry g;
     const double h = extent.pixel_mm;
+    for (double length : {extent.width_mm, extent.depth_mm, extent.elevation_mm}) {
+        if (length / h > 1e8) {
+            throw InputError(source, "dims", "the grid would need more than 1e8 samples per axis "
+                                             "(memory); increase the resolution value");
+        }
+    }
     g.dims = glm::ivec3(std::max(1.0, std::round(extent.width_mm / h)),
                         std::max(1.0, std::round(extent.depth_mm / h)),
                         std::max(1.0, std::round(extent.elevation_mm / h)));

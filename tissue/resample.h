@@ -3,9 +3,10 @@
 // oriented sub-volumes, at a resolution independent of the source voxel size.
 //
 // A probe-aligned grid has index i along the lateral axis, j along the beam (depth) and
-// k along the elevation axis; (lateral, axial, elevation) is right-handed. Pixel (i, j)
-// covers lateral [-width/2 + i*h, -width/2 + (i+1)*h] and depth [j*h, (j+1)*h] from the
-// probe face centre, and the sample sits at the pixel centre.
+// k along the elevation axis; (lateral, axial, elevation) is right-handed. Extents are
+// rounded to whole pixels n = round(extent / h). Pixel centres sit at lateral
+// (i - (nx-1)/2) * h (symmetric about the beam axis), depth (j + 1/2) * h from the probe
+// face, and elevation (k - (nz-1)/2) * h.
 #include <glm/glm.hpp>
 
 #include "tissue/volume.h"

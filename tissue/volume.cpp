@@ -42,7 +42,8 @@ void VolumeGeometry::validate(const std::string& source) const {
                          "the axis directions are degenerate (determinant " +
                              std::to_string(det) + ")");
     }
-    check_allocation(double(voxel_count()) * sizeof(float), source, "dims");
+    // In double: a corrupt header's dims can overflow size_t.
+    check_allocation(double(dims.x) * double(dims.y) * double(dims.z) * sizeof(float), source, "dims");
 }
 
 Volume::Volume(const VolumeGeometry& geometry, float fill)

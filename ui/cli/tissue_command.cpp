@@ -47,7 +47,7 @@ constexpr ParameterDoc kWidthDoc = {"--width", "mm",
                                     "extent)"};
 constexpr ParameterDoc kDepthDoc = {"--depth", "mm",
                                     "depth of the slice from the probe face; 0 = automatic "
-                                    "(150 mm for the default volume, else the volume's extent)"};
+                                    "(160 mm for the default volume, else the volume's extent)"};
 constexpr ParameterDoc kResolutionDoc = {"--resolution", "mm/pixel",
                                          "sample spacing of the slice, independent of the voxel "
                                          "size (trilinear interpolation)"};
@@ -189,7 +189,7 @@ int run_tissue_command(const TissueOptions& options) {
     tissue::GridExtent extent;
     const glm::dvec3 size_mm = glm::dvec3(volume.dims()) * volume.geometry().spacing;
     extent.width_mm = options.width_mm > 0 ? options.width_mm : (is_default ? 140.0 : size_mm.x);
-    extent.depth_mm = options.depth_mm > 0 ? options.depth_mm : (is_default ? 150.0 : size_mm.y);
+    extent.depth_mm = options.depth_mm > 0 ? options.depth_mm : (is_default ? 160.0 : size_mm.y);
     extent.elevation_mm = options.elevation_mm;
     extent.pixel_mm = options.resolution_mm;
     const tissue::VolumeGeometry grid = tissue::probe_grid(pose->frame(), extent, "--width/--depth/--resolution");

@@ -1,0 +1,126 @@
+// AcousticMap: gradients by central differences against analytic gradients of smooth
+// fields (2D and 3D) within the truncation-error bound, exact bi/trilinear sampling of
+// linear fields, domain test.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "tissue/acoustic_map.h"
+
+namespace sonotrace::tissue {
+namespace {
+
+// c(x, y, z) = 1540 + 50 sin(x/L) cos(y/L) cos(z/L) m/s, positions in mm.
+constexpr double kL = 5.0, kAmp = 50.0, kRho = 1000.0;
+double speed_at(glm::dvec3 p) { return 1540.0 + kAmp * std::sin(p.x / kL) * std::cos(p.y / kL) * std::cos(p.z / kL); }
+glm::dvec3 speed_gradient(glm::dvec3 p) {
+    const double a = kAmp / kL;
+    return {a * std::cos(p.x / kL) * std::cos(p.y / kL) * std::cos(p.z / kL),
+            -a * std::sin(p.x / kL) * std::sin(p.y / kL) * std::cos(p.z / kL),
+            -a * std::sin(p.x / kL) * std::cos(p.y / kL) * std::sin(p.z / kL)};
+}
+
+PropertyMaps smooth_maps(glm::ivec3 dims, double h) {
+    VolumeGeometry g;
+    g.dims = dims;
+    g.spacing = glm::dvec3(h);
+    PropertyMaps maps;
+    for (Volume& f : maps.fields) f = Volume(g, 0.0f);
+    for (int k = 0; k < dims.z; ++k)
+        for (int j = 0; j < dims.y; ++j)
+            for (int i = 0; i < dims.x; ++i) {
+                const glm::dvec3 p = glm::dvec3(i, j, k) * h;
+                maps[Property::speed_of_sound].at(i, j, k) = float(speed_at(p));
+                maps[Property::density].at(i, j, k) = float(kRho);
+                maps[Property::attenuation].at(i, j, k) = float(0.5 + 0.01 * p.x - 0.02 * p.y + 0.03 * p.z);
+            }
+    return maps;
+}
+
+// Central differences err by h^2/6 * |f'''|; bilinear interpolation of the texel
+// gradients adds at most h^2/8 * |g''| per axis. With |d^3 c| <= amp/L^3 along an axis:
+double gradient_tolerance(double h, int dims) {
+    const double third = kAmp / (kL * kL * kL);
+    return (h * h / 6.0 + dims * h * h / 8.0) * third * 1.5 + 1e-4;  // 1.5: mixed-term margin; 1e-4: float rounding
+}
+
+template <int Dim>
+void check_gradients(const AcousticMap<Dim>& map, double h, int samples) {
+    std::mt19937 rng(5);
+    const auto extent = map.extent_mm();
+    double worst_z = 0.0, worst_n = 0.0;
+    for (int s = 0; s < samples; ++s) {
+        glm::vec<Dim, float> p;
+        glm::dvec3 w(0.0);
+        for (int a = 0; a < Dim; ++a) {
+            // Keep one texel away from the border, where differences are one-sided.
+            p[a] = std::uniform_real_distribution<float>(float(h), extent[a] - float(h))(rng);
+            w[a] = p[a];
+        }
+        const AcousticTexel<Dim> t = map.sample(p);
+        const glm::dvec3 gc = speed_gradient(w);
+        const double c = speed_at(w);
+        for (int a = 0; a < Dim; ++a) {
+            // Z = rho c: dZ = rho dc (MRayl); n = c0/c: dn = -c0 dc / c^2.
+            worst_z = std::max(worst_z, std::abs(t.grad_impedance[a] - kRho * gc[a] * 1e-6) / (kRho * 1e-6));
+            worst_n = std::max(worst_n, std::abs(t.grad_refractive_index[a] + kReferenceSpeed * gc[a] / (c * c)) /
+                                            (kReferenceSpeed / (c * c)));
+        }
+    }
+    // Both are expressed as errors in dc/dx (m/s per mm).
+    EXPECT_LT(worst_z, gradient_tolerance(h, Dim));
+    EXPECT_LT(worst_n, gradient_tolerance(h, Dim) + 0.005);  // n is a float near 1: ~4e-4 rounding
+    ::testing::Test::RecordProperty("worst_dc_error_from_Z", std::to_string(worst_z));
+}
+
+TEST(AcousticMap, GradientsMatchAnalytic2D) {
+    const double h = 0.25;
+    const auto map = AcousticMap<2>::build(smooth_maps({160, 120, 1}, h));
+    check_gradients(map, h, 2000);
+}
+
+TEST(AcousticMap, GradientsMatchAnalytic3D) {
+    const double h = 0.5;
+    const auto map = AcousticMap<3>::build(smooth_maps({48, 40, 36}, h));
+    check_gradients(map, h, 2000);
+}
+
+TEST(AcousticMap, TexelCentreGradientIsTheCentralDifference) {
+    const double h = 0.25;
+    const auto maps = smooth_maps({20, 20, 1}, h);
+    const auto map = AcousticMap<2>::build(maps);
+    const auto& t = map.texel({7, 9});
+    const double z_plus = maps[Property::speed_of_sound].at(8, 9) * kRho * 1e-6;
+    const double z_minus = maps[Property::speed_of_sound].at(6, 9) * kRho * 1e-6;
+    EXPECT_NEAR(t.grad_impedance[0], (z_plus - z_minus) / (2 * h), 1e-6);
+    // One-sided at the border.
+    const auto& edge = map.texel({0, 9});
+    const double z1 = maps[Property::speed_of_sound].at(1, 9) * kRho * 1e-6;
+    const double z0 = maps[Property::speed_of_sound].at(0, 9) * kRho * 1e-6;
+    EXPECT_NEAR(edge.grad_impedance[0], (z1 - z0) / h, 1e-6);
+}
+
+TEST(AcousticMap, SamplingIsExactForLinearFields) {
+    const auto map = AcousticMap<3>::build(smooth_maps({12, 10, 8}, 0.5));
+    std::mt19937 rng(9);
+    for (int s = 0; s < 500; ++s) {
+        const glm::vec3 p(std::uniform_real_distribution<float>(0, 5.5f)(rng),
+                          std::uniform_real_distribution<float>(0, 4.5f)(rng),
+                          std::uniform_real_distribution<float>(0, 3.5f)(rng));
+        EXPECT_NEAR(map.sample(p).attenuation, 0.5 + 0.01 * p.x - 0.02 * p.y + 0.03 * p.z, 1e-5);
+    }
+}
+
+TEST(AcousticMap, DomainIsTheTexelCentreBox) {
+    const auto map = AcousticMap<2>::build(smooth_maps({11, 21, 1}, 0.5));
+    EXPECT_TRUE(map.inside({0.0f, 0.0f}));
+    EXPECT_TRUE(map.inside({5.0f, 10.0f}));
+    EXPECT_FALSE(map.inside({5.01f, 1.0f}));
+    EXPECT_FALSE(map.inside({1.0f, -0.01f}));
+    // Outside samples clamp to the edge texel.
+    EXPECT_EQ(map.sample({-3.0f, 0.0f}).impedance, map.texel({0, 0}).impedance);
+}
+
+}  // namespace
+}  // namespace sonotrace::tissue

@@ -1,0 +1,131 @@
+// 2D images and numbered stacks through OpenImageIO: stored integer values are kept,
+// colour becomes Rec. 709 luminance, stacks are ordered numerically, spacing is the user's.
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <fstream>
+
+#include "test_util.h"
+#include "tissue/image_io.h"
+#include "tissue/volume_io.h"
+
+namespace sonotrace::tissue {
+namespace {
+
+using test::expect_input_error;
+using test::ScratchDir;
+
+// Writes raw channel values with OIIO (independent of our writer).
+template <typename T>
+void write_oiio(const std::string& path, int w, int h, int channels, OIIO::TypeDesc type,
+                const std::vector<T>& values) {
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out) << OIIO::geterror();
+    OIIO::ImageSpec spec(w, h, channels, type);
+    spec.attribute("oiio:UnassociatedAlpha", 1);  // store colour as given, not divided by alpha
+    ASSERT_TRUE(out->open(path, spec));
+    ASSERT_TRUE(out->write_image(type, values.data()));
+    ASSERT_TRUE(out->close());
+}
+
+TEST(ImageIo, EightAndSixteenBitPngKeepStoredValues) {
+    ScratchDir dir;
+    std::vector<uint8_t> v8 = {0, 1, 2, 100, 200, 255};
+    write_oiio(dir / "a.png", 3, 2, 1, OIIO::TypeDesc::UINT8, v8);
+    const Volume a = read_image(dir / "a.png", {0.5, 0.25, 1.0});
+    ASSERT_EQ(a.dims(), glm::ivec3(3, 2, 1));
+    for (int n = 0; n < 6; ++n) EXPECT_EQ(a.voxels()[n], float(v8[n]));
+    EXPECT_EQ(a.at(1, 1), 200.0f);  // i = column, j = row
+    EXPECT_NEAR(a.geometry().index_to_world({2, 1, 0}).x, 1.0, 1e-12);
+    EXPECT_NEAR(a.geometry().index_to_world({2, 1, 0}).y, 0.25, 1e-12);
+
+    std::vector<uint16_t> v16 = {0, 1, 1000, 40000, 65535, 12345};
+    write_oiio(dir / "b.png", 2, 3, 1, OIIO::TypeDesc::UINT16, v16);
+    const Volume b = read_image(dir / "b.png", {1, 1, 1});
+    for (int n = 0; n < 6; ++n) EXPECT_EQ(b.voxels()[n], float(v16[n]));
+}
+
+TEST(ImageIo, TiffExrAndColourLuminance) {
+    ScratchDir dir;
+    std::vector<uint16_t> t = {5, 6, 7, 8};
+    write_oiio(dir / "t.tif", 2, 2, 1, OIIO::TypeDesc::UINT16, t);
+    EXPECT_EQ(read_image(dir / "t.tif", {1, 1, 1}).voxels(), std::vector<float>({5, 6, 7, 8}));
+
+    std::vector<float> e = {-1.5f, 0.25f, 1e3f, 3.0f};
+    write_oiio(dir / "e.exr", 4, 1, 1, OIIO::TypeDesc::FLOAT, e);
+    EXPECT_EQ(read_image(dir / "e.exr", {1, 1, 1}).voxels(), e);
+
+    // RGBA pixel (100, 200, 50, 7): luminance 0.2126*100 + 0.7152*200 + 0.0722*50; alpha ignored.
+    std::vector<uint8_t> rgba = {100, 200, 50, 7};
+    write_oiio(dir / "c.png", 1, 1, 4, OIIO::TypeDesc::UINT8, rgba);
+    EXPECT_NEAR(read_image(dir / "c.png", {1, 1, 1}).voxels()[0], 0.2126 * 100 + 0.7152 * 200 + 0.0722 * 50, 1e-3);
+}
+
+TEST(ImageIo, JpegIsReadWithinCompressionError) {
+    ScratchDir dir;
+    std::vector<uint8_t> flat(64, 128);
+    write_oiio(dir / "j.jpg", 8, 8, 1, OIIO::TypeDesc::UINT8, flat);
+    const Volume jpeg = read_image(dir / "j.jpg", {1, 1, 1});
+    for (float v : jpeg.voxels()) EXPECT_NEAR(v, 128.0f, 2.0f);
+}
+
+TEST(ImageIo, StacksFromDirectoryAndPatternInNumericOrder) {
+    ScratchDir dir;
+    std::filesystem::create_directories(dir / "stack");
+    // Indices 1..11 so that lexical order (1, 10, 11, 2, ...) differs from numeric order.
+    for (int k = 1; k <= 11; ++k) {
+        write_oiio(dir / ("stack/slice_" + std::to_string(k) + ".png"), 2, 2, 1, OIIO::TypeDesc::UINT8,
+                   std::vector<uint8_t>(4, uint8_t(k * 10)));
+    }
+    LoadedVolume v = load_volume({dir / "stack", glm::dvec3(0.5, 0.5, 2.0)});
+    ASSERT_EQ(v.volume.dims(), glm::ivec3(2, 2, 11));
+    for (int k = 0; k < 11; ++k) EXPECT_EQ(v.volume.at(1, 1, k), float((k + 1) * 10));
+    EXPECT_NEAR(v.volume.geometry().index_to_world({0, 0, 3}).z, 6.0, 1e-12);
+    EXPECT_EQ(v.format, "image-stack");
+
+    v = load_volume({dir / "stack/slice_%d.png", glm::dvec3(1, 1, 1)});
+    ASSERT_EQ(v.volume.dims().z, 11);
+    EXPECT_EQ(v.volume.at(0, 0, 10), 110.0f);
+}
+
+TEST(ImageIo, OurGrayWriterRoundTrips) {
+    ScratchDir dir;
+    const std::vector<float> values = {0, 17, 255, 3};
+    write_gray_image(dir / "g8.png", 2, 2, values, 8);
+    EXPECT_EQ(read_image(dir / "g8.png", {1, 1, 1}).voxels(), values);
+    const std::vector<float> big = {0, 1000, 65535, 42};
+    write_gray_image(dir / "g16.png", 2, 2, big, 16);
+    EXPECT_EQ(read_image(dir / "g16.png", {1, 1, 1}).voxels(), big);
+}
+
+TEST(ImageIoErrors, SpacingIsRequiredAndValidated) {
+    ScratchDir dir;
+    write_oiio(dir / "a.png", 2, 2, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>(4, 1));
+    expect_input_error([&] { load_volume({dir / "a.png", std::nullopt}); }, "a.png", "--spacing", "mm");
+    expect_input_error([&] { load_volume({dir / "a.png", glm::dvec3(1, 0, 1)}); }, "a.png", "spacing[j]");
+}
+
+TEST(ImageIoErrors, MismatchedSlicesMissingAndCorruptFiles) {
+    ScratchDir dir;
+    std::filesystem::create_directories(dir / "s");
+    write_oiio(dir / "s/i0.png", 2, 2, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>(4, 1));
+    write_oiio(dir / "s/i1.png", 3, 2, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>(6, 1));
+    expect_input_error([&] { load_volume({dir / "s", glm::dvec3(1)}); }, "i1.png", "size", "differs");
+    expect_input_error([&] { load_volume({dir / "none_%03d.png", glm::dvec3(1)}); }, "none_%03d.png", "",
+                       "no file matches");
+    expect_input_error([&] { load_volume({dir / "missing.png", glm::dvec3(1)}); }, "missing.png", "", "not found");
+    std::ofstream(dir / "bad.png") << "this is not a PNG file at all";
+    expect_input_error([&] { load_volume({dir / "bad.png", glm::dvec3(1)}); }, "bad.png", "");
+    std::filesystem::create_directories(dir / "empty");
+    expect_input_error([&] { load_volume({dir / "empty", glm::dvec3(1)}); }, "empty", "", "no image files");
+}
+
+TEST(ImageIoErrors, NanPixelsInExr) {
+    ScratchDir dir;
+    write_oiio(dir / "n.exr", 2, 1, 1, OIIO::TypeDesc::FLOAT, std::vector<float>{1.0f, std::nanf("")});
+    expect_input_error([&] { read_image(dir / "n.exr", {1, 1, 1}); }, "n.exr", "data", "(1, 0, 0)");
+}
+
+}  // namespace
+}  // namespace sonotrace::tissue

@@ -1,0 +1,133 @@
+// Volume: index <-> world transforms, interpolation, quantiles, geometry validation,
+// and the atomic output transaction.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <random>
+
+#include "test_util.h"
+#include "tissue/atomic_output.h"
+#include "tissue/volume.h"
+
+namespace sonotrace::tissue {
+namespace {
+
+VolumeGeometry oblique_geometry() {
+    VolumeGeometry g;
+    g.dims = {6, 5, 4};
+    g.spacing = {0.8, 1.1, 2.5};
+    g.origin = {12.0, -7.0, 3.0};
+    // A rotation about (1,1,1) by 40 degrees, built by hand (Rodrigues).
+    const glm::dvec3 k = glm::normalize(glm::dvec3(1, 1, 1));
+    const double a = glm::radians(40.0), c = std::cos(a), s = std::sin(a);
+    glm::dmat3 K(0.0);
+    K[1][0] = k.z, K[2][0] = -k.y, K[0][1] = -k.z, K[2][1] = k.x, K[0][2] = k.y, K[1][2] = -k.x;
+    g.direction = glm::dmat3(1.0) + s * K + (1 - c) * K * K;
+    return g;
+}
+
+TEST(Volume, IndexWorldRoundTripAndSpacing) {
+    const VolumeGeometry g = oblique_geometry();
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-3, 8);
+    for (int n = 0; n < 100; ++n) {
+        const glm::dvec3 p(u(rng), u(rng), u(rng));
+        const glm::dvec3 back = g.world_to_index(g.index_to_world(p));
+        EXPECT_NEAR(glm::length(back - p), 0.0, 1e-12);
+    }
+    // One step along index axis a moves spacing[a] mm in the world (rotation preserves length).
+    for (int a = 0; a < 3; ++a) {
+        glm::dvec3 step(0.0);
+        step[a] = 1.0;
+        EXPECT_NEAR(glm::length(g.index_to_world(step) - g.origin), g.spacing[a], 1e-12);
+    }
+    // The 4x4 matrix form agrees with the function form.
+    const glm::dvec4 w = g.index_to_world_matrix() * glm::dvec4(1.5, 2, 3, 1);
+    EXPECT_NEAR(glm::length(glm::dvec3(w) - g.index_to_world({1.5, 2, 3})), 0.0, 1e-12);
+}
+
+TEST(Volume, TrilinearIsExactOnLinearFields) {
+    // Trilinear interpolation reproduces any affine function exactly.
+    Volume v(oblique_geometry());
+    auto f = [](glm::dvec3 p) { return 2.0 * p.x - 3.0 * p.y + 0.5 * p.z + 4.0; };
+    for (int k = 0; k < 4; ++k)
+        for (int j = 0; j < 5; ++j)
+            for (int i = 0; i < 6; ++i) v.at(i, j, k) = float(f({double(i), double(j), double(k)}));
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> ux(0, 5), uy(0, 4), uz(0, 3);
+    for (int n = 0; n < 200; ++n) {
+        const glm::dvec3 p(ux(rng), uy(rng), uz(rng));
+        EXPECT_NEAR(v.sample_trilinear(p, -1e9f), f(p), 1e-4);
+    }
+    // Beyond half a voxel from the outer centres: the outside value.
+    EXPECT_EQ(v.sample_trilinear({-0.6, 1, 1}, -7.0f), -7.0f);
+    EXPECT_EQ(v.sample_trilinear({1, 4.51, 1}, -7.0f), -7.0f);
+    // Within half a voxel: clamped to the edge.
+    EXPECT_NEAR(v.sample_trilinear({-0.4, 1, 1}, -7.0f), f({0, 1, 1}), 1e-5);
+    EXPECT_EQ(v.sample_nearest({2.4, 1.6, 0.2}, 0.0f), v.at(2, 2, 0));
+}
+
+TEST(Volume, QuantileOfUniformRamp) {
+    VolumeGeometry g;
+    g.dims = {1000, 1, 1};
+    Volume v(g);
+    for (int i = 0; i < 1000; ++i) v.at(i, 0) = float(i);  // uniform on 0..999
+    EXPECT_NEAR(v.quantile(0.25), 250.0, 1.0);
+    EXPECT_NEAR(v.quantile(0.9), 900.0, 1.0);
+    EXPECT_EQ(v.quantile(0.0), 0.0f);
+    EXPECT_EQ(v.value_range(), std::make_pair(0.0f, 999.0f));
+}
+
+TEST(Volume, ValidateNamesTheBadField) {
+    VolumeGeometry g;
+    g.spacing = {1, 0, 1};
+    test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "spacing[j]", "positive");
+    g.spacing = {1, 1, -2};
+    test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "spacing[k]", "positive");
+    g = VolumeGeometry{};
+    g.dims = {0, 4, 4};
+    test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "dims[i]");
+    g = VolumeGeometry{};
+    g.direction[2] = g.direction[0];
+    test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "direction", "degenerate");
+    g = VolumeGeometry{};
+    g.dims = {100000, 100000, 100000};
+    test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "dims", "memory");
+}
+
+TEST(Volume, RequireFiniteNamesVoxel) {
+    VolumeGeometry g;
+    g.dims = {3, 3, 2};
+    Volume v(g, 1.0f);
+    EXPECT_NO_THROW(v.require_finite("x"));
+    v.at(2, 1, 1) = std::nanf("");
+    test::expect_input_error([&] { v.require_finite("x.raw"); }, "x.raw", "data", "(2, 1, 1)");
+}
+
+TEST(OutputTransaction, UncommittedFilesVanishCommittedOnesAppear) {
+    test::ScratchDir dir;
+    const std::string a = dir / "sub/a.txt", b = dir / "b.txt";
+    {
+        OutputTransaction t;
+        std::ofstream(t.stage(a)) << "a";
+        std::ofstream(t.stage(b)) << "b";
+        EXPECT_FALSE(std::filesystem::exists(a));
+    }  // destroyed without commit
+    EXPECT_FALSE(std::filesystem::exists(a));
+    EXPECT_FALSE(std::filesystem::exists(b));
+    EXPECT_TRUE(std::filesystem::is_empty(dir / "sub"));
+    {
+        OutputTransaction t;
+        std::ofstream(t.stage(a)) << "a";
+        t.commit();
+    }
+    std::ifstream in(a);
+    std::string text;
+    in >> text;
+    EXPECT_EQ(text, "a");
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir / "sub"), {}), 1);
+}
+
+}  // namespace
+}  // namespace sonotrace::tissue
