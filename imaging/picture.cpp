@@ -15,14 +15,22 @@ namespace {
 
 int opencv_colormap(Colormap c) {
     switch (c) {
-        case Colormap::viridis: return cv::COLORMAP_VIRIDIS;
-        case Colormap::inferno: return cv::COLORMAP_INFERNO;
-        case Colormap::magma: return cv::COLORMAP_MAGMA;
-        case Colormap::plasma: return cv::COLORMAP_PLASMA;
-        case Colormap::turbo: return cv::COLORMAP_TURBO;
-        case Colormap::cividis: return cv::COLORMAP_CIVIDIS;
-        case Colormap::bone: return cv::COLORMAP_BONE;
-        case Colormap::gray: break;
+        case Colormap::viridis:
+            return cv::COLORMAP_VIRIDIS;
+        case Colormap::inferno:
+            return cv::COLORMAP_INFERNO;
+        case Colormap::magma:
+            return cv::COLORMAP_MAGMA;
+        case Colormap::plasma:
+            return cv::COLORMAP_PLASMA;
+        case Colormap::turbo:
+            return cv::COLORMAP_TURBO;
+        case Colormap::cividis:
+            return cv::COLORMAP_CIVIDIS;
+        case Colormap::bone:
+            return cv::COLORMAP_BONE;
+        case Colormap::gray:
+            break;
     }
     return -1;
 }
@@ -31,17 +39,22 @@ int opencv_colormap(Colormap c) {
 cv::Mat colorize(const cv::Mat& gray8, Colormap c) {
     cv::Mat bgr;
     const int cmap = opencv_colormap(c);
-    if (cmap < 0) cv::cvtColor(gray8, bgr, cv::COLOR_GRAY2BGR);
-    else cv::applyColorMap(gray8, bgr, cmap);
+    if (cmap < 0)
+        cv::cvtColor(gray8, bgr, cv::COLOR_GRAY2BGR);
+    else
+        cv::applyColorMap(gray8, bgr, cmap);
     return bgr;
 }
 
 std::string label(double v) {
     char buffer[32];
     const double a = std::abs(v);
-    if (a != 0.0 && (a < 0.01 || a >= 1e5)) std::snprintf(buffer, sizeof buffer, "%.2e", v);
-    else if (a < 10.0) std::snprintf(buffer, sizeof buffer, "%.3g", v);
-    else std::snprintf(buffer, sizeof buffer, "%.0f", v);
+    if (a != 0.0 && (a < 0.01 || a >= 1e5))
+        std::snprintf(buffer, sizeof buffer, "%.2e", v);
+    else if (a < 10.0)
+        std::snprintf(buffer, sizeof buffer, "%.3g", v);
+    else
+        std::snprintf(buffer, sizeof buffer, "%.0f", v);
     return buffer;
 }
 
@@ -91,14 +104,17 @@ cv::Mat render_field(const tissue::Volume& field, const FieldStyle& style) {
     // Colour bar: top = hi.
     const int bar_x = margin * 2 + shown.cols, bar_h = shown.rows;
     cv::Mat ramp(bar_h, 1, CV_8U);
-    for (int r = 0; r < bar_h; ++r) ramp.at<uint8_t>(r) = uint8_t(255 - 255 * r / std::max(bar_h - 1, 1));
+    for (int r = 0; r < bar_h; ++r)
+        ramp.at<uint8_t>(r) = uint8_t(255 - 255 * r / std::max(bar_h - 1, 1));
     cv::Mat ramp_bgr;
-    cv::resize(colorize(ramp, style.colormap), ramp_bgr, cv::Size(bar_w, bar_h), 0, 0, cv::INTER_NEAREST);
+    cv::resize(colorize(ramp, style.colormap), ramp_bgr, cv::Size(bar_w, bar_h), 0, 0,
+               cv::INTER_NEAREST);
     ramp_bgr.copyTo(canvas(cv::Rect(bar_x, title_h, bar_w, bar_h)));
     for (int tick = 0; tick <= 4; ++tick) {
         const double t = tick / 4.0;  // fraction of the bar from the bottom
         double v = lo + t * (hi - lo);
-        if (style.log_scale) v = lo + floor * (std::exp(t * std::log(1.0 + (hi - lo) / floor)) - 1.0);
+        if (style.log_scale)
+            v = lo + floor * (std::exp(t * std::log(1.0 + (hi - lo) / floor)) - 1.0);
         const int y = title_h + int((1.0 - t) * (bar_h - 1));
         cv::line(canvas, {bar_x + bar_w, y}, {bar_x + bar_w + 4, y}, text);
         cv::putText(canvas, label(v), {bar_x + bar_w + 7, y + 5}, font, 0.45, text, 1, cv::LINE_AA);
@@ -109,7 +125,8 @@ cv::Mat render_field(const tissue::Volume& field, const FieldStyle& style) {
         if (len > 4 && len < shown.cols) {
             const int y = title_h + shown.rows - 10, x0 = margin + 8;
             cv::line(canvas, {x0, y}, {x0 + len, y}, cv::Scalar(255, 255, 255), 2);
-            cv::putText(canvas, "10 mm", {x0, y - 6}, font, 0.45, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+            cv::putText(canvas, "10 mm", {x0, y - 6}, font, 0.45, cv::Scalar(255, 255, 255), 1,
+                        cv::LINE_AA);
         }
     }
     return canvas;
@@ -120,19 +137,23 @@ cv::Mat montage(const std::vector<cv::Mat>& pictures, int columns) {
     columns = std::max(1, std::min<int>(columns, int(pictures.size())));
     const int rows = (int(pictures.size()) + columns - 1) / columns;
     int cell_w = 0, cell_h = 0;
-    for (const cv::Mat& p : pictures) cell_w = std::max(cell_w, p.cols), cell_h = std::max(cell_h, p.rows);
+    for (const cv::Mat& p : pictures)
+        cell_w = std::max(cell_w, p.cols), cell_h = std::max(cell_h, p.rows);
     cv::Mat sheet(rows * cell_h, columns * cell_w, CV_8UC3, cv::Scalar(24, 24, 24));
     for (std::size_t n = 0; n < pictures.size(); ++n) {
         const int r = int(n) / columns, c = int(n) % columns;
-        pictures[n].copyTo(sheet(cv::Rect(c * cell_w, r * cell_h, pictures[n].cols, pictures[n].rows)));
+        pictures[n].copyTo(
+            sheet(cv::Rect(c * cell_w, r * cell_h, pictures[n].cols, pictures[n].rows)));
     }
     return sheet;
 }
 
 void write_png(const cv::Mat& picture, const std::string& path) {
     cv::Mat rgb;
-    if (picture.channels() == 3) cv::cvtColor(picture, rgb, cv::COLOR_BGR2RGB);
-    else rgb = picture.clone();
+    if (picture.channels() == 3)
+        cv::cvtColor(picture, rgb, cv::COLOR_BGR2RGB);
+    else
+        rgb = picture.clone();
     auto out = OIIO::ImageOutput::create(path);
     if (!out) throw tissue::InputError(path, "", "no PNG writer: " + OIIO::geterror());
     OIIO::ImageSpec spec(rgb.cols, rgb.rows, rgb.channels(), OIIO::TypeDesc::UINT8);

@@ -15,12 +15,12 @@ namespace sonotrace::imaging {
 enum class Colormap { gray, viridis, inferno, magma, plasma, turbo, cividis, bone };
 
 struct FieldStyle {
-    std::string title;               // e.g. "speed of sound"
-    std::string unit;                // e.g. "m/s"
+    std::string title;  // e.g. "speed of sound"
+    std::string unit;   // e.g. "m/s"
     Colormap colormap = Colormap::viridis;
     std::optional<std::pair<double, double>> range;  // default: the field's min..max
-    bool log_scale = false;          // colour by log10(1 + v / (1e-3*max))
-    double pixel_mm = 0.0;           // > 0 draws a 10 mm scale bar
+    bool log_scale = false;                          // colour by log10(1 + v / (1e-3*max))
+    double pixel_mm = 0.0;                           // > 0 draws a 10 mm scale bar
 };
 
 // Renders the k = 0 plane of `field` (rows = j, columns = i) as an 8-bit BGR picture with

@@ -16,7 +16,8 @@ glm::dvec3 parse_vec3(const std::string& text, const std::string& source, const 
     char comma = 0;
     if (!(in >> v.x >> comma >> v.y) || comma != ',' || !(in >> comma >> v.z) || comma != ',' ||
         !(in >> std::ws).eof()) {
-        throw tissue::InputError(source, key, "expected three comma-separated numbers, got '" + text + "'");
+        throw tissue::InputError(source, key,
+                                 "expected three comma-separated numbers, got '" + text + "'");
     }
     if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
         throw tissue::InputError(source, key, "values must be finite");
@@ -33,7 +34,8 @@ double parse_degrees(const std::string& text, const std::string& source, const s
         used = 0;
     }
     if (used != text.size() || !std::isfinite(v) || std::abs(v) > 360.0) {
-        throw tissue::InputError(source, key, "expected an angle in degrees in [-360, 360], got '" + text + "'");
+        throw tissue::InputError(source, key,
+                                 "expected an angle in degrees in [-360, 360], got '" + text + "'");
     }
     return v;
 }
@@ -83,15 +85,23 @@ Pose parse_pose(const std::string& text, const std::string& source) {
     while (in >> token) {
         const auto eq = token.find('=');
         if (eq == std::string::npos) {
-            throw tissue::InputError(source, token, "expected key=value (keys: at, beam, lateral, rotate, tilt)");
+            throw tissue::InputError(source, token,
+                                     "expected key=value (keys: at, beam, lateral, rotate, tilt)");
         }
         const std::string key = token.substr(0, eq), value = token.substr(eq + 1);
-        if (key == "at") at = parse_vec3(value, source, key), has_at = true;
-        else if (key == "beam") beam = parse_vec3(value, source, key), has_beam = true;
-        else if (key == "lateral") lateral = parse_vec3(value, source, key), has_lateral = true;
-        else if (key == "rotate") rotate = parse_degrees(value, source, key);
-        else if (key == "tilt") tilt = parse_degrees(value, source, key);
-        else throw tissue::InputError(source, key, "unknown key (keys: at, beam, lateral, rotate, tilt)");
+        if (key == "at")
+            at = parse_vec3(value, source, key), has_at = true;
+        else if (key == "beam")
+            beam = parse_vec3(value, source, key), has_beam = true;
+        else if (key == "lateral")
+            lateral = parse_vec3(value, source, key), has_lateral = true;
+        else if (key == "rotate")
+            rotate = parse_degrees(value, source, key);
+        else if (key == "tilt")
+            tilt = parse_degrees(value, source, key);
+        else
+            throw tissue::InputError(source, key,
+                                     "unknown key (keys: at, beam, lateral, rotate, tilt)");
     }
     if (!has_at) throw tissue::InputError(source, "at", "is required (probe face centre in mm)");
     if (!has_beam) throw tissue::InputError(source, "beam", "is required (beam direction)");

@@ -13,7 +13,7 @@
 namespace sonotrace::probe {
 
 struct Pose {
-    glm::dvec3 position{0.0};             // mm, world
+    glm::dvec3 position{0.0};            // mm, world
     glm::dquat orientation{1, 0, 0, 0};  // probe-local -> world rotation
 
     glm::dvec3 lateral() const { return orientation * glm::dvec3(1, 0, 0); }

@@ -13,7 +13,9 @@ namespace {
 
 // c(x, y, z) = 1540 + 50 sin(x/L) cos(y/L) cos(z/L) m/s, positions in mm.
 constexpr double kL = 5.0, kAmp = 50.0, kRho = 1000.0;
-double speed_at(glm::dvec3 p) { return 1540.0 + kAmp * std::sin(p.x / kL) * std::cos(p.y / kL) * std::cos(p.z / kL); }
+double speed_at(glm::dvec3 p) {
+    return 1540.0 + kAmp * std::sin(p.x / kL) * std::cos(p.y / kL) * std::cos(p.z / kL);
+}
 glm::dvec3 speed_gradient(glm::dvec3 p) {
     const double a = kAmp / kL;
     return {a * std::cos(p.x / kL) * std::cos(p.y / kL) * std::cos(p.z / kL),
@@ -33,7 +35,8 @@ PropertyMaps smooth_maps(glm::ivec3 dims, double h) {
                 const glm::dvec3 p = glm::dvec3(i, j, k) * h;
                 maps[Property::speed_of_sound].at(i, j, k) = float(speed_at(p));
                 maps[Property::density].at(i, j, k) = float(kRho);
-                maps[Property::attenuation].at(i, j, k) = float(0.5 + 0.01 * p.x - 0.02 * p.y + 0.03 * p.z);
+                maps[Property::attenuation].at(i, j, k) =
+                    float(0.5 + 0.01 * p.x - 0.02 * p.y + 0.03 * p.z);
             }
     return maps;
 }
@@ -42,7 +45,8 @@ PropertyMaps smooth_maps(glm::ivec3 dims, double h) {
 // gradients adds at most h^2/8 * |g''| per axis. With |d^3 c| <= amp/L^3 along an axis:
 double gradient_tolerance(double h, int dims) {
     const double third = kAmp / (kL * kL * kL);
-    return (h * h / 6.0 + dims * h * h / 8.0) * third * 1.5 + 1e-4;  // 1.5: mixed-term margin; 1e-4: float rounding
+    return (h * h / 6.0 + dims * h * h / 8.0) * third * 1.5 +
+           1e-4;  // 1.5: mixed-term margin; 1e-4: float rounding
 }
 
 template <int Dim>
@@ -63,9 +67,11 @@ void check_gradients(const AcousticMap<Dim>& map, double h, int samples) {
         const double c = speed_at(w);
         for (int a = 0; a < Dim; ++a) {
             // Z = rho c: dZ = rho dc (MRayl); n = c0/c: dn = -c0 dc / c^2.
-            worst_z = std::max(worst_z, std::abs(t.grad_impedance[a] - kRho * gc[a] * 1e-6) / (kRho * 1e-6));
-            worst_n = std::max(worst_n, std::abs(t.grad_refractive_index[a] + kReferenceSpeed * gc[a] / (c * c)) /
-                                            (kReferenceSpeed / (c * c)));
+            worst_z = std::max(worst_z,
+                               std::abs(t.grad_impedance[a] - kRho * gc[a] * 1e-6) / (kRho * 1e-6));
+            worst_n = std::max(
+                worst_n, std::abs(t.grad_refractive_index[a] + kReferenceSpeed * gc[a] / (c * c)) /
+                             (kReferenceSpeed / (c * c)));
         }
     }
     // Both are expressed as errors in dc/dx (m/s per mm).

@@ -29,10 +29,11 @@ std::string slurp(const std::string& path) {
 }
 
 RunResult run(const ScratchDir& dir, const std::string& args) {
-    const std::string cmd = std::string(SONOTRACE_BINARY) + " " + args + " > " + (dir / "stdout.txt") +
-                            " 2> " + (dir / "stderr.txt");
+    const std::string cmd = std::string(SONOTRACE_BINARY) + " " + args + " > " +
+                            (dir / "stdout.txt") + " 2> " + (dir / "stderr.txt");
     const int status = std::system(cmd.c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout.txt"), slurp(dir / "stderr.txt")};
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout.txt"),
+            slurp(dir / "stderr.txt")};
 }
 
 // Files in `dir` (recursively), hidden partial files included.
@@ -49,8 +50,9 @@ TEST(CliTissue, DefaultVolumeWritesEveryFieldAndASidecar) {
     ScratchDir dir;
     const RunResult r = run(dir, "tissue --resolution 0.5 --out " + (dir / "out") + " --nifti");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    for (const char* f : {"slice", "speed_of_sound", "density", "impedance", "attenuation", "backscatter",
-                          "scatterer_density", "roughness", "impedance_gradient", "refractive_index_gradient"}) {
+    for (const char* f :
+         {"slice", "speed_of_sound", "density", "impedance", "attenuation", "backscatter",
+          "scatterer_density", "roughness", "impedance_gradient", "refractive_index_gradient"}) {
         EXPECT_TRUE(std::filesystem::exists(dir / ("out/" + std::string(f) + ".png"))) << f;
         EXPECT_TRUE(std::filesystem::exists(dir / ("out/" + std::string(f) + ".nii.gz"))) << f;
     }
@@ -73,8 +75,14 @@ TEST(CliTissue, DefaultVolumeWritesEveryFieldAndASidecar) {
 
 TEST(CliTissue, ByteIdenticalOnOneAndTwoThreads) {
     ScratchDir dir;
-    ASSERT_EQ(run(dir, "tissue -q --threads 1 --elevation 2 --nifti --resolution 0.5 --out " + (dir / "a")).exit_code, 0);
-    ASSERT_EQ(run(dir, "tissue -q --threads 2 --elevation 2 --nifti --resolution 0.5 --out " + (dir / "b")).exit_code, 0);
+    ASSERT_EQ(run(dir, "tissue -q --threads 1 --elevation 2 --nifti --resolution 0.5 --out " +
+                           (dir / "a"))
+                  .exit_code,
+              0);
+    ASSERT_EQ(run(dir, "tissue -q --threads 2 --elevation 2 --nifti --resolution 0.5 --out " +
+                           (dir / "b"))
+                  .exit_code,
+              0);
     int compared = 0;
     for (const auto& e : std::filesystem::directory_iterator(dir / "a")) {
         const std::string name = e.path().filename().string();
@@ -83,7 +91,8 @@ TEST(CliTissue, ByteIdenticalOnOneAndTwoThreads) {
         ++compared;
     }
     EXPECT_GE(compared, 20);
-    auto a = nlohmann::json::parse(slurp(dir / "a/tissue.json")), b = nlohmann::json::parse(slurp(dir / "b/tissue.json"));
+    auto a = nlohmann::json::parse(slurp(dir / "a/tissue.json")),
+         b = nlohmann::json::parse(slurp(dir / "b/tissue.json"));
     a.erase("timings_s"), b.erase("timings_s");
     for (auto* j : {&a, &b}) {
         for (auto& o : (*j)["outputs"]) o.erase("png"), o.erase("nifti");
@@ -98,8 +107,8 @@ TEST(CliTissue, ImageInputWithSpacingAndDefaultPose) {
     for (int j = 0; j < 48; ++j)
         for (int i = 0; i < 64; ++i) pixels[j * 64 + i] = float(j < 24 ? 60 : 200);  // two layers
     tissue::write_gray_image(dir / "layers.png", 64, 48, pixels, 8);
-    const RunResult r = run(dir, "tissue -q --volume " + (dir / "layers.png") + " --spacing 0.5,0.5 --out " +
-                                     (dir / "out") + " --json -");
+    const RunResult r = run(dir, "tissue -q --volume " + (dir / "layers.png") +
+                                     " --spacing 0.5,0.5 --out " + (dir / "out") + " --json -");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const auto record = nlohmann::json::parse(r.out);
     EXPECT_EQ(record["transfer_function"]["name"], "generic-soft-tissue");
@@ -124,7 +133,9 @@ struct BadInput {
     std::string name, args, must_mention;
 };
 
-void PrintTo(const BadInput& b, std::ostream* os) { *os << b.name; }
+void PrintTo(const BadInput& b, std::ostream* os) {
+    *os << b.name;
+}
 
 class CliTissueBadInput : public ::testing::TestWithParam<BadInput> {};
 
@@ -136,7 +147,8 @@ TEST_P(CliTissueBadInput, FailsWithMessageAndLeavesNoOutput) {
     std::ofstream(dir / "decreasing.json")
         << R"({"points": [{"intensity": 1, "tissue": "fat"}, {"intensity": 0, "tissue": "liver"}]})";
     std::string args = GetParam().args;
-    for (std::size_t p; (p = args.find("{dir}")) != std::string::npos;) args.replace(p, 5, dir.path().string());
+    for (std::size_t p; (p = args.find("{dir}")) != std::string::npos;)
+        args.replace(p, 5, dir.path().string());
     const RunResult r = run(dir, "tissue " + args + " --out " + (dir / "out"));
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.err.find(GetParam().must_mention), std::string::npos) << r.err;
@@ -145,17 +157,37 @@ TEST_P(CliTissueBadInput, FailsWithMessageAndLeavesNoOutput) {
 
 INSTANTIATE_TEST_SUITE_P(
     Cases, CliTissueBadInput,
-    ::testing::Values(BadInput{"missing", "--volume {dir}/nothing.nii.gz", "nothing.nii.gz: file not found"},
-                      BadInput{"corrupt", "--volume {dir}/corrupt.nii", "corrupt.nii: field 'sizeof_hdr'"},
-                      BadInput{"tf_unknown_key", "--tf {dir}/unknown_key.json", "field 'points[1].sped'"},
-                      BadInput{"tf_decreasing", "--tf {dir}/decreasing.json", "field 'points[1].intensity'"},
-                      BadInput{"tf_unknown_preset", "--tf no-such-preset", "not a preset"},
-                      BadInput{"pose", "--pose 'at=1,2 beam=1,0,0'", "--pose: field 'at'"},
-                      BadInput{"resolution", "--resolution 0", "--resolution"},
-                      BadInput{"nan_width", "--width nan", "--width"},
-                      BadInput{"spacing", "--volume {dir}/corrupt.png --spacing 1,-1", "--spacing"},
-                      BadInput{"unknown_option", "--colour red", "colour"}),
+    ::testing::Values(
+        BadInput{"missing", "--volume {dir}/nothing.nii.gz", "nothing.nii.gz: file not found"},
+        BadInput{"corrupt", "--volume {dir}/corrupt.nii", "corrupt.nii: field 'sizeof_hdr'"},
+        BadInput{"tf_unknown_key", "--tf {dir}/unknown_key.json", "field 'points[1].sped'"},
+        BadInput{"tf_decreasing", "--tf {dir}/decreasing.json", "field 'points[1].intensity'"},
+        BadInput{"tf_unknown_preset", "--tf no-such-preset", "not a preset"},
+        BadInput{"pose", "--pose 'at=1,2 beam=1,0,0'", "--pose: field 'at'"},
+        BadInput{"resolution", "--resolution 0", "--resolution"},
+        BadInput{"nan_width", "--width nan", "--width"},
+        BadInput{"spacing", "--volume {dir}/corrupt.png --spacing 1,-1", "--spacing"},
+        BadInput{"unknown_option", "--colour red", "colour"}),
     [](const auto& test_case) { return test_case.param.name; });
+
+}  // namespace
+}  // namespace sonotrace
+
+#include "ui/cli/tissue_command.h"
+
+namespace sonotrace {
+namespace {
+
+TEST(Docs, ReadmeCarriesTheCurrentTissueTables) {
+    const std::string readme = slurp(std::string(SONOTRACE_SOURCE_DIR) + "/README.md");
+    const std::string open = "<!-- tissue-tables", close = "<!-- /tissue-tables -->";
+    const auto begin = readme.find('\n', readme.find(open));
+    const auto end = readme.find(close);
+    ASSERT_NE(begin, std::string::npos);
+    ASSERT_NE(end, std::string::npos);
+    EXPECT_EQ(readme.substr(begin + 1, end - begin - 1), ui::tissue_tables_markdown())
+        << "README.md is out of date: paste the output of `sonotrace tissue --list-tissues`";
+}
 
 }  // namespace
 }  // namespace sonotrace

@@ -59,7 +59,8 @@ TEST(ImageIo, TiffExrAndColourLuminance) {
     // RGBA pixel (100, 200, 50, 7): luminance 0.2126*100 + 0.7152*200 + 0.0722*50; alpha ignored.
     std::vector<uint8_t> rgba = {100, 200, 50, 7};
     write_oiio(dir / "c.png", 1, 1, 4, OIIO::TypeDesc::UINT8, rgba);
-    EXPECT_NEAR(read_image(dir / "c.png", {1, 1, 1}).voxels()[0], 0.2126 * 100 + 0.7152 * 200 + 0.0722 * 50, 1e-3);
+    EXPECT_NEAR(read_image(dir / "c.png", {1, 1, 1}).voxels()[0],
+                0.2126 * 100 + 0.7152 * 200 + 0.0722 * 50, 1e-3);
 }
 
 TEST(ImageIo, JpegIsReadWithinCompressionError) {
@@ -75,8 +76,8 @@ TEST(ImageIo, StacksFromDirectoryAndPatternInNumericOrder) {
     std::filesystem::create_directories(dir / "stack");
     // Indices 1..11 so that lexical order (1, 10, 11, 2, ...) differs from numeric order.
     for (int k = 1; k <= 11; ++k) {
-        write_oiio(dir / ("stack/slice_" + std::to_string(k) + ".png"), 2, 2, 1, OIIO::TypeDesc::UINT8,
-                   std::vector<uint8_t>(4, uint8_t(k * 10)));
+        write_oiio(dir / ("stack/slice_" + std::to_string(k) + ".png"), 2, 2, 1,
+                   OIIO::TypeDesc::UINT8, std::vector<uint8_t>(4, uint8_t(k * 10)));
     }
     LoadedVolume v = load_volume({dir / "stack", glm::dvec3(0.5, 0.5, 2.0)});
     ASSERT_EQ(v.volume.dims(), glm::ivec3(2, 2, 11));
@@ -102,8 +103,16 @@ TEST(ImageIo, OurGrayWriterRoundTrips) {
 TEST(ImageIoErrors, SpacingIsRequiredAndValidated) {
     ScratchDir dir;
     write_oiio(dir / "a.png", 2, 2, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>(4, 1));
-    expect_input_error([&] { load_volume({dir / "a.png", std::nullopt}); }, "a.png", "--spacing", "mm");
-    expect_input_error([&] { load_volume({dir / "a.png", glm::dvec3(1, 0, 1)}); }, "a.png", "spacing[j]");
+    expect_input_error(
+        [&] {
+            load_volume({dir / "a.png", std::nullopt});
+        },
+        "a.png", "--spacing", "mm");
+    expect_input_error(
+        [&] {
+            load_volume({dir / "a.png", glm::dvec3(1, 0, 1)});
+        },
+        "a.png", "spacing[j]");
 }
 
 TEST(ImageIoErrors, MismatchedSlicesMissingAndCorruptFiles) {
@@ -111,19 +120,35 @@ TEST(ImageIoErrors, MismatchedSlicesMissingAndCorruptFiles) {
     std::filesystem::create_directories(dir / "s");
     write_oiio(dir / "s/i0.png", 2, 2, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>(4, 1));
     write_oiio(dir / "s/i1.png", 3, 2, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>(6, 1));
-    expect_input_error([&] { load_volume({dir / "s", glm::dvec3(1)}); }, "i1.png", "size", "differs");
-    expect_input_error([&] { load_volume({dir / "none_%03d.png", glm::dvec3(1)}); }, "none_%03d.png", "",
-                       "no file matches");
-    expect_input_error([&] { load_volume({dir / "missing.png", glm::dvec3(1)}); }, "missing.png", "", "not found");
+    expect_input_error(
+        [&] {
+            load_volume({dir / "s", glm::dvec3(1)});
+        },
+        "i1.png", "size", "differs");
+    expect_input_error(
+        [&] {
+            load_volume({dir / "none_%03d.png", glm::dvec3(1)});
+        },
+        "none_%03d.png", "", "no file matches");
+    expect_input_error(
+        [&] {
+            load_volume({dir / "missing.png", glm::dvec3(1)});
+        },
+        "missing.png", "", "not found");
     std::ofstream(dir / "bad.png") << "this is not a PNG file at all";
     expect_input_error([&] { load_volume({dir / "bad.png", glm::dvec3(1)}); }, "bad.png", "");
     std::filesystem::create_directories(dir / "empty");
-    expect_input_error([&] { load_volume({dir / "empty", glm::dvec3(1)}); }, "empty", "", "no image files");
+    expect_input_error(
+        [&] {
+            load_volume({dir / "empty", glm::dvec3(1)});
+        },
+        "empty", "", "no image files");
 }
 
 TEST(ImageIoErrors, NanPixelsInExr) {
     ScratchDir dir;
-    write_oiio(dir / "n.exr", 2, 1, 1, OIIO::TypeDesc::FLOAT, std::vector<float>{1.0f, std::nanf("")});
+    write_oiio(dir / "n.exr", 2, 1, 1, OIIO::TypeDesc::FLOAT,
+               std::vector<float>{1.0f, std::nanf("")});
     expect_input_error([&] { read_image(dir / "n.exr", {1, 1, 1}); }, "n.exr", "data", "(1, 0, 0)");
 }
 

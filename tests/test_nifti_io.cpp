@@ -42,23 +42,45 @@ void fill(void* data, const std::vector<double>& values) {
 }
 
 // Writes `values` (stored values, before scaling) with niftilib.
-void write_with_niftilib(const std::string& path, const NiftiSpec& s, const std::vector<double>& values) {
+void write_with_niftilib(const std::string& path, const NiftiSpec& s,
+                         const std::vector<double>& values) {
     int dims[8] = {s.nt > 1 ? 4 : 3, s.nx, s.ny, s.nz, s.nt, 1, 1, 1};
     nifti_image* nim = nifti_make_new_nim(dims, s.datatype, 1);
     ASSERT_NE(nim, nullptr);
     ASSERT_EQ(values.size(), std::size_t(nim->nvox));
     switch (s.datatype) {
-        case DT_UINT8: fill<uint8_t>(nim->data, values); break;
-        case DT_INT8: fill<int8_t>(nim->data, values); break;
-        case DT_UINT16: fill<uint16_t>(nim->data, values); break;
-        case DT_INT16: fill<int16_t>(nim->data, values); break;
-        case DT_UINT32: fill<uint32_t>(nim->data, values); break;
-        case DT_INT32: fill<int32_t>(nim->data, values); break;
-        case DT_UINT64: fill<uint64_t>(nim->data, values); break;
-        case DT_INT64: fill<int64_t>(nim->data, values); break;
-        case DT_FLOAT32: fill<float>(nim->data, values); break;
-        case DT_FLOAT64: fill<double>(nim->data, values); break;
-        default: std::memset(nim->data, 0, nim->nvox * nim->nbyper);
+        case DT_UINT8:
+            fill<uint8_t>(nim->data, values);
+            break;
+        case DT_INT8:
+            fill<int8_t>(nim->data, values);
+            break;
+        case DT_UINT16:
+            fill<uint16_t>(nim->data, values);
+            break;
+        case DT_INT16:
+            fill<int16_t>(nim->data, values);
+            break;
+        case DT_UINT32:
+            fill<uint32_t>(nim->data, values);
+            break;
+        case DT_INT32:
+            fill<int32_t>(nim->data, values);
+            break;
+        case DT_UINT64:
+            fill<uint64_t>(nim->data, values);
+            break;
+        case DT_INT64:
+            fill<int64_t>(nim->data, values);
+            break;
+        case DT_FLOAT32:
+            fill<float>(nim->data, values);
+            break;
+        case DT_FLOAT64:
+            fill<double>(nim->data, values);
+            break;
+        default:
+            std::memset(nim->data, 0, nim->nvox * nim->nbyper);
     }
     nim->dx = nim->pixdim[1] = s.pixdim[0];
     nim->dy = nim->pixdim[2] = s.pixdim[1];
@@ -133,8 +155,8 @@ TEST(NiftiIo, OurWriterRoundTripsVoxelsAndGeometry) {
     g.spacing = {0.5, 1.25, 2.0};
     g.origin = {-10.0, 3.5, 7.25};
     const double a = glm::radians(30.0);  // rotation about z
-    g.direction = glm::dmat3(glm::dvec3(std::cos(a), std::sin(a), 0), glm::dvec3(-std::sin(a), std::cos(a), 0),
-                             glm::dvec3(0, 0, 1));
+    g.direction = glm::dmat3(glm::dvec3(std::cos(a), std::sin(a), 0),
+                             glm::dvec3(-std::sin(a), std::cos(a), 0), glm::dvec3(0, 0, 1));
     Volume v(g);
     for (std::size_t n = 0; n < v.size(); ++n) v.voxels()[n] = float(n) * 0.75f - 4.0f;
     write_nifti(v, dir / "w.nii.gz");
@@ -157,7 +179,8 @@ TEST(NiftiIo, AppliesSclSlopeAndInter) {
     const auto stored = ramp(24, 0, 10);
     write_with_niftilib(dir / "s.nii", spec, stored);
     const Volume v = read_nifti(dir / "s.nii").volume;
-    for (std::size_t n = 0; n < stored.size(); ++n) EXPECT_EQ(v.voxels()[n], float(0.5 * stored[n] - 10.0));
+    for (std::size_t n = 0; n < stored.size(); ++n)
+        EXPECT_EQ(v.voxels()[n], float(0.5 * stored[n] - 10.0));
 }
 
 TEST(NiftiIo, QformRotationPixdimOffsetAndQfac) {
@@ -256,8 +279,8 @@ TEST(NiftiIo, DefaultColin27LoadsWithMniGeometry) {
 // ---- bad input -------------------------------------------------------------------------
 
 TEST(NiftiErrors, MissingFile) {
-    expect_input_error([] { read_nifti("/nonexistent/head.nii.gz"); }, "/nonexistent/head.nii.gz", "",
-                       "not found");
+    expect_input_error([] { read_nifti("/nonexistent/head.nii.gz"); }, "/nonexistent/head.nii.gz",
+                       "", "not found");
 }
 
 TEST(NiftiErrors, TruncatedDataUncompressedAndCompressed) {
@@ -280,11 +303,13 @@ TEST(NiftiErrors, TruncatedDataUncompressedAndCompressed) {
 TEST(NiftiErrors, TruncatedHeaderAndGarbage) {
     ScratchDir dir;
     std::ofstream(dir / "short.nii") << "too short";
-    expect_input_error([&] { read_nifti(dir / "short.nii"); }, "short.nii", "sizeof_hdr", "truncated header");
+    expect_input_error([&] { read_nifti(dir / "short.nii"); }, "short.nii", "sizeof_hdr",
+                       "truncated header");
     std::ofstream garbage(dir / "garbage.nii", std::ios::binary);
     for (int n = 0; n < 1000; ++n) garbage.put(char(n * 37 + 11));
     garbage.close();
-    expect_input_error([&] { read_nifti(dir / "garbage.nii"); }, "garbage.nii", "sizeof_hdr", "not a NIfTI-1");
+    expect_input_error([&] { read_nifti(dir / "garbage.nii"); }, "garbage.nii", "sizeof_hdr",
+                       "not a NIfTI-1");
 }
 
 TEST(NiftiErrors, Nifti2IsNamed) {
@@ -320,13 +345,15 @@ TEST(NiftiErrors, ZeroAndNegativeSpacing) {
 TEST(NiftiErrors, DimensionsBeyondAvailableMemory) {
     ScratchDir dir;
     write_with_niftilib(dir / "big.nii", NiftiSpec{}, ramp(24, 0, 1));
-    for (int d = 1; d <= 3; ++d) patch<int16_t>(dir / "big.nii", 40 + 2 * d, 32000);  // 3.3e13 voxels
+    for (int d = 1; d <= 3; ++d)
+        patch<int16_t>(dir / "big.nii", 40 + 2 * d, 32000);  // 3.3e13 voxels
     expect_input_error([&] { read_nifti(dir / "big.nii"); }, "big.nii", "dim", "memory");
 }
 
 TEST(NiftiErrors, NanAndInfVoxelsAreNamed) {
     ScratchDir dir;
-    for (double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    for (double bad :
+         {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
         auto values = ramp(24, 0, 1);
         values[1 + 4 * 2] = bad;  // voxel (1, 2, 0)
         write_with_niftilib(dir / "nan.nii", NiftiSpec{}, values);

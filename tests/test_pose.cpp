@@ -7,7 +7,9 @@
 namespace sonotrace::probe {
 namespace {
 
-bool near(glm::dvec3 a, glm::dvec3 b, double tol = 1e-9) { return glm::length(a - b) < tol; }
+bool near(glm::dvec3 a, glm::dvec3 b, double tol = 1e-9) {
+    return glm::length(a - b) < tol;
+}
 
 TEST(Pose, LookingBuildsARightHandedOrthonormalFrame) {
     const Pose p = Pose::looking({1, 2, 3}, {0, 0, -2}, {1, 0, 0.5});
@@ -44,12 +46,16 @@ TEST(PoseErrors, NameTheKey) {
     expect_input_error([] { parse_pose("at=0,0,0", "--pose"); }, "--pose", "beam", "required");
     expect_input_error([] { parse_pose("at=0,0 beam=1,0,0", "--pose"); }, "--pose", "at", "three");
     expect_input_error([] { parse_pose("at=0,0,nan beam=1,0,0", "--pose"); }, "--pose", "at");
-    expect_input_error([] { parse_pose("at=0,0,0 beam=0,0,0", "--pose"); }, "--pose", "beam", "zero");
-    expect_input_error([] { parse_pose("at=0,0,0 beam=1,0,0 lateral=2,0,0", "--pose"); }, "--pose", "lateral",
-                       "parallel");
-    expect_input_error([] { parse_pose("at=0,0,0 beam=1,0,0 spin=3", "--pose"); }, "--pose", "spin", "unknown key");
-    expect_input_error([] { parse_pose("at=0,0,0 beam=1,0,0 rotate=abc", "--pose"); }, "--pose", "rotate", "degrees");
-    expect_input_error([] { parse_pose("at=0,0,0 beam=1,0,0 tilt", "--pose"); }, "--pose", "tilt", "key=value");
+    expect_input_error([] { parse_pose("at=0,0,0 beam=0,0,0", "--pose"); }, "--pose", "beam",
+                       "zero");
+    expect_input_error([] { parse_pose("at=0,0,0 beam=1,0,0 lateral=2,0,0", "--pose"); }, "--pose",
+                       "lateral", "parallel");
+    expect_input_error([] { parse_pose("at=0,0,0 beam=1,0,0 spin=3", "--pose"); }, "--pose", "spin",
+                       "unknown key");
+    expect_input_error([] { parse_pose("at=0,0,0 beam=1,0,0 rotate=abc", "--pose"); }, "--pose",
+                       "rotate", "degrees");
+    expect_input_error([] { parse_pose("at=0,0,0 beam=1,0,0 tilt", "--pose"); }, "--pose", "tilt",
+                       "key=value");
 }
 
 }  // namespace

@@ -13,7 +13,9 @@ namespace {
 using test::expect_input_error;
 using test::ScratchDir;
 
-void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+void write_text(const std::string& path, const std::string& text) {
+    std::ofstream(path) << text;
+}
 
 TEST(RawIo, RoundTripWithGeometry) {
     ScratchDir dir;
@@ -36,7 +38,8 @@ TEST(RawIo, BigEndianInt16WithHeaderBytes) {
     ScratchDir dir;
     // Two header bytes, then int16 big-endian values 1, -2, 300, -32768.
     const unsigned char bytes[] = {0xAA, 0xBB, 0x00, 0x01, 0xFF, 0xFE, 0x01, 0x2C, 0x80, 0x00};
-    std::ofstream(dir / "b.raw", std::ios::binary).write(reinterpret_cast<const char*>(bytes), sizeof bytes);
+    std::ofstream(dir / "b.raw", std::ios::binary)
+        .write(reinterpret_cast<const char*>(bytes), sizeof bytes);
     write_text(dir / "b.json", R"({"dims": [4, 1, 1], "spacing": [1, 1, 1], "datatype": "int16",
                                    "byte_order": "big", "header_bytes": 2})");
     EXPECT_EQ(read_raw(dir / "b.json").voxels(), std::vector<float>({1, -2, 300, -32768}));
@@ -50,15 +53,22 @@ TEST(RawIoErrors, EachProblemNamesFileAndField) {
         write_text(json, text);
         expect_input_error([&] { read_raw(json); }, "d.json", field, what);
     };
-    check(R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "uint8", "colour": 1})", "colour", "unknown key");
-    check(R"({"dims": [2,2,1], "spacing": [1,0,1], "datatype": "uint8"})", "spacing[j]", "positive");
-    check(R"({"dims": [2,2,1], "spacing": [1,-1,1], "datatype": "uint8"})", "spacing[j]", "positive");
-    check(R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "complex"})", "datatype", "unknown datatype");
+    check(R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "uint8", "colour": 1})", "colour",
+          "unknown key");
+    check(R"({"dims": [2,2,1], "spacing": [1,0,1], "datatype": "uint8"})", "spacing[j]",
+          "positive");
+    check(R"({"dims": [2,2,1], "spacing": [1,-1,1], "datatype": "uint8"})", "spacing[j]",
+          "positive");
+    check(R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "complex"})", "datatype",
+          "unknown datatype");
     check(R"({"dims": [2,2], "spacing": [1,1,1], "datatype": "uint8"})", "dims", "3 numbers");
     check(R"({"dims": [2,2,1], "spacing": [1,1,1]})", "datatype", "required");
-    check(R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "uint8", "byte_order": "middle"})", "byte_order", "");
-    check(R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "uint8",)", "", "invalid JSON at line 1");
-    check(R"({"dims": [90000,90000,90000], "spacing": [1,1,1], "datatype": "uint8"})", "dims", "memory");
+    check(R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "uint8", "byte_order": "middle"})",
+          "byte_order", "");
+    check(R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "uint8",)", "",
+          "invalid JSON at line 1");
+    check(R"({"dims": [90000,90000,90000], "spacing": [1,1,1], "datatype": "uint8"})", "dims",
+          "memory");
     // Truncated data: 8 bytes present, 4 float32 voxels need 16.
     write_text(json, R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "float32"})");
     expect_input_error([&] { read_raw(json); }, "d.raw", "size", "truncated");

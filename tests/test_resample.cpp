@@ -18,7 +18,9 @@ namespace {
 // geometry, so trilinear interpolation reproduces it exactly.
 const glm::dvec3 kA(0.7, -1.3, 2.1);
 constexpr double kB = 5.0;
-double linear_field(const glm::dvec3& w) { return glm::dot(kA, w) + kB; }
+double linear_field(const glm::dvec3& w) {
+    return glm::dot(kA, w) + kB;
+}
 
 Volume linear_volume() {
     VolumeGeometry g;
@@ -31,7 +33,9 @@ Volume linear_volume() {
     Volume v(g);
     for (int k = 0; k < g.dims.z; ++k)
         for (int j = 0; j < g.dims.y; ++j)
-            for (int i = 0; i < g.dims.x; ++i) v.at(i, j, k) = float(linear_field(g.index_to_world({double(i), double(j), double(k)})));
+            for (int i = 0; i < g.dims.x; ++i)
+                v.at(i, j, k) =
+                    float(linear_field(g.index_to_world({double(i), double(j), double(k)})));
     return v;
 }
 
@@ -51,7 +55,8 @@ TEST(Resample, ObliqueSlicesOfLinearFieldAreExact) {
     for (int pose_n = 0; pose_n < 12; ++pose_n) {
         const glm::dvec3 at(5 * u(rng), 5 * u(rng), 5 * u(rng));
         const probe::Pose pose =
-            probe::Pose::looking(at, {u(rng), u(rng), u(rng)}, {u(rng), u(rng), u(rng)}).rotated(37 * pose_n);
+            probe::Pose::looking(at, {u(rng), u(rng), u(rng)}, {u(rng), u(rng), u(rng)})
+                .rotated(37 * pose_n);
         const GridExtent extent{24.0, 18.0, 0.0, 0.7};
         const VolumeGeometry grid = probe_grid(pose.frame(), extent, "test");
         const Volume slice = resample(v, grid, Interpolation::trilinear, -999.0f);
@@ -61,9 +66,11 @@ TEST(Resample, ObliqueSlicesOfLinearFieldAreExact) {
                 // (the width rounds to whole pixels), depth from the face.
                 const double lateral = (i - 0.5 * (grid.dims.x - 1)) * extent.pixel_mm;
                 const double depth = (j + 0.5) * extent.pixel_mm;
-                const glm::dvec3 w = pose.position + pose.lateral() * lateral + pose.axial() * depth;
+                const glm::dvec3 w =
+                    pose.position + pose.lateral() * lateral + pose.axial() * depth;
                 if (inside(v, w)) {
-                    ASSERT_NEAR(slice.at(i, j), linear_field(w), 2e-4 * (1 + std::abs(linear_field(w))));
+                    ASSERT_NEAR(slice.at(i, j), linear_field(w),
+                                2e-4 * (1 + std::abs(linear_field(w))));
                     ++checked;
                 }
             }
@@ -91,7 +98,8 @@ TEST(Resample, SubVolumeHasElevationAxisAndExactValues) {
 TEST(Resample, OutsideTheVolumeGivesTheOutsideValue) {
     const Volume v = linear_volume();
     const probe::Pose far = probe::Pose::looking({500, 500, 500}, {1, 0, 0}, {0, 1, 0});
-    const Volume s = resample(v, probe_grid(far.frame(), {10, 10, 0, 1}, "t"), Interpolation::trilinear, -3.0f);
+    const Volume s =
+        resample(v, probe_grid(far.frame(), {10, 10, 0, 1}, "t"), Interpolation::trilinear, -3.0f);
     for (float x : s.voxels()) ASSERT_EQ(x, -3.0f);
 }
 
@@ -102,8 +110,10 @@ TEST(Resample, NearestKeepsLabels) {
     for (int k = 0; k < 8; ++k)
         for (int j = 0; j < 8; ++j)
             for (int i = 0; i < 8; ++i) labels.at(i, j, k) = float((i / 3 + j / 3 + k / 3) % 3 * 5);
-    const probe::Pose pose = probe::Pose::looking({3.3, -0.2, 3.1}, {0.1, 1, 0.2}, {1, 0, 0}).rotated(21);
-    const Volume s = resample(labels, probe_grid(pose.frame(), {6, 7, 0, 0.13}, "t"), Interpolation::nearest, 0.0f);
+    const probe::Pose pose =
+        probe::Pose::looking({3.3, -0.2, 3.1}, {0.1, 1, 0.2}, {1, 0, 0}).rotated(21);
+    const Volume s = resample(labels, probe_grid(pose.frame(), {6, 7, 0, 0.13}, "t"),
+                              Interpolation::nearest, 0.0f);
     const std::set<float> values(s.voxels().begin(), s.voxels().end());
     for (float x : values) EXPECT_TRUE(x == 0.0f || x == 5.0f || x == 10.0f) << x;
     EXPECT_GE(values.size(), 2u);
@@ -127,14 +137,29 @@ TEST(Resample, IdenticalOnOneAndTwoThreads) {
 
 TEST(ResampleErrors, BadExtentNamesTheParameter) {
     const ProbeFrame frame;
-    test::expect_input_error([&] { probe_grid(frame, {0, 10, 0, 1}, "--width"); }, "--width", "width", "positive");
-    test::expect_input_error([&] { probe_grid(frame, {10, 10, 0, -1}, "--resolution"); }, "--resolution",
-                             "resolution");
+    test::expect_input_error(
+        [&] {
+            probe_grid(frame, {0, 10, 0, 1}, "--width");
+        },
+        "--width", "width", "positive");
+    test::expect_input_error(
+        [&] {
+            probe_grid(frame, {10, 10, 0, -1}, "--resolution");
+        },
+        "--resolution", "resolution");
     test::expect_input_error([&] { probe_grid(frame, {10, 10, -2, 1}, "x"); }, "x", "elevation");
-    test::expect_input_error([&] { probe_grid(frame, {1e6, 1e6, 1e6, 0.01}, "x"); }, "x", "dims", "memory");
+    test::expect_input_error(
+        [&] {
+            probe_grid(frame, {1e6, 1e6, 1e6, 0.01}, "x");
+        },
+        "x", "dims", "memory");
     ProbeFrame skew;
     skew.axial = glm::normalize(glm::dvec3(1, 1, 0));
-    test::expect_input_error([&] { probe_grid(skew, {10, 10, 0, 1}, "--pose"); }, "--pose", "pose", "orthonormal");
+    test::expect_input_error(
+        [&] {
+            probe_grid(skew, {10, 10, 0, 1}, "--pose");
+        },
+        "--pose", "pose", "orthonormal");
 }
 
 }  // namespace

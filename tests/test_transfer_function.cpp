@@ -14,7 +14,9 @@ namespace {
 
 using test::expect_input_error;
 
-float speed(const AcousticProperties& p) { return p[Property::speed_of_sound]; }
+float speed(const AcousticProperties& p) {
+    return p[Property::speed_of_sound];
+}
 
 const char* kTwoPoints = R"({
   "kind": "piecewise-linear", "intensity": "raw",
@@ -32,7 +34,8 @@ TEST(TransferFunction, LinearBetweenPointsAndClampedOutside) {
     const AcousticProperties quarter = tf->evaluate(25.0f);
     const float b[] = {1600, 1100, 1.0f, 0.8f, 40, 1.0f};
     for (std::size_t n = 0; n < kPropertyCount; ++n) {
-        EXPECT_NEAR(quarter.values[n], 0.75 * water.values[n] + 0.25 * b[n], 1e-3 * std::abs(b[n]) + 1e-6)
+        EXPECT_NEAR(quarter.values[n], 0.75 * water.values[n] + 0.25 * b[n],
+                    1e-3 * std::abs(b[n]) + 1e-6)
             << kPropertyInfo[n].key;
     }
     EXPECT_EQ(speed(tf->evaluate(-50.0f)), water[Property::speed_of_sound]);
@@ -58,7 +61,8 @@ TEST(TransferFunction, TissueOverridesAndNormalisedWindow) {
     // Raw 250 = normalised 0.5: halfway between fat (1450) and the overridden liver (1600).
     EXPECT_NEAR(speed(tf->evaluate(250.0f)), 1525.0, 0.5);
     // The override changes only the named property.
-    EXPECT_EQ(tf->evaluate(900.0f)[Property::density], find_tissue("liver", "", "").properties[Property::density]);
+    EXPECT_EQ(tf->evaluate(900.0f)[Property::density],
+              find_tissue("liver", "", "").properties[Property::density]);
 }
 
 TEST(TransferFunction, LabelTable) {
@@ -73,7 +77,8 @@ TEST(TransferFunction, LabelTable) {
     Volume v(g);
     v.at(0, 0) = 0, v.at(1, 0) = 3, v.at(2, 0) = 7;
     tf->bind(v);
-    EXPECT_EQ(speed(tf->evaluate(3.0f)), find_tissue("liver", "", "").properties[Property::speed_of_sound]);
+    EXPECT_EQ(speed(tf->evaluate(3.0f)),
+              find_tissue("liver", "", "").properties[Property::speed_of_sound]);
     EXPECT_EQ(speed(tf->evaluate(7.0f)), 1700.0f);
     v.at(1, 0) = 5;
     expect_input_error([&] { tf->bind(v); }, "labels.json", "labels", "label 5");
@@ -130,28 +135,37 @@ TEST(TransferFunctionPresets, MriT1HeadGivesColin27PlausibleAcoustics) {
 
 TEST(TransferFunctionErrors, EachProblemNamesFileAndField) {
     auto check = [](const std::string& text, const std::string& field, const std::string& what) {
-        expect_input_error([&] { parse_transfer_function(text, "tf.json"); }, "tf.json", field, what);
+        expect_input_error([&] { parse_transfer_function(text, "tf.json"); }, "tf.json", field,
+                           what);
     };
-    check(R"({"points": [{"intensity": 0, "tissue": "fat"}], "colour": "red"})", "colour", "unknown key");
-    check(R"({"points": [{"intensity": 0, "tissue": "fat", "speed": 1500}]})", "points[0].speed", "unknown key");
+    check(R"({"points": [{"intensity": 0, "tissue": "fat"}], "colour": "red"})", "colour",
+          "unknown key");
+    check(R"({"points": [{"intensity": 0, "tissue": "fat", "speed": 1500}]})", "points[0].speed",
+          "unknown key");
     check(R"({"points": [{"intensity": 0, "tissue": "fat"}, {"intensity": 0, "tissue": "liver"}]})",
           "points[1].intensity", "strictly increasing");
     check(R"({"points": [{"intensity": 5, "tissue": "fat"}, {"intensity": 2, "tissue": "liver"}]})",
           "points[1].intensity", "strictly increasing");
-    check(R"({"points": [{"intensity": 0, "tissue": "bone"}]})", "points[0].tissue", "unknown tissue");
-    check(R"({"points": [{"intensity": 0, "speed_of_sound": 1500}]})", "points[0].density", "required");
+    check(R"({"points": [{"intensity": 0, "tissue": "bone"}]})", "points[0].tissue",
+          "unknown tissue");
+    check(R"({"points": [{"intensity": 0, "speed_of_sound": 1500}]})", "points[0].density",
+          "required");
     check(R"({"points": [{"intensity": 0, "tissue": "fat", "speed_of_sound": -3}]})",
           "points[0].speed_of_sound", "outside");
     check(R"({"points": [{"intensity": 0, "tissue": "fat", "backscatter": "high"}]})",
           "points[0].backscatter", "number");
     check(R"({"points": []})", "points", "non-empty");
     check(R"({"kind": "spline", "points": []})", "kind", "piecewise-linear");
-    check(R"({"intensity": "log", "points": [{"intensity": 0, "tissue": "fat"}]})", "intensity", "raw");
-    check(R"({"kind": "labels", "labels": [{"label": 1.5, "tissue": "fat"}]})", "labels[0].label", "integer");
-    check(R"({"kind": "labels", "labels": [{"label": 1, "tissue": "fat"}, {"label": 1, "tissue": "air"}]})",
-          "labels[1].label", "twice");
+    check(R"({"intensity": "log", "points": [{"intensity": 0, "tissue": "fat"}]})", "intensity",
+          "raw");
+    check(R"({"kind": "labels", "labels": [{"label": 1.5, "tissue": "fat"}]})", "labels[0].label",
+          "integer");
+    check(
+        R"({"kind": "labels", "labels": [{"label": 1, "tissue": "fat"}, {"label": 1, "tissue": "air"}]})",
+        "labels[1].label", "twice");
     check(R"({"points": [{"intensity": 0, "tissue": "fat"})", "", "invalid JSON at line 1");
-    expect_input_error([] { load_transfer_function("/no/such/tf.json"); }, "/no/such/tf.json", "", "presets");
+    expect_input_error([] { load_transfer_function("/no/such/tf.json"); }, "/no/such/tf.json", "",
+                       "presets");
 }
 
 }  // namespace

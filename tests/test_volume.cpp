@@ -90,7 +90,8 @@ TEST(Volume, ValidateNamesTheBadField) {
     test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "dims[i]");
     g = VolumeGeometry{};
     g.direction[2] = g.direction[0];
-    test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "direction", "degenerate");
+    test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "direction",
+                             "degenerate");
     g = VolumeGeometry{};
     g.dims = {100000, 100000, 100000};
     test::expect_input_error([&] { g.validate("vol.json"); }, "vol.json", "dims", "memory");

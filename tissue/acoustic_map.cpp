@@ -28,6 +28,10 @@ AcousticMap<Dim> AcousticMap<Dim>::build(const PropertyMaps& maps) {
     map.geometry_ = maps.geometry();
     const glm::ivec3 n = map.geometry_.dims;
     if (Dim == 2 && n.z != 1) throw std::invalid_argument("AcousticMap<2> needs a single slice");
+    // Interpolation needs two texels per axis; probe grids are far larger.
+    for (int a = 0; a < Dim; ++a) {
+        if (n[a] < 2) throw std::invalid_argument("AcousticMap needs at least 2 texels per axis");
+    }
     for (int a = 0; a < Dim; ++a) {
         map.dims_[a] = n[a];
         map.spacing_[a] = float(map.geometry_.spacing[a]);
@@ -60,49 +64,6 @@ AcousticMap<Dim> AcousticMap<Dim>::build(const PropertyMaps& maps) {
         }
     });
     return map;
-}
-
-template <int Dim>
-std::size_t AcousticMap<Dim>::linear(const IVec& i) const {
-    std::size_t index = std::size_t(i[Dim - 1]);
-    for (int a = Dim - 2; a >= 0; --a) index = index * std::size_t(dims_[a]) + std::size_t(i[a]);
-    return index;
-}
-
-template <int Dim>
-bool AcousticMap<Dim>::inside(const Vec& p_mm) const {
-    for (int a = 0; a < Dim; ++a) {
-        if (!(p_mm[a] >= 0.0f && p_mm[a] <= (dims_[a] - 1) * spacing_[a])) return false;
-    }
-    return true;
-}
-
-template <int Dim>
-AcousticTexel<Dim> AcousticMap<Dim>::sample(const Vec& p_mm) const {
-    // Cell corner and fractional position, clamped so edge texels extend outward.
-    IVec i0;
-    Vec f;
-    for (int a = 0; a < Dim; ++a) {
-        const float x = glm::clamp(p_mm[a] * inverse_spacing_[a], 0.0f, float(dims_[a] - 1));
-        i0[a] = std::min(int(x), std::max(dims_[a] - 2, 0));
-        f[a] = x - float(i0[a]);
-    }
-    constexpr int kFields = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
-    float out[kFields] = {};
-    for (int corner = 0; corner < (1 << Dim); ++corner) {
-        IVec c = i0;
-        float w = 1.0f;
-        for (int a = 0; a < Dim; ++a) {
-            const bool upper = (corner >> a) & 1;
-            if (upper) c[a] = std::min(c[a] + 1, dims_[a] - 1);
-            w *= upper ? f[a] : 1.0f - f[a];
-        }
-        const float* t = reinterpret_cast<const float*>(&texels_[linear(c)]);
-        for (int k = 0; k < kFields; ++k) out[k] += w * t[k];
-    }
-    AcousticTexel<Dim> result;
-    std::memcpy(&result, out, sizeof result);
-    return result;
 }
 
 template class AcousticMap<2>;

@@ -43,7 +43,9 @@ inline constexpr std::array<PropertyInfo, kPropertyCount> kPropertyInfo = {{
      "0 reflects like a mirror, 1 reflects fully diffusely (sets the cos^c lobe width)"},
 }};
 
-inline const PropertyInfo& info(Property p) { return kPropertyInfo[std::size_t(p)]; }
+inline const PropertyInfo& info(Property p) {
+    return kPropertyInfo[std::size_t(p)];
+}
 
 // Derived quantity shown alongside the properties.
 inline constexpr std::string_view kImpedanceUnit = "MRayl";  // 1 MRayl = 1e6 kg/(m^2 s)

@@ -27,10 +27,10 @@ std::string OutputTransaction::stage(const std::string& final_path) {
     std::error_code ec;
     fs::create_directories(dir, ec);
     if (ec) throw InputError(dir.string(), "", "cannot create output directory: " + ec.message());
-    const std::string temporary = (dir / (".partial-" + std::to_string(getpid()) + "-" +
-                                          std::to_string(counter++) + "-" +
-                                          target.filename().string()))
-                                      .string();
+    const std::string temporary =
+        (dir / (".partial-" + std::to_string(getpid()) + "-" + std::to_string(counter++) + "-" +
+                target.filename().string()))
+            .string();
     staged_.emplace_back(temporary, final_path);
     return temporary;
 }

@@ -10,7 +10,7 @@
 namespace sonotrace::tissue {
 
 class OutputTransaction {
-public:
+  public:
     OutputTransaction() = default;
     OutputTransaction(const OutputTransaction&) = delete;
     OutputTransaction& operator=(const OutputTransaction&) = delete;
@@ -25,7 +25,7 @@ public:
     // The final paths staged so far.
     std::vector<std::string> final_paths() const;
 
-private:
+  private:
     std::vector<std::pair<std::string, std::string>> staged_;  // {temporary, final}
     bool committed_ = false;
 };

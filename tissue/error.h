@@ -7,7 +7,7 @@
 namespace sonotrace::tissue {
 
 class InputError : public std::runtime_error {
-public:
+  public:
     // `source` is a file path or an option name such as "--pose"; `field` is the header
     // field, JSON key or parameter inside it (may be empty).
     InputError(std::string source, std::string field, const std::string& what)
@@ -18,7 +18,7 @@ public:
     const std::string& source() const { return source_; }
     const std::string& field() const { return field_; }
 
-private:
+  private:
     static std::string compose(const std::string& source, const std::string& field,
                                const std::string& what) {
         std::string msg = source;

@@ -21,7 +21,8 @@ using OIIO::TypeDesc;
 
 std::string lower_extension(const std::string& path) {
     std::string ext = fs::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return std::tolower(c); });
     return ext;
 }
 
@@ -31,9 +32,10 @@ void reduce_channels(const std::vector<unsigned char>& raw, int channels, float*
     const T* in = reinterpret_cast<const T*>(raw.data());
     for (std::size_t p = 0; p < pixels; ++p) {
         const T* px = in + p * std::size_t(channels);
-        out[p] = channels >= 3 ? float(0.2126 * double(px[0]) + 0.7152 * double(px[1]) +
-                                       0.0722 * double(px[2]))
-                               : float(px[0]);
+        out[p] =
+            channels >= 3
+                ? float(0.2126 * double(px[0]) + 0.7152 * double(px[1]) + 0.0722 * double(px[2]))
+                : float(px[0]);
     }
 }
 
@@ -63,10 +65,10 @@ ImageSlice read_into(const std::string& path, std::vector<float>* out, const Ima
 
     // Integers are read raw (no OIIO normalisation to 0..1); floats of any width as float.
     TypeDesc format = spec.format;
-    const bool integer = spec.channelformats.empty() &&
-                         (format == TypeDesc::UINT8 || format == TypeDesc::INT8 ||
-                          format == TypeDesc::UINT16 || format == TypeDesc::INT16 ||
-                          format == TypeDesc::UINT32 || format == TypeDesc::INT32);
+    const bool integer =
+        spec.channelformats.empty() &&
+        (format == TypeDesc::UINT8 || format == TypeDesc::INT8 || format == TypeDesc::UINT16 ||
+         format == TypeDesc::INT16 || format == TypeDesc::UINT32 || format == TypeDesc::INT32);
     if (!integer) format = TypeDesc::FLOAT;
     std::vector<unsigned char> raw(pixels * slice.channels * format.size());
     if (!in->read_image(0, 0, 0, slice.channels, format, raw.data())) {
@@ -75,13 +77,20 @@ ImageSlice read_into(const std::string& path, std::vector<float>* out, const Ima
     const std::size_t offset = out->size();
     out->resize(offset + pixels);
     float* dst = out->data() + offset;
-    if (format == TypeDesc::UINT8) reduce_channels<uint8_t>(raw, slice.channels, dst, pixels);
-    else if (format == TypeDesc::INT8) reduce_channels<int8_t>(raw, slice.channels, dst, pixels);
-    else if (format == TypeDesc::UINT16) reduce_channels<uint16_t>(raw, slice.channels, dst, pixels);
-    else if (format == TypeDesc::INT16) reduce_channels<int16_t>(raw, slice.channels, dst, pixels);
-    else if (format == TypeDesc::UINT32) reduce_channels<uint32_t>(raw, slice.channels, dst, pixels);
-    else if (format == TypeDesc::INT32) reduce_channels<int32_t>(raw, slice.channels, dst, pixels);
-    else reduce_channels<float>(raw, slice.channels, dst, pixels);
+    if (format == TypeDesc::UINT8)
+        reduce_channels<uint8_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::INT8)
+        reduce_channels<int8_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::UINT16)
+        reduce_channels<uint16_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::INT16)
+        reduce_channels<int16_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::UINT32)
+        reduce_channels<uint32_t>(raw, slice.channels, dst, pixels);
+    else if (format == TypeDesc::INT32)
+        reduce_channels<int32_t>(raw, slice.channels, dst, pixels);
+    else
+        reduce_channels<float>(raw, slice.channels, dst, pixels);
     return slice;
 }
 
@@ -101,14 +110,15 @@ long trailing_number(const std::string& name) {
     while (end > 0 && !std::isdigit(static_cast<unsigned char>(stem[end - 1]))) --end;
     std::size_t begin = end;
     while (begin > 0 && std::isdigit(static_cast<unsigned char>(stem[begin - 1]))) --begin;
-    return begin == end ? -1 : std::stol(stem.substr(begin, std::min<std::size_t>(end - begin, 18)));
+    return begin == end ? -1
+                        : std::stol(stem.substr(begin, std::min<std::size_t>(end - begin, 18)));
 }
 
 }  // namespace
 
 bool has_image_extension(const std::string& path) {
     static const char* known[] = {".png", ".tif", ".tiff", ".jpg", ".jpeg", ".exr",
-                                  ".bmp", ".pgm", ".ppm", ".hdr", ".dpx", ".tga"};
+                                  ".bmp", ".pgm", ".ppm",  ".hdr", ".dpx",  ".tga"};
     const std::string ext = lower_extension(path);
     return std::any_of(std::begin(known), std::end(known), [&](const char* k) { return ext == k; });
 }
@@ -169,7 +179,9 @@ Volume read_image_stack(const std::vector<std::string>& files, const glm::dvec3&
 
 void write_gray_image(const std::string& path, int width, int height,
                       const std::vector<float>& pixels, int bits) {
-    const TypeDesc format = bits == 8 ? TypeDesc::UINT8 : bits == 16 ? TypeDesc::UINT16 : TypeDesc::FLOAT;
+    const TypeDesc format = bits == 8    ? TypeDesc::UINT8
+                            : bits == 16 ? TypeDesc::UINT16
+                                         : TypeDesc::FLOAT;
     OutputTransaction transaction;
     const std::string temporary = transaction.stage(path);
     auto out = OIIO::ImageOutput::create(temporary);

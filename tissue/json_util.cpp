@@ -79,9 +79,9 @@ std::optional<double> get_optional_number(const json& object, const std::string&
     if (!value.is_number()) throw InputError(source, join(where, key), "must be a number");
     const double v = value.get<double>();
     if (!std::isfinite(v) || v < min || v > max) {
-        throw InputError(source, join(where, key),
-                         "value " + describe(v) + " is outside [" + describe(min) + ", " +
-                             describe(max) + "]");
+        throw InputError(
+            source, join(where, key),
+            "value " + describe(v) + " is outside [" + describe(min) + ", " + describe(max) + "]");
     }
     return v;
 }

@@ -51,16 +51,24 @@ void check_header_bytes(const std::string& path) {
         throw InputError(path, "sizeof_hdr", "NIfTI-2 files are not supported; convert to NIfTI-1");
     }
     if (sizeof_hdr != 348 && swapped != 348) {
-        throw InputError(path, "sizeof_hdr",
-                         "not a NIfTI-1 file (sizeof_hdr is " + std::to_string(sizeof_hdr) +
-                             ", expected 348)");
+        throw InputError(
+            path, "sizeof_hdr",
+            "not a NIfTI-1 file (sizeof_hdr is " + std::to_string(sizeof_hdr) + ", expected 348)");
     }
 }
 
 bool is_supported_datatype(int datatype) {
     switch (datatype) {
-        case DT_UINT8: case DT_INT8: case DT_UINT16: case DT_INT16: case DT_UINT32:
-        case DT_INT32: case DT_UINT64: case DT_INT64: case DT_FLOAT32: case DT_FLOAT64:
+        case DT_UINT8:
+        case DT_INT8:
+        case DT_UINT16:
+        case DT_INT16:
+        case DT_UINT32:
+        case DT_INT32:
+        case DT_UINT64:
+        case DT_INT64:
+        case DT_FLOAT32:
+        case DT_FLOAT64:
             return true;
         default:
             return false;
@@ -73,35 +81,60 @@ void convert(const void* data, std::size_t count, double slope, double inter, fl
     for (std::size_t n = 0; n < count; ++n) out[n] = float(double(in[n]) * slope + inter);
 }
 
-void convert_voxels(int datatype, const void* data, std::size_t count, double slope,
-                    double inter, float* out) {
+void convert_voxels(int datatype, const void* data, std::size_t count, double slope, double inter,
+                    float* out) {
     switch (datatype) {
-        case DT_UINT8: convert<uint8_t>(data, count, slope, inter, out); break;
-        case DT_INT8: convert<int8_t>(data, count, slope, inter, out); break;
-        case DT_UINT16: convert<uint16_t>(data, count, slope, inter, out); break;
-        case DT_INT16: convert<int16_t>(data, count, slope, inter, out); break;
-        case DT_UINT32: convert<uint32_t>(data, count, slope, inter, out); break;
-        case DT_INT32: convert<int32_t>(data, count, slope, inter, out); break;
-        case DT_UINT64: convert<uint64_t>(data, count, slope, inter, out); break;
-        case DT_INT64: convert<int64_t>(data, count, slope, inter, out); break;
-        case DT_FLOAT32: convert<float>(data, count, slope, inter, out); break;
-        case DT_FLOAT64: convert<double>(data, count, slope, inter, out); break;
-        default: break;  // refused earlier by is_supported_datatype
+        case DT_UINT8:
+            convert<uint8_t>(data, count, slope, inter, out);
+            break;
+        case DT_INT8:
+            convert<int8_t>(data, count, slope, inter, out);
+            break;
+        case DT_UINT16:
+            convert<uint16_t>(data, count, slope, inter, out);
+            break;
+        case DT_INT16:
+            convert<int16_t>(data, count, slope, inter, out);
+            break;
+        case DT_UINT32:
+            convert<uint32_t>(data, count, slope, inter, out);
+            break;
+        case DT_INT32:
+            convert<int32_t>(data, count, slope, inter, out);
+            break;
+        case DT_UINT64:
+            convert<uint64_t>(data, count, slope, inter, out);
+            break;
+        case DT_INT64:
+            convert<int64_t>(data, count, slope, inter, out);
+            break;
+        case DT_FLOAT32:
+            convert<float>(data, count, slope, inter, out);
+            break;
+        case DT_FLOAT64:
+            convert<double>(data, count, slope, inter, out);
+            break;
+        default:
+            break;  // refused earlier by is_supported_datatype
     }
 }
 
 // mm per NIfTI spatial unit (unknown units are taken as mm, as most tools do).
 double unit_to_mm(int xyz_units) {
     switch (xyz_units) {
-        case NIFTI_UNITS_METER: return 1000.0;
-        case NIFTI_UNITS_MICRON: return 0.001;
-        default: return 1.0;
+        case NIFTI_UNITS_METER:
+            return 1000.0;
+        case NIFTI_UNITS_MICRON:
+            return 0.001;
+        default:
+            return 1.0;
     }
 }
 
 // Reads the voxel bytes from the data file (the .nii itself or the .img of a pair,
 // compressed or not) and refuses short files.
-void read_voxel_bytes(const nifti_image& nim, const std::string& path, std::vector<unsigned char>* bytes) {
+void read_voxel_bytes(const nifti_image& nim, const std::string& path,
+                      std::vector<unsigned char>* bytes) {
     const std::string data_file = nim.iname ? nim.iname : path;
     gzFile file = gzopen(data_file.c_str(), "rb");
     if (!file) throw InputError(data_file, "", "cannot open the voxel data file");

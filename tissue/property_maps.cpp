@@ -20,7 +20,8 @@ PropertyMaps classify(const Volume& values, const TransferFunction& tf) {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 4096), [&](const auto& range) {
         for (std::size_t n = range.begin(); n != range.end(); ++n) {
             const AcousticProperties p = tf.evaluate(values.voxels()[n]);
-            for (std::size_t f = 0; f < kPropertyCount; ++f) maps.fields[f].voxels()[n] = p.values[f];
+            for (std::size_t f = 0; f < kPropertyCount; ++f)
+                maps.fields[f].voxels()[n] = p.values[f];
         }
     });
     return maps;

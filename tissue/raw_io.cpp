@@ -22,9 +22,9 @@ struct RawType {
     bool is_float, is_signed;
 };
 constexpr RawType kRawTypes[] = {
-    {"uint8", 1, false, false},  {"int8", 1, false, true},   {"uint16", 2, false, false},
-    {"int16", 2, false, true},   {"uint32", 4, false, false}, {"int32", 4, false, true},
-    {"float32", 4, true, true},  {"float64", 8, true, true},
+    {"uint8", 1, false, false}, {"int8", 1, false, true},    {"uint16", 2, false, false},
+    {"int16", 2, false, true},  {"uint32", 4, false, false}, {"int32", 4, false, true},
+    {"float32", 4, true, true}, {"float64", 8, true, true},
 };
 
 double decode(const unsigned char* p, const RawType& type, bool swap) {
@@ -37,9 +37,12 @@ double decode(const unsigned char* p, const RawType& type, bool swap) {
     };
     if (type.is_float) return type.bytes == 4 ? as(0.0f) : as(0.0);
     switch (type.bytes) {
-        case 1: return type.is_signed ? as(int8_t()) : as(uint8_t());
-        case 2: return type.is_signed ? as(int16_t()) : as(uint16_t());
-        default: return type.is_signed ? as(int32_t()) : as(uint32_t());
+        case 1:
+            return type.is_signed ? as(int8_t()) : as(uint8_t());
+        case 2:
+            return type.is_signed ? as(int16_t()) : as(uint16_t());
+        default:
+            return type.is_signed ? as(int32_t()) : as(uint32_t());
     }
 }
 
@@ -53,9 +56,10 @@ Volume read_raw(const std::string& path) {
         throw InputError(source, "", "raw volumes need a JSON sidecar describing them; not found");
     }
     const auto j = jsonio::read_file(source);
-    jsonio::require_known_keys(j, {"file", "dims", "spacing", "origin", "direction", "datatype",
-                                 "byte_order", "header_bytes"},
-                             source, "");
+    jsonio::require_known_keys(j,
+                               {"file", "dims", "spacing", "origin", "direction", "datatype",
+                                "byte_order", "header_bytes"},
+                               source, "");
     VolumeGeometry g;
     const glm::dvec3 dims = jsonio::get_vec3(j, "dims", source, "");
     for (int a = 0; a < 3; ++a) {
@@ -86,8 +90,8 @@ Volume read_raw(const std::string& path) {
                          "unknown datatype '" + type_name +
                              "' (use uint8, int8, uint16, int16, uint32, int32, float32, float64)");
     }
-    const std::string order = j.contains("byte_order") ? jsonio::get_string(j, "byte_order", source, "")
-                                                       : "little";
+    const std::string order =
+        j.contains("byte_order") ? jsonio::get_string(j, "byte_order", source, "") : "little";
     if (order != "little" && order != "big") {
         throw InputError(source, "byte_order", "must be \"little\" or \"big\"");
     }
@@ -95,9 +99,9 @@ Volume read_raw(const std::string& path) {
     const auto header_bytes = std::size_t(
         jsonio::get_optional_number(j, "header_bytes", source, "", 0, 1e12).value_or(0));
 
-    fs::path raw = sidecar.parent_path() /
-                   (j.contains("file") ? jsonio::get_string(j, "file", source, "")
-                                       : sidecar.stem().string() + ".raw");
+    fs::path raw =
+        sidecar.parent_path() / (j.contains("file") ? jsonio::get_string(j, "file", source, "")
+                                                    : sidecar.stem().string() + ".raw");
     if (!fs::exists(raw)) throw InputError(raw.string(), "", "raw data file not found");
     const std::size_t expected = header_bytes + g.voxel_count() * std::size_t(type->bytes);
     const std::size_t actual = fs::file_size(raw);

@@ -12,7 +12,8 @@ VolumeGeometry probe_grid(const ProbeFrame& frame, const GridExtent& extent,
                           const std::string& source) {
     auto positive = [&](double v, const char* field) {
         if (!(std::isfinite(v) && v > 0.0)) {
-            throw InputError(source, field, "must be a positive number of mm, got " + std::to_string(v));
+            throw InputError(source, field,
+                             "must be a positive number of mm, got " + std::to_string(v));
         }
     };
     positive(extent.width_mm, "width");
@@ -30,8 +31,9 @@ VolumeGeometry probe_grid(const ProbeFrame& frame, const GridExtent& extent,
     const double h = extent.pixel_mm;
     for (double length : {extent.width_mm, extent.depth_mm, extent.elevation_mm}) {
         if (length / h > 1e8) {
-            throw InputError(source, "dims", "the grid would need more than 1e8 samples per axis "
-                                             "(memory); increase the resolution value");
+            throw InputError(source, "dims",
+                             "the grid would need more than 1e8 samples per axis "
+                             "(memory); increase the resolution value");
         }
     }
     g.dims = glm::ivec3(std::max(1.0, std::round(extent.width_mm / h)),

@@ -22,10 +22,10 @@ struct ProbeFrame {
 };
 
 struct GridExtent {
-    double width_mm = 100.0;     // lateral extent, centred on the probe
-    double depth_mm = 100.0;     // from the probe face
-    double elevation_mm = 0.0;   // 0 for a single plane; centred on the image plane
-    double pixel_mm = 0.25;      // isotropic sample spacing
+    double width_mm = 100.0;    // lateral extent, centred on the probe
+    double depth_mm = 100.0;    // from the probe face
+    double elevation_mm = 0.0;  // 0 for a single plane; centred on the image plane
+    double pixel_mm = 0.25;     // isotropic sample spacing
 };
 
 // Geometry of the probe-aligned grid (nz == 1 when elevation_mm <= pixel_mm).

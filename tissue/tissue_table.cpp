@@ -50,7 +50,9 @@ AcousticProperties lerp(const AcousticProperties& a, const AcousticProperties& b
     return r;
 }
 
-std::span<const TissueEntry> tissue_table() { return kTable; }
+std::span<const TissueEntry> tissue_table() {
+    return kTable;
+}
 
 const TissueEntry& find_tissue(std::string_view key, const std::string& source,
                                const std::string& field) {
@@ -58,8 +60,10 @@ const TissueEntry& find_tissue(std::string_view key, const std::string& source,
         if (entry.key == key) return entry;
     }
     std::string known;
-    for (const TissueEntry& entry : kTable) known += (known.empty() ? "" : ", ") + std::string(entry.key);
-    throw InputError(source, field, "unknown tissue '" + std::string(key) + "' (known: " + known + ")");
+    for (const TissueEntry& entry : kTable)
+        known += (known.empty() ? "" : ", ") + std::string(entry.key);
+    throw InputError(source, field,
+                     "unknown tissue '" + std::string(key) + "' (known: " + known + ")");
 }
 
 }  // namespace sonotrace::tissue

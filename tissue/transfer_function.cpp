@@ -69,16 +69,16 @@ json properties_json(const AcousticProperties& properties) {
 
 std::unique_ptr<TransferFunction> parse_piecewise(const json& j, const std::string& source,
                                                   const std::string& name) {
-    jsonio::require_known_keys(j, {"name", "description", "kind", "intensity", "normalization",
-                                 "points"},
-                             source, "");
+    jsonio::require_known_keys(
+        j, {"name", "description", "kind", "intensity", "normalization", "points"}, source, "");
     auto domain = PiecewiseLinearTransferFunction::Domain::raw;
     if (j.contains("intensity")) {
         const std::string d = jsonio::get_string(j, "intensity", source, "");
         if (d == "normalized") {
             domain = PiecewiseLinearTransferFunction::Domain::normalized;
         } else if (d != "raw") {
-            throw InputError(source, "intensity", "must be \"raw\" or \"normalized\", got \"" + d + "\"");
+            throw InputError(source, "intensity",
+                             "must be \"raw\" or \"normalized\", got \"" + d + "\"");
         }
     }
     double low_q = 0.0, high_q = 0.99;
@@ -130,15 +130,16 @@ std::unique_ptr<TransferFunction> parse_labels(const json& j, const std::string&
         const json& e = j.at("labels")[n];
         const std::string where = "labels[" + std::to_string(n) + "]";
         require_keys(e, keys, source, where);
-        const double label = jsonio::get_number(e, "label", source, where, -2147483648.0, 2147483647.0);
+        const double label =
+            jsonio::get_number(e, "label", source, where, -2147483648.0, 2147483647.0);
         if (label != std::floor(label)) {
             throw InputError(source, where + ".label", "must be an integer");
         }
         LabelTransferFunction::Entry entry;
         entry.label = int(label);
         if (!seen.insert(entry.label).second) {
-            throw InputError(source, where + ".label", "label " + std::to_string(entry.label) +
-                                                           " is listed twice");
+            throw InputError(source, where + ".label",
+                             "label " + std::to_string(entry.label) + " is listed twice");
         }
         entry.properties = read_properties(e, source, where, &entry.tissue);
         entries.push_back(std::move(entry));
@@ -150,9 +151,11 @@ std::unique_ptr<TransferFunction> parse_labels(const json& j, const std::string&
 
 // ---- piecewise linear -------------------------------------------------------------
 
-PiecewiseLinearTransferFunction::PiecewiseLinearTransferFunction(
-    std::string name, std::string source, Domain domain, double low_quantile, double high_quantile,
-    std::vector<ControlPoint> points)
+PiecewiseLinearTransferFunction::PiecewiseLinearTransferFunction(std::string name,
+                                                                 std::string source, Domain domain,
+                                                                 double low_quantile,
+                                                                 double high_quantile,
+                                                                 std::vector<ControlPoint> points)
     : name_(std::move(name)),
       source_(std::move(source)),
       domain_(domain),
@@ -162,7 +165,8 @@ PiecewiseLinearTransferFunction::PiecewiseLinearTransferFunction(
 
 void PiecewiseLinearTransferFunction::bind(const Volume& volume) {
     if (domain_ == Domain::raw) return;
-    window_low_ = low_quantile_ == 0.0 ? volume.value_range().first : volume.quantile(low_quantile_);
+    window_low_ =
+        low_quantile_ == 0.0 ? volume.value_range().first : volume.quantile(low_quantile_);
     window_high_ = volume.quantile(high_quantile_);
     if (!(window_high_ > window_low_)) {
         throw InputError(source_, "normalization",
@@ -175,8 +179,9 @@ AcousticProperties PiecewiseLinearTransferFunction::evaluate(float value) const 
     const double x = (double(value) - window_low_) / (window_high_ - window_low_);
     if (x <= points_.front().intensity) return points_.front().properties;
     if (x >= points_.back().intensity) return points_.back().properties;
-    const auto upper = std::upper_bound(points_.begin(), points_.end(), x,
-                                        [](double v, const ControlPoint& p) { return v < p.intensity; });
+    const auto upper =
+        std::upper_bound(points_.begin(), points_.end(), x,
+                         [](double v, const ControlPoint& p) { return v < p.intensity; });
     const ControlPoint& b = *upper;
     const ControlPoint& a = *(upper - 1);
     return lerp(a.properties, b.properties, float((x - a.intensity) / (b.intensity - a.intensity)));
@@ -210,8 +215,9 @@ void LabelTransferFunction::bind(const Volume& volume) {
     std::set<float> values(volume.voxels().begin(), volume.voxels().end());
     for (float v : values) {
         const bool integer = v == std::floor(v);
-        const bool listed = integer && std::any_of(entries_.begin(), entries_.end(),
-                                                   [&](const Entry& e) { return float(e.label) == v; });
+        const bool listed =
+            integer && std::any_of(entries_.begin(), entries_.end(),
+                                   [&](const Entry& e) { return float(e.label) == v; });
         if (!listed) {
             throw InputError(source_, "labels",
                              "the volume contains label " + std::to_string(v) +
@@ -263,7 +269,8 @@ std::unique_ptr<TransferFunction> transfer_function_from_json(const nlohmann::js
                                                 : std::filesystem::path(source).stem().string();
     if (kind == "piecewise-linear") return parse_piecewise(j, source, name);
     if (kind == "labels") return parse_labels(j, source, name);
-    throw InputError(source, "kind", "must be \"piecewise-linear\" or \"labels\", got \"" + kind + "\"");
+    throw InputError(source, "kind",
+                     "must be \"piecewise-linear\" or \"labels\", got \"" + kind + "\"");
 }
 
 std::unique_ptr<TransferFunction> load_transfer_function(const std::string& spec) {

@@ -22,7 +22,7 @@
 namespace sonotrace::tissue {
 
 class TransferFunction {
-public:
+  public:
     virtual ~TransferFunction() = default;
     // Adapts to the volume before use (intensity window, label check). Throws InputError
     // naming the transfer function's file if the volume does not fit it.
@@ -40,7 +40,7 @@ struct ControlPoint {
 };
 
 class PiecewiseLinearTransferFunction final : public TransferFunction {
-public:
+  public:
     enum class Domain { raw, normalized };
     PiecewiseLinearTransferFunction(std::string name, std::string source, Domain domain,
                                     double low_quantile, double high_quantile,
@@ -56,7 +56,7 @@ public:
     double window_low() const { return window_low_; }
     double window_high() const { return window_high_; }
 
-private:
+  private:
     std::string name_, source_;
     Domain domain_;
     double low_quantile_, high_quantile_;
@@ -65,7 +65,7 @@ private:
 };
 
 class LabelTransferFunction final : public TransferFunction {
-public:
+  public:
     struct Entry {
         int label = 0;
         std::string tissue;
@@ -78,7 +78,7 @@ public:
     bool uses_nearest_sampling() const override { return true; }
     nlohmann::json describe() const override;
 
-private:
+  private:
     std::string name_, source_;
     std::vector<Entry> entries_;  // sorted by label
 };

@@ -38,12 +38,13 @@ void VolumeGeometry::validate(const std::string& source) const {
     }
     const double det = glm::determinant(direction);
     if (!std::isfinite(det) || std::abs(det) < 1e-6) {
-        throw InputError(source, "direction",
-                         "the axis directions are degenerate (determinant " +
-                             std::to_string(det) + ")");
+        throw InputError(
+            source, "direction",
+            "the axis directions are degenerate (determinant " + std::to_string(det) + ")");
     }
     // In double: a corrupt header's dims can overflow size_t.
-    check_allocation(double(dims.x) * double(dims.y) * double(dims.z) * sizeof(float), source, "dims");
+    check_allocation(double(dims.x) * double(dims.y) * double(dims.z) * sizeof(float), source,
+                     "dims");
 }
 
 Volume::Volume(const VolumeGeometry& geometry, float fill)
@@ -91,9 +92,8 @@ void Volume::require_finite(const std::string& source) const {
         if (std::isfinite(voxels_[n])) continue;
         const glm::ivec3& d = geometry_.dims;
         std::ostringstream s;
-        s << "voxel (" << n % d.x << ", " << (n / d.x) % d.y << ", "
-          << n / (std::size_t(d.x) * d.y) << ") is " << voxels_[n]
-          << "; NaN and Inf voxels are not allowed";
+        s << "voxel (" << n % d.x << ", " << (n / d.x) % d.y << ", " << n / (std::size_t(d.x) * d.y)
+          << ") is " << voxels_[n] << "; NaN and Inf voxels are not allowed";
         throw InputError(source, "data", s.str());
     }
 }

@@ -15,10 +15,10 @@
 namespace sonotrace::tissue {
 
 struct VolumeGeometry {
-    glm::ivec3 dims{1, 1, 1};          // voxels along i, j, k
+    glm::ivec3 dims{1, 1, 1};           // voxels along i, j, k
     glm::dvec3 spacing{1.0, 1.0, 1.0};  // mm between voxel centres along i, j, k
-    glm::dvec3 origin{0.0};            // world position (mm) of voxel (0,0,0)
-    glm::dmat3 direction{1.0};         // columns: world unit vectors of the i, j, k axes
+    glm::dvec3 origin{0.0};             // world position (mm) of voxel (0,0,0)
+    glm::dmat3 direction{1.0};          // columns: world unit vectors of the i, j, k axes
 
     std::size_t voxel_count() const {
         return std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z);
@@ -41,7 +41,7 @@ struct VolumeGeometry {
 };
 
 class Volume {
-public:
+  public:
     Volume() = default;
     Volume(const VolumeGeometry& geometry, float fill = 0.0f);
     Volume(const VolumeGeometry& geometry, std::vector<float> voxels);
@@ -75,7 +75,7 @@ public:
     // Throws InputError(source, "data", ...) naming the first NaN or Inf voxel.
     void require_finite(const std::string& source) const;
 
-private:
+  private:
     VolumeGeometry geometry_;
     std::vector<float> voxels_;
 };

@@ -7,9 +7,9 @@
 #include <optional>
 #include <string>
 
+#include <tbb/global_control.h>
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
 
 namespace sonotrace::ui {
 
@@ -30,13 +30,13 @@ CLI::Option* add_parameter(CLI::App& app, const ParameterDoc& doc, T& variable) 
 
 // Times named stages and prints "sonotrace: <stage> ... 0.42 s" lines to stderr.
 class StageTimer {
-public:
+  public:
     explicit StageTimer(bool quiet) : quiet_(quiet) {}
     void begin(const std::string& stage);
     void end();
     const nlohmann::json& timings() const { return timings_; }  // seconds per stage
 
-private:
+  private:
     bool quiet_;
     std::string stage_;
     std::chrono::steady_clock::time_point start_;

@@ -2,8 +2,10 @@
 
 #include <cmath>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
 #include <limits>
+#include <sstream>
 
 #include "imaging/picture.h"
 #include "probe/pose.h"
@@ -72,7 +74,8 @@ struct FieldOutput {
 
 json geometry_json(const tissue::VolumeGeometry& g) {
     json direction = json::array();
-    for (int c = 0; c < 3; ++c) direction.push_back({g.direction[c].x, g.direction[c].y, g.direction[c].z});
+    for (int c = 0; c < 3; ++c)
+        direction.push_back({g.direction[c].x, g.direction[c].y, g.direction[c].z});
     return {{"dims", {g.dims.x, g.dims.y, g.dims.z}},
             {"spacing_mm", {g.spacing.x, g.spacing.y, g.spacing.z}},
             {"origin_mm", {g.origin.x, g.origin.y, g.origin.z}},
@@ -102,6 +105,27 @@ probe::Pose top_centre_pose(const tissue::VolumeGeometry& g) {
 
 }  // namespace
 
+std::string tissue_tables_markdown() {
+    std::ostringstream out;
+    out << "| property | unit | range | meaning |\n|---|---|---|---|\n";
+    for (const auto& p : tissue::kPropertyInfo) {
+        out << "| `" << p.key << "` | " << p.unit << " | " << p.min << " .. " << p.max << " | "
+            << p.description << " |\n";
+    }
+    out << "\n| tissue |";
+    for (const auto& p : tissue::kPropertyInfo) out << " " << p.key << " |";
+    out << " Z [MRayl] | source |\n|---|";
+    for (std::size_t n = 0; n <= tissue::kPropertyCount; ++n) out << "---|";
+    out << "---|\n";
+    for (const auto& t : tissue::tissue_table()) {
+        out << "| `" << t.key << "` |";
+        for (float v : t.properties.values) out << " " << v << " |";
+        out << " " << std::setprecision(3) << t.properties.impedance_mrayl() << std::setprecision(6)
+            << " | " << t.source << " |\n";
+    }
+    return out.str();
+}
+
 CLI::App* add_tissue_command(CLI::App& app, TissueOptions& options) {
     CLI::App* cmd = app.add_subcommand(
         "tissue",
@@ -123,22 +147,15 @@ CLI::App* add_tissue_command(CLI::App& app, TissueOptions& options) {
     cmd->add_flag("--nifti", options.write_nifti,
                   "also write every field as float NIfTI (.nii.gz) with the grid's geometry");
     cmd->add_flag("--list-tissues", options.list_tissues,
-                  "print the tissue table (literature values with units) and exit");
+                  "print the acoustic properties (units, ranges) and the tissue table (literature "
+                  "values) as Markdown and exit");
     cmd->add_flag("-q,--quiet", options.quiet, "no progress lines on stderr");
     return cmd;
 }
 
 int run_tissue_command(const TissueOptions& options) {
     if (options.list_tissues) {
-        std::cout << "key             ";
-        for (const auto& p : tissue::kPropertyInfo) std::cout << p.key << " [" << p.unit << "]  ";
-        std::cout << "source\n";
-        for (const auto& t : tissue::tissue_table()) {
-            std::cout << t.key;
-            for (std::size_t n = t.key.size(); n < 16; ++n) std::cout << ' ';
-            for (float v : t.properties.values) std::cout << v << "  ";
-            std::cout << t.source << "\n";
-        }
+        std::cout << tissue_tables_markdown();
         return 0;
     }
 
@@ -150,12 +167,14 @@ int run_tissue_command(const TissueOptions& options) {
     tissue::VolumeRequest request{options.volume, std::nullopt};
     if (!options.spacing.empty()) {
         double s[3];
-        if (auto error = parse_spacing(options.spacing, s)) throw tissue::InputError("--spacing", "", *error);
+        if (auto error = parse_spacing(options.spacing, s))
+            throw tissue::InputError("--spacing", "", *error);
         request.image_spacing = glm::dvec3(s[0], s[1], s[2]);
     }
     auto nonnegative = [](double v, const char* flag) {
         if (!(std::isfinite(v) && v >= 0.0)) {
-            throw tissue::InputError(flag, "", "must be a finite number >= 0 (mm), got " + std::to_string(v));
+            throw tissue::InputError(flag, "",
+                                     "must be a finite number >= 0 (mm), got " + std::to_string(v));
         }
     };
     nonnegative(options.width_mm, "--width");
@@ -185,24 +204,26 @@ int run_tissue_command(const TissueOptions& options) {
     const float outside = std::isnan(options.outside) ? vmin : float(options.outside);
 
     // ---- grid under the probe ----
-    if (!pose) pose = is_default ? probe::colin27_temporal_pose() : top_centre_pose(volume.geometry());
+    if (!pose)
+        pose = is_default ? probe::colin27_temporal_pose() : top_centre_pose(volume.geometry());
     tissue::GridExtent extent;
     const glm::dvec3 size_mm = glm::dvec3(volume.dims()) * volume.geometry().spacing;
     extent.width_mm = options.width_mm > 0 ? options.width_mm : (is_default ? 140.0 : size_mm.x);
     extent.depth_mm = options.depth_mm > 0 ? options.depth_mm : (is_default ? 160.0 : size_mm.y);
     extent.elevation_mm = options.elevation_mm;
     extent.pixel_mm = options.resolution_mm;
-    const tissue::VolumeGeometry grid = tissue::probe_grid(pose->frame(), extent, "--width/--depth/--resolution");
+    const tissue::VolumeGeometry grid =
+        tissue::probe_grid(pose->frame(), extent, "--width/--depth/--resolution");
     tissue::check_allocation(double(grid.voxel_count()) * 4.0 * 24.0, "--resolution",
                              "grid of " + std::to_string(grid.voxel_count()) + " samples");
 
     timer.begin("binding the transfer function to the volume");
     tf->bind(volume);
     timer.end();
-    timer.begin("resampling " + std::to_string(grid.dims.x) + "x" + std::to_string(grid.dims.y) + "x" +
-                std::to_string(grid.dims.z) + " samples");
+    timer.begin("resampling " + std::to_string(grid.dims.x) + "x" + std::to_string(grid.dims.y) +
+                "x" + std::to_string(grid.dims.z) + " samples");
     const auto interpolation = tf->uses_nearest_sampling() ? tissue::Interpolation::nearest
-                                                          : tissue::Interpolation::trilinear;
+                                                           : tissue::Interpolation::trilinear;
     const tissue::Volume values = tissue::resample(volume, grid, interpolation, outside);
     timer.end();
     timer.begin("classifying");
@@ -214,8 +235,8 @@ int run_tissue_command(const TissueOptions& options) {
         for (int k = 0; k < grid.dims.z; ++k) {
             for (int j = 0; j < grid.dims.y; ++j) {
                 for (int i = 0; i < grid.dims.x; ++i) {
-                    const auto& t = map.texel(typename std::decay_t<decltype(map)>::IVec(
-                        glm::ivec3(i, j, k)));
+                    const auto& t =
+                        map.texel(typename std::decay_t<decltype(map)>::IVec(glm::ivec3(i, j, k)));
                     double gn = 0.0, gz = 0.0;
                     for (int a = 0; a < int(std::size(t.grad_impedance)); ++a) {
                         gn += double(t.grad_refractive_index[a]) * t.grad_refractive_index[a];
@@ -227,30 +248,42 @@ int run_tissue_command(const TissueOptions& options) {
             }
         }
     };
-    if (grid.dims.z == 1) store_gradients(tissue::AcousticMap<2>::build(maps));
-    else store_gradients(tissue::AcousticMap<3>::build(maps));
+    if (grid.dims.z == 1)
+        store_gradients(tissue::AcousticMap<2>::build(maps));
+    else
+        store_gradients(tissue::AcousticMap<3>::build(maps));
     timer.end();
 
     // ---- pictures ----
     timer.begin("writing pictures");
     std::vector<FieldOutput> fields;
     const double px = extent.pixel_mm;
-    fields.push_back({"slice", {"intensity", "volume units", imaging::Colormap::gray, std::pair<double, double>(vmin, vmax), false, px}, values});
-    const imaging::Colormap maps_cmap[] = {imaging::Colormap::turbo,  imaging::Colormap::viridis,
+    fields.push_back({"slice",
+                      {"intensity", "volume units", imaging::Colormap::gray,
+                       std::pair<double, double>(vmin, vmax), false, px},
+                      values});
+    const imaging::Colormap maps_cmap[] = {imaging::Colormap::turbo,   imaging::Colormap::viridis,
                                            imaging::Colormap::inferno, imaging::Colormap::bone,
-                                           imaging::Colormap::magma,  imaging::Colormap::cividis};
+                                           imaging::Colormap::magma,   imaging::Colormap::cividis};
     for (std::size_t n = 0; n < tissue::kPropertyCount; ++n) {
         const auto& info = tissue::kPropertyInfo[n];
         fields.push_back({std::string(info.key),
-                          {std::string(info.label), std::string(info.unit), maps_cmap[n], std::nullopt, false, px},
+                          {std::string(info.label), std::string(info.unit), maps_cmap[n],
+                           std::nullopt, false, px},
                           maps.fields[n]});
         if (n == 1) {
-            fields.push_back({"impedance", {"impedance Z", std::string(tissue::kImpedanceUnit), imaging::Colormap::viridis, std::nullopt, false, px},
+            fields.push_back({"impedance",
+                              {"impedance Z", std::string(tissue::kImpedanceUnit),
+                               imaging::Colormap::viridis, std::nullopt, false, px},
                               maps.impedance()});
         }
     }
-    fields.push_back({"impedance_gradient", {"|grad Z|", "MRayl/mm", imaging::Colormap::inferno, std::nullopt, true, px}, grad_z});
-    fields.push_back({"refractive_index_gradient", {"|grad n|", "1/mm", imaging::Colormap::inferno, std::nullopt, true, px}, grad_n});
+    fields.push_back({"impedance_gradient",
+                      {"|grad Z|", "MRayl/mm", imaging::Colormap::inferno, std::nullopt, true, px},
+                      grad_z});
+    fields.push_back({"refractive_index_gradient",
+                      {"|grad n|", "1/mm", imaging::Colormap::inferno, std::nullopt, true, px},
+                      grad_n});
 
     tissue::OutputTransaction transaction;
     json outputs = json::array();
@@ -258,13 +291,16 @@ int run_tissue_command(const TissueOptions& options) {
     for (const FieldOutput& f : fields) {
         const tissue::Volume plane = central_plane(f.field);
         const cv::Mat picture = imaging::render_field(plane, f.style);
-        const std::string path = (std::filesystem::path(options.out_dir) / (f.key + ".png")).string();
+        const std::string path =
+            (std::filesystem::path(options.out_dir) / (f.key + ".png")).string();
         imaging::write_png(picture, transaction.stage(path));
         panels.push_back(picture);
         const auto [lo, hi] = f.field.value_range();
-        json entry = {{"field", f.key}, {"unit", f.style.unit}, {"png", path}, {"min", lo}, {"max", hi}};
+        json entry = {
+            {"field", f.key}, {"unit", f.style.unit}, {"png", path}, {"min", lo}, {"max", hi}};
         if (options.write_nifti) {
-            const std::string nii = (std::filesystem::path(options.out_dir) / (f.key + ".nii.gz")).string();
+            const std::string nii =
+                (std::filesystem::path(options.out_dir) / (f.key + ".nii.gz")).string();
             tissue::write_nifti(f.field, transaction.stage(nii));
             entry["nifti"] = nii;
         }
@@ -279,19 +315,28 @@ int run_tissue_command(const TissueOptions& options) {
     json record = {
         {"command", "tissue"},
         {"software", {{"name", "sonotrace"}, {"version", SONOTRACE_VERSION}}},
-        {"volume", {{"spec", options.volume}, {"path", loaded.path}, {"format", loaded.format},
-                    {"geometry", geometry_json(vg)}, {"value_range", {vmin, vmax}}, {"outside_value", outside}}},
+        {"volume",
+         {{"spec", options.volume},
+          {"path", loaded.path},
+          {"format", loaded.format},
+          {"geometry", geometry_json(vg)},
+          {"value_range", {vmin, vmax}},
+          {"outside_value", outside}}},
         {"transfer_function", tf->describe()},
-        {"pose", {{"text", pose->to_string()},
-                  {"position_mm", {pose->position.x, pose->position.y, pose->position.z}},
-                  {"lateral", {pose->lateral().x, pose->lateral().y, pose->lateral().z}},
-                  {"axial", {pose->axial().x, pose->axial().y, pose->axial().z}},
-                  {"elevation", {pose->elevation().x, pose->elevation().y, pose->elevation().z}}}},
-        {"grid", {{"geometry", geometry_json(grid)},
-                  {"width_mm", extent.width_mm}, {"depth_mm", extent.depth_mm},
-                  {"elevation_mm", extent.elevation_mm}, {"pixel_mm", extent.pixel_mm},
-                  {"interpolation", tf->uses_nearest_sampling() ? "nearest" : "trilinear"},
-                  {"axes", "i = lateral, j = depth (axial), k = elevation"}}},
+        {"pose",
+         {{"text", pose->to_string()},
+          {"position_mm", {pose->position.x, pose->position.y, pose->position.z}},
+          {"lateral", {pose->lateral().x, pose->lateral().y, pose->lateral().z}},
+          {"axial", {pose->axial().x, pose->axial().y, pose->axial().z}},
+          {"elevation", {pose->elevation().x, pose->elevation().y, pose->elevation().z}}}},
+        {"grid",
+         {{"geometry", geometry_json(grid)},
+          {"width_mm", extent.width_mm},
+          {"depth_mm", extent.depth_mm},
+          {"elevation_mm", extent.elevation_mm},
+          {"pixel_mm", extent.pixel_mm},
+          {"interpolation", tf->uses_nearest_sampling() ? "nearest" : "trilinear"},
+          {"axes", "i = lateral, j = depth (axial), k = elevation"}}},
         {"outputs", outputs},
         {"overview", overview},
         {"warnings", loaded.warnings},

@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# sonotrace set-up: installs the Debian 12 packages that are missing (apt only when
+# something is missing, so a second run is fast), configures and builds (Release,
+# ccache), then runs what was asked.
+#
+#   scripts/setup.sh demo      build and run the default simulation
+#   scripts/setup.sh test      build and run every test, then the ASan+UBSan build's tests
+#   scripts/setup.sh build     only install and build
+#
+# Environment: SONOTRACE_JOBS (default: all cores), SONOTRACE_BUILD_DIR (default: build).
+set -euo pipefail
+
+cd "$(dirname "$0")/.."
+mode="${1:-demo}"
+jobs="${SONOTRACE_JOBS:-$(nproc)}"
+build_dir="${SONOTRACE_BUILD_DIR:-build}"
+
+packages=(
+  # toolchain
+  g++ cmake ninja-build ccache pkg-config
+  # libraries (OpenCV only in the modules we link: core, imgproc, videoio)
+  libniftiio-dev libznz-dev zlib1g-dev libopenimageio-dev
+  libopencv-core-dev libopencv-imgproc-dev libopencv-videoio-dev
+  libglm-dev libcli11-dev nlohmann-json3-dev libtbb-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  # the embedded default volume: Colin27 T1 head MRI
+  mricron-data
+)
+
+say() { printf '\033[1msonotrace setup:\033[0m %s\n' "$*" >&2; }
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  say "installing ${#missing[@]} missing Debian packages: ${missing[*]}"
+  sudo_cmd=()
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { say "not root and no sudo: install ${missing[*]} by hand"; exit 1; }
+    sudo_cmd=(sudo)
+  fi
+  "${sudo_cmd[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+  "${sudo_cmd[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+else
+  say "all Debian packages present"
+fi
+
+configure_and_build() {  # <dir> <cmake args...>
+  local dir="$1"
+  shift
+  cmake -S . -B "$dir" -G Ninja -DSONOTRACE_WERROR=ON "$@" >/dev/null
+  say "building in $dir with $jobs jobs"
+  cmake --build "$dir" -j "$jobs"
+}
+
+configure_and_build "$build_dir" -DCMAKE_BUILD_TYPE=Release
+
+case "$mode" in
+  build) ;;
+  demo)
+    out="out/tissue"
+    say "running: $build_dir/sonotrace tissue --volume default --out $out"
+    "$build_dir/sonotrace" tissue --volume default --out "$out"
+    say "done: open $out/overview.png (every acoustic field of the Colin27 slice) and $out/tissue.json"
+    ;;
+  test)
+    say "running the test suite (Release)"
+    ctest --test-dir "$build_dir" -j "$jobs" --output-on-failure
+    say "running the test suite under AddressSanitizer + UndefinedBehaviorSanitizer"
+    configure_and_build "$build_dir-asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSONOTRACE_SANITIZE=ON \
+      -DSONOTRACE_BUILD_BENCH=OFF
+    ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+      ctest --test-dir "$build_dir-asan" -j "$jobs" --output-on-failure -LE slow
+    say "all tests passed"
+    ;;
+  *)
+    echo "usage: $0 [demo|test|build]" >&2
+    exit 2
+    ;;
+esac
