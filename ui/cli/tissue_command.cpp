@@ -7,6 +7,8 @@
 #include <limits>
 #include <sstream>
 
+#include <tbb/parallel_for.h>
+
 #include "imaging/picture.h"
 #include "probe/pose.h"
 #include "sonotrace_version.h"
@@ -285,27 +287,33 @@ int run_tissue_command(const TissueOptions& options) {
                       {"|grad n|", "1/mm", imaging::Colormap::inferno, std::nullopt, true, px},
                       grad_n});
 
+    // Stage every path first (the transaction is not thread-safe), then render and encode
+    // the pictures in parallel; each task writes only its own files.
     tissue::OutputTransaction transaction;
     json outputs = json::array();
-    std::vector<cv::Mat> panels;
-    for (const FieldOutput& f : fields) {
-        const tissue::Volume plane = central_plane(f.field);
-        const cv::Mat picture = imaging::render_field(plane, f.style);
-        const std::string path =
-            (std::filesystem::path(options.out_dir) / (f.key + ".png")).string();
-        imaging::write_png(picture, transaction.stage(path));
-        panels.push_back(picture);
+    std::vector<std::string> png_staged(fields.size()), nii_staged(fields.size());
+    for (std::size_t n = 0; n < fields.size(); ++n) {
+        const FieldOutput& f = fields[n];
+        const std::filesystem::path stem = std::filesystem::path(options.out_dir) / f.key;
         const auto [lo, hi] = f.field.value_range();
-        json entry = {
-            {"field", f.key}, {"unit", f.style.unit}, {"png", path}, {"min", lo}, {"max", hi}};
+        json entry = {{"field", f.key},
+                      {"unit", f.style.unit},
+                      {"png", stem.string() + ".png"},
+                      {"min", lo},
+                      {"max", hi}};
+        png_staged[n] = transaction.stage(stem.string() + ".png");
         if (options.write_nifti) {
-            const std::string nii =
-                (std::filesystem::path(options.out_dir) / (f.key + ".nii.gz")).string();
-            tissue::write_nifti(f.field, transaction.stage(nii));
-            entry["nifti"] = nii;
+            nii_staged[n] = transaction.stage(stem.string() + ".nii.gz");
+            entry["nifti"] = stem.string() + ".nii.gz";
         }
         outputs.push_back(entry);
     }
+    std::vector<cv::Mat> panels(fields.size());
+    tbb::parallel_for(std::size_t(0), fields.size(), [&](std::size_t n) {
+        panels[n] = imaging::render_field(central_plane(fields[n].field), fields[n].style);
+        imaging::write_png(panels[n], png_staged[n]);
+        if (options.write_nifti) tissue::write_nifti(fields[n].field, nii_staged[n]);
+    });
     const std::string overview = (std::filesystem::path(options.out_dir) / "overview.png").string();
     imaging::write_png(imaging::montage(panels, 4), transaction.stage(overview));
     timer.end();
