@@ -53,6 +53,9 @@ class AcousticMap {
     // Packs property maps (nz must be 1 for Dim == 2; at least 2 texels per used axis)
     // and computes the gradients.
     static AcousticMap build(const PropertyMaps& maps);
+    // The paper's medium: one scalar density d acting as refractive index and impedance
+    // (n = Z = d); no attenuation or scattering.
+    static AcousticMap build_paper(const Volume& density);
 
     const VolumeGeometry& geometry() const { return geometry_; }
     const IVec& dims() const { return dims_; }
@@ -65,9 +68,14 @@ class AcousticMap {
     bool inside(const Vec& p_mm) const;
     // Bi-/trilinear interpolation of every field; clamps to the edge outside.
     AcousticTexel<Dim> sample(const Vec& p_mm) const;
+    // The refractive index alone (one float per texel read), same interpolation.
+    float sample_refractive_index(const Vec& p_mm) const;
 
   private:
     std::size_t linear(const IVec& i) const;
+    static AcousticMap pack(const Volume& refractive_index, const Volume& impedance,
+                            const Volume* attenuation, const Volume* backscatter,
+                            const Volume* scatterer_density, const Volume* roughness);
 
     VolumeGeometry geometry_;
     IVec dims_{};
@@ -128,6 +136,28 @@ inline AcousticTexel<Dim> AcousticMap<Dim>::sample(const Vec& p_mm) const {
     AcousticTexel<Dim> result;
     std::memcpy(&result, out, sizeof result);
     return result;
+}
+
+template <int Dim>
+inline float AcousticMap<Dim>::sample_refractive_index(const Vec& p_mm) const {
+    constexpr int K = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
+    IVec i0;
+    Vec f;
+    for (int a = 0; a < Dim; ++a) {
+        const float x = glm::clamp(p_mm[a] * inverse_spacing_[a], 0.0f, float(dims_[a] - 1));
+        i0[a] = std::min(int(x), dims_[a] - 2);
+        f[a] = x - float(i0[a]);
+    }
+    const float* t = reinterpret_cast<const float*>(texels_.data() + linear(i0));  // n is field 0
+    const std::size_t dy = std::size_t(dims_[0]) * K;
+    const float lower = (1 - f[1]) * ((1 - f[0]) * t[0] + f[0] * t[K]) + f[1] * ((1 - f[0]) * t[dy] + f[0] * t[dy + K]);
+    if constexpr (Dim == 2) {
+        return lower;
+    } else {
+        const float* u = t + dy * std::size_t(dims_[1]);
+        const float upper = (1 - f[1]) * ((1 - f[0]) * u[0] + f[0] * u[K]) + f[1] * ((1 - f[0]) * u[dy] + f[0] * u[dy + K]);
+        return (1 - f[2]) * lower + f[2] * upper;
+    }
 }
 
 extern template class AcousticMap<2>;

@@ -1,0 +1,85 @@
+#pragma once
+// What a trace produces: echo events, energy maps, optional paths, an energy ledger.
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "tissue/volume.h"
+
+namespace sonotrace::simulator {
+
+enum class EchoKind : uint8_t {
+    specular,           // reflection at an interface (weight = R^2)
+    diffuse,            // reflection at a rough interface (weight = R^2)
+    scatter,            // sub-resolution scattering (weight = scatter_echo_fraction * backscatter)
+    returned_to_probe,  // the particle itself came back through the probe face
+};
+const char* to_string(EchoKind kind);
+
+template <int Dim>
+struct EchoEvent {
+    uint32_t line = 0;
+    uint32_t particle = 0;          // index within its line
+    float time_s = 0.0f;            // one-way time of flight to the event
+    float energy = 0.0f;            // particle energy arriving at the event
+    float weight = 0.0f;            // fraction of that energy sent back towards the probe
+    glm::vec<Dim, float> position;  // mm, map frame
+    uint16_t bounces = 0;           // reflections before this event
+    EchoKind kind = EchoKind::scatter;
+};
+
+template <int Dim>
+struct PathVertex {
+    glm::vec<Dim, float> position;  // mm, map frame
+    float energy;
+};
+
+template <int Dim>
+struct Path {
+    uint32_t line = 0, particle = 0;
+    std::vector<PathVertex<Dim>> vertices;
+};
+
+// Where the injected energy went. Russian roulette is unbiased but not conserving in a
+// single run, so its killed and added energy are booked separately:
+// injected = absorbed + escaped + recorded + remaining + roulette_killed - roulette_added.
+struct EnergyLedger {
+    double injected = 0.0;
+    double absorbed = 0.0;         // attenuation (and lossy diffuse reflection)
+    double escaped = 0.0;          // left through the domain boundary
+    double recorded = 0.0;         // removed as echoes (scattering, capture at the probe face)
+    double remaining = 0.0;        // alive when the path length or bounce limit ended it
+    double roulette_killed = 0.0;
+    double roulette_added = 0.0;
+
+    double accounted() const {
+        return absorbed + escaped + recorded + remaining + roulette_killed - roulette_added;
+    }
+    double relative_error() const { return injected > 0 ? (accounted() - injected) / injected : 0.0; }
+    EnergyLedger& operator+=(const EnergyLedger& o);
+};
+
+struct TraceStats {
+    uint64_t particles = 0;
+    uint64_t steps = 0;
+    uint64_t interface_events = 0;
+    uint64_t reflections = 0;
+    uint64_t total_reflections = 0;
+    uint64_t scatter_events = 0;
+    uint64_t captured = 0;
+    TraceStats& operator+=(const TraceStats& o);
+};
+
+template <int Dim>
+struct TraceResult {
+    std::vector<EchoEvent<Dim>> echoes;  // by line, then particle, then time of the event
+    tissue::Volume fluence;   // sum of energy * step length per texel / texel area: intensity
+    tissue::Volume absorbed;  // energy absorbed per texel: the deposition map
+    std::vector<Path<Dim>> paths;
+    std::vector<double> ring_profile;  // energy per ring bin, if a ring detector was set
+    EnergyLedger ledger;
+    TraceStats stats;
+};
+
+}  // namespace sonotrace::simulator

@@ -1,0 +1,51 @@
+#pragma once
+// Built-in trace configurations: the figures of Reis & Bertram (paper mode) and simple
+// analytic media for tests. The phantom library will take these over.
+#include <string>
+#include <vector>
+
+#include "simulator/sources.h"
+#include "simulator/trace_settings.h"
+#include "tissue/acoustic_map.h"
+#include "tissue/property_maps.h"
+
+namespace sonotrace::simulator {
+
+struct Scene2D {
+    std::string name, description;
+    tissue::Volume medium;  // what the pictures show underneath the paths (density or speed)
+    std::string medium_label, medium_unit;
+    tissue::AcousticMap<2> map;
+    Sources<2> sources;
+    TraceSettings settings;
+};
+
+// Names accepted by make_paper_scene: fig2, fig4a, fig4b, fig5, fig6.
+std::vector<std::string> paper_scene_names();
+// Throws tissue::InputError("--config", ...) for an unknown name. fig5 loads Colin27.
+Scene2D make_paper_scene(const std::string& name, int particles);
+
+// Two media separated by a plane through `point` with unit `normal` (pointing into
+// medium b), the transition smoothed linearly over `smoothing_texels`. Grid: nx x ny
+// texels of h mm, texel (i, j) at (i h, j h).
+tissue::PropertyMaps planar_interface(int nx, int ny, double h, glm::dvec2 point, glm::dvec2 normal,
+                                      const tissue::AcousticProperties& a,
+                                      const tissue::AcousticProperties& b, double smoothing_texels);
+// Homogeneous medium of nx x ny texels.
+tissue::PropertyMaps homogeneous(int nx, int ny, double h, const tissue::AcousticProperties& p);
+
+// The bent fibre of figure 4: centreline, core radius, and the distance/arc length of a
+// point from it (for measuring track width).
+struct FibreGeometry {
+    glm::dvec2 start{15.0, 100.0};    // mm; the fibre runs up (-y) from here
+    double straight_mm = 15.0;        // before the bend
+    glm::dvec2 bend_centre{75.0, 85.0};
+    double bend_radius_mm = 60.0;     // quarter circle turning towards +x
+    double core_radius_mm = 5.0;
+    double core_density = 1.2, cladding_density = 1.0;
+    // Signed distance from the centreline (negative towards the bend centre) and arc length.
+    glm::dvec2 offset_and_arc(glm::dvec2 p) const;
+    double length_mm() const;
+};
+
+}  // namespace sonotrace::simulator

@@ -1,0 +1,48 @@
+#include "simulator/trace_settings.h"
+
+#include <cmath>
+
+#include "tissue/error.h"
+
+namespace sonotrace::simulator {
+
+std::string to_string(PhysicsMode mode) { return mode == PhysicsMode::acoustic ? "acoustic" : "paper"; }
+
+std::string to_string(LobeExponent lobe) {
+    switch (lobe) {
+        case LobeExponent::roughness: return "roughness";
+        case LobeExponent::reflecting_density: return "reflecting-density";
+        case LobeExponent::density_ratio: return "density-ratio";
+    }
+    return "?";
+}
+
+std::string to_string(LobeWeight weight) { return weight == LobeWeight::probability ? "probability" : "energy"; }
+
+void TraceSettings::validate(const std::string& source) const {
+    auto in_range = [&](double v, double lo, double hi, const char* field) {
+        if (!(std::isfinite(v) && v >= lo && v <= hi)) {
+            throw tissue::InputError(source, field,
+                                     "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                                         "], got " + std::to_string(v));
+        }
+    };
+    in_range(step_texels, 0.01, 4.0, "step");
+    in_range(frequency_mhz, 0.1, 100.0, "frequency");
+    in_range(lobe_scale, 0.0, 1e6, "lobe-scale");
+    in_range(interface_threshold, 1e-6, 1.0, "interface-threshold");
+    in_range(scattering_rate_per_mm, 0.0, 100.0, "scattering-rate");
+    in_range(scatter_echo_fraction, 0.0, 1.0, "scatter-echo-fraction");
+    in_range(roulette_energy, 0.0, 0.5, "roulette");
+    in_range(max_path_mm, 1.0, 1e6, "max-path");
+    in_range(max_bounces, 0, 1000000, "max-bounces");
+    in_range(record_paths, 0, 1000000, "record-paths");
+    if (probe_face_2d) in_range(probe_face_2d->reflectivity, 0.0, 1.0, "probe-face.reflectivity");
+    if (probe_face_3d) in_range(probe_face_3d->reflectivity, 0.0, 1.0, "probe-face.reflectivity");
+    if (ring) {
+        in_range(ring->radius_mm, 1e-3, 1e6, "ring.radius");
+        in_range(ring->bins, 1, 100000, "ring.bins");
+    }
+}
+
+}  // namespace sonotrace::simulator

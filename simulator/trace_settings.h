@@ -1,0 +1,113 @@
+#pragma once
+// Parameters of the particle tracer, each documented once (name, unit, default) here;
+// the CLI help and the sidecars use these texts.
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include <glm/glm.hpp>
+
+namespace sonotrace::simulator {
+
+enum class PhysicsMode {
+    acoustic,  // Snell from the speed of sound, reflection from impedance, attenuation, scattering
+    paper,     // one scalar density field acting as refractive index and impedance (Reis & Bertram)
+};
+
+// Interpretation of the exponent c of the diffuse lobe cos^c (eq. 11).
+enum class LobeExponent {
+    roughness,          // c = 1/roughness^2 - 1 from the tissue's roughness (acoustic default)
+    reflecting_density, // c = lobe_scale * d1, the density beyond the interface (paper option 1)
+    density_ratio,      // c = lobe_scale * d1/d0 (paper option 2)
+};
+
+// Interpretation of the weight w = cos^c(phi_d) of eq. 11.
+enum class LobeWeight {
+    probability,  // phi_d drawn with density w, energy kept (lossless scattering)
+    energy,       // phi_d uniform over the opening angle, energy multiplied by w (lossy)
+};
+
+// The transducer face as seen by the tracer: particles that come back through it are
+// captured (kind returned_to_probe), except the fraction it reflects back into the tissue.
+template <int Dim>
+struct ProbeFace {
+    glm::vec<Dim, float> centre{0.0f};  // mm, map frame
+    glm::vec<Dim, float> normal{0.0f};  // unit, pointing into the tissue
+    float half_width_mm = 0.0f;        // lateral half aperture
+    float half_height_mm = 0.0f;       // elevation half aperture (3D)
+    float reflectivity = 0.0f;         // intensity fraction the face reflects (0..1)
+};
+
+// A detector on a circle (2D) in the map frame: energy of particles leaving the circle
+// is binned by polar angle over [0, 180] degrees, measured from `zero_direction`
+// towards `up` (the paper's figure 6c profile over a semicircle).
+struct RingDetector {
+    glm::vec2 centre{0.0f};  // mm
+    float radius_mm = 10.0f;
+    int bins = 90;
+    glm::vec2 zero_direction{1.0f, 0.0f};  // unit, angle 0
+    glm::vec2 up{0.0f, -1.0f};             // unit, angle 90 degrees (map rows run downwards)
+};
+
+struct TraceSettings {
+    PhysicsMode mode = PhysicsMode::acoustic;
+    double step_texels = 0.5;        // step length s in texels (of the smallest spacing)
+    double frequency_mhz = 5.0;      // attenuation alpha*f and scattering
+    uint64_t seed = 1;
+
+    bool refraction = true;
+    bool specular_reflection = true;
+    bool diffuse_reflection = true;
+    bool scattering = true;
+    bool absorption = true;
+    int max_bounces = 64;            // reflections before a particle is retired
+
+    LobeExponent lobe_exponent = LobeExponent::roughness;
+    LobeWeight lobe_weight = LobeWeight::probability;
+    double lobe_scale = 1.0;         // factor on c for the paper's interpretations
+
+    double interface_threshold = 0.005;  // relative change of Z per texel marking an interface
+    double scattering_rate_per_mm = 0.2; // sub-resolution scattering events per mm at backscatter 1
+    double scatter_echo_fraction = 1e-3; // intensity fraction a scattering event sends back
+    double roulette_energy = 1e-3;       // Russian roulette below this fraction of the initial energy
+    double max_path_mm = 2000.0;         // paths end (energy "remaining") beyond this length
+
+    int record_paths = 0;            // particles per line whose paths are kept as polylines
+    bool record_scatter_echoes = true;
+
+    // Set by the caller in the map frame; optional.
+    std::optional<ProbeFace<2>> probe_face_2d;
+    std::optional<ProbeFace<3>> probe_face_3d;
+    std::optional<RingDetector> ring;
+
+    // Throws tissue::InputError(source, field) naming the first bad parameter.
+    void validate(const std::string& source) const;
+};
+
+std::string to_string(PhysicsMode mode);
+std::string to_string(LobeExponent lobe);
+std::string to_string(LobeWeight weight);
+
+// Help texts, one per parameter, reused by the CLI.
+namespace doc {
+inline constexpr const char* kMode =
+    "physics: 'acoustic' (Snell from speed of sound, reflection from impedance, attenuation, "
+    "scattering) or 'paper' (one density field as refractive index, as in Reis & Bertram)";
+inline constexpr const char* kStep = "integration step s, in texels of the map";
+inline constexpr const char* kFrequency = "centre frequency for attenuation alpha*f";
+inline constexpr const char* kSeed = "random seed; the same seed gives identical results on any thread count";
+inline constexpr const char* kLobeExponent =
+    "exponent c of the diffuse lobe cos^c: 'roughness' (c = 1/roughness^2 - 1), "
+    "'reflecting-density' (c = scale*d1) or 'density-ratio' (c = scale*d1/d0)";
+inline constexpr const char* kLobeWeight =
+    "weight w = cos^c: 'probability' (direction drawn from w, energy kept) or 'energy' "
+    "(direction uniform, energy multiplied by w)";
+inline constexpr const char* kLobeScale = "factor on c for the paper's lobe interpretations";
+inline constexpr const char* kInterfaceThreshold =
+    "relative change of impedance per texel above which a step is at an interface";
+inline constexpr const char* kScatteringRate = "sub-resolution scattering events per mm at backscatter 1";
+inline constexpr const char* kRoulette = "Russian roulette below this fraction of a particle's initial energy";
+inline constexpr const char* kMaxBounces = "reflections after which a particle is retired";
+}  // namespace doc
+
+}  // namespace sonotrace::simulator

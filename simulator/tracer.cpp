@@ -1,0 +1,560 @@
+#include "simulator/tracer.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "simulator/interactions.h"
+#include "simulator/rng.h"
+#include "tissue/error.h"
+
+namespace sonotrace::simulator {
+
+namespace {
+
+// Deposit maps in 64-bit fixed point: sums are exact and order-independent.
+constexpr double kFixedScale = double(int64_t(1) << 36);
+inline int64_t to_fixed(double v) { return int64_t(v * kFixedScale + 0.5); }
+
+struct DepositMaps {
+    std::vector<int64_t> fluence, absorbed;
+};
+
+// Uniform random numbers of one particle, four per Philox call.
+struct RandomStream {
+    ParticleRng rng;
+    std::array<float, 4> block{};
+    int used = 4;
+    float next() {
+        if (used == 4) block = rng.draw4(), used = 0;
+        return block[used++];
+    }
+};
+
+// Everything one scan line produces; lines are merged in order afterwards.
+template <int Dim>
+struct LineOutput {
+    std::vector<EchoEvent<Dim>> echoes;
+    std::vector<Path<Dim>> paths;
+    std::vector<double> ring;
+    EnergyLedger ledger;
+    TraceStats stats;
+};
+
+// Particles of one batch, stored field by field (structure of arrays).
+template <int Dim>
+struct Batch {
+    static constexpr int kSize = 64;
+    using V = Vec<Dim>;
+    std::array<V, kSize> position, direction;
+    std::array<float, kSize> energy, initial_energy, optical_depth, scatter_target;
+    std::array<double, kSize> time, path_length;
+    std::array<uint16_t, kSize> bounces;
+    std::array<uint8_t, kSize> in_interface;
+    std::array<uint8_t, kSize> graded_steps;   // steps since the last interface check in kGraded
+    std::array<V, kSize> interface_normal;     // normal of the interface being crossed
+    std::array<uint32_t, kSize> particle;
+    std::array<int, kSize> path;  // index into LineOutput::paths or -1
+    std::array<RandomStream, kSize> random;
+    int count = 0;
+
+    void remove(int k) {  // swap with the last live particle
+        const int last = --count;
+        position[k] = position[last], direction[k] = direction[last];
+        energy[k] = energy[last], initial_energy[k] = initial_energy[last];
+        optical_depth[k] = optical_depth[last], scatter_target[k] = scatter_target[last];
+        time[k] = time[last], path_length[k] = path_length[last];
+        bounces[k] = bounces[last], in_interface[k] = in_interface[last];
+        graded_steps[k] = graded_steps[last], interface_normal[k] = interface_normal[last];
+        particle[k] = particle[last], path[k] = path[last], random[k] = random[last];
+    }
+};
+
+// Interface state of a particle (Batch::in_interface).
+constexpr uint8_t kOutside = 0;                 // flat or gently graded medium
+constexpr uint8_t kCrossing = 1;                // transmitting through a sharp interface
+constexpr uint8_t kLeavingAfterReflection = 2;  // reflected; leaves without refracting
+constexpr uint8_t kGraded = 3;                  // steep but no plateau near: graded medium
+
+template <int Dim>
+class LineTracer {
+public:
+    using V = Vec<Dim>;
+    using Texel = tissue::AcousticTexel<Dim>;
+
+    LineTracer(const tissue::AcousticMap<Dim>& map, const TraceSettings& settings)
+        : map_(map), settings_(settings) {
+        texel_mm_ = map.spacing()[0];
+        for (int a = 1; a < Dim; ++a) texel_mm_ = std::min(texel_mm_, map.spacing()[a]);
+        step_mm_ = float(settings.step_texels) * texel_mm_;
+        // alpha [dB/(cm MHz)] * f [MHz] / 10 [mm/cm] -> dB/mm; * ln(10)/10 -> Np/mm (intensity).
+        attenuation_per_mm_ = float(settings.frequency_mhz * 0.1 * std::log(10.0) / 10.0);
+        seconds_per_mm_ = float(1e-3 / tissue::kReferenceSpeed);  // times n gives 1/c
+    }
+
+    void run(const Sources<Dim>& sources, const std::vector<uint32_t>& order, std::size_t begin,
+             std::size_t end, DepositMaps& deposits, LineOutput<Dim>& out) {
+        deposits_ = &deposits;
+        out_ = &out;
+        if (settings_.ring) out.ring.assign(std::size_t(settings_.ring->bins), 0.0);
+        Batch<Dim> batch;
+        std::size_t next = begin;
+        while (next < end || batch.count > 0) {
+            // Refill the batch from the line's particles.
+            while (batch.count < Batch<Dim>::kSize && next < end) {
+                emit(sources[order[next]], uint32_t(next - begin), batch);
+                ++next;
+            }
+            for (int k = 0; k < batch.count;) {
+                if (step(batch, k)) ++k;
+                else batch.remove(k);
+            }
+        }
+    }
+
+private:
+    void emit(const SourceParticle<Dim>& s, uint32_t index, Batch<Dim>& b) {
+        out_->stats.particles++;
+        out_->ledger.injected += s.energy;
+        line_ = s.line;
+        if (!map_.inside(s.position)) {  // born outside the domain: escapes at once
+            out_->ledger.escaped += s.energy;
+            return;
+        }
+        const int k = b.count++;
+        b.position[k] = s.position;
+        b.direction[k] = glm::normalize(s.direction);
+        b.energy[k] = b.initial_energy[k] = s.energy;
+        b.optical_depth[k] = 0.0f;
+        b.time[k] = b.path_length[k] = 0.0;
+        b.bounces[k] = 0;
+        b.in_interface[k] = kOutside;
+        b.graded_steps[k] = 0;
+        b.particle[k] = index;
+        b.random[k] = RandomStream{ParticleRng(settings_.seed, s.line, index)};
+        b.scatter_target[k] = -std::log(std::max(b.random[k].next(), 1e-12f));
+        b.path[k] = -1;
+        if (int(index) < settings_.record_paths) {
+            b.path[k] = int(out_->paths.size());
+            out_->paths.push_back({s.line, index, {{s.position, s.energy}}});
+        }
+    }
+
+    std::size_t texel_index(const V& x) const {
+        std::size_t index = 0;
+        for (int a = Dim - 1; a >= 0; --a) {
+            const int i = std::clamp(int(x[a] / map_.spacing()[a] + 0.5f), 0, map_.dims()[a] - 1);
+            index = index * std::size_t(map_.dims()[a]) + std::size_t(i);
+        }
+        return index;
+    }
+
+    float relative_z_gradient(const Texel& t) const {
+        float g2 = 0.0f;
+        for (int a = 0; a < Dim; ++a) g2 += t.grad_impedance[a] * t.grad_impedance[a];
+        return std::sqrt(g2) * texel_mm_ / std::max(t.impedance, 1e-12f);
+    }
+
+    // Walks from x along `dir` in half-texel steps until the impedance gradient falls
+    // below the interface threshold (at most 8 texels): the plateau beyond the interface.
+    // `reached` tells whether a plateau was found: a sharp interface has one on each side
+    // within a few texels, a graded medium (the fibre of figure 4) does not.
+    Texel plateau(V x, const V& dir, V* end, bool* reached) const {
+        const float h = 0.5f * texel_mm_;
+        Texel t = map_.sample(x);
+        int i = 0;
+        for (; i < 16 && relative_z_gradient(t) > settings_.interface_threshold; ++i) {
+            x += h * dir;
+            t = map_.sample(x);
+        }
+        *end = x;
+        *reached = relative_z_gradient(t) <= settings_.interface_threshold;
+        return t;
+    }
+
+    // The interface normal: the sum of grad Z over a patch of the transition, lines from
+    // the near to the far plateau at lateral offsets of up to 2.5 texels (a cross of lines
+    // in 3D). On a transition a few texels wide, finite differences alias into direction
+    // errors of up to ~25 degrees at its fringe and ~1 degree along any single line; over
+    // the patch they cancel. Only evaluated at interface events.
+    static constexpr int kPatchLines = 5;
+    V interface_normal(const V& near_end, const V& far_end, const V& guess) const {
+        V tangents[2];
+        int tangent_count = 1;
+        if constexpr (Dim == 2) {
+            tangents[0] = V(-guess.y, guess.x);
+        } else {
+            orthonormal_basis(guess, &tangents[0], &tangents[1]);
+            tangent_count = 2;
+        }
+        // Lines run a texel past each plateau point so the gradient's tails are whole.
+        const V unit = glm::normalize(far_end - near_end + guess * 1e-6f);
+        const V first = near_end - unit * texel_mm_;
+        const V across = far_end + unit * texel_mm_ - first;
+        const int steps = std::max(2, int(glm::length(across) / (0.5f * texel_mm_)) + 1);
+        V sum = guess * 0.0f;
+        for (int tn = 0; tn < tangent_count; ++tn) {
+            for (int o = -kPatchLines; o <= kPatchLines; ++o) {
+                if (tn == 1 && o == 0) continue;  // the centre line is already summed
+                const V start = first + tangents[tn] * (0.5f * texel_mm_ * float(o));
+                for (int i = 0; i <= steps; ++i) {
+                    const Texel t = map_.sample(start + across * (float(i) / float(steps)));
+                    for (int a = 0; a < Dim; ++a) sum[a] += t.grad_impedance[a];
+                }
+            }
+        }
+        return glm::length(sum) > 0.0f ? glm::normalize(sum) : guess;
+    }
+
+    // The reflection decision at a sharp interface (eq. 10 with the plateau values on
+    // both sides). Records the expected echo R^2 and reflects with probability R^2.
+    bool decide_reflection(Batch<Dim>& b, int k, const V& x, const Texel& t, const Texel& near_side,
+                           const Texel& far_side, const V& forward, V& r, float& E) {
+        // The direction the particle had on the near plateau: undo the slight
+        // refraction it met in the fringe, using the conserved n sin(theta).
+        const float cos_now = glm::dot(r, forward);
+        const V tangential = (r - cos_now * forward) * (t.refractive_index / near_side.refractive_index);
+        const float sin_i = std::min(glm::length(tangential), 1.0f);
+        const float cos_i = std::sqrt(1.0f - sin_i * sin_i);
+        const V incoming = tangential + cos_i * forward;
+        const float sin_t = sin_i * near_side.refractive_index / far_side.refractive_index;
+        const float cos_t = sin_t >= 1.0f ? 0.0f : std::sqrt(1.0f - sin_t * sin_t);
+        const float R2 = reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
+        const float c = settings_.diffuse_reflection ? lobe_exponent(near_side, far_side) : 1e6f;
+        record_echo(b, k, x, E, R2, c < 1e4f ? EchoKind::diffuse : EchoKind::specular);
+        if (!(b.random[k].next() < R2)) return false;
+        const V mirror = reflect<Dim>(incoming, forward);
+        float weight = 1.0f;
+        r = c < 1e4f ? diffuse(mirror, forward, c, b, k, &weight) : mirror;
+        if (weight < 1.0f) {  // lossy lobe: the rest becomes heat
+            const float lost = E * (1.0f - weight);
+            E -= lost;
+            out_->ledger.absorbed += lost;
+            deposits_->absorbed[texel_index(x)] += to_fixed(lost);
+        }
+        b.in_interface[k] = kLeavingAfterReflection;  // leave on the near side, unrefracted
+        b.bounces[k]++;
+        out_->stats.reflections++;
+        if (cos_t == 0.0f) out_->stats.total_reflections++;
+        return true;
+    }
+
+    void record_echo(const Batch<Dim>& b, int k, const V& x, float energy, float weight, EchoKind kind) {
+        out_->echoes.push_back({line_, b.particle[k], float(b.time[k]), energy, weight, x,
+                                b.bounces[k], kind});
+    }
+
+    // The diffuse lobe (eq. 11) about the specular direction `mirror`; `forward` points
+    // into the far medium, so a valid reflected direction has dot(dir, forward) < 0.
+    V diffuse(const V& mirror, const V& forward, float c, Batch<Dim>& b, int k, float* weight) {
+        RandomStream& rs = b.random[k];
+        auto uniform = [&rs] { return rs.next(); };
+        for (int attempt = 0; attempt < 8; ++attempt) {
+            V dir;
+            if (settings_.lobe_weight == LobeWeight::probability) {
+                if constexpr (Dim == 2) dir = rotate(mirror, sample_cos_power_angle_2d(c, uniform));
+                else dir = sample_cos_power_direction_3d(mirror, c, rs.next(), rs.next());
+                *weight = 1.0f;
+            } else {  // uniform over the opening angle, energy weighted by cos^c
+                float cos_phi;
+                if constexpr (Dim == 2) {
+                    const float phi = (2.0f * rs.next() - 1.0f) * std::numbers::pi_v<float> / 2.0f;
+                    dir = rotate(mirror, phi), cos_phi = std::cos(phi);
+                } else {
+                    dir = sample_cos_power_direction_3d(mirror, 0.0f, rs.next(), rs.next());
+                    cos_phi = glm::dot(dir, mirror);
+                }
+                *weight = std::pow(std::max(cos_phi, 0.0f), c);
+            }
+            if (glm::dot(dir, forward) < 0.0f) return dir;
+        }
+        *weight = 1.0f;
+        return mirror;
+    }
+
+    float lobe_exponent(const Texel& near_side, const Texel& far_side) const {
+        switch (settings_.lobe_exponent) {
+            case LobeExponent::roughness: {
+                const float rough = std::max(near_side.roughness, far_side.roughness);
+                return rough <= 1e-3f ? 1e6f : 1.0f / (rough * rough) - 1.0f;
+            }
+            case LobeExponent::reflecting_density:
+                return float(settings_.lobe_scale) * far_side.impedance;
+            case LobeExponent::density_ratio:
+                return float(settings_.lobe_scale) * far_side.impedance / std::max(near_side.impedance, 1e-12f);
+        }
+        return 1e6f;
+    }
+
+    // Advances particle k by one step; false when it has ended.
+    bool step(Batch<Dim>& b, int k) {
+        EnergyLedger& ledger = out_->ledger;
+        TraceStats& stats = out_->stats;
+        const float s = step_mm_;
+        V x = b.position[k];
+        V r = b.direction[k];
+        float E = b.energy[k];
+        const Texel t = map_.sample(x);
+        stats.steps++;
+
+        // -- absorption along the step
+        if (settings_.absorption && t.attenuation > 0.0f) {
+            const float lost = E * (1.0f - std::exp(-attenuation_per_mm_ * t.attenuation * s));
+            E -= lost;
+            ledger.absorbed += lost;
+            deposits_->absorbed[texel_index(x)] += to_fixed(lost);
+        }
+        deposits_->fluence[texel_index(x)] += to_fixed(double(E) * s);
+
+        // -- sub-resolution scattering: event when the optical depth reaches the draw
+        if (scatter_enabled_ && t.backscatter > 0.0f) {
+            b.optical_depth[k] += float(settings_.scattering_rate_per_mm) * t.backscatter * s;
+            if (b.optical_depth[k] >= b.scatter_target[k]) {
+                const float fraction = float(settings_.scatter_echo_fraction) * t.backscatter;
+                if (settings_.record_scatter_echoes) record_echo(b, k, x, E, fraction, EchoKind::scatter);
+                ledger.recorded += double(E) * fraction;
+                E -= E * fraction;
+                stats.scatter_events++;
+                b.optical_depth[k] = 0.0f;
+                b.scatter_target[k] = -std::log(std::max(b.random[k].next(), 1e-12f));
+            }
+        }
+
+        // -- interface: a sharp interface is crossed as a whole (one decision, one normal)
+        bool reflected = false;
+        const float rel = relative_z_gradient(t);
+        uint8_t& state = b.in_interface[k];
+        if (rel > settings_.interface_threshold) {
+            const bool check = state == kOutside || (state == kGraded && ++b.graded_steps[k] >= 8);
+            if (check) {
+                V normal(0.0f);
+                for (int a = 0; a < Dim; ++a) normal[a] = t.grad_impedance[a];
+                normal = glm::normalize(normal);
+                V forward = glm::dot(r, normal) >= 0.0f ? normal : -normal;
+                V near_end, far_end;
+                bool near_found, far_found;
+                const Texel near_side = plateau(x, -forward, &near_end, &near_found);
+                const Texel far_side = plateau(x, forward, &far_end, &far_found);
+                if (!near_found || !far_found) {
+                    state = kGraded;  // no plateau within reach: refract step by step only
+                    b.graded_steps[k] = 0;
+                } else {
+                    state = kCrossing;
+                    stats.interface_events++;
+                    normal = interface_normal(near_end, far_end, forward);
+                    forward = glm::dot(forward, normal) >= 0.0f ? normal : -normal;
+                    b.interface_normal[k] = normal;
+                    if (settings_.specular_reflection) reflected = decide_reflection(b, k, x, t, near_side, far_side, forward, r, E);
+                }
+            }
+        } else if (rel < 0.5f * settings_.interface_threshold) {
+            state = kOutside;  // hysteresis: the fringe's jitter does not re-trigger
+        }
+
+        // -- continuous refraction (eqs. 4-8 corrected)
+        // Eq. 4 extrapolates the index beyond the step from the gradient, n1 = n0 + s g.r.
+        // Summed over a crossing that drifts from the field: central differences spread
+        // the gradient a texel beyond the sampled change, and the estimate is taken along
+        // the direction before bending. Measured on a 20-degree interface: ~1 degree off
+        // Snell's law; in the graded fibre of figure 4, particles escaped. So n1 is
+        // *sampled* at the end of the step, along the bent direction (one fixed-point
+        // iteration), and the chain n0 -> n1 -> ... follows the field exactly. The
+        // gradient still gives the normal, as in the paper.
+        if (settings_.refraction && !reflected && state != kLeavingAfterReflection) {
+            V g;
+            float g2 = 0.0f;
+            for (int a = 0; a < Dim; ++a) g[a] = t.grad_refractive_index[a], g2 += g[a] * g[a];
+            const float flat = 1e-5f * t.refractive_index / texel_mm_;
+            if (g2 > flat * flat) {
+                const float n0 = t.refractive_index;
+                const V normal = state == kCrossing ? b.interface_normal[k] : g / std::sqrt(g2);
+                Refraction<Dim> bent = refract<Dim>(r, normal, n0 / map_.sample_refractive_index(x + s * r));
+                if (!bent.total_reflection) {
+                    bent = refract<Dim>(r, normal, n0 / map_.sample_refractive_index(x + s * bent.direction));
+                }
+                r = bent.direction;
+                if (bent.total_reflection) {
+                    b.bounces[k]++;
+                    stats.reflections++;
+                    stats.total_reflections++;
+                }
+            }
+        }
+
+        // -- move
+        const V from = x;
+        x += s * r;
+        b.time[k] += double(s) * seconds_per_mm_ * t.refractive_index;
+        b.path_length[k] += s;
+
+        // -- the probe face captures what comes back through it
+        if (const auto* face = probe_face()) {
+            const float before = glm::dot(from - face->centre, face->normal);
+            const float after = glm::dot(x - face->centre, face->normal);
+            if (before >= 0.0f && after < 0.0f && within_aperture(*face, x)) {
+                stats.captured++;
+                const float kept = E * face->reflectivity;
+                record_echo(b, k, x, E, 1.0f - face->reflectivity, EchoKind::returned_to_probe);
+                ledger.recorded += double(E) - kept;
+                E = kept;
+                r = reflect<Dim>(r, face->normal);
+                x = from;  // stay in the tissue
+                b.bounces[k]++;
+            }
+        }
+
+        // -- ring detector: energy leaving the circle, by polar angle
+        if constexpr (Dim == 2) {
+            if (settings_.ring) {
+                const RingDetector& ring = *settings_.ring;
+                const float d0 = glm::length(from - ring.centre), d1 = glm::length(x - ring.centre);
+                if (d0 < ring.radius_mm && d1 >= ring.radius_mm) {
+                    const V rel_pos = x - ring.centre;
+                    const float deg = glm::degrees(
+                        std::atan2(glm::dot(rel_pos, ring.up), glm::dot(rel_pos, ring.zero_direction)));
+                    if (deg >= 0.0f && deg <= 180.0f) {
+                        const int bin = std::min(ring.bins - 1, int(deg / 180.0f * ring.bins));
+                        out_->ring[std::size_t(bin)] += E;
+                    }
+                }
+            }
+        }
+
+        b.position[k] = x;
+        b.direction[k] = r;
+        b.energy[k] = E;
+        if (b.path[k] >= 0) out_->paths[std::size_t(b.path[k])].vertices.push_back({x, E});
+
+        // -- endings
+        if (!map_.inside(x)) {
+            ledger.escaped += E;
+            return false;
+        }
+        if (b.path_length[k] > settings_.max_path_mm || b.bounces[k] > settings_.max_bounces) {
+            ledger.remaining += E;
+            return false;
+        }
+        const float threshold = float(settings_.roulette_energy) * b.initial_energy[k];
+        if (E < threshold) {
+            const float survive = E / threshold;
+            if (b.random[k].next() < survive) {
+                ledger.roulette_added += double(threshold) - E;
+                b.energy[k] = threshold;
+            } else {
+                ledger.roulette_killed += E;
+                return false;
+            }
+        }
+        return true;
+    }
+
+    const ProbeFace<Dim>* probe_face() const {
+        if constexpr (Dim == 2) return settings_.probe_face_2d ? &*settings_.probe_face_2d : nullptr;
+        else return settings_.probe_face_3d ? &*settings_.probe_face_3d : nullptr;
+    }
+
+    static bool within_aperture(const ProbeFace<Dim>& face, const V& x) {
+        const V offset = x - face.centre;
+        if constexpr (Dim == 2) {
+            const V across(-face.normal.y, face.normal.x);
+            return std::abs(glm::dot(offset, across)) <= face.half_width_mm;
+        } else {
+            V b1, b2;
+            orthonormal_basis(face.normal, &b1, &b2);
+            return std::abs(glm::dot(offset, b1)) <= face.half_width_mm &&
+                   std::abs(glm::dot(offset, b2)) <= face.half_height_mm;
+        }
+    }
+
+public:
+    bool scatter_enabled_ = false;
+
+private:
+    const tissue::AcousticMap<Dim>& map_;
+    const TraceSettings& settings_;
+    float texel_mm_ = 1.0f, step_mm_ = 0.5f, attenuation_per_mm_ = 0.0f, seconds_per_mm_ = 0.0f;
+    DepositMaps* deposits_ = nullptr;
+    LineOutput<Dim>* out_ = nullptr;
+    uint32_t line_ = 0;
+};
+
+template <int Dim>
+void validate_sources(const Sources<Dim>& sources) {
+    for (std::size_t n = 0; n < sources.size(); ++n) {
+        const auto& s = sources[n];
+        bool finite = std::isfinite(s.energy);
+        for (int a = 0; a < Dim; ++a) finite = finite && std::isfinite(s.position[a]) && std::isfinite(s.direction[a]);
+        const std::string field = "sources[" + std::to_string(n) + "]";
+        if (!finite) throw tissue::InputError("sources", field, "position, direction and energy must be finite");
+        if (s.energy < 0.0f) throw tissue::InputError("sources", field + ".energy", "must be >= 0");
+        if (!(glm::length(s.direction) > 0.0f)) throw tissue::InputError("sources", field + ".direction", "is zero");
+    }
+}
+
+}  // namespace
+
+template <int Dim>
+TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& sources,
+                       const TraceSettings& settings) {
+    settings.validate("trace settings");
+    validate_sources(sources);
+
+    // Particles grouped by line (stable: the particle index within a line is its order).
+    std::vector<uint32_t> order(sources.size());
+    std::iota(order.begin(), order.end(), 0u);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](uint32_t a, uint32_t b) { return sources[a].line < sources[b].line; });
+    std::vector<std::size_t> starts;
+    for (std::size_t n = 0; n < order.size(); ++n) {
+        if (n == 0 || sources[order[n]].line != sources[order[n - 1]].line) starts.push_back(n);
+    }
+    starts.push_back(order.size());
+    const std::size_t lines = starts.size() - 1;
+
+    const std::size_t texels = map.geometry().voxel_count();
+    tbb::enumerable_thread_specific<DepositMaps> deposits([texels] {
+        return DepositMaps{std::vector<int64_t>(texels, 0), std::vector<int64_t>(texels, 0)};
+    });
+    std::vector<LineOutput<Dim>> outputs(lines);
+    tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
+        LineTracer<Dim> tracer(map, settings);
+        tracer.scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
+        tracer.run(sources, order, starts[l], starts[l + 1], deposits.local(), outputs[l]);
+    });
+
+    // Merge in line order (deterministic), maps by integer sums.
+    TraceResult<Dim> result;
+    result.fluence = tissue::Volume(map.geometry());
+    result.absorbed = tissue::Volume(map.geometry());
+    std::vector<int64_t> fluence(texels, 0), absorbed(texels, 0);
+    for (const DepositMaps& d : deposits) {
+        for (std::size_t i = 0; i < texels; ++i) fluence[i] += d.fluence[i], absorbed[i] += d.absorbed[i];
+    }
+    double area = 1.0;
+    for (int a = 0; a < Dim; ++a) area *= map.spacing()[a];
+    const double per_texel = 1.0 / (kFixedScale * area);  // energy*mm per texel -> per mm^Dim
+    for (std::size_t i = 0; i < texels; ++i) {
+        result.fluence.voxels()[i] = float(double(fluence[i]) * per_texel);
+        result.absorbed.voxels()[i] = float(double(absorbed[i]) / kFixedScale);
+    }
+    if (settings.ring) result.ring_profile.assign(std::size_t(settings.ring->bins), 0.0);
+    for (LineOutput<Dim>& o : outputs) {
+        // Batches interleave particles; order each line's echoes by particle, then time.
+        std::stable_sort(o.echoes.begin(), o.echoes.end(),
+                         [](const EchoEvent<Dim>& a, const EchoEvent<Dim>& b) { return a.particle < b.particle; });
+        result.echoes.insert(result.echoes.end(), o.echoes.begin(), o.echoes.end());
+        for (auto& p : o.paths) result.paths.push_back(std::move(p));
+        for (std::size_t i = 0; i < o.ring.size(); ++i) result.ring_profile[i] += o.ring[i];
+        result.ledger += o.ledger;
+        result.stats += o.stats;
+    }
+    return result;
+}
+
+template TraceResult<2> trace<2>(const tissue::AcousticMap<2>&, const Sources<2>&, const TraceSettings&);
+template TraceResult<3> trace<3>(const tissue::AcousticMap<3>&, const Sources<3>&, const TraceSettings&);
+
+}  // namespace sonotrace::simulator

@@ -1,0 +1,46 @@
+#pragma once
+// The particle integrator of Reis & Bertram, in 2D and 3D (one template).
+//
+// Each step of length s at position x with direction r:
+//   1. sample the map (bi/trilinear): refractive index n and its gradient, impedance Z
+//      and its gradient, attenuation, backscatter, roughness;
+//   2. absorb: E *= exp(-a s) with a the intensity attenuation alpha*f (Np/mm);
+//   3. scatter (acoustic mode): when the accumulated optical depth of sub-resolution
+//      scatterers reaches an exponential draw, a scattering echo takes its fraction;
+//   4. interface: where |grad Z| h / Z exceeds the threshold and the particle is not
+//      already inside this interface, the impedances and indices on both sides are
+//      found by marching along the normal to the plateaus, the oblique-incidence
+//      coefficient R^2 (eq. 10) is evaluated, an echo with weight R^2 is recorded
+//      (the monostatic expectation), and the particle reflects with probability R^2
+//      keeping its energy (unbiased), specularly or into the cos^c lobe (eq. 11);
+//   5. refract continuously (eqs. 4-8, corrected): n1 = n0 + s (grad n . r), Snell's
+//      law with eta = n0/n1; total reflection when sin(theta_t) would exceed 1;
+//   6. move: x += s r, time of flight += s n / c0, path length += s;
+//   7. leave through the domain boundary (perfectly absorbing), the probe face
+//      (captured), or by Russian roulette / path and bounce limits.
+//
+// Why interfaces are decided as a whole: a smooth transition split into k steps has
+// per-step reflectances of order (dZ/2Z/k)^2, whose sum vanishes as k grows; deciding
+// per step would make reflection depend on the step size and the smoothing width.
+//
+// Threads take whole scan lines; random numbers come from Philox keyed by (seed, line,
+// particle, event); deposit maps accumulate in 64-bit fixed point (integer addition is
+// associative), so results are byte-identical on any thread count.
+#include "simulator/records.h"
+#include "simulator/sources.h"
+#include "simulator/trace_settings.h"
+#include "tissue/acoustic_map.h"
+
+namespace sonotrace::simulator {
+
+// Throws tissue::InputError("sources" / settings source, field) on invalid input.
+template <int Dim>
+TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& sources,
+                       const TraceSettings& settings);
+
+extern template TraceResult<2> trace<2>(const tissue::AcousticMap<2>&, const Sources<2>&,
+                                        const TraceSettings&);
+extern template TraceResult<3> trace<3>(const tissue::AcousticMap<3>&, const Sources<3>&,
+                                        const TraceSettings&);
+
+}  // namespace sonotrace::simulator

@@ -1,0 +1,158 @@
+// Interaction primitives: Snell's law, total reflection, eq. 10 with its limits and
+// reciprocity, and chi-square tests of the cos^c lobe samplers in 2D and 3D.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <numeric>
+#include <vector>
+
+#include "simulator/interactions.h"
+#include "simulator/rng.h"
+
+namespace sonotrace::simulator {
+namespace {
+
+constexpr float kPi = std::numbers::pi_v<float>;
+
+TEST(Refract, SnellHoldsIn2DAnd3D) {
+    for (float eta : {0.6f, 0.9f, 1.0f, 1.3f}) {
+        for (int a = 0; a < 18; ++a) {
+            const float theta = glm::radians(5.0f * a);
+            // 2D: normal +y, incoming towards -y.
+            const Vec<2> r2(std::sin(theta), -std::cos(theta));
+            const auto t2 = refract<2>(r2, Vec<2>(0, 1), eta);
+            const float sin_i = std::sin(theta);
+            if (eta * sin_i >= 1.0f) {
+                EXPECT_TRUE(t2.total_reflection);
+                EXPECT_NEAR(t2.direction.y, std::cos(theta), 1e-5f);  // mirrored
+                continue;
+            }
+            EXPECT_FALSE(t2.total_reflection);
+            EXPECT_NEAR(t2.direction.x, eta * sin_i, 1e-5f) << "sin(theta_t) = eta sin(theta_i)";
+            EXPECT_LT(t2.direction.y, 0.0f);  // still travelling forward
+            // 3D, with the normal given in the opposite orientation and a tilted plane of incidence.
+            const Vec<3> n3 = glm::normalize(Vec<3>(0.2f, -1.0f, 0.3f));
+            Vec<3> b1, b2;
+            orthonormal_basis(n3, &b1, &b2);
+            const Vec<3> r3 = glm::normalize(std::sin(theta) * b1 + std::cos(theta) * n3);
+            const auto t3 = refract<3>(r3, n3, eta);
+            const float sin_t = glm::length(glm::cross(t3.direction, n3));
+            EXPECT_NEAR(sin_t, eta * sin_i, 1e-5f);
+            EXPECT_NEAR(glm::dot(glm::cross(r3, n3), t3.direction), 0.0f, 1e-5f) << "coplanar";
+        }
+    }
+}
+
+TEST(Reflect, AngleOfReflectionEqualsIncidence) {
+    const Vec<3> n = glm::normalize(Vec<3>(1, 2, 3));
+    const Vec<3> r = glm::normalize(Vec<3>(-0.3f, 0.1f, -1.0f));
+    const Vec<3> m = reflect<3>(r, n);
+    EXPECT_NEAR(glm::dot(m, n), -glm::dot(r, n), 1e-6f);
+    EXPECT_NEAR(glm::length(m), 1.0f, 1e-6f);
+}
+
+TEST(ReflectedFraction, LimitsAndReciprocity) {
+    // Normal incidence: ((Z2 - Z1) / (Z2 + Z1))^2.
+    EXPECT_NEAR(reflected_fraction(1.5f, 6.0f, 1.0f, 1.0f), std::pow(4.5 / 7.5, 2), 1e-6);
+    EXPECT_EQ(reflected_fraction(1.5f, 1.5f, 0.8f, 0.8f), 0.0f);
+    EXPECT_EQ(reflected_fraction(1.5f, 6.0f, 0.3f, 0.0f), 1.0f);  // past the critical angle
+    // Reciprocity: the same interface seen from either side reflects the same fraction.
+    const float z1 = 1.4f, z2 = 2.9f, n1 = 1.0f, n2 = 0.8f;
+    for (int a = 1; a < 9; ++a) {
+        const float ti = glm::radians(6.0f * a);
+        const float tt = std::asin(std::sin(ti) * n1 / n2);
+        EXPECT_NEAR(reflected_fraction(z1, z2, std::cos(ti), std::cos(tt)),
+                    reflected_fraction(z2, z1, std::cos(tt), std::cos(ti)), 1e-6);
+    }
+}
+
+// Chi-square on equal-probability bins (expected counts from the analytic CDF).
+double chi_square(const std::vector<int>& counts, const std::vector<double>& probabilities, int n) {
+    double chi2 = 0.0;
+    for (std::size_t b = 0; b < counts.size(); ++b) {
+        const double e = probabilities[b] * n;
+        chi2 += (counts[b] - e) * (counts[b] - e) / e;
+    }
+    return chi2;
+}
+
+class Lobe2D : public ::testing::TestWithParam<float> {};
+
+TEST_P(Lobe2D, AnglesFollowCosPowerDensity) {
+    // 200k angles in 40 bins over [-pi/2, pi/2]; expected bin probabilities by Simpson
+    // integration of cos^c. Critical chi-square, 39 dof, p = 0.001: 72.05.
+    const float c = GetParam();
+    constexpr int kBins = 40, kSamples = 200000;
+    std::vector<double> p(kBins);
+    double total = 0.0;
+    for (int b = 0; b < kBins; ++b) {
+        const double lo = -kPi / 2 + kPi * b / kBins, hi = lo + kPi / kBins;
+        double sum = 0.0;
+        for (int i = 0; i <= 200; ++i) {
+            const double x = lo + (hi - lo) * i / 200.0;
+            const double w = (i == 0 || i == 200) ? 1 : (i % 2 ? 4 : 2);
+            sum += w * std::pow(std::cos(x), double(c));
+        }
+        p[b] = sum * (hi - lo) / 600.0;
+        total += p[b];
+    }
+    for (double& v : p) v /= total;
+    std::vector<int> counts(kBins, 0);
+    ParticleRng rng(99, 0, 0);
+    std::array<float, 4> block{};
+    int used = 4;
+    auto uniform = [&] {
+        if (used == 4) block = rng.draw4(), used = 0;
+        return block[used++];
+    };
+    for (int s = 0; s < kSamples; ++s) {
+        const float phi = sample_cos_power_angle_2d(c, uniform);
+        ASSERT_LE(std::abs(phi), kPi / 2);
+        counts[std::min(kBins - 1, int((phi + kPi / 2) / kPi * kBins))]++;
+    }
+    // Bins with tiny expectation (large c) are merged into their neighbours by skipping
+    // them: chi-square needs expected counts >= 5.
+    std::vector<int> kept_counts;
+    std::vector<double> kept_p;
+    for (int b = 0; b < kBins; ++b) {
+        if (p[b] * kSamples >= 5) kept_counts.push_back(counts[b]), kept_p.push_back(p[b]);
+    }
+    const int kept_n = std::accumulate(kept_counts.begin(), kept_counts.end(), 0);
+    double kept_total = std::accumulate(kept_p.begin(), kept_p.end(), 0.0);
+    for (double& v : kept_p) v /= kept_total;
+    EXPECT_LT(chi_square(kept_counts, kept_p, kept_n), 72.05) << "c = " << c;
+}
+
+INSTANTIATE_TEST_SUITE_P(Exponents, Lobe2D, ::testing::Values(0.0f, 0.5f, 1.0f, 4.0f, 30.0f, 400.0f));
+
+class Lobe3D : public ::testing::TestWithParam<float> {};
+
+TEST_P(Lobe3D, CosThetaFollowsCosPowerAndAzimuthIsUniform) {
+    // P(cos theta <= x) = x^(c+1): 20 equal-probability bins in cos theta, 20 in azimuth.
+    // Critical chi-square, 19 dof, p = 0.001: 43.82.
+    const float c = GetParam();
+    const Vec<3> axis = glm::normalize(Vec<3>(0.3f, -0.4f, 0.8f));
+    Vec<3> b1, b2;
+    orthonormal_basis(axis, &b1, &b2);
+    constexpr int kBins = 20, kSamples = 100000;
+    std::vector<int> polar(kBins, 0), azimuth(kBins, 0);
+    ParticleRng rng(5, 1, 2);
+    for (int s = 0; s < kSamples; ++s) {
+        const auto u = rng.draw4();
+        const Vec<3> d = sample_cos_power_direction_3d(axis, c, u[0], u[1]);
+        const float cos_t = glm::dot(d, axis);
+        ASSERT_GE(cos_t, -1e-6f);
+        polar[std::min(kBins - 1, int(std::pow(std::max(cos_t, 0.0f), c + 1.0f) * kBins))]++;
+        const float phi = std::atan2(glm::dot(d, b2), glm::dot(d, b1)) + kPi;
+        if (cos_t < 0.9999f) azimuth[std::min(kBins - 1, int(phi / (2 * kPi) * kBins))]++;
+    }
+    const std::vector<double> equal(kBins, 1.0 / kBins);
+    EXPECT_LT(chi_square(polar, equal, kSamples), 43.82);
+    EXPECT_LT(chi_square(azimuth, equal, std::accumulate(azimuth.begin(), azimuth.end(), 0)), 43.82);
+}
+
+INSTANTIATE_TEST_SUITE_P(Exponents, Lobe3D, ::testing::Values(0.0f, 1.0f, 10.0f, 100.0f));
+
+}  // namespace
+}  // namespace sonotrace::simulator

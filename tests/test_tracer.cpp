@@ -1,0 +1,284 @@
+// The particle tracer against closed-form physics: Snell's law across a smoothed tilted
+// interface, the critical angle, the law of reflection, the oblique-incidence reflection
+// coefficient (eq. 10), exponential attenuation, the energy ledger, the fibre guide of
+// figure 4, and byte-identical results on 1 and 2 threads.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "simulator/interactions.h"
+#include "simulator/scenes.h"
+#include "simulator/tracer.h"
+#include "test_util.h"
+#include "tissue/tissue_table.h"
+
+namespace sonotrace::simulator {
+namespace {
+
+using tissue::AcousticProperties;
+using tissue::Property;
+
+AcousticProperties medium(float speed, float density) {
+    AcousticProperties p;
+    p[Property::speed_of_sound] = speed;
+    p[Property::density] = density;
+    return p;  // no attenuation, scattering or roughness
+}
+
+TraceSettings clean_settings() {
+    TraceSettings s;
+    s.absorption = false;
+    s.scattering = false;
+    s.diffuse_reflection = false;
+    s.roulette_energy = 0.0;
+    return s;
+}
+
+// A 60 x 60 mm map at 0.25 mm with a plane through its centre whose normal is tilted by
+// 20 degrees from +y (so the gradient is not grid-aligned), smoothed over 2 texels.
+constexpr double kH = 0.25, kTilt = 20.0;
+const glm::dvec2 kCentre(30.0, 30.0);
+glm::dvec2 interface_normal() { return {std::sin(glm::radians(kTilt)), std::cos(glm::radians(kTilt))}; }
+
+tissue::AcousticMap<2> interface_map(const AcousticProperties& a, const AcousticProperties& b) {
+    return tissue::AcousticMap<2>::build(planar_interface(240, 240, kH, kCentre, interface_normal(), a, b, 2.0));
+}
+
+// One particle aimed at the interface centre at `incidence_deg` from the normal, starting
+// 20 mm before it in medium a; returns its final direction (recorded path).
+glm::vec2 shoot(const tissue::AcousticMap<2>& map, double incidence_deg, TraceSettings settings,
+                uint32_t line = 0) {
+    const glm::dvec2 n = interface_normal(), t(n.y, -n.x);
+    const double a = glm::radians(incidence_deg);
+    const glm::dvec2 dir = std::cos(a) * n + std::sin(a) * t;
+    const glm::dvec2 start = kCentre - 20.0 * dir;
+    settings.record_paths = 1;
+    settings.max_path_mm = 38.0;  // stop well inside the map, far from the interface
+    const Sources<2> src = {{glm::vec2(start), glm::vec2(dir), 1.0f, line}};
+    const auto result = trace(map, src, settings);
+    const auto& v = result.paths.at(0).vertices;
+    return glm::normalize(v.back().position - v[v.size() - 9].position);
+}
+
+double angle_to_normal_deg(glm::vec2 dir) {
+    const glm::vec2 n(interface_normal());
+    return glm::degrees(std::acos(std::min(1.0f, std::abs(glm::dot(dir, n)))));
+}
+
+TEST(Tracer, RefractionFollowsSnellWithinHalfADegree) {
+    // c 1500 -> 1800 m/s (n 1.027 -> 0.856): sin(theta_t) = sin(theta_i) * c2 / c1,
+    // critical angle 56.4 degrees. 12 incidence angles below it.
+    const auto map = interface_map(medium(1500, 1000), medium(1800, 1000));
+    TraceSettings s = clean_settings();
+    s.specular_reflection = false;  // isolate refraction
+    int checked = 0;
+    for (double incidence = 2.0; incidence <= 50.0; incidence += 4.0) {
+        const double expected = glm::degrees(std::asin(std::sin(glm::radians(incidence)) * 1800.0 / 1500.0));
+        const glm::vec2 out = shoot(map, incidence, s);
+        ASSERT_GT(glm::dot(out, glm::vec2(interface_normal())), 0.0f) << "transmitted at " << incidence;
+        EXPECT_NEAR(angle_to_normal_deg(out), expected, 0.5) << "incidence " << incidence;
+        ++checked;
+    }
+    EXPECT_GE(checked, 10);
+    // The reverse direction (fast -> slow) bends towards the normal.
+    const auto reverse = interface_map(medium(1800, 1000), medium(1500, 1000));
+    for (double incidence : {10.0, 30.0, 60.0, 80.0}) {
+        const double expected = glm::degrees(std::asin(std::sin(glm::radians(incidence)) * 1500.0 / 1800.0));
+        EXPECT_NEAR(angle_to_normal_deg(shoot(reverse, incidence, s)), expected, 0.5) << incidence;
+    }
+}
+
+TEST(Tracer, CriticalAngleWithinHalfADegree) {
+    // Slow -> fast: theta_c = asin(c1/c2) = asin(1500/1800) = 56.44 degrees. The largest
+    // transmitted angle and the smallest totally reflected one must bracket it within 0.5.
+    const auto map = interface_map(medium(1500, 1000), medium(1800, 1000));
+    TraceSettings s = clean_settings();
+    s.specular_reflection = false;
+    const double critical = glm::degrees(std::asin(1500.0 / 1800.0));
+    double last_transmitted = 0.0, first_reflected = 90.0;
+    for (double incidence = critical - 3.0; incidence <= critical + 3.0; incidence += 0.1) {
+        const bool transmitted = glm::dot(shoot(map, incidence, s), glm::vec2(interface_normal())) > 0.0f;
+        if (transmitted) last_transmitted = std::max(last_transmitted, incidence);
+        else first_reflected = std::min(first_reflected, incidence);
+    }
+    EXPECT_NEAR(last_transmitted, critical, 0.5);
+    EXPECT_NEAR(first_reflected, critical, 0.5);
+    EXPECT_LT(last_transmitted, first_reflected);
+}
+
+TEST(Tracer, ReflectionAngleEqualsIncidence) {
+    // Beyond the critical angle every particle reflects; a mirror keeps the angle.
+    const auto map = interface_map(medium(1500, 1000), medium(1800, 1000));
+    const TraceSettings s = clean_settings();
+    for (double incidence : {60.0, 65.0, 70.0, 75.0, 80.0}) {
+        const glm::vec2 out = shoot(map, incidence, s);
+        EXPECT_LT(glm::dot(out, glm::vec2(interface_normal())), 0.0f);
+        EXPECT_NEAR(angle_to_normal_deg(out), incidence, 0.5) << incidence;
+    }
+}
+
+TEST(Tracer, ReflectedFractionMatchesObliqueIncidenceCoefficient) {
+    // Z 1.5 -> 4.5 MRayl (c 1500 -> 1800, rho 1000 -> 2500). For 11 angles below the
+    // critical angle, 4000 particles each: the reflected fraction must lie within 3 sigma
+    // (binomial) of R^2 from eq. 10, and the recorded echo weight must equal R^2.
+    const float z1 = 1.5f, z2 = 4.5f;
+    const auto map = interface_map(medium(1500, 1000), medium(1800, 2500));
+    TraceSettings s = clean_settings();
+    constexpr int kParticles = 4000;
+    for (int a = 0; a <= 10; ++a) {
+        const double incidence = 5.0 * a;
+        const double sin_t = std::sin(glm::radians(incidence)) * 1800.0 / 1500.0;
+        const double cos_i = std::cos(glm::radians(incidence)), cos_t = std::sqrt(1.0 - sin_t * sin_t);
+        const double expected = reflected_fraction(z1, z2, float(cos_i), float(cos_t));
+        const glm::dvec2 n = interface_normal(), t(n.y, -n.x);
+        const glm::dvec2 dir = std::cos(glm::radians(incidence)) * n + std::sin(glm::radians(incidence)) * t;
+        Sources<2> src;
+        for (int p = 0; p < kParticles; ++p) {
+            // Spread the starts along the interface by +-2 mm so the particles are not identical.
+            const glm::dvec2 start = kCentre - 15.0 * dir + t * (4.0 * p / kParticles - 2.0);
+            src.push_back({glm::vec2(start), glm::vec2(dir), 1.0f, uint32_t(p / 500)});
+        }
+        s.seed = 1000 + a;
+        const auto result = trace(map, src, s);
+        const double measured = double(result.stats.reflections) / kParticles;
+        const double sigma = std::sqrt(expected * (1.0 - expected) / kParticles);
+        EXPECT_NEAR(measured, expected, 3.0 * sigma + 1e-9) << "incidence " << incidence;
+        ASSERT_FALSE(result.echoes.empty());
+        EXPECT_NEAR(result.echoes.front().weight, expected, 2e-3 + 0.02 * expected) << "incidence " << incidence;
+        EXPECT_EQ(result.stats.interface_events, uint64_t(kParticles)) << "one decision per crossing";
+    }
+}
+
+TEST(Tracer, HomogeneousAttenuationIsExponential) {
+    // alpha = 0.5 dB/(cm MHz), f = 5 MHz: intensity falls as exp(-2 alpha_Np f d) with
+    // alpha_Np = alpha / 8.686 per cm. Particles run straight down a 60 mm column.
+    AcousticProperties p = medium(1540, 1000);
+    p[Property::attenuation] = 0.5f;
+    const auto map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
+    TraceSettings s = clean_settings();
+    s.frequency_mhz = 5.0;
+    s.absorption = true;
+    const auto result = trace(map, parallel_beam({5.0f, 0.0f}, {0.0f, 1.0f}, 4.0f, 50), s);
+    // Each particle crosses the 60 mm domain (rows 0..240); it is still inside at exactly
+    // 60 mm, so it leaves after floor(60 / s) + 1 steps.
+    const double step = s.step_texels * kH;
+    const double travelled = (std::floor(60.0 / step + 1e-9) + 1.0) * step;
+    const double expected = std::exp(-2.0 * (0.5 / 8.685889638) * 5.0 * travelled / 10.0);
+    // Float energies over 481 multiplications: relative rounding ~481 * 6e-8 = 3e-5.
+    EXPECT_NEAR(result.ledger.escaped / result.ledger.injected, expected, 5e-5 * expected);
+    // The fluence along depth follows the same law (row 0 is only half crossed: the
+    // particles start on it, so rows are compared with row 8).
+    const tissue::Volume& f = result.fluence;
+    for (int j : {40, 120, 200}) {
+        const double ratio = double(f.at(20, j)) / f.at(20, 8);
+        EXPECT_NEAR(ratio, std::exp(-2.0 * (0.5 / 8.685889638) * 5.0 * ((j - 8) * kH) / 10.0), 1e-3) << "row " << j;
+    }
+}
+
+TEST(Tracer, EnergyLedgerBalancesToOnePartPerMillion) {
+    // Everything on: attenuation, scattering, interfaces with diffuse lobes, roulette,
+    // a capturing probe face; a random smooth medium.
+    const double h = 0.25;
+    tissue::PropertyMaps maps = homogeneous(200, 200, h, tissue::find_tissue("soft_tissue", "", "").properties);
+    for (int j = 0; j < 200; ++j) {
+        for (int i = 0; i < 200; ++i) {
+            const double r = glm::length(glm::dvec2(i, j) * h - glm::dvec2(25, 28));
+            const double blob = std::clamp((8.0 - r) / (2 * h) + 0.5, 0.0, 1.0);
+            maps[Property::speed_of_sound].at(i, j) += float(blob * 1900.0);
+            maps[Property::density].at(i, j) += float(blob * 800.0);
+            maps[Property::roughness].at(i, j) = float(0.2 + 0.3 * blob);
+        }
+    }
+    const auto map = tissue::AcousticMap<2>::build(maps);
+    TraceSettings s;  // defaults: all physics on
+    s.roulette_energy = 0.05;
+    ProbeFace<2> face;
+    face.centre = {25.0f, 0.5f};
+    face.normal = {0.0f, 1.0f};
+    face.half_width_mm = 10.0f;
+    face.reflectivity = 0.3f;
+    s.probe_face_2d = face;
+    Sources<2> src;
+    for (int line = 0; line < 8; ++line) {
+        auto beam = fan_beam({25.0f, 0.6f}, {0.0f, 1.0f}, 25.0f, 200, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    const auto result = trace(map, src, s);
+    const EnergyLedger& l = result.ledger;
+    EXPECT_NEAR(l.relative_error(), 0.0, 1e-6);
+    EXPECT_GT(l.absorbed, 0.0);
+    EXPECT_GT(l.escaped, 0.0);
+    EXPECT_GT(l.recorded, 0.0);
+    EXPECT_GT(l.roulette_killed, 0.0);
+    EXPECT_GT(result.stats.captured, 0u);
+    EXPECT_GT(result.stats.reflections, 0u);
+    // The absorbed map holds the absorbed energy (64-bit fixed point, per texel rounding).
+    double map_total = 0.0;
+    for (float v : result.absorbed.voxels()) map_total += v;
+    EXPECT_NEAR(map_total, l.absorbed, 1e-6 * l.injected);
+}
+
+TEST(Tracer, FibreGuideKeepsEveryParticleAndItsTrackWidth) {
+    // Figure 4: parabolic density profile in a bent fibre (core radius 5 mm). No particle
+    // may leave the core, and the track's width (largest |offset| from the centreline in
+    // a window) must not grow by more than 5 % from the first to the last third.
+    const FibreGeometry fibre;
+    for (const char* name : {"fig4a", "fig4b"}) {
+        Scene2D scene = make_paper_scene(name, 21);
+        const auto result = trace(scene.map, scene.sources, scene.settings);
+        ASSERT_EQ(result.paths.size(), 21u);
+        const double length = fibre.length_mm() - 6.0;
+        double first = 0.0, last = 0.0, worst = 0.0;
+        for (const auto& path : result.paths) {
+            for (const auto& v : path.vertices) {
+                const glm::dvec2 oa = fibre.offset_and_arc(glm::dvec2(v.position));
+                worst = std::max(worst, std::abs(oa.x));
+                if (oa.y < length / 3) first = std::max(first, std::abs(oa.x));
+                if (oa.y > 2 * length / 3 && oa.y < length) last = std::max(last, std::abs(oa.x));
+            }
+        }
+        EXPECT_LT(worst, fibre.core_radius_mm) << name << ": a particle left the core";
+        EXPECT_LT(last, 1.05 * first) << name << ": track width " << first << " -> " << last;
+        RecordProperty(std::string(name) + "_width_first_mm", std::to_string(first));
+        RecordProperty(std::string(name) + "_width_last_mm", std::to_string(last));
+    }
+}
+
+TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
+    Scene2D scene = make_paper_scene("fig6", 400);
+    scene.settings.mode = PhysicsMode::acoustic;  // exercise scattering and roulette too
+    scene.settings.scattering = true;
+    scene.settings.roulette_energy = 0.2;
+    for (auto& src : scene.sources) src.line = uint32_t(&src - scene.sources.data()) % 13;
+    auto run = [&](int threads) {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+        return trace(scene.map, scene.sources, scene.settings);
+    };
+    const auto a = run(1), b = run(2);
+    ASSERT_EQ(a.echoes.size(), b.echoes.size());
+    EXPECT_EQ(std::memcmp(a.echoes.data(), b.echoes.data(), a.echoes.size() * sizeof(a.echoes[0])), 0);
+    EXPECT_EQ(a.fluence.voxels(), b.fluence.voxels());
+    EXPECT_EQ(a.absorbed.voxels(), b.absorbed.voxels());
+    EXPECT_EQ(a.ring_profile, b.ring_profile);
+    EXPECT_EQ(std::memcmp(&a.ledger, &b.ledger, sizeof a.ledger), 0);
+    EXPECT_EQ(a.stats.steps, b.stats.steps);
+}
+
+TEST(TracerErrors, BadSettingsAndSourcesAreNamed) {
+    const auto map = tissue::AcousticMap<2>::build(homogeneous(10, 10, 1.0, medium(1540, 1000)));
+    TraceSettings s;
+    s.step_texels = 0.0;
+    test::expect_input_error([&] { trace(map, Sources<2>{}, s); }, "trace settings", "step");
+    s = TraceSettings{};
+    s.frequency_mhz = std::nan("");
+    test::expect_input_error([&] { trace(map, Sources<2>{}, s); }, "trace settings", "frequency");
+    Sources<2> bad = {{{1.0f, 1.0f}, {0.0f, 0.0f}, 1.0f, 0}};
+    test::expect_input_error([&] { trace(map, bad, TraceSettings{}); }, "sources", "sources[0].direction");
+    bad = {{{1.0f, std::nanf("")}, {0.0f, 1.0f}, 1.0f, 0}};
+    test::expect_input_error([&] { trace(map, bad, TraceSettings{}); }, "sources", "sources[0]", "finite");
+}
+
+}  // namespace
+}  // namespace sonotrace::simulator
