@@ -27,6 +27,7 @@ struct EchoEvent {
     glm::vec<Dim, float> position;  // mm, map frame
     uint16_t bounces = 0;           // reflections before this event
     EchoKind kind = EchoKind::scatter;
+    bool operator==(const EchoEvent&) const = default;  // field-wise: padding is indeterminate
 };
 
 template <int Dim>

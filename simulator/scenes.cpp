@@ -90,9 +90,10 @@ Scene2D figure2(int particles) {
 Scene2D figure4(bool fan, int particles) {
     const double h = 0.25;
     const FibreGeometry fibre;
-    tissue::Volume d(grid(420, 420, h));
-    for (int j = 0; j < 420; ++j) {
-        for (int i = 0; i < 420; ++i) {
+    const int n = int((fibre.bend_centre.x + fibre.exit_mm) / h) + 1;
+    tissue::Volume d(grid(n, n, h));
+    for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
             const double rho = fibre.offset_and_arc({i * h, j * h}).x / fibre.core_radius_mm;
             d.at(i, j) = float(fibre.cladding_density +
                                (fibre.core_density - fibre.cladding_density) * std::max(0.0, 1.0 - rho * rho));
@@ -140,10 +141,12 @@ Scene2D figure5(int particles) {
 }
 
 Scene2D figure6(int particles) {
-    // A homogeneous reflector (d = 1.5, 2 mm) on inhomogeneous matter (d = 1.5 +- 0.3
-    // smooth noise), under a homogeneous half-space d = 1. A 4 mm parallel beam meets it
-    // at 45 degrees at (50, 30) mm; the ring detector of radius 15 mm records the
-    // reflected intensity profile over the upper semicircle.
+    // A homogeneous reflector (d = 3, 2 mm) on inhomogeneous matter (d = 2 +- 0.6 smooth
+    // noise), under a homogeneous half-space d = 1. A 4 mm parallel beam meets it at 45
+    // degrees at (50, 30) mm: eq. 10 gives R^2 = 0.14 there (a d = 1.5 reflector would
+    // give 0.009, too weak for the figure's bright specular lobe). Paths are coloured by
+    // energy, so the lobe weight is the paper's lossy interpretation. The ring detector
+    // (radius 15 mm) records the intensity profile over the upper semicircle.
     const double h = 0.25, interface_y = 30.0;
     tissue::Volume d(grid(400, 300, h));
     for (int j = 0; j < 300; ++j) {
@@ -151,7 +154,7 @@ Scene2D figure6(int particles) {
             const double x = i * h, y = j * h;
             const double below = ramp(y - interface_y, 1.5 * h);
             const double matter = ramp(y - interface_y - 2.0, 1.5 * h);
-            const double value = 1.5 + matter * 0.3 * value_noise(x, y, 1.5);
+            const double value = 3.0 + matter * (-1.0 + 0.6 * value_noise(x, y, 1.5));
             d.at(i, j) = float(1.0 + below * (value - 1.0));
         }
     }
@@ -160,7 +163,9 @@ Scene2D figure6(int particles) {
     scene.sources = parallel_beam(hit - dir * 25.0f, dir, 4.0f, particles);
     scene.settings.diffuse_reflection = true;
     scene.settings.lobe_exponent = LobeExponent::reflecting_density;
-    scene.settings.lobe_scale = 20.0;  // c = 20 * d1 = 30 at the reflector
+    scene.settings.lobe_scale = 5.0;  // c = 5 * d1 = 15 at the reflector
+    scene.settings.lobe_weight = LobeWeight::energy;
+    scene.settings.roulette_energy = 1e-3;
     scene.settings.record_paths = particles;
     scene.settings.ring = RingDetector{hit, 15.0f, 90};
     return scene;
@@ -191,7 +196,7 @@ glm::dvec2 FibreGeometry::offset_and_arc(glm::dvec2 p) const {
     return {signed_distance(c3, d3), straight_mm + bend_len + s3};
 }
 
-double FibreGeometry::length_mm() const { return straight_mm + bend_radius_mm * kPi / 2.0 + 30.0; }
+double FibreGeometry::length_mm() const { return straight_mm + bend_radius_mm * kPi / 2.0 + exit_mm; }
 
 std::vector<std::string> paper_scene_names() { return {"fig2", "fig4a", "fig4b", "fig5", "fig6"}; }
 

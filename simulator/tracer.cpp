@@ -376,7 +376,9 @@ private:
                     bent = refract<Dim>(r, normal, n0 / map_.sample_refractive_index(x + s * bent.direction));
                 }
                 r = bent.direction;
-                if (bent.total_reflection) {
+                // Total reflection at a sharp interface is a bounce; in a graded medium it
+                // is the ray's turning point (the fibre's particles turn at every period).
+                if (bent.total_reflection && state == kCrossing) {
                     b.bounces[k]++;
                     stats.reflections++;
                     stats.total_reflections++;

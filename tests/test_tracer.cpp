@@ -258,7 +258,7 @@ TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
     };
     const auto a = run(1), b = run(2);
     ASSERT_EQ(a.echoes.size(), b.echoes.size());
-    EXPECT_EQ(std::memcmp(a.echoes.data(), b.echoes.data(), a.echoes.size() * sizeof(a.echoes[0])), 0);
+    EXPECT_TRUE(a.echoes == b.echoes);
     EXPECT_EQ(a.fluence.voxels(), b.fluence.voxels());
     EXPECT_EQ(a.absorbed.voxels(), b.absorbed.voxels());
     EXPECT_EQ(a.ring_profile, b.ring_profile);

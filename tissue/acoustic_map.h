@@ -13,8 +13,9 @@
 // axial and elevation, so the tracer works directly in probe coordinates.
 //
 // Gradients: central differences of eq. 3 of Reis & Bertram, divided by the texel
-// distance so they carry physical units (the paper's are per texel); one-sided at the
-// border.
+// distance so they carry physical units (the paper's are per texel), one-sided at the
+// border, and averaged over the neighbours across the other axes with weights 1/4, 1/2,
+// 1/4 (Sobel) for direction accuracy at oblique interfaces (see acoustic_map.cpp).
 #include <algorithm>
 #include <cstring>
 #include <vector>

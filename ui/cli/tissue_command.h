@@ -5,19 +5,12 @@
 #include <string>
 
 #include "ui/cli/command_common.h"
+#include "ui/cli/volume_slice.h"
 
 namespace sonotrace::ui {
 
 struct TissueOptions {
-    std::string volume = "default";
-    std::string spacing;
-    std::string tf;
-    std::string pose = "default";
-    double width_mm = 0.0;
-    double depth_mm = 0.0;
-    double resolution_mm = 0.25;
-    double elevation_mm = 0.0;
-    double outside = std::numeric_limits<double>::quiet_NaN();
+    SliceOptions slice;
     std::string out_dir = "out/tissue";
     std::string json_path;
     int threads = 0;

@@ -1,0 +1,179 @@
+#include "ui/cli/volume_slice.h"
+
+#include <cmath>
+#include <iostream>
+
+#include "tissue/error.h"
+#include "tissue/memory.h"
+
+namespace sonotrace::ui {
+
+namespace {
+
+using nlohmann::json;
+
+// Parameters of the volume slice, documented once (shared by tissue and trace).
+constexpr ParameterDoc kVolumeDoc = {
+    "--volume", "",
+    "volume to load: 'default' (Colin27 T1 head MRI from mricron-data), a NIfTI file "
+    "(.nii/.nii.gz), a raw sidecar (.json), an image (PNG/TIFF/JPEG/EXR), a directory of "
+    "numbered images or a printf pattern (img_%03d.png)"};
+constexpr ParameterDoc kSpacingDoc = {
+    "--spacing", "mm",
+    "pixel spacing of image inputs as 'SX,SY' or 'SX,SY,SZ' (SZ = slice spacing of a stack); "
+    "required for images, ignored for NIfTI and raw volumes"};
+constexpr ParameterDoc kTfDoc = {
+    "--tf", "",
+    "transfer function: a preset name (mri-t1-head, generic-soft-tissue) or a JSON file; "
+    "empty = mri-t1-head for the default volume, generic-soft-tissue otherwise"};
+constexpr ParameterDoc kPoseDoc = {"--pose", "mm, degrees", probe::kPoseHelp};
+constexpr ParameterDoc kWidthDoc = {"--width", "mm",
+                                    "lateral extent of the slice, centred on the probe; 0 = "
+                                    "automatic (140 mm for the default volume, else the volume's "
+                                    "extent)"};
+constexpr ParameterDoc kDepthDoc = {"--depth", "mm",
+                                    "depth of the slice from the probe face; 0 = automatic "
+                                    "(160 mm for the default volume, else the volume's extent)"};
+constexpr ParameterDoc kResolutionDoc = {"--resolution", "mm/pixel",
+                                         "sample spacing of the slice, independent of the voxel "
+                                         "size (trilinear interpolation)"};
+constexpr ParameterDoc kElevationDoc = {
+    "--elevation", "mm",
+    "thickness of a 3D sub-volume around the image plane (for 3D tracing); 0 = a single plane. "
+    "Pictures show the central plane; --nifti writes the whole sub-volume"};
+constexpr ParameterDoc kOutsideDoc = {"--outside", "volume units",
+                                      "value assumed outside the volume; default: the volume's "
+                                      "minimum (air for MRI)"};
+
+json geometry_json(const tissue::VolumeGeometry& g) {
+    json direction = json::array();
+    for (int c = 0; c < 3; ++c) direction.push_back({g.direction[c].x, g.direction[c].y, g.direction[c].z});
+    return {{"dims", {g.dims.x, g.dims.y, g.dims.z}},
+            {"spacing_mm", {g.spacing.x, g.spacing.y, g.spacing.z}},
+            {"origin_mm", {g.origin.x, g.origin.y, g.origin.z}},
+            {"direction", direction}};
+}
+
+// Default pose for a non-default volume: on the top face of the bounding box, centred,
+// beam along +j (image rows run downwards), lateral along +i.
+probe::Pose top_centre_pose(const tissue::VolumeGeometry& g) {
+    const glm::dvec3 centre = glm::dvec3(g.dims - 1) * 0.5;
+    const glm::dvec3 top = g.index_to_world({centre.x, -0.5, centre.z});
+    return probe::Pose::looking(top, g.direction[1], g.direction[0]);
+}
+
+}  // namespace
+
+void add_slice_options(CLI::App& cmd, SliceOptions& options, bool with_elevation) {
+    add_parameter(cmd, kVolumeDoc, options.volume);
+    add_parameter(cmd, kSpacingDoc, options.spacing);
+    add_parameter(cmd, kTfDoc, options.tf);
+    add_parameter(cmd, kPoseDoc, options.pose);
+    add_parameter(cmd, kWidthDoc, options.width_mm);
+    add_parameter(cmd, kDepthDoc, options.depth_mm);
+    add_parameter(cmd, kResolutionDoc, options.resolution_mm);
+    if (with_elevation) add_parameter(cmd, kElevationDoc, options.elevation_mm);
+    add_parameter(cmd, kOutsideDoc, options.outside);
+}
+
+Slice make_slice(const SliceOptions& options, StageTimer& timer) {
+    Slice slice;
+    const bool is_default = options.volume == tissue::kDefaultVolumeName;
+
+    // ---- validate every parameter before loading anything heavy ----
+    tissue::VolumeRequest request{options.volume, std::nullopt};
+    if (!options.spacing.empty()) {
+        double s[3];
+        if (auto error = parse_spacing(options.spacing, s))
+            throw tissue::InputError("--spacing", "", *error);
+        request.image_spacing = glm::dvec3(s[0], s[1], s[2]);
+    }
+    auto nonnegative = [](double v, const char* flag) {
+        if (!(std::isfinite(v) && v >= 0.0)) {
+            throw tissue::InputError(flag, "",
+                                     "must be a finite number >= 0 (mm), got " + std::to_string(v));
+        }
+    };
+    nonnegative(options.width_mm, "--width");
+    nonnegative(options.depth_mm, "--depth");
+    nonnegative(options.elevation_mm, "--elevation");
+    if (!(std::isfinite(options.resolution_mm) && options.resolution_mm > 0.0)) {
+        throw tissue::InputError("--resolution", "", "must be a positive number of mm per pixel");
+    }
+    if (!std::isnan(options.outside) && !std::isfinite(options.outside)) {
+        throw tissue::InputError("--outside", "", "must be finite");
+    }
+    std::optional<probe::Pose> pose;
+    if (options.pose != "default") pose = probe::parse_pose(options.pose, "--pose");
+    const std::string tf_spec =
+        !options.tf.empty() ? options.tf : (is_default ? "mri-t1-head" : "generic-soft-tissue");
+    timer.begin("transfer function " + tf_spec);
+    slice.tf = tissue::load_transfer_function(tf_spec);
+    timer.end();
+
+    // ---- load ----
+    timer.begin("loading " + options.volume);
+    slice.loaded = tissue::load_volume(request);
+    timer.end();
+    for (const auto& w : slice.loaded.warnings) std::cerr << "sonotrace: warning: " << w << "\n";
+    const tissue::Volume& volume = slice.loaded.volume;
+    const auto [vmin, vmax] = volume.value_range();
+    const float outside = std::isnan(options.outside) ? vmin : float(options.outside);
+
+    // ---- grid under the probe ----
+    if (!pose)
+        pose = is_default ? probe::colin27_temporal_pose() : top_centre_pose(volume.geometry());
+    tissue::GridExtent extent;
+    const glm::dvec3 size_mm = glm::dvec3(volume.dims()) * volume.geometry().spacing;
+    extent.width_mm = options.width_mm > 0 ? options.width_mm : (is_default ? 140.0 : size_mm.x);
+    extent.depth_mm = options.depth_mm > 0 ? options.depth_mm : (is_default ? 160.0 : size_mm.y);
+    extent.elevation_mm = options.elevation_mm;
+    extent.pixel_mm = options.resolution_mm;
+    const tissue::VolumeGeometry grid =
+        tissue::probe_grid(pose->frame(), extent, "--width/--depth/--resolution");
+    tissue::check_allocation(double(grid.voxel_count()) * 4.0 * 24.0, "--resolution",
+                             "grid of " + std::to_string(grid.voxel_count()) + " samples");
+
+    timer.begin("binding the transfer function to the volume");
+    slice.tf->bind(volume);
+    timer.end();
+    timer.begin("resampling " + std::to_string(grid.dims.x) + "x" + std::to_string(grid.dims.y) +
+                "x" + std::to_string(grid.dims.z) + " samples");
+    const auto interpolation = slice.tf->uses_nearest_sampling() ? tissue::Interpolation::nearest
+                                                           : tissue::Interpolation::trilinear;
+    slice.values = tissue::resample(volume, grid, interpolation, outside);
+    timer.end();
+    timer.begin("classifying");
+    slice.maps = tissue::classify(slice.values, *slice.tf);
+    timer.end();
+    slice.pose = *pose;
+    slice.extent = extent;
+    slice.grid = grid;
+    slice.outside = outside;
+    slice.value_min = vmin;
+    slice.value_max = vmax;
+    return slice;
+}
+
+json slice_json(const Slice& slice, const SliceOptions& options) {
+    const probe::Pose& pose = slice.pose;
+    return {
+        {"volume", {{"spec", options.volume}, {"path", slice.loaded.path}, {"format", slice.loaded.format},
+                    {"geometry", geometry_json(slice.loaded.volume.geometry())},
+                    {"value_range", {slice.value_min, slice.value_max}}, {"outside_value", slice.outside}}},
+        {"transfer_function", slice.tf->describe()},
+        {"pose", {{"text", pose.to_string()},
+                  {"position_mm", {pose.position.x, pose.position.y, pose.position.z}},
+                  {"lateral", {pose.lateral().x, pose.lateral().y, pose.lateral().z}},
+                  {"axial", {pose.axial().x, pose.axial().y, pose.axial().z}},
+                  {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}}},
+        {"grid", {{"geometry", geometry_json(slice.grid)},
+                  {"width_mm", slice.extent.width_mm}, {"depth_mm", slice.extent.depth_mm},
+                  {"elevation_mm", slice.extent.elevation_mm}, {"pixel_mm", slice.extent.pixel_mm},
+                  {"interpolation", slice.tf->uses_nearest_sampling() ? "nearest" : "trilinear"},
+                  {"axes", "i = lateral, j = depth (axial), k = elevation"}}},
+        {"warnings", slice.loaded.warnings},
+    };
+}
+
+}  // namespace sonotrace::ui

@@ -1,0 +1,51 @@
+#pragma once
+// The volume -> slice -> acoustic properties pipeline shared by `sonotrace tissue` and
+// `sonotrace trace`: options (documented once), validation before anything heavy, and
+// the stages themselves.
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "probe/pose.h"
+#include "tissue/property_maps.h"
+#include "tissue/resample.h"
+#include "tissue/transfer_function.h"
+#include "tissue/volume_io.h"
+#include "ui/cli/command_common.h"
+
+namespace sonotrace::ui {
+
+struct SliceOptions {
+    std::string volume = "default";
+    std::string spacing;
+    std::string tf;
+    std::string pose = "default";
+    double width_mm = 0.0;
+    double depth_mm = 0.0;
+    double resolution_mm = 0.25;
+    double elevation_mm = 0.0;
+    double outside = std::numeric_limits<double>::quiet_NaN();
+};
+
+void add_slice_options(CLI::App& cmd, SliceOptions& options, bool with_elevation);
+
+struct Slice {
+    tissue::LoadedVolume loaded;
+    std::unique_ptr<tissue::TransferFunction> tf;
+    probe::Pose pose;
+    tissue::GridExtent extent;
+    tissue::VolumeGeometry grid;
+    float outside = 0.0f;
+    float value_min = 0.0f, value_max = 0.0f;
+    tissue::Volume values;      // resampled voxel values
+    tissue::PropertyMaps maps;  // acoustic properties on the grid
+};
+
+// Validates every option, then loads, slices and classifies (timed stages on `timer`).
+Slice make_slice(const SliceOptions& options, StageTimer& timer);
+
+// The sidecar description of a slice (volume, transfer function, pose, grid).
+nlohmann::json slice_json(const Slice& slice, const SliceOptions& options);
+
+}  // namespace sonotrace::ui
