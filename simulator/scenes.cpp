@@ -204,11 +204,18 @@ Scene2D make_paper_scene(const std::string& name, int particles) {
     if (particles < 1 || particles > 10000000) {
         throw tissue::InputError("--particles", "", "must be between 1 and 10000000");
     }
-    if (name == "fig2") return figure2(particles);
-    if (name == "fig4a") return figure4(false, particles);
-    if (name == "fig4b") return figure4(true, particles);
+    // Consecutive particles form 16 "lines" so the trace spreads over the threads.
+    auto split = [](Scene2D scene) {
+        if (scene.name == "fig5") return scene;  // already split
+        const std::size_t n = scene.sources.size();
+        for (std::size_t p = 0; p < n; ++p) scene.sources[p].line = uint32_t(p * 16 / n);
+        return scene;
+    };
+    if (name == "fig2") return split(figure2(particles));
+    if (name == "fig4a") return split(figure4(false, particles));
+    if (name == "fig4b") return split(figure4(true, particles));
     if (name == "fig5") return figure5(particles);
-    if (name == "fig6") return figure6(particles);
+    if (name == "fig6") return split(figure6(particles));
     std::string known;
     for (const auto& n : paper_scene_names()) known += (known.empty() ? "" : ", ") + n;
     throw tissue::InputError("--config", "", "unknown configuration '" + name + "' (known: " + known + ")");

@@ -26,6 +26,8 @@
 // Threads take whole scan lines; random numbers come from Philox keyed by (seed, line,
 // particle, event); deposit maps accumulate in 64-bit fixed point (integer addition is
 // associative), so results are byte-identical on any thread count.
+#include <functional>
+
 #include "simulator/records.h"
 #include "simulator/sources.h"
 #include "simulator/trace_settings.h"
@@ -33,14 +35,17 @@
 
 namespace sonotrace::simulator {
 
+// Called from worker threads after each finished line with (lines done, lines total).
+using TraceProgress = std::function<void(std::size_t, std::size_t)>;
+
 // Throws tissue::InputError("sources" / settings source, field) on invalid input.
 template <int Dim>
 TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& sources,
-                       const TraceSettings& settings);
+                       const TraceSettings& settings, const TraceProgress& progress = {});
 
 extern template TraceResult<2> trace<2>(const tissue::AcousticMap<2>&, const Sources<2>&,
-                                        const TraceSettings&);
+                                        const TraceSettings&, const TraceProgress&);
 extern template TraceResult<3> trace<3>(const tissue::AcousticMap<3>&, const Sources<3>&,
-                                        const TraceSettings&);
+                                        const TraceSettings&, const TraceProgress&);
 
 }  // namespace sonotrace::simulator

@@ -77,9 +77,10 @@ AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Vo
         map.dims_[a] = n[a];
         map.spacing_[a] = float(map.geometry_.spacing[a]);
         map.inverse_spacing_[a] = float(1.0 / map.geometry_.spacing[a]);
+        map.extent_[a] = float(n[a] - 1) * map.spacing_[a];
     }
     auto value = [](const Volume* f, std::size_t v) { return f ? f->voxels()[v] : 0.0f; };
-    map.texels_.resize(map.geometry_.voxel_count());
+    map.texels_.assign(map.geometry_.voxel_count(), AcousticTexel<Dim>{});
     tbb::parallel_for(0, n.y * n.z, [&](int row) {
         const int j = row % n.y, k = row / n.y;
         for (int i = 0; i < n.x; ++i) {

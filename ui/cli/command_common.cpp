@@ -25,6 +25,21 @@ void StageTimer::end() {
     if (!quiet_) std::fprintf(stderr, " %.2f s\n", seconds);
 }
 
+void ProgressBar::update(std::size_t done, std::size_t total) {
+    if (quiet_ || total == 0) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    const int filled = int(30 * done / total);
+    if (filled == last_drawn_ && done != total) return;
+    last_drawn_ = filled;
+    std::fprintf(stderr, "\rsonotrace: %s [%s%s] %zu/%zu", label_.c_str(), std::string(std::size_t(filled), '#').c_str(),
+                 std::string(std::size_t(30 - filled), '.').c_str(), done, total);
+    std::fflush(stderr);
+}
+
+void ProgressBar::finish() {
+    if (!quiet_ && last_drawn_ >= 0) std::fprintf(stderr, "\n");
+}
+
 std::unique_ptr<tbb::global_control> limit_threads(int threads) {
     if (threads <= 0) return nullptr;
     return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,

@@ -3,6 +3,7 @@
 // default, meaning) and turned into CLI11 options, stage timing with progress lines on
 // stderr, thread control, and JSON output.
 #include <chrono>
+#include <mutex>
 #include <memory>
 #include <optional>
 #include <string>
@@ -41,6 +42,21 @@ class StageTimer {
     std::string stage_;
     std::chrono::steady_clock::time_point start_;
     nlohmann::json timings_ = nlohmann::json::object();
+};
+
+// A progress bar on stderr ("tracing [#####.....] 12/40"), safe to call from worker
+// threads; silent when quiet.
+class ProgressBar {
+public:
+    ProgressBar(std::string label, bool quiet) : label_(std::move(label)), quiet_(quiet) {}
+    void update(std::size_t done, std::size_t total);
+    void finish();
+
+private:
+    std::string label_;
+    bool quiet_;
+    std::mutex mutex_;
+    int last_drawn_ = -1;
 };
 
 // Limits TBB to `threads` workers for the lifetime of the returned object (0 = all cores).

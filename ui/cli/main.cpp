@@ -6,6 +6,7 @@
 #include "sonotrace_version.h"
 #include "tissue/error.h"
 #include "ui/cli/tissue_command.h"
+#include "ui/cli/trace_command.h"
 
 int main(int argc, char** argv) {
     using namespace sonotrace;
@@ -20,6 +21,8 @@ int main(int argc, char** argv) {
 
     ui::TissueOptions tissue_options;
     CLI::App* tissue_cmd = ui::add_tissue_command(app, tissue_options);
+    ui::TraceOptions trace_options;
+    CLI::App* trace_cmd = ui::add_trace_command(app, trace_options);
 
     try {
         app.parse(argc, argv);
@@ -28,6 +31,7 @@ int main(int argc, char** argv) {
     }
     try {
         if (tissue_cmd->parsed()) return ui::run_tissue_command(tissue_options);
+        if (trace_cmd->parsed()) return ui::run_trace_command(trace_options);
     } catch (const tissue::InputError& e) {
         std::cerr << "sonotrace: error: " << e.what() << "\n";
         return 1;

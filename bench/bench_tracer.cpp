@@ -1,0 +1,123 @@
+// Particle-steps per second of the tracer with full acoustic physics and event recording
+// (refraction, interfaces with eq. 10 decisions, diffuse lobes, attenuation, scattering,
+// roulette, echo records), on all cores.
+//
+//   build/bench/bench_tracer --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+
+#include "probe/pose.h"
+#include "simulator/scenes.h"
+#include "simulator/tracer.h"
+#include "tissue/resample.h"
+#include "tissue/tissue_table.h"
+#include "tissue/transfer_function.h"
+#include "tissue/volume_io.h"
+
+namespace {
+
+using namespace sonotrace;
+
+// 1024 x 1024 texels of 0.1 mm: soft tissue with round inclusions (fat, liver, a cyst,
+// a bone plate), smoothed over 2 texels.
+tissue::PropertyMaps synthetic_1024() {
+    const int n = 1024;
+    const double h = 0.1;
+    auto maps = simulator::homogeneous(n, n, h, tissue::find_tissue("soft_tissue", "", "").properties);
+    struct Blob {
+        double x, y, r;
+        const char* tissue;
+    };
+    const Blob blobs[] = {{30, 30, 12, "fat"}, {70, 40, 15, "liver"}, {50, 70, 8, "water"}, {25, 80, 6, "cortical_bone"},
+                          {80, 85, 10, "kidney"}};
+    for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+            for (const Blob& b : blobs) {
+                const double d = std::hypot(i * h - b.x, j * h - b.y) - b.r;
+                const double t = std::clamp(0.5 - d / (2 * h), 0.0, 1.0);
+                if (t <= 0.0) continue;
+                const auto p = tissue::find_tissue(b.tissue, "", "").properties;
+                for (std::size_t f = 0; f < tissue::kPropertyCount; ++f) {
+                    float& v = maps.fields[f].at(i, j);
+                    v = float(v * (1 - t) + p.values[f] * t);
+                }
+            }
+        }
+    }
+    return maps;
+}
+
+tissue::PropertyMaps colin27_maps(double pixel_mm, double elevation_mm) {
+    static const tissue::Volume head = tissue::load_volume({tissue::kDefaultVolumeName, std::nullopt}).volume;
+    auto tf = tissue::load_transfer_function("mri-t1-head");
+    tf->bind(head);
+    const auto grid = tissue::probe_grid(probe::colin27_temporal_pose().frame(), {140.0, 160.0, elevation_mm, pixel_mm}, "bench");
+    return tissue::classify(tissue::resample(head, grid, tissue::Interpolation::trilinear, 0.0f), *tf);
+}
+
+// A fan of `lines` scan lines from the top centre, `per_line` particles each.
+simulator::Sources<2> fan_2d(const tissue::AcousticMap<2>& map, int lines, int per_line) {
+    simulator::Sources<2> sources;
+    const glm::vec2 origin(0.5f * map.extent_mm().x, 0.01f);
+    for (int l = 0; l < lines; ++l) {
+        const float a = glm::radians(-35.0f + 70.0f * (l + 0.5f) / lines);
+        auto beam = simulator::fan_beam(origin, {std::sin(a), std::cos(a)}, 1.0f, per_line, uint32_t(l));
+        sources.insert(sources.end(), beam.begin(), beam.end());
+    }
+    return sources;
+}
+
+simulator::Sources<3> fan_3d(const tissue::AcousticMap<3>& map, int lines, int per_line) {
+    simulator::Sources<3> sources;
+    const glm::vec3 e = map.extent_mm();
+    const glm::vec3 origin(0.5f * e.x, 0.01f, 0.5f * e.z);
+    const int side = std::max(1, int(std::sqrt(double(per_line))));
+    for (int l = 0; l < lines; ++l) {
+        const float a = glm::radians(-35.0f + 70.0f * (l + 0.5f) / lines);
+        auto beam = simulator::fan_beam_3d(origin, {std::sin(a), std::cos(a), 0.0f}, 1.0f, side, uint32_t(l));
+        sources.insert(sources.end(), beam.begin(), beam.end());
+    }
+    return sources;
+}
+
+template <int Dim>
+void run(benchmark::State& state, const tissue::AcousticMap<Dim>& map, const simulator::Sources<Dim>& sources) {
+    simulator::TraceSettings settings;  // full acoustic physics, echoes recorded
+    settings.frequency_mhz = 3.5;
+    uint64_t steps = 0;
+    std::size_t echoes = 0;
+    for (auto _ : state) {
+        const auto result = simulator::trace(map, sources, settings);
+        steps += result.stats.steps;
+        echoes = result.echoes.size();
+        benchmark::DoNotOptimize(result.echoes.data());
+    }
+    state.counters["steps/s"] = benchmark::Counter(double(steps), benchmark::Counter::kIsRate);
+    state.counters["echoes"] = double(echoes);
+}
+
+void BM_Trace2D_Synthetic1024(benchmark::State& state) {
+    static const auto map = tissue::AcousticMap<2>::build(synthetic_1024());
+    static const auto sources = fan_2d(map, 64, 256);
+    run<2>(state, map, sources);
+}
+BENCHMARK(BM_Trace2D_Synthetic1024)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_Trace2D_Colin27(benchmark::State& state) {
+    static const auto map = tissue::AcousticMap<2>::build(colin27_maps(0.25, 0.0));
+    static const auto sources = fan_2d(map, 64, 256);
+    run<2>(state, map, sources);
+}
+BENCHMARK(BM_Trace2D_Colin27)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_Trace3D_Colin27(benchmark::State& state) {
+    static const auto map = tissue::AcousticMap<3>::build(colin27_maps(0.5, 20.0));
+    static const auto sources = fan_3d(map, 32, 256);
+    run<3>(state, map, sources);
+}
+BENCHMARK(BM_Trace3D_Colin27)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,332 @@
+#include "ui/cli/trace_command.h"
+
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <numbers>
+#include <sstream>
+
+#include <opencv2/imgproc.hpp>
+
+#include "imaging/picture.h"
+#include "imaging/trace_pictures.h"
+#include "simulator/scenes.h"
+#include "simulator/tracer.h"
+#include "sonotrace_version.h"
+#include "tissue/atomic_output.h"
+#include "tissue/error.h"
+
+namespace sonotrace::ui {
+
+namespace {
+
+using nlohmann::json;
+using simulator::Scene2D;
+
+constexpr ParameterDoc kConfigDoc = {
+    "--config", "",
+    "built-in configuration reproducing a figure of Reis & Bertram: fig2 (two interfaces, fan: "
+    "refraction and total reflection), fig4a / fig4b (bent fibre, parallel / fan injection), "
+    "fig5 (Colin27 slice, parallel injection from the upper right), fig6 (45-degree beam on a "
+    "reflector over inhomogeneous matter, with the intensity profile over a semicircle). "
+    "Empty: trace a volume slice (the --volume options)"};
+constexpr ParameterDoc kModeDoc = {"--mode", "", simulator::doc::kMode};
+constexpr ParameterDoc kParticlesDoc = {"--particles", "",
+                                        "particles in total; 0 = the configuration's default (volume: 4000)"};
+constexpr ParameterDoc kLinesDoc = {"--lines", "", "scan lines the particles are split into (volume slices)"};
+constexpr ParameterDoc kInjectionDoc = {"--injection", "", "volume slices: 'fan' from the probe centre or 'parallel' across --beam-width"};
+constexpr ParameterDoc kBeamAngleDoc = {"--beam-angle", "degrees", "half opening angle of a fan"};
+constexpr ParameterDoc kBeamWidthDoc = {"--beam-width", "mm", "width of a parallel beam"};
+constexpr ParameterDoc kContrastDoc = {"--contrast", "",
+                                       "paper mode on a volume: density d = 1 + contrast * (value - min) / (max - min)"};
+constexpr ParameterDoc kFaceDoc = {"--face-reflectivity", "0..1",
+                                   "intensity fraction the probe face reflects back into the tissue (volume slices)"};
+constexpr ParameterDoc kDisableDoc = {"--disable", "",
+                                      "comma-separated physics to switch off: refraction, specular, diffuse, "
+                                      "scattering, absorption, bounces (= single reflection)"};
+constexpr ParameterDoc kLobeExponentDoc = {"--lobe-exponent", "", simulator::doc::kLobeExponent};
+constexpr ParameterDoc kLobeWeightDoc = {"--lobe-weight", "", simulator::doc::kLobeWeight};
+constexpr ParameterDoc kLobeScaleDoc = {"--lobe-scale", "", "factor on c for the paper's lobe interpretations; < 0 = default"};
+constexpr ParameterDoc kStepDoc = {"--step", "texels", simulator::doc::kStep};
+constexpr ParameterDoc kFrequencyDoc = {"--frequency", "MHz", simulator::doc::kFrequency};
+constexpr ParameterDoc kSeedDoc = {"--seed", "", simulator::doc::kSeed};
+constexpr ParameterDoc kMaxBouncesDoc = {"--max-bounces", "", simulator::doc::kMaxBounces};
+constexpr ParameterDoc kPathsDoc = {"--paths", "", "particle paths drawn per line; -1 = the configuration's default"};
+constexpr ParameterDoc kEchoesDoc = {"--echoes", "", "also write every echo event as CSV to this file"};
+constexpr ParameterDoc kOutDoc = {"--out", "", "output directory"};
+constexpr ParameterDoc kJsonDoc = {"--json", "", "also write the run record to this file; '-' prints it on stdout"};
+constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
+
+// The --disable switches.
+void apply_disable(const std::string& disable, simulator::TraceSettings& s) {
+    std::istringstream list(disable);
+    for (std::string item; std::getline(list, item, ',');) {
+        if (item == "refraction") s.refraction = false;
+        else if (item == "specular") s.specular_reflection = false;
+        else if (item == "diffuse") s.diffuse_reflection = false;
+        else if (item == "scattering") s.scattering = false;
+        else if (item == "absorption") s.absorption = false;
+        else if (item == "bounces") s.max_bounces = 1;
+        else if (!item.empty()) {
+            throw tissue::InputError("--disable", item,
+                                     "unknown switch (refraction, specular, diffuse, scattering, absorption, bounces)");
+        }
+    }
+}
+
+// Physics switches and enums from their option text.
+void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
+    if (o.mode == "paper") s.mode = simulator::PhysicsMode::paper;
+    else if (o.mode == "acoustic") s.mode = simulator::PhysicsMode::acoustic;
+    else throw tissue::InputError("--mode", "", "must be 'acoustic' or 'paper', got '" + o.mode + "'");
+    apply_disable(o.disable, s);
+    if (o.lobe_exponent == "roughness") s.lobe_exponent = simulator::LobeExponent::roughness;
+    else if (o.lobe_exponent == "reflecting-density") s.lobe_exponent = simulator::LobeExponent::reflecting_density;
+    else if (o.lobe_exponent == "density-ratio") s.lobe_exponent = simulator::LobeExponent::density_ratio;
+    else if (!o.lobe_exponent.empty()) {
+        throw tissue::InputError("--lobe-exponent", "", "must be roughness, reflecting-density or density-ratio");
+    }
+    if (o.lobe_weight == "probability") s.lobe_weight = simulator::LobeWeight::probability;
+    else if (o.lobe_weight == "energy") s.lobe_weight = simulator::LobeWeight::energy;
+    else if (!o.lobe_weight.empty()) throw tissue::InputError("--lobe-weight", "", "must be probability or energy");
+    if (o.lobe_scale >= 0.0) s.lobe_scale = o.lobe_scale;
+    s.step_texels = o.step_texels;
+    s.frequency_mhz = o.frequency_mhz;
+    s.seed = o.seed;
+    if (s.max_bounces != 1) s.max_bounces = o.max_bounces;
+}
+
+// A volume slice as a scene: the probe at the top centre, fan or parallel injection.
+Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
+    Scene2D scene;
+    scene.name = "volume";
+    scene.description = "volume slice of " + slice.loaded.path;
+    const int particles = o.particles > 0 ? o.particles : 4000;
+    if (o.mode == "paper") {
+        if (!(std::isfinite(o.contrast) && o.contrast > 0.0 && o.contrast < 100.0)) {
+            throw tissue::InputError("--contrast", "", "must be in (0, 100)");
+        }
+        tissue::Volume density = slice.values;
+        const double lo = slice.value_min, span = std::max(1e-12, double(slice.value_max - slice.value_min));
+        for (float& v : density.voxels()) v = float(1.0 + o.contrast * std::clamp((v - lo) / span, 0.0, 1.0));
+        scene.map = tissue::AcousticMap<2>::build_paper(density);
+        scene.medium = std::move(density);
+        scene.medium_label = "density d";
+    } else {
+        scene.map = tissue::AcousticMap<2>::build(slice.maps);
+        scene.medium = slice.maps.impedance();
+        scene.medium_label = "impedance Z";
+        scene.medium_unit = "MRayl";
+    }
+    const glm::vec2 extent = scene.map.extent_mm();
+    const glm::vec2 face_centre(0.5f * extent.x, 0.01f);
+    if (o.lines < 1 || o.lines > 100000) throw tissue::InputError("--lines", "", "must be between 1 and 100000");
+    for (int p = 0; p < particles; ++p) {
+        const float u = (float(p) + 0.5f) / float(particles) * 2.0f - 1.0f;  // -1..1
+        const auto line = uint32_t(std::int64_t(p) * o.lines / particles);
+        if (o.injection == "fan") {
+            const float a = glm::radians(float(o.beam_angle_deg)) * u;
+            scene.sources.push_back({face_centre, {std::sin(a), std::cos(a)}, 1.0f, line});
+        } else if (o.injection == "parallel") {
+            scene.sources.push_back({face_centre + glm::vec2(0.5f * float(o.beam_width_mm) * u, 0.0f), {0.0f, 1.0f}, 1.0f, line});
+        } else {
+            throw tissue::InputError("--injection", "", "must be 'fan' or 'parallel'");
+        }
+    }
+    simulator::ProbeFace<2> face;
+    face.centre = {face_centre.x, 0.0f};
+    face.normal = {0.0f, 1.0f};
+    face.half_width_mm = o.injection == "fan" ? 5.0f : 0.5f * float(o.beam_width_mm);
+    face.reflectivity = float(o.face_reflectivity);
+    scene.settings.probe_face_2d = face;
+    if (o.mode == "paper") {
+        scene.settings.mode = simulator::PhysicsMode::paper;
+        scene.settings.lobe_exponent = simulator::LobeExponent::reflecting_density;
+    }
+    scene.settings.record_paths = 10;
+    return scene;
+}
+
+void write_echoes_csv(const std::vector<simulator::EchoEvent<2>>& echoes, const std::string& path) {
+    std::ofstream out(path);
+    out << "line,particle,time_s,energy,weight,x_mm,y_mm,bounces,kind\n";
+    out.precision(9);
+    for (const auto& e : echoes) {
+        out << e.line << ',' << e.particle << ',' << e.time_s << ',' << e.energy << ',' << e.weight << ','
+            << e.position.x << ',' << e.position.y << ',' << e.bounces << ',' << simulator::to_string(e.kind) << '\n';
+    }
+    if (!out) throw tissue::InputError(path, "", "cannot write the echo CSV");
+}
+
+}  // namespace
+
+CLI::App* add_trace_command(CLI::App& app, TraceOptions& options) {
+    CLI::App* cmd = app.add_subcommand(
+        "trace",
+        "Trace energy particles through a medium (Reis & Bertram): draws the paths over the medium and "
+        "writes the intensity (fluence) and absorbed-energy maps as PNGs with colour scales, plus "
+        "trace.json with the energy ledger. Built-in configurations reproduce the paper's figures.");
+    add_parameter(*cmd, kConfigDoc, options.config);
+    add_slice_options(*cmd, options.slice, false);
+    add_parameter(*cmd, kModeDoc, options.mode);
+    add_parameter(*cmd, kParticlesDoc, options.particles)->check(CLI::Range(0, 10000000));
+    add_parameter(*cmd, kLinesDoc, options.lines);
+    add_parameter(*cmd, kInjectionDoc, options.injection);
+    add_parameter(*cmd, kBeamAngleDoc, options.beam_angle_deg)->check(CLI::Range(0.0, 89.0));
+    add_parameter(*cmd, kBeamWidthDoc, options.beam_width_mm)->check(CLI::Range(0.01, 1000.0));
+    add_parameter(*cmd, kContrastDoc, options.contrast);
+    add_parameter(*cmd, kFaceDoc, options.face_reflectivity);
+    add_parameter(*cmd, kDisableDoc, options.disable);
+    add_parameter(*cmd, kLobeExponentDoc, options.lobe_exponent);
+    add_parameter(*cmd, kLobeWeightDoc, options.lobe_weight);
+    add_parameter(*cmd, kLobeScaleDoc, options.lobe_scale);
+    add_parameter(*cmd, kStepDoc, options.step_texels);
+    add_parameter(*cmd, kFrequencyDoc, options.frequency_mhz);
+    add_parameter(*cmd, kSeedDoc, options.seed);
+    add_parameter(*cmd, kMaxBouncesDoc, options.max_bounces);
+    add_parameter(*cmd, kPathsDoc, options.paths);
+    add_parameter(*cmd, kEchoesDoc, options.echoes_csv);
+    add_parameter(*cmd, kOutDoc, options.out_dir);
+    add_parameter(*cmd, kJsonDoc, options.json_path);
+    add_parameter(*cmd, kThreadsDoc, options.threads)->check(CLI::Range(0, 1024));
+    cmd->add_flag("-q,--quiet", options.quiet, "no progress on stderr");
+    return cmd;
+}
+
+int run_trace_command(const TraceOptions& options) {
+    StageTimer timer(options.quiet);
+    const auto thread_limit = limit_threads(options.threads);
+
+    // ---- the scene (everything validated before tracing) ----
+    Scene2D scene;
+    json source_record;
+    if (!options.config.empty()) {
+        timer.begin("building configuration " + options.config);
+        const auto defaults = std::map<std::string, int>{{"fig2", 41}, {"fig4a", 21}, {"fig4b", 21}, {"fig5", 4000}, {"fig6", 300}};
+        const auto found = defaults.find(options.config);
+        scene = simulator::make_paper_scene(options.config,
+                                            options.particles > 0 ? options.particles
+                                                                  : (found != defaults.end() ? found->second : 1));
+        timer.end();
+        source_record = {{"config", scene.name}, {"description", scene.description}};
+        // Only explicitly given options override the configuration's physics.
+        simulator::TraceSettings& s = scene.settings;
+        apply_disable(options.disable, s);
+        s.seed = options.seed;
+        s.step_texels = options.step_texels;
+        s.frequency_mhz = options.frequency_mhz;
+        if (options.lobe_scale >= 0.0) s.lobe_scale = options.lobe_scale;
+    } else {
+        const Slice slice = make_slice(options.slice, timer);
+        scene = volume_scene(options, slice);
+        apply_physics_options(options, scene.settings);
+        source_record = slice_json(slice, options.slice);
+    }
+    if (options.paths >= 0) scene.settings.record_paths = options.paths;
+    scene.settings.validate("trace options");
+
+    // ---- trace ----
+    ProgressBar bar("tracing " + std::to_string(scene.sources.size()) + " particles", options.quiet);
+    const auto start = std::chrono::steady_clock::now();
+    const auto result = simulator::trace(scene.map, scene.sources, scene.settings,
+                                         [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
+    bar.finish();
+    const double trace_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+    // ---- pictures ----
+    timer.begin("writing pictures");
+    const double px = scene.map.spacing().x;
+    tissue::OutputTransaction transaction;
+    const std::filesystem::path out(options.out_dir);
+    struct Picture {
+        std::string name;
+        cv::Mat image;
+    };
+    // Fluence on a linear scale up to its 99.5th percentile (a log scale is swamped by
+    // the uniform beam outside the tissue); absorption only where there is some.
+    const double fluence_top = std::max(1e-12, double(result.fluence.quantile(0.995)));
+    const bool absorbing = result.ledger.absorbed > 0.0;
+    std::vector<Picture> pictures(absorbing ? 4 : 3);
+    tbb::parallel_for(0, int(pictures.size()), [&](int n) {
+        switch (n) {
+            case 0: {
+                cv::Mat paths = imaging::draw_paths(scene.medium, result.paths, {});
+                cv::putText(paths, "paths: blue = full energy ... red = 0.1 %", {10, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6,
+                            cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+                pictures[0] = {"paths", paths};
+                break;
+            }
+            case 1: pictures[1] = {"medium", imaging::render_field(scene.medium, {scene.medium_label, scene.medium_unit, imaging::Colormap::gray, std::nullopt, false, px})}; break;
+            case 2: pictures[2] = {"fluence", imaging::render_field(result.fluence, {"intensity (fluence)", "energy/mm", imaging::Colormap::inferno, std::pair<double, double>(0.0, fluence_top), false, px})}; break;
+            case 3: pictures[3] = {"absorbed", imaging::render_field(result.absorbed, {"absorbed energy", "energy/texel", imaging::Colormap::magma, std::nullopt, true, px})}; break;
+        }
+    });
+    json outputs = json::array();
+    std::vector<double> angles;
+    if (!result.ring_profile.empty()) {
+        const auto& ring = *scene.settings.ring;
+        for (int b = 0; b < ring.bins; ++b) angles.push_back((b + 0.5) * 180.0 / ring.bins);
+        pictures.push_back({"profile", imaging::plot_profile(angles, result.ring_profile,
+                                                             "intensity leaving the semicircle (r = " + std::to_string(int(ring.radius_mm)) + " mm)",
+                                                             "angle from the interface [degrees] (specular: 45)", "energy", {45.0})});
+        std::ofstream csv(transaction.stage((out / "profile.csv").string()));
+        csv << "angle_deg,energy\n";
+        for (std::size_t b = 0; b < angles.size(); ++b) csv << angles[b] << ',' << result.ring_profile[b] << '\n';
+        outputs.push_back({{"name", "profile"}, {"csv", (out / "profile.csv").string()}});
+    }
+    std::vector<cv::Mat> panels;
+    for (const Picture& p : pictures) {
+        const std::string path = (out / (p.name + ".png")).string();
+        imaging::write_png(p.image, transaction.stage(path));
+        outputs.push_back({{"name", p.name}, {"png", path}});
+        if (p.name != "medium") panels.push_back(p.image);
+    }
+    imaging::write_png(imaging::montage(panels, 2), transaction.stage((out / "overview.png").string()));
+    if (!options.echoes_csv.empty()) write_echoes_csv(result.echoes, transaction.stage(options.echoes_csv));
+    timer.end();
+
+    // ---- record ----
+    const auto& l = result.ledger;
+    const auto& st = result.stats;
+    json echo_counts = json::object();
+    for (const auto& e : result.echoes) echo_counts[simulator::to_string(e.kind)] = echo_counts.value(simulator::to_string(e.kind), 0) + 1;
+    const simulator::TraceSettings& s = scene.settings;
+    json record = {
+        {"command", "trace"},
+        {"software", {{"name", "sonotrace"}, {"version", SONOTRACE_VERSION}}},
+        {"source", source_record},
+        {"settings", {{"mode", simulator::to_string(s.mode)}, {"step_texels", s.step_texels}, {"frequency_mhz", s.frequency_mhz},
+                      {"seed", s.seed}, {"refraction", s.refraction}, {"specular_reflection", s.specular_reflection},
+                      {"diffuse_reflection", s.diffuse_reflection}, {"scattering", s.scattering}, {"absorption", s.absorption},
+                      {"max_bounces", s.max_bounces}, {"lobe_exponent", simulator::to_string(s.lobe_exponent)},
+                      {"lobe_weight", simulator::to_string(s.lobe_weight)}, {"lobe_scale", s.lobe_scale},
+                      {"interface_threshold", s.interface_threshold}, {"roulette_energy", s.roulette_energy}}},
+        {"particles", scene.sources.size()},
+        {"ledger", {{"injected", l.injected}, {"absorbed", l.absorbed}, {"escaped", l.escaped}, {"recorded", l.recorded},
+                    {"remaining", l.remaining}, {"roulette_killed", l.roulette_killed}, {"roulette_added", l.roulette_added},
+                    {"relative_error", l.relative_error()}}},
+        {"stats", {{"steps", st.steps}, {"interface_events", st.interface_events}, {"reflections", st.reflections},
+                   {"total_reflections", st.total_reflections}, {"scatter_events", st.scatter_events}, {"captured", st.captured},
+                   {"steps_per_second", trace_seconds > 0 ? double(st.steps) / trace_seconds : 0.0}}},
+        {"echoes", echo_counts},
+        {"outputs", outputs},
+        {"timings_s", timer.timings()},
+    };
+    record["timings_s"]["tracing"] = trace_seconds;
+    write_json(record, transaction.stage((out / "trace.json").string()));
+    if (!options.json_path.empty() && options.json_path != "-") write_json(record, transaction.stage(options.json_path));
+    transaction.commit();
+    if (options.json_path == "-") write_json(record, "-");
+    if (!options.quiet) {
+        std::fprintf(stderr, "sonotrace: %llu steps in %.2f s (%.1f M steps/s); energy ledger error %.1e; wrote %s\n",
+                     (unsigned long long)st.steps, trace_seconds, st.steps / std::max(trace_seconds, 1e-9) / 1e6,
+                     l.relative_error(), (out / "overview.png").c_str());
+    }
+    return 0;
+}
+
+}  // namespace sonotrace::ui
