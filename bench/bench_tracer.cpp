@@ -24,12 +24,16 @@ using namespace sonotrace;
 tissue::PropertyMaps synthetic_1024() {
     const int n = 1024;
     const double h = 0.1;
-    auto maps = simulator::homogeneous(n, n, h, tissue::find_tissue("soft_tissue", "", "").properties);
+    auto maps =
+        simulator::homogeneous(n, n, h, tissue::find_tissue("soft_tissue", "", "").properties);
     struct Blob {
         double x, y, r;
         const char* tissue;
     };
-    const Blob blobs[] = {{30, 30, 12, "fat"}, {70, 40, 15, "liver"}, {50, 70, 8, "water"}, {25, 80, 6, "cortical_bone"},
+    const Blob blobs[] = {{30, 30, 12, "fat"},
+                          {70, 40, 15, "liver"},
+                          {50, 70, 8, "water"},
+                          {25, 80, 6, "cortical_bone"},
                           {80, 85, 10, "kidney"}};
     for (int j = 0; j < n; ++j) {
         for (int i = 0; i < n; ++i) {
@@ -49,11 +53,14 @@ tissue::PropertyMaps synthetic_1024() {
 }
 
 tissue::PropertyMaps colin27_maps(double pixel_mm, double elevation_mm) {
-    static const tissue::Volume head = tissue::load_volume({tissue::kDefaultVolumeName, std::nullopt}).volume;
+    static const tissue::Volume head =
+        tissue::load_volume({tissue::kDefaultVolumeName, std::nullopt}).volume;
     auto tf = tissue::load_transfer_function("mri-t1-head");
     tf->bind(head);
-    const auto grid = tissue::probe_grid(probe::colin27_temporal_pose().frame(), {140.0, 160.0, elevation_mm, pixel_mm}, "bench");
-    return tissue::classify(tissue::resample(head, grid, tissue::Interpolation::trilinear, 0.0f), *tf);
+    const auto grid = tissue::probe_grid(probe::colin27_temporal_pose().frame(),
+                                         {140.0, 160.0, elevation_mm, pixel_mm}, "bench");
+    return tissue::classify(tissue::resample(head, grid, tissue::Interpolation::trilinear, 0.0f),
+                            *tf);
 }
 
 // A fan of `lines` scan lines from the top centre, `per_line` particles each.
@@ -62,7 +69,8 @@ simulator::Sources<2> fan_2d(const tissue::AcousticMap<2>& map, int lines, int p
     const glm::vec2 origin(0.5f * map.extent_mm().x, 0.01f);
     for (int l = 0; l < lines; ++l) {
         const float a = glm::radians(-35.0f + 70.0f * (l + 0.5f) / lines);
-        auto beam = simulator::fan_beam(origin, {std::sin(a), std::cos(a)}, 1.0f, per_line, uint32_t(l));
+        auto beam =
+            simulator::fan_beam(origin, {std::sin(a), std::cos(a)}, 1.0f, per_line, uint32_t(l));
         sources.insert(sources.end(), beam.begin(), beam.end());
     }
     return sources;
@@ -75,14 +83,16 @@ simulator::Sources<3> fan_3d(const tissue::AcousticMap<3>& map, int lines, int p
     const int side = std::max(1, int(std::sqrt(double(per_line))));
     for (int l = 0; l < lines; ++l) {
         const float a = glm::radians(-35.0f + 70.0f * (l + 0.5f) / lines);
-        auto beam = simulator::fan_beam_3d(origin, {std::sin(a), std::cos(a), 0.0f}, 1.0f, side, uint32_t(l));
+        auto beam = simulator::fan_beam_3d(origin, {std::sin(a), std::cos(a), 0.0f}, 1.0f, side,
+                                           uint32_t(l));
         sources.insert(sources.end(), beam.begin(), beam.end());
     }
     return sources;
 }
 
 template <int Dim>
-void run(benchmark::State& state, const tissue::AcousticMap<Dim>& map, const simulator::Sources<Dim>& sources) {
+void run(benchmark::State& state, const tissue::AcousticMap<Dim>& map,
+         const simulator::Sources<Dim>& sources) {
     simulator::TraceSettings settings;  // full acoustic physics, echoes recorded
     settings.frequency_mhz = 3.5;
     uint64_t steps = 0;

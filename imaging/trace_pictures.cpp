@@ -32,24 +32,29 @@ cv::Mat draw_paths(const tissue::Volume& medium, const std::vector<simulator::Pa
             // log scale over 3 decades so attenuated paths stay distinguishable
             const double t = std::clamp(1.0 + std::log10(std::max(e, 1e-3)) / 3.0, 0.0, 1.0);
             const cv::Vec3b c = ramp_bgr.at<cv::Vec3b>(0, int(255 * (1.0 - t)));
-            cv::line(bgr, cv::Point2d(a.position.x * mm_to_px + 0.5 * s, a.position.y * mm_to_px + 0.5 * s),
-                     cv::Point2d(b.position.x * mm_to_px + 0.5 * s, b.position.y * mm_to_px + 0.5 * s),
-                     cv::Scalar(c[0], c[1], c[2]), style.thickness, cv::LINE_AA);
+            cv::line(
+                bgr,
+                cv::Point2d(a.position.x * mm_to_px + 0.5 * s, a.position.y * mm_to_px + 0.5 * s),
+                cv::Point2d(b.position.x * mm_to_px + 0.5 * s, b.position.y * mm_to_px + 0.5 * s),
+                cv::Scalar(c[0], c[1], c[2]), style.thickness, cv::LINE_AA);
         }
     }
     return bgr;
 }
 
-cv::Mat plot_profile(const std::vector<double>& x, const std::vector<double>& y, const std::string& title,
-                     const std::string& x_label, const std::string& y_label,
-                     const std::vector<double>& marker_x) {
+cv::Mat plot_profile(const std::vector<double>& x, const std::vector<double>& y,
+                     const std::string& title, const std::string& x_label,
+                     const std::string& y_label, const std::vector<double>& marker_x) {
     const int W = 720, H = 420, left = 80, right = 20, top = 40, bottom = 60;
     cv::Mat canvas(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
     if (x.empty() || x.size() != y.size()) return canvas;
-    const double x0 = *std::min_element(x.begin(), x.end()), x1 = *std::max_element(x.begin(), x.end());
+    const double x0 = *std::min_element(x.begin(), x.end()),
+                 x1 = *std::max_element(x.begin(), x.end());
     double y1 = *std::max_element(y.begin(), y.end());
     if (!(y1 > 0)) y1 = 1.0;
-    auto px = [&](double v) { return left + (v - x0) / std::max(x1 - x0, 1e-12) * (W - left - right); };
+    auto px = [&](double v) {
+        return left + (v - x0) / std::max(x1 - x0, 1e-12) * (W - left - right);
+    };
     auto py = [&](double v) { return H - bottom - v / y1 * (H - top - bottom); };
     const cv::Scalar ink(40, 40, 40), grid(225, 225, 225);
     const int font = cv::FONT_HERSHEY_SIMPLEX;
@@ -59,7 +64,8 @@ cv::Mat plot_profile(const std::vector<double>& x, const std::vector<double>& y,
         cv::line(canvas, {left, int(py(gy))}, {W - right, int(py(gy))}, grid);
         char buffer[32];
         std::snprintf(buffer, sizeof buffer, "%.0f", gx);
-        cv::putText(canvas, buffer, {int(px(gx)) - 10, H - bottom + 20}, font, 0.45, ink, 1, cv::LINE_AA);
+        cv::putText(canvas, buffer, {int(px(gx)) - 10, H - bottom + 20}, font, 0.45, ink, 1,
+                    cv::LINE_AA);
         std::snprintf(buffer, sizeof buffer, "%.2g", gy);
         cv::putText(canvas, buffer, {8, int(py(gy)) + 5}, font, 0.45, ink, 1, cv::LINE_AA);
     }

@@ -24,8 +24,8 @@ cv::Mat draw_paths(const tissue::Volume& medium, const std::vector<simulator::Pa
 
 // A line plot of y over x with axes, ticks and labels; `marker_x` draws dashed vertical
 // lines (e.g. the expected specular angle).
-cv::Mat plot_profile(const std::vector<double>& x, const std::vector<double>& y, const std::string& title,
-                     const std::string& x_label, const std::string& y_label,
-                     const std::vector<double>& marker_x = {});
+cv::Mat plot_profile(const std::vector<double>& x, const std::vector<double>& y,
+                     const std::string& title, const std::string& x_label,
+                     const std::string& y_label, const std::vector<double>& marker_x = {});
 
 }  // namespace sonotrace::imaging

@@ -30,10 +30,10 @@ inline Vec<Dim> reflect(const Vec<Dim>& r, const Vec<Dim>& normal) {
 
 template <int Dim>
 struct Refraction {
-    Vec<Dim> direction;      // transmitted direction, or the mirror direction on total reflection
-    bool total_reflection;   // sin(theta_t) would exceed 1
-    float cos_incident;      // |cos| of the angle between r and the normal
-    float cos_transmitted;   // 0 on total reflection
+    Vec<Dim> direction;     // transmitted direction, or the mirror direction on total reflection
+    bool total_reflection;  // sin(theta_t) would exceed 1
+    float cos_incident;     // |cos| of the angle between r and the normal
+    float cos_transmitted;  // 0 on total reflection
 };
 
 // Snell's law n_from sin(theta_i) = n_to sin(theta_t) in vector form, with

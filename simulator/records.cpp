@@ -4,17 +4,22 @@ namespace sonotrace::simulator {
 
 const char* to_string(EchoKind kind) {
     switch (kind) {
-        case EchoKind::specular: return "specular";
-        case EchoKind::diffuse: return "diffuse";
-        case EchoKind::scatter: return "scatter";
-        case EchoKind::returned_to_probe: return "returned-to-probe";
+        case EchoKind::specular:
+            return "specular";
+        case EchoKind::diffuse:
+            return "diffuse";
+        case EchoKind::scatter:
+            return "scatter";
+        case EchoKind::returned_to_probe:
+            return "returned-to-probe";
     }
     return "?";
 }
 
 EnergyLedger& EnergyLedger::operator+=(const EnergyLedger& o) {
     injected += o.injected, absorbed += o.absorbed, escaped += o.escaped, recorded += o.recorded;
-    remaining += o.remaining, roulette_killed += o.roulette_killed, roulette_added += o.roulette_added;
+    remaining += o.remaining, roulette_killed += o.roulette_killed,
+        roulette_added += o.roulette_added;
     return *this;
 }
 

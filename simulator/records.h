@@ -47,17 +47,19 @@ struct Path {
 // injected = absorbed + escaped + recorded + remaining + roulette_killed - roulette_added.
 struct EnergyLedger {
     double injected = 0.0;
-    double absorbed = 0.0;         // attenuation (and lossy diffuse reflection)
-    double escaped = 0.0;          // left through the domain boundary
-    double recorded = 0.0;         // removed as echoes (scattering, capture at the probe face)
-    double remaining = 0.0;        // alive when the path length or bounce limit ended it
+    double absorbed = 0.0;   // attenuation (and lossy diffuse reflection)
+    double escaped = 0.0;    // left through the domain boundary
+    double recorded = 0.0;   // removed as echoes (scattering, capture at the probe face)
+    double remaining = 0.0;  // alive when the path length or bounce limit ended it
     double roulette_killed = 0.0;
     double roulette_added = 0.0;
 
     double accounted() const {
         return absorbed + escaped + recorded + remaining + roulette_killed - roulette_added;
     }
-    double relative_error() const { return injected > 0 ? (accounted() - injected) / injected : 0.0; }
+    double relative_error() const {
+        return injected > 0 ? (accounted() - injected) / injected : 0.0;
+    }
     EnergyLedger& operator+=(const EnergyLedger& o);
 };
 

@@ -9,7 +9,7 @@
 namespace sonotrace::simulator {
 
 class Philox4x32 {
-public:
+  public:
     using Block = std::array<uint32_t, 4>;
 
     // One 128-bit block of random bits for counter (c0..c3) under key (k0, k1).
@@ -29,12 +29,14 @@ public:
 };
 
 // Uniform float in [0, 1) from the top 24 bits (every value exactly representable).
-inline float to_unit_float(uint32_t bits) { return float(bits >> 8) * (1.0f / 16777216.0f); }
+inline float to_unit_float(uint32_t bits) {
+    return float(bits >> 8) * (1.0f / 16777216.0f);
+}
 
 // The random stream of one particle: Philox keyed by the seed, counter = (line, particle,
 // event, 0). Each draw4() consumes one event number and yields four uniforms.
 class ParticleRng {
-public:
+  public:
     ParticleRng() = default;
     ParticleRng(uint64_t seed, uint32_t line, uint32_t particle)
         : k0_(uint32_t(seed)), k1_(uint32_t(seed >> 32)), line_(line), particle_(particle) {}
@@ -47,7 +49,7 @@ public:
     float uniform() { return draw4()[0]; }
     uint32_t events_used() const { return event_; }
 
-private:
+  private:
     uint32_t k0_ = 0, k1_ = 0, line_ = 0, particle_ = 0, event_ = 0;
 };
 

@@ -72,17 +72,23 @@ Scene2D figure2(int particles) {
     // the critical angle asin(1/1.6) = 38.7 degrees are totally reflected.
     const double h = 0.25;
     tissue::Volume d(grid(400, 300, h));
-    const glm::dvec2 tilt_point(65.0, 37.5), tilt_normal(std::cos(kPi * 35 / 180), std::sin(kPi * 35 / 180));
+    const glm::dvec2 tilt_point(65.0, 37.5),
+        tilt_normal(std::cos(kPi * 35 / 180), std::sin(kPi * 35 / 180));
     for (int j = 0; j < 300; ++j) {
         for (int i = 0; i < 400; ++i) {
             const glm::dvec2 p(i * h, j * h);
-            const double in_b = ramp(p.x - 30.0, 1.5 * h) * (1.0 - ramp(glm::dot(p - tilt_point, tilt_normal), 1.5 * h));
+            const double in_b = ramp(p.x - 30.0, 1.5 * h) *
+                                (1.0 - ramp(glm::dot(p - tilt_point, tilt_normal), 1.5 * h));
             d.at(i, j) = float(1.0 + 0.6 * in_b);
         }
     }
-    Scene2D scene = from_density("fig2", "two interfaces, fan injection: refraction, then total reflection of the outer particles", std::move(d));
+    Scene2D scene = from_density(
+        "fig2",
+        "two interfaces, fan injection: refraction, then total reflection of the outer particles",
+        std::move(d));
     scene.sources = fan_beam({5.0f, 37.5f}, {1.0f, 0.0f}, 30.0f, particles);
-    scene.settings.specular_reflection = false;  // refraction and total reflection only, as in the figure
+    scene.settings.specular_reflection =
+        false;  // refraction and total reflection only, as in the figure
     scene.settings.record_paths = particles;
     return scene;
 }
@@ -95,17 +101,20 @@ Scene2D figure4(bool fan, int particles) {
     for (int j = 0; j < n; ++j) {
         for (int i = 0; i < n; ++i) {
             const double rho = fibre.offset_and_arc({i * h, j * h}).x / fibre.core_radius_mm;
-            d.at(i, j) = float(fibre.cladding_density +
-                               (fibre.core_density - fibre.cladding_density) * std::max(0.0, 1.0 - rho * rho));
+            d.at(i, j) =
+                float(fibre.cladding_density + (fibre.core_density - fibre.cladding_density) *
+                                                   std::max(0.0, 1.0 - rho * rho));
         }
     }
-    Scene2D scene = from_density(fan ? "fig4b" : "fig4a",
-                                 std::string("bent fibre guide with a parabolic (circular cross-section) density, ") +
-                                     (fan ? "fan" : "parallel") + " injection at the lower left end",
-                                 std::move(d));
+    Scene2D scene = from_density(
+        fan ? "fig4b" : "fig4a",
+        std::string("bent fibre guide with a parabolic (circular cross-section) density, ") +
+            (fan ? "fan" : "parallel") + " injection at the lower left end",
+        std::move(d));
     const glm::vec2 start(float(fibre.start.x), float(fibre.start.y - 1.0));
-    scene.sources = fan ? fan_beam(start, {0.0f, -1.0f}, 12.0f, particles)
-                        : parallel_beam(start, {0.0f, -1.0f}, float(1.6 * fibre.core_radius_mm), particles);
+    scene.sources =
+        fan ? fan_beam(start, {0.0f, -1.0f}, 12.0f, particles)
+            : parallel_beam(start, {0.0f, -1.0f}, float(1.6 * fibre.core_radius_mm), particles);
     scene.settings.specular_reflection = false;
     scene.settings.record_paths = particles;
     return scene;
@@ -115,13 +124,15 @@ Scene2D figure5(int particles) {
     // An axial Colin27 slice through the lateral ventricles (anterior at the top), with a
     // transfer function chosen, as in the paper, for visible effects rather than real
     // acoustics: d = 1 + 0.5 * intensity / (99th percentile).
-    const tissue::LoadedVolume head = tissue::load_volume({tissue::kDefaultVolumeName, std::nullopt});
+    const tissue::LoadedVolume head =
+        tissue::load_volume({tissue::kDefaultVolumeName, std::nullopt});
     const double q99 = head.volume.quantile(0.99);
     const tissue::ProbeFrame frame{{0.0, 110.0, 18.0}, {1.0, 0.0, 0.0}, {0.0, -1.0, 0.0}};
     const auto g = tissue::probe_grid(frame, {180.0, 220.0, 0.0, 0.5}, "fig5");
     tissue::Volume d = tissue::resample(head.volume, g, tissue::Interpolation::trilinear, 0.0f);
     for (float& v : d.voxels()) v = float(1.0 + 0.5 * std::clamp(double(v) / q99, 0.0, 1.2));
-    Scene2D scene = from_density("fig5", "Colin27 axial slice, parallel injection from the upper right", std::move(d));
+    Scene2D scene = from_density(
+        "fig5", "Colin27 axial slice, parallel injection from the upper right", std::move(d));
     // A parallel beam towards the lower left, entering through the top and right edges.
     const glm::vec2 size = scene.map.extent_mm();
     const glm::vec2 dir = glm::normalize(glm::vec2(-1.0f, 1.0f)), across(-dir.y, dir.x);
@@ -158,7 +169,9 @@ Scene2D figure6(int particles) {
             d.at(i, j) = float(1.0 + below * (value - 1.0));
         }
     }
-    Scene2D scene = from_density("fig6", "45-degree beam on a homogeneous reflector over inhomogeneous matter", std::move(d));
+    Scene2D scene =
+        from_density("fig6", "45-degree beam on a homogeneous reflector over inhomogeneous matter",
+                     std::move(d));
     const glm::vec2 hit(50.0f, float(interface_y)), dir = glm::normalize(glm::vec2(1.0f, 1.0f));
     scene.sources = parallel_beam(hit - dir * 25.0f, dir, 4.0f, particles);
     scene.settings.diffuse_reflection = true;
@@ -181,7 +194,8 @@ glm::dvec2 FibreGeometry::offset_and_arc(glm::dvec2 p) const {
     // Candidate 2: the quarter circle about bend_centre, from angle 0 (pointing -x) to pi/2 (-y).
     const glm::dvec2 v = p - bend_centre;
     const double theta = std::clamp(std::atan2(-v.y, -v.x), 0.0, kPi / 2.0);
-    const glm::dvec2 c2 = bend_centre + bend_radius_mm * glm::dvec2(-std::cos(theta), -std::sin(theta));
+    const glm::dvec2 c2 =
+        bend_centre + bend_radius_mm * glm::dvec2(-std::cos(theta), -std::sin(theta));
     // Candidate 3: the straight exit towards +x.
     const glm::dvec2 exit_start = bend_centre + glm::dvec2(0.0, -bend_radius_mm);
     const double s3 = std::max(0.0, p.x - exit_start.x);
@@ -196,9 +210,13 @@ glm::dvec2 FibreGeometry::offset_and_arc(glm::dvec2 p) const {
     return {signed_distance(c3, d3), straight_mm + bend_len + s3};
 }
 
-double FibreGeometry::length_mm() const { return straight_mm + bend_radius_mm * kPi / 2.0 + exit_mm; }
+double FibreGeometry::length_mm() const {
+    return straight_mm + bend_radius_mm * kPi / 2.0 + exit_mm;
+}
 
-std::vector<std::string> paper_scene_names() { return {"fig2", "fig4a", "fig4b", "fig5", "fig6"}; }
+std::vector<std::string> paper_scene_names() {
+    return {"fig2", "fig4a", "fig4b", "fig5", "fig6"};
+}
 
 Scene2D make_paper_scene(const std::string& name, int particles) {
     if (particles < 1 || particles > 10000000) {
@@ -218,20 +236,24 @@ Scene2D make_paper_scene(const std::string& name, int particles) {
     if (name == "fig6") return split(figure6(particles));
     std::string known;
     for (const auto& n : paper_scene_names()) known += (known.empty() ? "" : ", ") + n;
-    throw tissue::InputError("--config", "", "unknown configuration '" + name + "' (known: " + known + ")");
+    throw tissue::InputError("--config", "",
+                             "unknown configuration '" + name + "' (known: " + known + ")");
 }
 
 tissue::PropertyMaps planar_interface(int nx, int ny, double h, glm::dvec2 point, glm::dvec2 normal,
                                       const tissue::AcousticProperties& a,
-                                      const tissue::AcousticProperties& b, double smoothing_texels) {
+                                      const tissue::AcousticProperties& b,
+                                      double smoothing_texels) {
     tissue::PropertyMaps maps;
     for (tissue::Volume& f : maps.fields) f = tissue::Volume(grid(nx, ny, h));
     normal = glm::normalize(normal);
     for (int j = 0; j < ny; ++j) {
         for (int i = 0; i < nx; ++i) {
-            const double t = ramp(glm::dot(glm::dvec2(i * h, j * h) - point, normal), smoothing_texels * h);
+            const double t =
+                ramp(glm::dot(glm::dvec2(i * h, j * h) - point, normal), smoothing_texels * h);
             const tissue::AcousticProperties p = tissue::lerp(a, b, float(t));
-            for (std::size_t f = 0; f < tissue::kPropertyCount; ++f) maps.fields[f].at(i, j) = p.values[f];
+            for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
+                maps.fields[f].at(i, j) = p.values[f];
         }
     }
     return maps;

@@ -41,11 +41,11 @@ tissue::PropertyMaps homogeneous(int nx, int ny, double h, const tissue::Acousti
 // (offsets up to 0.8 a) has L >= n(0.8 a) (R - 0.8 a) = 1.18 * 66 = 77.9 > 1.0 * 75, so
 // every injected particle is guided; a weaker core (1.2) or tighter bend (60 mm) leaks.
 struct FibreGeometry {
-    glm::dvec2 start{15.0, 118.0};    // mm; the fibre runs up (-y) from here
-    double straight_mm = 20.0;        // before the bend
+    glm::dvec2 start{15.0, 118.0};  // mm; the fibre runs up (-y) from here
+    double straight_mm = 20.0;      // before the bend
     glm::dvec2 bend_centre{85.0, 98.0};
-    double bend_radius_mm = 70.0;     // quarter circle turning towards +x
-    double exit_mm = 35.0;            // straight after the bend
+    double bend_radius_mm = 70.0;  // quarter circle turning towards +x
+    double exit_mm = 35.0;         // straight after the bend
     double core_radius_mm = 5.0;
     double core_density = 1.5, cladding_density = 1.0;
     // Signed distance from the centreline (negative towards the bend centre) and arc length.

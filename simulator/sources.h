@@ -13,7 +13,7 @@ struct SourceParticle {
     glm::vec<Dim, float> position;   // mm, map frame
     glm::vec<Dim, float> direction;  // unit
     float energy = 1.0f;
-    uint32_t line = 0;               // scan line that emitted it
+    uint32_t line = 0;  // scan line that emitted it
 };
 
 template <int Dim>

@@ -6,25 +6,32 @@
 
 namespace sonotrace::simulator {
 
-std::string to_string(PhysicsMode mode) { return mode == PhysicsMode::acoustic ? "acoustic" : "paper"; }
+std::string to_string(PhysicsMode mode) {
+    return mode == PhysicsMode::acoustic ? "acoustic" : "paper";
+}
 
 std::string to_string(LobeExponent lobe) {
     switch (lobe) {
-        case LobeExponent::roughness: return "roughness";
-        case LobeExponent::reflecting_density: return "reflecting-density";
-        case LobeExponent::density_ratio: return "density-ratio";
+        case LobeExponent::roughness:
+            return "roughness";
+        case LobeExponent::reflecting_density:
+            return "reflecting-density";
+        case LobeExponent::density_ratio:
+            return "density-ratio";
     }
     return "?";
 }
 
-std::string to_string(LobeWeight weight) { return weight == LobeWeight::probability ? "probability" : "energy"; }
+std::string to_string(LobeWeight weight) {
+    return weight == LobeWeight::probability ? "probability" : "energy";
+}
 
 void TraceSettings::validate(const std::string& source) const {
     auto in_range = [&](double v, double lo, double hi, const char* field) {
         if (!(std::isfinite(v) && v >= lo && v <= hi)) {
             throw tissue::InputError(source, field,
-                                     "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                                         "], got " + std::to_string(v));
+                                     "must be in [" + std::to_string(lo) + ", " +
+                                         std::to_string(hi) + "], got " + std::to_string(v));
         }
     };
     in_range(step_texels, 0.01, 4.0, "step");

@@ -16,9 +16,9 @@ enum class PhysicsMode {
 
 // Interpretation of the exponent c of the diffuse lobe cos^c (eq. 11).
 enum class LobeExponent {
-    roughness,          // c = 1/roughness^2 - 1 from the tissue's roughness (acoustic default)
-    reflecting_density, // c = lobe_scale * d1, the density beyond the interface (paper option 1)
-    density_ratio,      // c = lobe_scale * d1/d0 (paper option 2)
+    roughness,           // c = 1/roughness^2 - 1 from the tissue's roughness (acoustic default)
+    reflecting_density,  // c = lobe_scale * d1, the density beyond the interface (paper option 1)
+    density_ratio,       // c = lobe_scale * d1/d0 (paper option 2)
 };
 
 // Interpretation of the weight w = cos^c(phi_d) of eq. 11.
@@ -33,9 +33,9 @@ template <int Dim>
 struct ProbeFace {
     glm::vec<Dim, float> centre{0.0f};  // mm, map frame
     glm::vec<Dim, float> normal{0.0f};  // unit, pointing into the tissue
-    float half_width_mm = 0.0f;        // lateral half aperture
-    float half_height_mm = 0.0f;       // elevation half aperture (3D)
-    float reflectivity = 0.0f;         // intensity fraction the face reflects (0..1)
+    float half_width_mm = 0.0f;         // lateral half aperture
+    float half_height_mm = 0.0f;        // elevation half aperture (3D)
+    float reflectivity = 0.0f;          // intensity fraction the face reflects (0..1)
 };
 
 // A detector on a circle (2D) in the map frame: energy of particles leaving the circle
@@ -51,8 +51,8 @@ struct RingDetector {
 
 struct TraceSettings {
     PhysicsMode mode = PhysicsMode::acoustic;
-    double step_texels = 0.5;        // step length s in texels (of the smallest spacing)
-    double frequency_mhz = 5.0;      // attenuation alpha*f and scattering
+    double step_texels = 0.5;    // step length s in texels (of the smallest spacing)
+    double frequency_mhz = 5.0;  // attenuation alpha*f and scattering
     uint64_t seed = 1;
 
     bool refraction = true;
@@ -60,19 +60,20 @@ struct TraceSettings {
     bool diffuse_reflection = true;
     bool scattering = true;
     bool absorption = true;
-    int max_bounces = 64;            // reflections before a particle is retired
+    int max_bounces = 64;  // reflections before a particle is retired
 
     LobeExponent lobe_exponent = LobeExponent::roughness;
     LobeWeight lobe_weight = LobeWeight::probability;
-    double lobe_scale = 1.0;         // factor on c for the paper's interpretations
+    double lobe_scale = 1.0;  // factor on c for the paper's interpretations
 
     double interface_threshold = 0.005;  // relative change of Z per texel marking an interface
-    double scattering_rate_per_mm = 0.2; // sub-resolution scattering events per mm at backscatter 1
-    double scatter_echo_fraction = 1e-3; // intensity fraction a scattering event sends back
-    double roulette_energy = 1e-3;       // Russian roulette below this fraction of the initial energy
-    double max_path_mm = 2000.0;         // paths end (energy "remaining") beyond this length
+    double scattering_rate_per_mm =
+        0.2;  // sub-resolution scattering events per mm at backscatter 1
+    double scatter_echo_fraction = 1e-3;  // intensity fraction a scattering event sends back
+    double roulette_energy = 1e-3;  // Russian roulette below this fraction of the initial energy
+    double max_path_mm = 2000.0;    // paths end (energy "remaining") beyond this length
 
-    int record_paths = 0;            // particles per line whose paths are kept as polylines
+    int record_paths = 0;  // particles per line whose paths are kept as polylines
     bool record_scatter_echoes = true;
 
     // Set by the caller in the map frame; optional.
@@ -95,7 +96,8 @@ inline constexpr const char* kMode =
     "scattering) or 'paper' (one density field as refractive index, as in Reis & Bertram)";
 inline constexpr const char* kStep = "integration step s, in texels of the map";
 inline constexpr const char* kFrequency = "centre frequency for attenuation alpha*f";
-inline constexpr const char* kSeed = "random seed; the same seed gives identical results on any thread count";
+inline constexpr const char* kSeed =
+    "random seed; the same seed gives identical results on any thread count";
 inline constexpr const char* kLobeExponent =
     "exponent c of the diffuse lobe cos^c: 'roughness' (c = 1/roughness^2 - 1), "
     "'reflecting-density' (c = scale*d1) or 'density-ratio' (c = scale*d1/d0)";
@@ -105,8 +107,10 @@ inline constexpr const char* kLobeWeight =
 inline constexpr const char* kLobeScale = "factor on c for the paper's lobe interpretations";
 inline constexpr const char* kInterfaceThreshold =
     "relative change of impedance per texel above which a step is at an interface";
-inline constexpr const char* kScatteringRate = "sub-resolution scattering events per mm at backscatter 1";
-inline constexpr const char* kRoulette = "Russian roulette below this fraction of a particle's initial energy";
+inline constexpr const char* kScatteringRate =
+    "sub-resolution scattering events per mm at backscatter 1";
+inline constexpr const char* kRoulette =
+    "Russian roulette below this fraction of a particle's initial energy";
 inline constexpr const char* kMaxBounces = "reflections after which a particle is retired";
 }  // namespace doc
 

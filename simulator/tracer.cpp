@@ -33,7 +33,9 @@ inline float exp_minus(float x) {
 
 // Deposit maps in 64-bit fixed point: sums are exact and order-independent.
 constexpr double kFixedScale = double(int64_t(1) << 36);
-inline int64_t to_fixed(double v) { return int64_t(v * kFixedScale + 0.5); }
+inline int64_t to_fixed(double v) {
+    return int64_t(v * kFixedScale + 0.5);
+}
 
 struct DepositMaps {
     std::vector<int64_t> fluence, absorbed;
@@ -71,8 +73,8 @@ struct Batch {
     std::array<double, kSize> time, path_length;
     std::array<uint16_t, kSize> bounces;
     std::array<uint8_t, kSize> in_interface;
-    std::array<uint8_t, kSize> graded_steps;   // steps since the last interface check in kGraded
-    std::array<V, kSize> interface_normal;     // normal of the interface being crossed
+    std::array<uint8_t, kSize> graded_steps;  // steps since the last interface check in kGraded
+    std::array<V, kSize> interface_normal;    // normal of the interface being crossed
     std::array<uint32_t, kSize> particle;
     std::array<int, kSize> path;  // index into LineOutput::paths or -1
     std::array<RandomStream, kSize> random;
@@ -99,7 +101,7 @@ constexpr uint8_t kGraded = 3;                  // steep but no plateau near: gr
 
 template <int Dim>
 class LineTracer {
-public:
+  public:
     using V = Vec<Dim>;
     using Texel = tissue::AcousticTexel<Dim>;
 
@@ -128,13 +130,15 @@ public:
                 ++next;
             }
             for (int k = 0; k < batch.count;) {
-                if (step(batch, k)) ++k;
-                else batch.remove(k);
+                if (step(batch, k))
+                    ++k;
+                else
+                    batch.remove(k);
             }
         }
     }
 
-private:
+  private:
     void emit(const SourceParticle<Dim>& s, uint32_t index, Batch<Dim>& b) {
         out_->stats.particles++;
         out_->ledger.injected += s.energy;
@@ -197,9 +201,9 @@ private:
 
     // The interface normal: the sum of grad Z over a patch of the transition, lines from
     // the near to the far plateau at lateral offsets of up to 2 texels, samples a texel
-    // apart (a cross of lines in 3D). On a transition a few texels wide, finite differences alias into direction
-    // errors of up to ~25 degrees at its fringe and ~1 degree along any single line; over
-    // the patch they cancel. Only evaluated at interface events.
+    // apart (a cross of lines in 3D). On a transition a few texels wide, finite differences alias
+    // into direction errors of up to ~25 degrees at its fringe and ~1 degree along any single line;
+    // over the patch they cancel. Only evaluated at interface events.
     static constexpr int kPatchLines = 2;
     V interface_normal(const V& near_end, const V& far_end, const V& guess) const {
         V tangents[2];
@@ -236,7 +240,8 @@ private:
         // The direction the particle had on the near plateau: undo the slight
         // refraction it met in the fringe, using the conserved n sin(theta).
         const float cos_now = glm::dot(r, forward);
-        const V tangential = (r - cos_now * forward) * (t.refractive_index / near_side.refractive_index);
+        const V tangential =
+            (r - cos_now * forward) * (t.refractive_index / near_side.refractive_index);
         const float sin_i = std::min(glm::length(tangential), 1.0f);
         const float cos_i = std::sqrt(1.0f - sin_i * sin_i);
         const V incoming = tangential + cos_i * forward;
@@ -262,9 +267,10 @@ private:
         return true;
     }
 
-    void record_echo(const Batch<Dim>& b, int k, const V& x, float energy, float weight, EchoKind kind) {
-        out_->echoes.push_back({line_, b.particle[k], float(b.time[k]), energy, weight, x,
-                                b.bounces[k], kind});
+    void record_echo(const Batch<Dim>& b, int k, const V& x, float energy, float weight,
+                     EchoKind kind) {
+        out_->echoes.push_back(
+            {line_, b.particle[k], float(b.time[k]), energy, weight, x, b.bounces[k], kind});
     }
 
     // The diffuse lobe (eq. 11) about the specular direction `mirror`; `forward` points
@@ -275,8 +281,10 @@ private:
         for (int attempt = 0; attempt < 8; ++attempt) {
             V dir;
             if (settings_.lobe_weight == LobeWeight::probability) {
-                if constexpr (Dim == 2) dir = rotate(mirror, sample_cos_power_angle_2d(c, uniform));
-                else dir = sample_cos_power_direction_3d(mirror, c, rs.next(), rs.next());
+                if constexpr (Dim == 2)
+                    dir = rotate(mirror, sample_cos_power_angle_2d(c, uniform));
+                else
+                    dir = sample_cos_power_direction_3d(mirror, c, rs.next(), rs.next());
                 *weight = 1.0f;
             } else {  // uniform over the opening angle, energy weighted by cos^c
                 float cos_phi;
@@ -304,7 +312,8 @@ private:
             case LobeExponent::reflecting_density:
                 return float(settings_.lobe_scale) * far_side.impedance;
             case LobeExponent::density_ratio:
-                return float(settings_.lobe_scale) * far_side.impedance / std::max(near_side.impedance, 1e-12f);
+                return float(settings_.lobe_scale) * far_side.impedance /
+                       std::max(near_side.impedance, 1e-12f);
         }
         return 1e6f;
     }
@@ -335,7 +344,8 @@ private:
             b.optical_depth[k] += float(settings_.scattering_rate_per_mm) * t.backscatter * s;
             if (b.optical_depth[k] >= b.scatter_target[k]) {
                 const float fraction = float(settings_.scatter_echo_fraction) * t.backscatter;
-                if (settings_.record_scatter_echoes) record_echo(b, k, x, E, fraction, EchoKind::scatter);
+                if (settings_.record_scatter_echoes)
+                    record_echo(b, k, x, E, fraction, EchoKind::scatter);
                 ledger.recorded += double(E) * fraction;
                 E -= E * fraction;
                 stats.scatter_events++;
@@ -368,7 +378,9 @@ private:
                     normal = interface_normal(near_end, far_end, forward);
                     forward = glm::dot(forward, normal) >= 0.0f ? normal : -normal;
                     b.interface_normal[k] = normal;
-                    if (settings_.specular_reflection) reflected = decide_reflection(b, k, x, t, near_side, far_side, forward, r, E);
+                    if (settings_.specular_reflection)
+                        reflected =
+                            decide_reflection(b, k, x, t, near_side, far_side, forward, r, E);
                 }
             }
         } else if (rel < 0.5f * settings_.interface_threshold) {
@@ -392,7 +404,8 @@ private:
             float g2 = 0.0f;
             for (int a = 0; a < Dim; ++a) g[a] = t.grad_refractive_index[a], g2 += g[a] * g[a];
             if (state == kCrossing || g2 > 0.0f) {
-                const V normal = state == kCrossing ? b.interface_normal[k] : g * (1.0f / std::sqrt(g2));
+                const V normal =
+                    state == kCrossing ? b.interface_normal[k] : g * (1.0f / std::sqrt(g2));
                 const Refraction<Dim> bent = refract<Dim>(r, normal, n0 / n1);
                 r = bent.direction;
                 // Total reflection at a sharp interface is a bounce; in a graded medium it
@@ -437,8 +450,8 @@ private:
                 const float d0 = glm::length(from - ring.centre), d1 = glm::length(x - ring.centre);
                 if (d0 < ring.radius_mm && d1 >= ring.radius_mm) {
                     const V rel_pos = x - ring.centre;
-                    const float deg = glm::degrees(
-                        std::atan2(glm::dot(rel_pos, ring.up), glm::dot(rel_pos, ring.zero_direction)));
+                    const float deg = glm::degrees(std::atan2(
+                        glm::dot(rel_pos, ring.up), glm::dot(rel_pos, ring.zero_direction)));
                     if (deg >= 0.0f && deg <= 180.0f) {
                         const int bin = std::min(ring.bins - 1, int(deg / 180.0f * ring.bins));
                         out_->ring[std::size_t(bin)] += E;
@@ -476,8 +489,10 @@ private:
     }
 
     const ProbeFace<Dim>* probe_face() const {
-        if constexpr (Dim == 2) return settings_.probe_face_2d ? &*settings_.probe_face_2d : nullptr;
-        else return settings_.probe_face_3d ? &*settings_.probe_face_3d : nullptr;
+        if constexpr (Dim == 2)
+            return settings_.probe_face_2d ? &*settings_.probe_face_2d : nullptr;
+        else
+            return settings_.probe_face_3d ? &*settings_.probe_face_3d : nullptr;
     }
 
     static bool within_aperture(const ProbeFace<Dim>& face, const V& x) {
@@ -493,10 +508,10 @@ private:
         }
     }
 
-public:
+  public:
     bool scatter_enabled_ = false;
 
-private:
+  private:
     const tissue::AcousticMap<Dim>& map_;
     const TraceSettings& settings_;
     float texel_mm_ = 1.0f, step_mm_ = 0.5f, attenuation_per_mm_ = 0.0f, seconds_per_mm_ = 0.0f;
@@ -511,11 +526,15 @@ void validate_sources(const Sources<Dim>& sources) {
     for (std::size_t n = 0; n < sources.size(); ++n) {
         const auto& s = sources[n];
         bool finite = std::isfinite(s.energy);
-        for (int a = 0; a < Dim; ++a) finite = finite && std::isfinite(s.position[a]) && std::isfinite(s.direction[a]);
+        for (int a = 0; a < Dim; ++a)
+            finite = finite && std::isfinite(s.position[a]) && std::isfinite(s.direction[a]);
         const std::string field = "sources[" + std::to_string(n) + "]";
-        if (!finite) throw tissue::InputError("sources", field, "position, direction and energy must be finite");
+        if (!finite)
+            throw tissue::InputError("sources", field,
+                                     "position, direction and energy must be finite");
         if (s.energy < 0.0f) throw tissue::InputError("sources", field + ".energy", "must be >= 0");
-        if (!(glm::length(s.direction) > 0.0f)) throw tissue::InputError("sources", field + ".direction", "is zero");
+        if (!(glm::length(s.direction) > 0.0f))
+            throw tissue::InputError("sources", field + ".direction", "is zero");
     }
 }
 
@@ -558,7 +577,8 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     result.absorbed = tissue::Volume(map.geometry());
     std::vector<int64_t> fluence(texels, 0), absorbed(texels, 0);
     for (const DepositMaps& d : deposits) {
-        for (std::size_t i = 0; i < texels; ++i) fluence[i] += d.fluence[i], absorbed[i] += d.absorbed[i];
+        for (std::size_t i = 0; i < texels; ++i)
+            fluence[i] += d.fluence[i], absorbed[i] += d.absorbed[i];
     }
     double area = 1.0;
     for (int a = 0; a < Dim; ++a) area *= map.spacing()[a];
@@ -571,7 +591,9 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     for (LineOutput<Dim>& o : outputs) {
         // Batches interleave particles; order each line's echoes by particle, then time.
         std::stable_sort(o.echoes.begin(), o.echoes.end(),
-                         [](const EchoEvent<Dim>& a, const EchoEvent<Dim>& b) { return a.particle < b.particle; });
+                         [](const EchoEvent<Dim>& a, const EchoEvent<Dim>& b) {
+                             return a.particle < b.particle;
+                         });
         result.echoes.insert(result.echoes.end(), o.echoes.begin(), o.echoes.end());
         for (auto& p : o.paths) result.paths.push_back(std::move(p));
         for (std::size_t i = 0; i < o.ring.size(); ++i) result.ring_profile[i] += o.ring[i];
@@ -581,7 +603,9 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     return result;
 }
 
-template TraceResult<2> trace<2>(const tissue::AcousticMap<2>&, const Sources<2>&, const TraceSettings&, const TraceProgress&);
-template TraceResult<3> trace<3>(const tissue::AcousticMap<3>&, const Sources<3>&, const TraceSettings&, const TraceProgress&);
+template TraceResult<2> trace<2>(const tissue::AcousticMap<2>&, const Sources<2>&,
+                                 const TraceSettings&, const TraceProgress&);
+template TraceResult<3> trace<3>(const tissue::AcousticMap<3>&, const Sources<3>&,
+                                 const TraceSettings&, const TraceProgress&);
 
 }  // namespace sonotrace::simulator

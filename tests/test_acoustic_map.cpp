@@ -101,7 +101,8 @@ TEST(AcousticMap, TexelGradientIsTheSobelWeightedCentralDifference) {
     const auto map = AcousticMap<2>::build(maps);
     auto z = [&](int i, int j) { return maps[Property::speed_of_sound].at(i, j) * kRho * 1e-6; };
     auto cd = [&](int i, int j) { return (z(i + 1, j) - z(i - 1, j)) / (2 * h); };
-    EXPECT_NEAR(map.texel({7, 9}).grad_impedance[0], 0.25 * cd(7, 8) + 0.5 * cd(7, 9) + 0.25 * cd(7, 10), 1e-6);
+    EXPECT_NEAR(map.texel({7, 9}).grad_impedance[0],
+                0.25 * cd(7, 8) + 0.5 * cd(7, 9) + 0.25 * cd(7, 10), 1e-6);
     // One-sided along the axis at the border, averaged over the existing neighbours.
     auto one_sided = [&](int j) { return (z(1, j) - z(0, j)) / h; };
     EXPECT_NEAR(map.texel({0, 9}).grad_impedance[0],

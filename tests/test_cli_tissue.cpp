@@ -1,7 +1,6 @@
 // `sonotrace tissue` end to end, run as a subprocess: outputs, sidecar, determinism on
 // 1 and 2 threads, and bad input (message names file/field, non-zero exit, no output).
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -16,35 +15,10 @@ namespace {
 
 using test::ScratchDir;
 
-struct RunResult {
-    int exit_code;
-    std::string out, err;
-};
-
-std::string slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-RunResult run(const ScratchDir& dir, const std::string& args) {
-    const std::string cmd = std::string(SONOTRACE_BINARY) + " " + args + " > " +
-                            (dir / "stdout.txt") + " 2> " + (dir / "stderr.txt");
-    const int status = std::system(cmd.c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout.txt"),
-            slurp(dir / "stderr.txt")};
-}
-
-// Files in `dir` (recursively), hidden partial files included.
-std::vector<std::string> files_in(const std::string& dir) {
-    std::vector<std::string> names;
-    if (!std::filesystem::exists(dir)) return names;
-    for (const auto& e : std::filesystem::recursive_directory_iterator(dir)) {
-        if (e.is_regular_file()) names.push_back(e.path().filename().string());
-    }
-    return names;
-}
+using test::files_in;
+using test::run;
+using test::RunResult;
+using test::slurp;
 
 TEST(CliTissue, DefaultVolumeWritesEveryFieldAndASidecar) {
     ScratchDir dir;

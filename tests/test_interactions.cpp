@@ -31,7 +31,8 @@ TEST(Refract, SnellHoldsIn2DAnd3D) {
             EXPECT_FALSE(t2.total_reflection);
             EXPECT_NEAR(t2.direction.x, eta * sin_i, 1e-5f) << "sin(theta_t) = eta sin(theta_i)";
             EXPECT_LT(t2.direction.y, 0.0f);  // still travelling forward
-            // 3D, with the normal given in the opposite orientation and a tilted plane of incidence.
+            // 3D, with the normal given in the opposite orientation and a tilted plane of
+            // incidence.
             const Vec<3> n3 = glm::normalize(Vec<3>(0.2f, -1.0f, 0.3f));
             Vec<3> b1, b2;
             orthonormal_basis(n3, &b1, &b2);
@@ -124,7 +125,8 @@ TEST_P(Lobe2D, AnglesFollowCosPowerDensity) {
     EXPECT_LT(chi_square(kept_counts, kept_p, kept_n), 72.05) << "c = " << c;
 }
 
-INSTANTIATE_TEST_SUITE_P(Exponents, Lobe2D, ::testing::Values(0.0f, 0.5f, 1.0f, 4.0f, 30.0f, 400.0f));
+INSTANTIATE_TEST_SUITE_P(Exponents, Lobe2D,
+                         ::testing::Values(0.0f, 0.5f, 1.0f, 4.0f, 30.0f, 400.0f));
 
 class Lobe3D : public ::testing::TestWithParam<float> {};
 
@@ -149,7 +151,8 @@ TEST_P(Lobe3D, CosThetaFollowsCosPowerAndAzimuthIsUniform) {
     }
     const std::vector<double> equal(kBins, 1.0 / kBins);
     EXPECT_LT(chi_square(polar, equal, kSamples), 43.82);
-    EXPECT_LT(chi_square(azimuth, equal, std::accumulate(azimuth.begin(), azimuth.end(), 0)), 43.82);
+    EXPECT_LT(chi_square(azimuth, equal, std::accumulate(azimuth.begin(), azimuth.end(), 0)),
+              43.82);
 }
 
 INSTANTIATE_TEST_SUITE_P(Exponents, Lobe3D, ::testing::Values(0.0f, 1.0f, 10.0f, 100.0f));

@@ -40,10 +40,13 @@ TraceSettings clean_settings() {
 // 20 degrees from +y (so the gradient is not grid-aligned), smoothed over 2 texels.
 constexpr double kH = 0.25, kTilt = 20.0;
 const glm::dvec2 kCentre(30.0, 30.0);
-glm::dvec2 interface_normal() { return {std::sin(glm::radians(kTilt)), std::cos(glm::radians(kTilt))}; }
+glm::dvec2 interface_normal() {
+    return {std::sin(glm::radians(kTilt)), std::cos(glm::radians(kTilt))};
+}
 
 tissue::AcousticMap<2> interface_map(const AcousticProperties& a, const AcousticProperties& b) {
-    return tissue::AcousticMap<2>::build(planar_interface(240, 240, kH, kCentre, interface_normal(), a, b, 2.0));
+    return tissue::AcousticMap<2>::build(
+        planar_interface(240, 240, kH, kCentre, interface_normal(), a, b, 2.0));
 }
 
 // One particle aimed at the interface centre at `incidence_deg` from the normal, starting
@@ -75,9 +78,11 @@ TEST(Tracer, RefractionFollowsSnellWithinHalfADegree) {
     s.specular_reflection = false;  // isolate refraction
     int checked = 0;
     for (double incidence = 2.0; incidence <= 50.0; incidence += 4.0) {
-        const double expected = glm::degrees(std::asin(std::sin(glm::radians(incidence)) * 1800.0 / 1500.0));
+        const double expected =
+            glm::degrees(std::asin(std::sin(glm::radians(incidence)) * 1800.0 / 1500.0));
         const glm::vec2 out = shoot(map, incidence, s);
-        ASSERT_GT(glm::dot(out, glm::vec2(interface_normal())), 0.0f) << "transmitted at " << incidence;
+        ASSERT_GT(glm::dot(out, glm::vec2(interface_normal())), 0.0f)
+            << "transmitted at " << incidence;
         EXPECT_NEAR(angle_to_normal_deg(out), expected, 0.5) << "incidence " << incidence;
         ++checked;
     }
@@ -85,7 +90,8 @@ TEST(Tracer, RefractionFollowsSnellWithinHalfADegree) {
     // The reverse direction (fast -> slow) bends towards the normal.
     const auto reverse = interface_map(medium(1800, 1000), medium(1500, 1000));
     for (double incidence : {10.0, 30.0, 60.0, 80.0}) {
-        const double expected = glm::degrees(std::asin(std::sin(glm::radians(incidence)) * 1500.0 / 1800.0));
+        const double expected =
+            glm::degrees(std::asin(std::sin(glm::radians(incidence)) * 1500.0 / 1800.0));
         EXPECT_NEAR(angle_to_normal_deg(shoot(reverse, incidence, s)), expected, 0.5) << incidence;
     }
 }
@@ -99,9 +105,12 @@ TEST(Tracer, CriticalAngleWithinHalfADegree) {
     const double critical = glm::degrees(std::asin(1500.0 / 1800.0));
     double last_transmitted = 0.0, first_reflected = 90.0;
     for (double incidence = critical - 3.0; incidence <= critical + 3.0; incidence += 0.1) {
-        const bool transmitted = glm::dot(shoot(map, incidence, s), glm::vec2(interface_normal())) > 0.0f;
-        if (transmitted) last_transmitted = std::max(last_transmitted, incidence);
-        else first_reflected = std::min(first_reflected, incidence);
+        const bool transmitted =
+            glm::dot(shoot(map, incidence, s), glm::vec2(interface_normal())) > 0.0f;
+        if (transmitted)
+            last_transmitted = std::max(last_transmitted, incidence);
+        else
+            first_reflected = std::min(first_reflected, incidence);
     }
     EXPECT_NEAR(last_transmitted, critical, 0.5);
     EXPECT_NEAR(first_reflected, critical, 0.5);
@@ -130,10 +139,12 @@ TEST(Tracer, ReflectedFractionMatchesObliqueIncidenceCoefficient) {
     for (int a = 0; a <= 10; ++a) {
         const double incidence = 5.0 * a;
         const double sin_t = std::sin(glm::radians(incidence)) * 1800.0 / 1500.0;
-        const double cos_i = std::cos(glm::radians(incidence)), cos_t = std::sqrt(1.0 - sin_t * sin_t);
+        const double cos_i = std::cos(glm::radians(incidence)),
+                     cos_t = std::sqrt(1.0 - sin_t * sin_t);
         const double expected = reflected_fraction(z1, z2, float(cos_i), float(cos_t));
         const glm::dvec2 n = interface_normal(), t(n.y, -n.x);
-        const glm::dvec2 dir = std::cos(glm::radians(incidence)) * n + std::sin(glm::radians(incidence)) * t;
+        const glm::dvec2 dir =
+            std::cos(glm::radians(incidence)) * n + std::sin(glm::radians(incidence)) * t;
         Sources<2> src;
         for (int p = 0; p < kParticles; ++p) {
             // Spread the starts along the interface by +-2 mm so the particles are not identical.
@@ -146,8 +157,10 @@ TEST(Tracer, ReflectedFractionMatchesObliqueIncidenceCoefficient) {
         const double sigma = std::sqrt(expected * (1.0 - expected) / kParticles);
         EXPECT_NEAR(measured, expected, 3.0 * sigma + 1e-9) << "incidence " << incidence;
         ASSERT_FALSE(result.echoes.empty());
-        EXPECT_NEAR(result.echoes.front().weight, expected, 2e-3 + 0.02 * expected) << "incidence " << incidence;
-        EXPECT_EQ(result.stats.interface_events, uint64_t(kParticles)) << "one decision per crossing";
+        EXPECT_NEAR(result.echoes.front().weight, expected, 2e-3 + 0.02 * expected)
+            << "incidence " << incidence;
+        EXPECT_EQ(result.stats.interface_events, uint64_t(kParticles))
+            << "one decision per crossing";
     }
 }
 
@@ -173,7 +186,8 @@ TEST(Tracer, HomogeneousAttenuationIsExponential) {
     const tissue::Volume& f = result.fluence;
     for (int j : {40, 120, 200}) {
         const double ratio = double(f.at(20, j)) / f.at(20, 8);
-        EXPECT_NEAR(ratio, std::exp(-2.0 * (0.5 / 8.685889638) * 5.0 * ((j - 8) * kH) / 10.0), 1e-3) << "row " << j;
+        EXPECT_NEAR(ratio, std::exp(-2.0 * (0.5 / 8.685889638) * 5.0 * ((j - 8) * kH) / 10.0), 1e-3)
+            << "row " << j;
     }
 }
 
@@ -181,7 +195,8 @@ TEST(Tracer, EnergyLedgerBalancesToOnePartPerMillion) {
     // Everything on: attenuation, scattering, interfaces with diffuse lobes, roulette,
     // a capturing probe face; a random smooth medium.
     const double h = 0.25;
-    tissue::PropertyMaps maps = homogeneous(200, 200, h, tissue::find_tissue("soft_tissue", "", "").properties);
+    tissue::PropertyMaps maps =
+        homogeneous(200, 200, h, tissue::find_tissue("soft_tissue", "", "").properties);
     for (int j = 0; j < 200; ++j) {
         for (int i = 0; i < 200; ++i) {
             const double r = glm::length(glm::dvec2(i, j) * h - glm::dvec2(25, 28));
@@ -275,9 +290,88 @@ TEST(TracerErrors, BadSettingsAndSourcesAreNamed) {
     s.frequency_mhz = std::nan("");
     test::expect_input_error([&] { trace(map, Sources<2>{}, s); }, "trace settings", "frequency");
     Sources<2> bad = {{{1.0f, 1.0f}, {0.0f, 0.0f}, 1.0f, 0}};
-    test::expect_input_error([&] { trace(map, bad, TraceSettings{}); }, "sources", "sources[0].direction");
+    test::expect_input_error([&] { trace(map, bad, TraceSettings{}); }, "sources",
+                             "sources[0].direction");
     bad = {{{1.0f, std::nanf("")}, {0.0f, 1.0f}, 1.0f, 0}};
-    test::expect_input_error([&] { trace(map, bad, TraceSettings{}); }, "sources", "sources[0]", "finite");
+    test::expect_input_error([&] { trace(map, bad, TraceSettings{}); }, "sources", "sources[0]",
+                             "finite");
+}
+
+}  // namespace
+}  // namespace sonotrace::simulator
+
+namespace sonotrace::simulator {
+namespace {
+
+// 3D: the same template on a volume. A plane tilted about two axes, smoothed over 2 texels.
+tissue::AcousticMap<3> interface_map_3d(float c1, float c2, glm::dvec3 normal, double h = 0.25,
+                                        int n = 96) {
+    tissue::VolumeGeometry g;
+    g.dims = {n, n, n};
+    g.spacing = glm::dvec3(h);
+    tissue::PropertyMaps maps;
+    const auto a = medium(c1, 1000), b = medium(c2, 1000);
+    for (tissue::Volume& f : maps.fields) f = tissue::Volume(g);
+    const glm::dvec3 centre(0.5 * (n - 1) * h);
+    normal = glm::normalize(normal);
+    for (int k = 0; k < n; ++k)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const double d = glm::dot(glm::dvec3(i, j, k) * h - centre, normal);
+                const auto p = tissue::lerp(a, b, float(std::clamp(d / (2 * h) + 0.5, 0.0, 1.0)));
+                for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
+                    maps.fields[f].at(i, j, k) = p.values[f];
+            }
+    return tissue::AcousticMap<3>::build(maps);
+}
+
+TEST(Tracer3D, RefractionFollowsSnellWithinHalfADegree) {
+    const glm::dvec3 normal = glm::normalize(glm::dvec3(0.25, 1.0, 0.15));
+    const auto map = interface_map_3d(1500, 1800, normal);
+    const glm::dvec3 centre(0.5 * 95 * 0.25);
+    TraceSettings s = clean_settings();
+    s.specular_reflection = false;
+    s.record_paths = 1;
+    s.max_path_mm = 18.0;
+    glm::vec3 b1, b2;
+    orthonormal_basis(glm::vec3(normal), &b1, &b2);
+    for (double incidence = 5.0; incidence <= 45.0; incidence += 10.0) {
+        const double a = glm::radians(incidence);
+        const glm::dvec3 tangent = glm::normalize(glm::dvec3(b1) + 0.5 * glm::dvec3(b2));
+        const glm::dvec3 dir = std::cos(a) * normal + std::sin(a) * tangent;
+        const Sources<3> src = {{glm::vec3(centre - 9.0 * dir), glm::vec3(dir), 1.0f, 0}};
+        const auto result = trace(map, src, s);
+        const auto& v = result.paths.at(0).vertices;
+        const glm::vec3 out = glm::normalize(v.back().position - v[v.size() - 9].position);
+        const double measured =
+            glm::degrees(std::acos(std::abs(glm::dot(glm::dvec3(out), normal))));
+        const double expected = glm::degrees(std::asin(std::sin(a) * 1800.0 / 1500.0));
+        EXPECT_NEAR(measured, expected, 0.5) << "incidence " << incidence;
+        // Snell keeps the ray in the plane of incidence.
+        EXPECT_NEAR(glm::dot(glm::dvec3(out), glm::cross(normal, tangent)), 0.0, 0.01);
+    }
+}
+
+TEST(Tracer3D, LedgerBalancesAndThreadsAgree) {
+    const auto map = interface_map_3d(1540, 2200, glm::dvec3(0.2, 1.0, 0.1), 0.5, 48);
+    TraceSettings s;  // all physics
+    s.roulette_energy = 0.05;
+    Sources<3> src;
+    for (int line = 0; line < 6; ++line) {
+        auto beam = fan_beam_3d({12.0f, 0.2f, 12.0f}, {0.1f * line - 0.25f, 1.0f, 0.0f}, 15.0f, 8,
+                                uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    auto run = [&](int threads) {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+        return trace(map, src, s);
+    };
+    const auto a = run(1), b = run(2);
+    EXPECT_NEAR(a.ledger.relative_error(), 0.0, 1e-6);
+    EXPECT_GT(a.stats.reflections, 0u);
+    EXPECT_TRUE(a.echoes == b.echoes);
+    EXPECT_EQ(a.fluence.voxels(), b.fluence.voxels());
+    EXPECT_EQ(a.stats.steps, b.stats.steps);
 }
 
 }  // namespace

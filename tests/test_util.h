@@ -1,11 +1,15 @@
 #pragma once
 // Helpers shared by the tests: scratch directories and checks on InputError messages.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "tissue/error.h"
 
@@ -44,6 +48,38 @@ inline void expect_input_error(const std::function<void()>& action, const std::s
             << "field '" << e.field() << "' lacks '" << field_part << "'; message: " << what;
         EXPECT_NE(what.find(text_part), std::string::npos) << "message: " << what;
     }
+}
+
+// ---- running the sonotrace binary (SONOTRACE_BINARY, set by tests/CMakeLists.txt) ----
+
+struct RunResult {
+    int exit_code;
+    std::string out, err;
+};
+
+inline std::string slurp(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+inline RunResult run(const ScratchDir& dir, const std::string& args) {
+    const std::string cmd = std::string(SONOTRACE_BINARY) + " " + args + " > " +
+                            (dir / "stdout.txt") + " 2> " + (dir / "stderr.txt");
+    const int status = std::system(cmd.c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout.txt"),
+            slurp(dir / "stderr.txt")};
+}
+
+// Files in `dir` (recursively), hidden partial files included.
+inline std::vector<std::string> files_in(const std::string& dir) {
+    std::vector<std::string> names;
+    if (!std::filesystem::exists(dir)) return names;
+    for (const auto& e : std::filesystem::recursive_directory_iterator(dir)) {
+        if (e.is_regular_file()) names.push_back(e.path().filename().string());
+    }
+    return names;
 }
 
 }  // namespace sonotrace::test

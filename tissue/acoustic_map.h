@@ -34,12 +34,12 @@ inline constexpr double kReferenceSpeed = 1540.0;
 
 template <int Dim>
 struct AcousticTexel {
-    float refractive_index;            // n = c0 / c, dimensionless
-    float impedance;                   // Z = rho*c, MRayl
-    float attenuation;                 // dB/(cm*MHz)
-    float backscatter;                 // relative 0..1
-    float scatterer_density;           // 1/mm^3
-    float roughness;                   // 0..1
+    float refractive_index;   // n = c0 / c, dimensionless
+    float impedance;          // Z = rho*c, MRayl
+    float attenuation;        // dB/(cm*MHz)
+    float backscatter;        // relative 0..1
+    float scatterer_density;  // 1/mm^3
+    float roughness;          // 0..1
     // Gradients along the grid axes; in 2D the third component is 0 (it keeps every
     // record at 12 floats = three 4-wide vectors).
     float grad_refractive_index[3];  // 1/mm
@@ -139,7 +139,8 @@ template <int Dim>
         v4 v = w00 * load(t) + w10 * load(t + K) + w01 * load(t + dy) + w11 * load(t + dy + K);
         if constexpr (Dim == 3) {
             const float* u = t + dy * std::size_t(dims_[1]);
-            const v4 upper = w00 * load(u) + w10 * load(u + K) + w01 * load(u + dy) + w11 * load(u + dy + K);
+            const v4 upper =
+                w00 * load(u) + w10 * load(u + K) + w01 * load(u + dy) + w11 * load(u + dy + K);
             v = (1.0f - f[2]) * v + f[2] * upper;
         }
         std::memcpy(out + c, &v, sizeof v);
@@ -150,7 +151,8 @@ template <int Dim>
 }
 
 template <int Dim>
-[[gnu::always_inline]] inline float AcousticMap<Dim>::sample_refractive_index(const Vec& p_mm) const {
+[[gnu::always_inline]] inline float AcousticMap<Dim>::sample_refractive_index(
+    const Vec& p_mm) const {
     constexpr int K = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
     IVec i0;
     Vec f;
@@ -161,12 +163,14 @@ template <int Dim>
     }
     const float* t = reinterpret_cast<const float*>(texels_.data() + linear(i0));  // n is field 0
     const std::size_t dy = std::size_t(dims_[0]) * K;
-    const float lower = (1 - f[1]) * ((1 - f[0]) * t[0] + f[0] * t[K]) + f[1] * ((1 - f[0]) * t[dy] + f[0] * t[dy + K]);
+    const float lower = (1 - f[1]) * ((1 - f[0]) * t[0] + f[0] * t[K]) +
+                        f[1] * ((1 - f[0]) * t[dy] + f[0] * t[dy + K]);
     if constexpr (Dim == 2) {
         return lower;
     } else {
         const float* u = t + dy * std::size_t(dims_[1]);
-        const float upper = (1 - f[1]) * ((1 - f[0]) * u[0] + f[0] * u[K]) + f[1] * ((1 - f[0]) * u[dy] + f[0] * u[dy + K]);
+        const float upper = (1 - f[1]) * ((1 - f[0]) * u[0] + f[0] * u[K]) +
+                            f[1] * ((1 - f[0]) * u[dy] + f[0] * u[dy + K]);
         return (1 - f[2]) * lower + f[2] * upper;
     }
 }

@@ -31,7 +31,8 @@ void ProgressBar::update(std::size_t done, std::size_t total) {
     const int filled = int(30 * done / total);
     if (filled == last_drawn_ && done != total) return;
     last_drawn_ = filled;
-    std::fprintf(stderr, "\rsonotrace: %s [%s%s] %zu/%zu", label_.c_str(), std::string(std::size_t(filled), '#').c_str(),
+    std::fprintf(stderr, "\rsonotrace: %s [%s%s] %zu/%zu", label_.c_str(),
+                 std::string(std::size_t(filled), '#').c_str(),
                  std::string(std::size_t(30 - filled), '.').c_str(), done, total);
     std::fflush(stderr);
 }

@@ -3,8 +3,8 @@
 // default, meaning) and turned into CLI11 options, stage timing with progress lines on
 // stderr, thread control, and JSON output.
 #include <chrono>
-#include <mutex>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 
@@ -47,12 +47,12 @@ class StageTimer {
 // A progress bar on stderr ("tracing [#####.....] 12/40"), safe to call from worker
 // threads; silent when quiet.
 class ProgressBar {
-public:
+  public:
     ProgressBar(std::string label, bool quiet) : label_(std::move(label)), quiet_(quiet) {}
     void update(std::size_t done, std::size_t total);
     void finish();
 
-private:
+  private:
     std::string label_;
     bool quiet_;
     std::mutex mutex_;

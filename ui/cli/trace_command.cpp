@@ -35,64 +35,92 @@ constexpr ParameterDoc kConfigDoc = {
     "reflector over inhomogeneous matter, with the intensity profile over a semicircle). "
     "Empty: trace a volume slice (the --volume options)"};
 constexpr ParameterDoc kModeDoc = {"--mode", "", simulator::doc::kMode};
-constexpr ParameterDoc kParticlesDoc = {"--particles", "",
-                                        "particles in total; 0 = the configuration's default (volume: 4000)"};
-constexpr ParameterDoc kLinesDoc = {"--lines", "", "scan lines the particles are split into (volume slices)"};
-constexpr ParameterDoc kInjectionDoc = {"--injection", "", "volume slices: 'fan' from the probe centre or 'parallel' across --beam-width"};
+constexpr ParameterDoc kParticlesDoc = {
+    "--particles", "", "particles in total; 0 = the configuration's default (volume: 4000)"};
+constexpr ParameterDoc kLinesDoc = {"--lines", "",
+                                    "scan lines the particles are split into (volume slices)"};
+constexpr ParameterDoc kInjectionDoc = {
+    "--injection", "",
+    "volume slices: 'fan' from the probe centre or 'parallel' across --beam-width"};
 constexpr ParameterDoc kBeamAngleDoc = {"--beam-angle", "degrees", "half opening angle of a fan"};
 constexpr ParameterDoc kBeamWidthDoc = {"--beam-width", "mm", "width of a parallel beam"};
-constexpr ParameterDoc kContrastDoc = {"--contrast", "",
-                                       "paper mode on a volume: density d = 1 + contrast * (value - min) / (max - min)"};
-constexpr ParameterDoc kFaceDoc = {"--face-reflectivity", "0..1",
-                                   "intensity fraction the probe face reflects back into the tissue (volume slices)"};
-constexpr ParameterDoc kDisableDoc = {"--disable", "",
-                                      "comma-separated physics to switch off: refraction, specular, diffuse, "
-                                      "scattering, absorption, bounces (= single reflection)"};
+constexpr ParameterDoc kContrastDoc = {
+    "--contrast", "",
+    "paper mode on a volume: density d = 1 + contrast * (value - min) / (max - min)"};
+constexpr ParameterDoc kFaceDoc = {
+    "--face-reflectivity", "0..1",
+    "intensity fraction the probe face reflects back into the tissue (volume slices)"};
+constexpr ParameterDoc kDisableDoc = {
+    "--disable", "",
+    "comma-separated physics to switch off: refraction, specular, diffuse, "
+    "scattering, absorption, bounces (= single reflection)"};
 constexpr ParameterDoc kLobeExponentDoc = {"--lobe-exponent", "", simulator::doc::kLobeExponent};
 constexpr ParameterDoc kLobeWeightDoc = {"--lobe-weight", "", simulator::doc::kLobeWeight};
-constexpr ParameterDoc kLobeScaleDoc = {"--lobe-scale", "", "factor on c for the paper's lobe interpretations; < 0 = default"};
+constexpr ParameterDoc kLobeScaleDoc = {
+    "--lobe-scale", "", "factor on c for the paper's lobe interpretations; < 0 = default"};
 constexpr ParameterDoc kStepDoc = {"--step", "texels", simulator::doc::kStep};
 constexpr ParameterDoc kFrequencyDoc = {"--frequency", "MHz", simulator::doc::kFrequency};
 constexpr ParameterDoc kSeedDoc = {"--seed", "", simulator::doc::kSeed};
 constexpr ParameterDoc kMaxBouncesDoc = {"--max-bounces", "", simulator::doc::kMaxBounces};
-constexpr ParameterDoc kPathsDoc = {"--paths", "", "particle paths drawn per line; -1 = the configuration's default"};
-constexpr ParameterDoc kEchoesDoc = {"--echoes", "", "also write every echo event as CSV to this file"};
+constexpr ParameterDoc kPathsDoc = {
+    "--paths", "", "particle paths drawn per line; -1 = the configuration's default"};
+constexpr ParameterDoc kEchoesDoc = {"--echoes", "",
+                                     "also write every echo event as CSV to this file"};
 constexpr ParameterDoc kOutDoc = {"--out", "", "output directory"};
-constexpr ParameterDoc kJsonDoc = {"--json", "", "also write the run record to this file; '-' prints it on stdout"};
+constexpr ParameterDoc kJsonDoc = {
+    "--json", "", "also write the run record to this file; '-' prints it on stdout"};
 constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
 // The --disable switches.
 void apply_disable(const std::string& disable, simulator::TraceSettings& s) {
     std::istringstream list(disable);
     for (std::string item; std::getline(list, item, ',');) {
-        if (item == "refraction") s.refraction = false;
-        else if (item == "specular") s.specular_reflection = false;
-        else if (item == "diffuse") s.diffuse_reflection = false;
-        else if (item == "scattering") s.scattering = false;
-        else if (item == "absorption") s.absorption = false;
-        else if (item == "bounces") s.max_bounces = 1;
+        if (item == "refraction")
+            s.refraction = false;
+        else if (item == "specular")
+            s.specular_reflection = false;
+        else if (item == "diffuse")
+            s.diffuse_reflection = false;
+        else if (item == "scattering")
+            s.scattering = false;
+        else if (item == "absorption")
+            s.absorption = false;
+        else if (item == "bounces")
+            s.max_bounces = 1;
         else if (!item.empty()) {
-            throw tissue::InputError("--disable", item,
-                                     "unknown switch (refraction, specular, diffuse, scattering, absorption, bounces)");
+            throw tissue::InputError(
+                "--disable", item,
+                "unknown switch (refraction, specular, diffuse, scattering, absorption, bounces)");
         }
     }
 }
 
 // Physics switches and enums from their option text.
 void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
-    if (o.mode == "paper") s.mode = simulator::PhysicsMode::paper;
-    else if (o.mode == "acoustic") s.mode = simulator::PhysicsMode::acoustic;
-    else throw tissue::InputError("--mode", "", "must be 'acoustic' or 'paper', got '" + o.mode + "'");
+    if (o.mode == "paper")
+        s.mode = simulator::PhysicsMode::paper;
+    else if (o.mode == "acoustic")
+        s.mode = simulator::PhysicsMode::acoustic;
+    else
+        throw tissue::InputError("--mode", "",
+                                 "must be 'acoustic' or 'paper', got '" + o.mode + "'");
     apply_disable(o.disable, s);
-    if (o.lobe_exponent == "roughness") s.lobe_exponent = simulator::LobeExponent::roughness;
-    else if (o.lobe_exponent == "reflecting-density") s.lobe_exponent = simulator::LobeExponent::reflecting_density;
-    else if (o.lobe_exponent == "density-ratio") s.lobe_exponent = simulator::LobeExponent::density_ratio;
+    if (o.lobe_exponent == "roughness")
+        s.lobe_exponent = simulator::LobeExponent::roughness;
+    else if (o.lobe_exponent == "reflecting-density")
+        s.lobe_exponent = simulator::LobeExponent::reflecting_density;
+    else if (o.lobe_exponent == "density-ratio")
+        s.lobe_exponent = simulator::LobeExponent::density_ratio;
     else if (!o.lobe_exponent.empty()) {
-        throw tissue::InputError("--lobe-exponent", "", "must be roughness, reflecting-density or density-ratio");
+        throw tissue::InputError("--lobe-exponent", "",
+                                 "must be roughness, reflecting-density or density-ratio");
     }
-    if (o.lobe_weight == "probability") s.lobe_weight = simulator::LobeWeight::probability;
-    else if (o.lobe_weight == "energy") s.lobe_weight = simulator::LobeWeight::energy;
-    else if (!o.lobe_weight.empty()) throw tissue::InputError("--lobe-weight", "", "must be probability or energy");
+    if (o.lobe_weight == "probability")
+        s.lobe_weight = simulator::LobeWeight::probability;
+    else if (o.lobe_weight == "energy")
+        s.lobe_weight = simulator::LobeWeight::energy;
+    else if (!o.lobe_weight.empty())
+        throw tissue::InputError("--lobe-weight", "", "must be probability or energy");
     if (o.lobe_scale >= 0.0) s.lobe_scale = o.lobe_scale;
     s.step_texels = o.step_texels;
     s.frequency_mhz = o.frequency_mhz;
@@ -111,8 +139,10 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
             throw tissue::InputError("--contrast", "", "must be in (0, 100)");
         }
         tissue::Volume density = slice.values;
-        const double lo = slice.value_min, span = std::max(1e-12, double(slice.value_max - slice.value_min));
-        for (float& v : density.voxels()) v = float(1.0 + o.contrast * std::clamp((v - lo) / span, 0.0, 1.0));
+        const double lo = slice.value_min,
+                     span = std::max(1e-12, double(slice.value_max - slice.value_min));
+        for (float& v : density.voxels())
+            v = float(1.0 + o.contrast * std::clamp((v - lo) / span, 0.0, 1.0));
         scene.map = tissue::AcousticMap<2>::build_paper(density);
         scene.medium = std::move(density);
         scene.medium_label = "density d";
@@ -124,7 +154,8 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
     }
     const glm::vec2 extent = scene.map.extent_mm();
     const glm::vec2 face_centre(0.5f * extent.x, 0.01f);
-    if (o.lines < 1 || o.lines > 100000) throw tissue::InputError("--lines", "", "must be between 1 and 100000");
+    if (o.lines < 1 || o.lines > 100000)
+        throw tissue::InputError("--lines", "", "must be between 1 and 100000");
     for (int p = 0; p < particles; ++p) {
         const float u = (float(p) + 0.5f) / float(particles) * 2.0f - 1.0f;  // -1..1
         const auto line = uint32_t(std::int64_t(p) * o.lines / particles);
@@ -132,7 +163,11 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
             const float a = glm::radians(float(o.beam_angle_deg)) * u;
             scene.sources.push_back({face_centre, {std::sin(a), std::cos(a)}, 1.0f, line});
         } else if (o.injection == "parallel") {
-            scene.sources.push_back({face_centre + glm::vec2(0.5f * float(o.beam_width_mm) * u, 0.0f), {0.0f, 1.0f}, 1.0f, line});
+            scene.sources.push_back(
+                {face_centre + glm::vec2(0.5f * float(o.beam_width_mm) * u, 0.0f),
+                 {0.0f, 1.0f},
+                 1.0f,
+                 line});
         } else {
             throw tissue::InputError("--injection", "", "must be 'fan' or 'parallel'");
         }
@@ -156,8 +191,9 @@ void write_echoes_csv(const std::vector<simulator::EchoEvent<2>>& echoes, const 
     out << "line,particle,time_s,energy,weight,x_mm,y_mm,bounces,kind\n";
     out.precision(9);
     for (const auto& e : echoes) {
-        out << e.line << ',' << e.particle << ',' << e.time_s << ',' << e.energy << ',' << e.weight << ','
-            << e.position.x << ',' << e.position.y << ',' << e.bounces << ',' << simulator::to_string(e.kind) << '\n';
+        out << e.line << ',' << e.particle << ',' << e.time_s << ',' << e.energy << ',' << e.weight
+            << ',' << e.position.x << ',' << e.position.y << ',' << e.bounces << ','
+            << simulator::to_string(e.kind) << '\n';
     }
     if (!out) throw tissue::InputError(path, "", "cannot write the echo CSV");
 }
@@ -167,9 +203,11 @@ void write_echoes_csv(const std::vector<simulator::EchoEvent<2>>& echoes, const 
 CLI::App* add_trace_command(CLI::App& app, TraceOptions& options) {
     CLI::App* cmd = app.add_subcommand(
         "trace",
-        "Trace energy particles through a medium (Reis & Bertram): draws the paths over the medium and "
+        "Trace energy particles through a medium (Reis & Bertram): draws the paths over the medium "
+        "and "
         "writes the intensity (fluence) and absorbed-energy maps as PNGs with colour scales, plus "
-        "trace.json with the energy ledger. Built-in configurations reproduce the paper's figures.");
+        "trace.json with the energy ledger. Built-in configurations reproduce the paper's "
+        "figures.");
     add_parameter(*cmd, kConfigDoc, options.config);
     add_slice_options(*cmd, options.slice, false);
     add_parameter(*cmd, kModeDoc, options.mode);
@@ -206,11 +244,12 @@ int run_trace_command(const TraceOptions& options) {
     json source_record;
     if (!options.config.empty()) {
         timer.begin("building configuration " + options.config);
-        const auto defaults = std::map<std::string, int>{{"fig2", 41}, {"fig4a", 21}, {"fig4b", 21}, {"fig5", 4000}, {"fig6", 300}};
+        const auto defaults = std::map<std::string, int>{
+            {"fig2", 41}, {"fig4a", 21}, {"fig4b", 21}, {"fig5", 4000}, {"fig6", 300}};
         const auto found = defaults.find(options.config);
-        scene = simulator::make_paper_scene(options.config,
-                                            options.particles > 0 ? options.particles
-                                                                  : (found != defaults.end() ? found->second : 1));
+        scene = simulator::make_paper_scene(
+            options.config, options.particles > 0 ? options.particles
+                                                  : (found != defaults.end() ? found->second : 1));
         timer.end();
         source_record = {{"config", scene.name}, {"description", scene.description}};
         // Only explicitly given options override the configuration's physics.
@@ -230,12 +269,15 @@ int run_trace_command(const TraceOptions& options) {
     scene.settings.validate("trace options");
 
     // ---- trace ----
-    ProgressBar bar("tracing " + std::to_string(scene.sources.size()) + " particles", options.quiet);
+    ProgressBar bar("tracing " + std::to_string(scene.sources.size()) + " particles",
+                    options.quiet);
     const auto start = std::chrono::steady_clock::now();
-    const auto result = simulator::trace(scene.map, scene.sources, scene.settings,
-                                         [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
+    const auto result =
+        simulator::trace(scene.map, scene.sources, scene.settings,
+                         [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
     bar.finish();
-    const double trace_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double trace_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     // ---- pictures ----
     timer.begin("writing pictures");
@@ -255,14 +297,31 @@ int run_trace_command(const TraceOptions& options) {
         switch (n) {
             case 0: {
                 cv::Mat paths = imaging::draw_paths(scene.medium, result.paths, {});
-                cv::putText(paths, "paths: blue = full energy ... red = 0.1 %", {10, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6,
-                            cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+                cv::putText(paths, "paths: blue = full energy ... red = 0.1 %", {10, 24},
+                            cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 1,
+                            cv::LINE_AA);
                 pictures[0] = {"paths", paths};
                 break;
             }
-            case 1: pictures[1] = {"medium", imaging::render_field(scene.medium, {scene.medium_label, scene.medium_unit, imaging::Colormap::gray, std::nullopt, false, px})}; break;
-            case 2: pictures[2] = {"fluence", imaging::render_field(result.fluence, {"intensity (fluence)", "energy/mm", imaging::Colormap::inferno, std::pair<double, double>(0.0, fluence_top), false, px})}; break;
-            case 3: pictures[3] = {"absorbed", imaging::render_field(result.absorbed, {"absorbed energy", "energy/texel", imaging::Colormap::magma, std::nullopt, true, px})}; break;
+            case 1:
+                pictures[1] = {"medium", imaging::render_field(
+                                             scene.medium,
+                                             {scene.medium_label, scene.medium_unit,
+                                              imaging::Colormap::gray, std::nullopt, false, px})};
+                break;
+            case 2:
+                pictures[2] = {"fluence",
+                               imaging::render_field(
+                                   result.fluence,
+                                   {"intensity (fluence)", "energy/mm", imaging::Colormap::inferno,
+                                    std::pair<double, double>(0.0, fluence_top), false, px})};
+                break;
+            case 3:
+                pictures[3] = {"absorbed", imaging::render_field(
+                                               result.absorbed,
+                                               {"absorbed energy", "energy/texel",
+                                                imaging::Colormap::magma, std::nullopt, true, px})};
+                break;
         }
     });
     json outputs = json::array();
@@ -270,12 +329,16 @@ int run_trace_command(const TraceOptions& options) {
     if (!result.ring_profile.empty()) {
         const auto& ring = *scene.settings.ring;
         for (int b = 0; b < ring.bins; ++b) angles.push_back((b + 0.5) * 180.0 / ring.bins);
-        pictures.push_back({"profile", imaging::plot_profile(angles, result.ring_profile,
-                                                             "intensity leaving the semicircle (r = " + std::to_string(int(ring.radius_mm)) + " mm)",
-                                                             "angle from the interface [degrees] (specular: 45)", "energy", {45.0})});
+        pictures.push_back(
+            {"profile", imaging::plot_profile(angles, result.ring_profile,
+                                              "intensity leaving the semicircle (r = " +
+                                                  std::to_string(int(ring.radius_mm)) + " mm)",
+                                              "angle from the interface [degrees] (specular: 45)",
+                                              "energy", {45.0})});
         std::ofstream csv(transaction.stage((out / "profile.csv").string()));
         csv << "angle_deg,energy\n";
-        for (std::size_t b = 0; b < angles.size(); ++b) csv << angles[b] << ',' << result.ring_profile[b] << '\n';
+        for (std::size_t b = 0; b < angles.size(); ++b)
+            csv << angles[b] << ',' << result.ring_profile[b] << '\n';
         outputs.push_back({{"name", "profile"}, {"csv", (out / "profile.csv").string()}});
     }
     std::vector<cv::Mat> panels;
@@ -285,46 +348,75 @@ int run_trace_command(const TraceOptions& options) {
         outputs.push_back({{"name", p.name}, {"png", path}});
         if (p.name != "medium") panels.push_back(p.image);
     }
-    imaging::write_png(imaging::montage(panels, 2), transaction.stage((out / "overview.png").string()));
-    if (!options.echoes_csv.empty()) write_echoes_csv(result.echoes, transaction.stage(options.echoes_csv));
+    imaging::write_png(imaging::montage(panels, 2),
+                       transaction.stage((out / "overview.png").string()));
+    if (!options.echoes_csv.empty())
+        write_echoes_csv(result.echoes, transaction.stage(options.echoes_csv));
     timer.end();
 
     // ---- record ----
     const auto& l = result.ledger;
     const auto& st = result.stats;
     json echo_counts = json::object();
-    for (const auto& e : result.echoes) echo_counts[simulator::to_string(e.kind)] = echo_counts.value(simulator::to_string(e.kind), 0) + 1;
+    for (const auto& e : result.echoes)
+        echo_counts[simulator::to_string(e.kind)] =
+            echo_counts.value(simulator::to_string(e.kind), 0) + 1;
     const simulator::TraceSettings& s = scene.settings;
     json record = {
         {"command", "trace"},
         {"software", {{"name", "sonotrace"}, {"version", SONOTRACE_VERSION}}},
         {"source", source_record},
-        {"settings", {{"mode", simulator::to_string(s.mode)}, {"step_texels", s.step_texels}, {"frequency_mhz", s.frequency_mhz},
-                      {"seed", s.seed}, {"refraction", s.refraction}, {"specular_reflection", s.specular_reflection},
-                      {"diffuse_reflection", s.diffuse_reflection}, {"scattering", s.scattering}, {"absorption", s.absorption},
-                      {"max_bounces", s.max_bounces}, {"lobe_exponent", simulator::to_string(s.lobe_exponent)},
-                      {"lobe_weight", simulator::to_string(s.lobe_weight)}, {"lobe_scale", s.lobe_scale},
-                      {"interface_threshold", s.interface_threshold}, {"roulette_energy", s.roulette_energy}}},
+        {"settings",
+         {{"mode", simulator::to_string(s.mode)},
+          {"step_texels", s.step_texels},
+          {"frequency_mhz", s.frequency_mhz},
+          {"seed", s.seed},
+          {"refraction", s.refraction},
+          {"specular_reflection", s.specular_reflection},
+          {"diffuse_reflection", s.diffuse_reflection},
+          {"scattering", s.scattering},
+          {"absorption", s.absorption},
+          {"max_bounces", s.max_bounces},
+          {"lobe_exponent", simulator::to_string(s.lobe_exponent)},
+          {"lobe_weight", simulator::to_string(s.lobe_weight)},
+          {"lobe_scale", s.lobe_scale},
+          {"interface_threshold", s.interface_threshold},
+          {"roulette_energy", s.roulette_energy}}},
         {"particles", scene.sources.size()},
-        {"ledger", {{"injected", l.injected}, {"absorbed", l.absorbed}, {"escaped", l.escaped}, {"recorded", l.recorded},
-                    {"remaining", l.remaining}, {"roulette_killed", l.roulette_killed}, {"roulette_added", l.roulette_added},
-                    {"relative_error", l.relative_error()}}},
-        {"stats", {{"steps", st.steps}, {"interface_events", st.interface_events}, {"reflections", st.reflections},
-                   {"total_reflections", st.total_reflections}, {"scatter_events", st.scatter_events}, {"captured", st.captured},
-                   {"steps_per_second", trace_seconds > 0 ? double(st.steps) / trace_seconds : 0.0}}},
+        {"ledger",
+         {{"injected", l.injected},
+          {"absorbed", l.absorbed},
+          {"escaped", l.escaped},
+          {"recorded", l.recorded},
+          {"remaining", l.remaining},
+          {"roulette_killed", l.roulette_killed},
+          {"roulette_added", l.roulette_added},
+          {"relative_error", l.relative_error()}}},
+        {"stats",
+         {{"steps", st.steps},
+          {"interface_events", st.interface_events},
+          {"reflections", st.reflections},
+          {"total_reflections", st.total_reflections},
+          {"scatter_events", st.scatter_events},
+          {"captured", st.captured},
+          {"steps_per_second", trace_seconds > 0 ? double(st.steps) / trace_seconds : 0.0}}},
         {"echoes", echo_counts},
         {"outputs", outputs},
         {"timings_s", timer.timings()},
     };
     record["timings_s"]["tracing"] = trace_seconds;
     write_json(record, transaction.stage((out / "trace.json").string()));
-    if (!options.json_path.empty() && options.json_path != "-") write_json(record, transaction.stage(options.json_path));
+    if (!options.json_path.empty() && options.json_path != "-")
+        write_json(record, transaction.stage(options.json_path));
     transaction.commit();
     if (options.json_path == "-") write_json(record, "-");
     if (!options.quiet) {
-        std::fprintf(stderr, "sonotrace: %llu steps in %.2f s (%.1f M steps/s); energy ledger error %.1e; wrote %s\n",
-                     (unsigned long long)st.steps, trace_seconds, st.steps / std::max(trace_seconds, 1e-9) / 1e6,
-                     l.relative_error(), (out / "overview.png").c_str());
+        std::fprintf(stderr,
+                     "sonotrace: %llu steps in %.2f s (%.1f M steps/s); energy ledger error %.1e; "
+                     "wrote %s\n",
+                     (unsigned long long)st.steps, trace_seconds,
+                     st.steps / std::max(trace_seconds, 1e-9) / 1e6, l.relative_error(),
+                     (out / "overview.png").c_str());
     }
     return 0;
 }

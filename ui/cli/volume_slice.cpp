@@ -47,7 +47,8 @@ constexpr ParameterDoc kOutsideDoc = {"--outside", "volume units",
 
 json geometry_json(const tissue::VolumeGeometry& g) {
     json direction = json::array();
-    for (int c = 0; c < 3; ++c) direction.push_back({g.direction[c].x, g.direction[c].y, g.direction[c].z});
+    for (int c = 0; c < 3; ++c)
+        direction.push_back({g.direction[c].x, g.direction[c].y, g.direction[c].z});
     return {{"dims", {g.dims.x, g.dims.y, g.dims.z}},
             {"spacing_mm", {g.spacing.x, g.spacing.y, g.spacing.z}},
             {"origin_mm", {g.origin.x, g.origin.y, g.origin.z}},
@@ -140,7 +141,7 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     timer.begin("resampling " + std::to_string(grid.dims.x) + "x" + std::to_string(grid.dims.y) +
                 "x" + std::to_string(grid.dims.z) + " samples");
     const auto interpolation = slice.tf->uses_nearest_sampling() ? tissue::Interpolation::nearest
-                                                           : tissue::Interpolation::trilinear;
+                                                                 : tissue::Interpolation::trilinear;
     slice.values = tissue::resample(volume, grid, interpolation, outside);
     timer.end();
     timer.begin("classifying");
@@ -158,20 +159,28 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
 json slice_json(const Slice& slice, const SliceOptions& options) {
     const probe::Pose& pose = slice.pose;
     return {
-        {"volume", {{"spec", options.volume}, {"path", slice.loaded.path}, {"format", slice.loaded.format},
-                    {"geometry", geometry_json(slice.loaded.volume.geometry())},
-                    {"value_range", {slice.value_min, slice.value_max}}, {"outside_value", slice.outside}}},
+        {"volume",
+         {{"spec", options.volume},
+          {"path", slice.loaded.path},
+          {"format", slice.loaded.format},
+          {"geometry", geometry_json(slice.loaded.volume.geometry())},
+          {"value_range", {slice.value_min, slice.value_max}},
+          {"outside_value", slice.outside}}},
         {"transfer_function", slice.tf->describe()},
-        {"pose", {{"text", pose.to_string()},
-                  {"position_mm", {pose.position.x, pose.position.y, pose.position.z}},
-                  {"lateral", {pose.lateral().x, pose.lateral().y, pose.lateral().z}},
-                  {"axial", {pose.axial().x, pose.axial().y, pose.axial().z}},
-                  {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}}},
-        {"grid", {{"geometry", geometry_json(slice.grid)},
-                  {"width_mm", slice.extent.width_mm}, {"depth_mm", slice.extent.depth_mm},
-                  {"elevation_mm", slice.extent.elevation_mm}, {"pixel_mm", slice.extent.pixel_mm},
-                  {"interpolation", slice.tf->uses_nearest_sampling() ? "nearest" : "trilinear"},
-                  {"axes", "i = lateral, j = depth (axial), k = elevation"}}},
+        {"pose",
+         {{"text", pose.to_string()},
+          {"position_mm", {pose.position.x, pose.position.y, pose.position.z}},
+          {"lateral", {pose.lateral().x, pose.lateral().y, pose.lateral().z}},
+          {"axial", {pose.axial().x, pose.axial().y, pose.axial().z}},
+          {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}}},
+        {"grid",
+         {{"geometry", geometry_json(slice.grid)},
+          {"width_mm", slice.extent.width_mm},
+          {"depth_mm", slice.extent.depth_mm},
+          {"elevation_mm", slice.extent.elevation_mm},
+          {"pixel_mm", slice.extent.pixel_mm},
+          {"interpolation", slice.tf->uses_nearest_sampling() ? "nearest" : "trilinear"},
+          {"axes", "i = lateral, j = depth (axial), k = elevation"}}},
         {"warnings", slice.loaded.warnings},
     };
 }
