@@ -34,37 +34,38 @@ Sources<2> fan_beam(glm::vec2 origin, glm::vec2 direction, float half_angle_deg,
     return out;
 }
 
-Sources<3> parallel_beam_3d(glm::vec3 centre, glm::vec3 direction, float width_mm, int count,
-                            uint32_t line, float energy) {
-    const glm::vec3 d = glm::normalize(direction);
+// count x count particles over a square grid of offsets (u, v) in [-1, 1]^2 about the
+// unit `axis`; `make` turns (axis, b1, b2, u, v) into a particle.
+template <typename Make>
+Sources<3> square_grid(glm::vec3 axis, int count, Make make) {
+    const glm::vec3 d = glm::normalize(axis);
     glm::vec3 b1, b2;
     orthonormal_basis(d, &b1, &b2);
     Sources<3> out;
     for (int j = 0; j < count; ++j) {
-        for (int i = 0; i < count; ++i) {
-            const glm::vec3 p =
-                centre + 0.5f * width_mm * (spread(i, count) * b1 + spread(j, count) * b2);
-            out.push_back({p, d, energy, line});
-        }
+        for (int i = 0; i < count; ++i)
+            out.push_back(make(d, b1, b2, spread(i, count), spread(j, count)));
     }
     return out;
 }
 
+Sources<3> parallel_beam_3d(glm::vec3 centre, glm::vec3 direction, float width_mm, int count,
+                            uint32_t line, float energy) {
+    return square_grid(
+        direction, count, [&](glm::vec3 d, glm::vec3 b1, glm::vec3 b2, float u, float v) {
+            return SourceParticle<3>{centre + 0.5f * width_mm * (u * b1 + v * b2), d, energy, line};
+        });
+}
+
 Sources<3> fan_beam_3d(glm::vec3 origin, glm::vec3 direction, float half_angle_deg, int count,
                        uint32_t line, float energy) {
-    const glm::vec3 d = glm::normalize(direction);
-    glm::vec3 b1, b2;
-    orthonormal_basis(d, &b1, &b2);
-    Sources<3> out;
-    for (int j = 0; j < count; ++j) {
-        for (int i = 0; i < count; ++i) {
-            const float a = glm::radians(half_angle_deg) * spread(i, count);
-            const float b = glm::radians(half_angle_deg) * spread(j, count);
-            out.push_back(
-                {origin, glm::normalize(d + std::tan(a) * b1 + std::tan(b) * b2), energy, line});
-        }
-    }
-    return out;
+    const float half = glm::radians(half_angle_deg);
+    return square_grid(
+        direction, count, [&](glm::vec3 d, glm::vec3 b1, glm::vec3 b2, float u, float v) {
+            return SourceParticle<3>{
+                origin, glm::normalize(d + std::tan(half * u) * b1 + std::tan(half * v) * b2),
+                energy, line};
+        });
 }
 
 }  // namespace sonotrace::simulator

@@ -235,6 +235,38 @@ TEST(Tracer, EnergyLedgerBalancesToOnePartPerMillion) {
     EXPECT_NEAR(map_total, l.absorbed, 1e-6 * l.injected);
 }
 
+TEST(Tracer, RussianRouletteIsUnbiased) {
+    // Homogeneous absorbing column without scattering or interfaces: the only randomness
+    // is roulette. Without it every particle escapes with exp(-2 alpha_Np f L) exactly;
+    // with an aggressive threshold (0.3) the mean escaped energy must equal that within
+    // 3 standard errors (sample variance of 20000 independent particles).
+    AcousticProperties p = medium(1540, 1000);
+    p[Property::attenuation] = 0.5f;
+    const auto map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
+    TraceSettings s = clean_settings();
+    s.absorption = true;
+    s.roulette_energy = 0.3;
+    s.record_paths = 0;
+    Sources<2> src;
+    for (int line = 0; line < 40; ++line) {
+        auto beam = parallel_beam({5.0f, 0.0f}, {0.0f, 1.0f}, 4.0f, 500, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    const double step = s.step_texels * kH;
+    const double exact = std::exp(-2.0 * (0.5 / 8.685889638) * 5.0 *
+                                  (std::floor(60.0 / step + 1e-9) + 1.0) * step / 10.0);
+    // Each particle's escaped energy X lies in [0, 0.3] (a survivor restarts at the
+    // threshold and only decays), so Var(X) <= E[X^2] <= 0.3 E[X]: the standard error of
+    // the mean is at most sqrt(0.3 * exact / n).
+    const auto result = trace(map, src, s);
+    const double n = double(src.size());
+    const double mean = result.ledger.escaped / n;
+    const double sigma = std::sqrt(0.3 * exact / n);
+    EXPECT_NEAR(mean, exact, 3.0 * sigma) << "roulette killed " << result.ledger.roulette_killed;
+    EXPECT_GT(result.ledger.roulette_killed, 0.1 * n * 0.3) << "the test must exercise roulette";
+    EXPECT_NEAR(result.ledger.relative_error(), 0.0, 1e-6);
+}
+
 TEST(Tracer, FibreGuideKeepsEveryParticleAndItsTrackWidth) {
     // Figure 4: parabolic density profile in a bent fibre (core radius 5 mm). No particle
     // may leave the core, and the track's width (largest |offset| from the centreline in

@@ -78,6 +78,7 @@ class AcousticMap {
 
   private:
     std::size_t linear(const IVec& i) const;
+    void locate(const Vec& p_mm, IVec* i0, Vec* f) const;
     static AcousticMap pack(const Volume& refractive_index, const Volume& impedance,
                             const Volume* attenuation, const Volume* backscatter,
                             const Volume* scatterer_density, const Volume* roughness);
@@ -99,6 +100,17 @@ inline std::size_t AcousticMap<Dim>::linear(const IVec& i) const {
     return index;
 }
 
+// The cell corner (clamped so that i0 + 1 stays inside) and the fractional position.
+template <int Dim>
+[[gnu::always_inline]] inline void AcousticMap<Dim>::locate(const Vec& p_mm, IVec* i0,
+                                                            Vec* f) const {
+    for (int a = 0; a < Dim; ++a) {
+        const float x = glm::clamp(p_mm[a] * inverse_spacing_[a], 0.0f, float(dims_[a] - 1));
+        (*i0)[a] = std::min(int(x), dims_[a] - 2);
+        (*f)[a] = x - float((*i0)[a]);
+    }
+}
+
 template <int Dim>
 inline bool AcousticMap<Dim>::inside(const Vec& p_mm) const {
     for (int a = 0; a < Dim; ++a) {
@@ -112,14 +124,9 @@ inline bool AcousticMap<Dim>::inside(const Vec& p_mm) const {
 template <int Dim>
 [[gnu::always_inline]] inline AcousticTexel<Dim> AcousticMap<Dim>::sample(const Vec& p_mm) const {
     constexpr int K = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
-    // Cell corner (clamped so that i0 + 1 stays inside) and fractional position.
     IVec i0;
     Vec f;
-    for (int a = 0; a < Dim; ++a) {
-        const float x = glm::clamp(p_mm[a] * inverse_spacing_[a], 0.0f, float(dims_[a] - 1));
-        i0[a] = std::min(int(x), dims_[a] - 2);
-        f[a] = x - float(i0[a]);
-    }
+    locate(p_mm, &i0, &f);
     // Blend 12 floats per texel as three 4-wide vectors (GCC vector extensions: SSE on
     // x86-64, NEON on ARM).
     typedef float v4 __attribute__((vector_size(16)));
@@ -156,11 +163,7 @@ template <int Dim>
     constexpr int K = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
     IVec i0;
     Vec f;
-    for (int a = 0; a < Dim; ++a) {
-        const float x = glm::clamp(p_mm[a] * inverse_spacing_[a], 0.0f, float(dims_[a] - 1));
-        i0[a] = std::min(int(x), dims_[a] - 2);
-        f[a] = x - float(i0[a]);
-    }
+    locate(p_mm, &i0, &f);
     const float* t = reinterpret_cast<const float*>(texels_.data() + linear(i0));  // n is field 0
     const std::size_t dy = std::size_t(dims_[0]) * K;
     const float lower = (1 - f[1]) * ((1 - f[0]) * t[0] + f[0] * t[K]) +
