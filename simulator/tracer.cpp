@@ -110,6 +110,7 @@ class LineTracer {
         texel_mm_ = map.spacing()[0];
         for (int a = 1; a < Dim; ++a) texel_mm_ = std::min(texel_mm_, map.spacing()[a]);
         step_mm_ = float(settings.step_texels) * texel_mm_;
+        scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
         threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
         for (int a = 0; a < Dim; ++a) inverse_spacing_[a] = 1.0f / map.spacing()[a];
@@ -579,7 +580,6 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     std::atomic<std::size_t> done{0};
     tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
         LineTracer<Dim> tracer(map, settings);
-        tracer.scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
         tracer.run(sources, order, starts[l], starts[l + 1], deposits.local(), outputs[l]);
         if (progress) progress(++done, lines);
     });

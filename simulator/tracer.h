@@ -8,13 +8,16 @@
 //   3. scatter (acoustic mode): when the accumulated optical depth of sub-resolution
 //      scatterers reaches an exponential draw, a scattering echo takes its fraction;
 //   4. interface: where |grad Z| h / Z exceeds the threshold and the particle is not
-//      already inside this interface, the impedances and indices on both sides are
-//      found by marching along the normal to the plateaus, the oblique-incidence
-//      coefficient R^2 (eq. 10) is evaluated, an echo with weight R^2 is recorded
-//      (the monostatic expectation), and the particle reflects with probability R^2
-//      keeping its energy (unbiased), specularly or into the cos^c lobe (eq. 11);
-//   5. refract continuously (eqs. 4-8, corrected): n1 = n0 + s (grad n . r), Snell's
-//      law with eta = n0/n1; total reflection when sin(theta_t) would exceed 1;
+//      already crossing, the plateaus on both sides are found by marching along the
+//      normal. If both exist (a sharp interface) the normal is the gradient summed over
+//      a patch of the transition, an echo with weight R^2 (eq. 10, oblique incidence)
+//      is recorded (the monostatic expectation), and the particle reflects with
+//      probability R^2 keeping its energy (unbiased), specularly or into the cos^c
+//      lobe (eq. 11). Otherwise the medium is graded and only refraction acts;
+//   5. refract (eqs. 5-8, corrected): Snell's law between the index sampled at the
+//      previous step and the one sampled here (not eq. 4's extrapolation, see
+//      tracer.cpp), about the gradient normal (at a sharp interface: the patch
+//      normal); total reflection when sin(theta_t) would exceed 1;
 //   6. move: x += s r, time of flight += s n / c0, path length += s;
 //   7. leave through the domain boundary (perfectly absorbing), the probe face
 //      (captured), or by Russian roulette / path and bounce limits.
