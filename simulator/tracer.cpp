@@ -62,6 +62,20 @@ struct LineOutput {
     TraceStats stats;
 };
 
+// Interface state of a particle (Batch::in_interface).
+// An enum rather than uint8_t: stores through a char type may alias anything, which
+// forced the compiler to reload the whole particle state after each state update.
+enum class InterfaceState : uint16_t {
+    outside,            // flat or gently graded medium
+    crossing,           // transmitting through a sharp interface
+    leaving_reflected,  // reflected; leaves without refracting
+    graded,             // steep but no plateau near: graded medium
+};
+constexpr InterfaceState kOutside = InterfaceState::outside;
+constexpr InterfaceState kCrossing = InterfaceState::crossing;
+constexpr InterfaceState kLeavingAfterReflection = InterfaceState::leaving_reflected;
+constexpr InterfaceState kGraded = InterfaceState::graded;
+
 // Particles of one batch, stored field by field (structure of arrays).
 template <int Dim>
 struct Batch {
@@ -72,9 +86,9 @@ struct Batch {
     std::array<float, kSize> previous_index;  // n sampled at the previous step's position
     std::array<double, kSize> time, path_length;
     std::array<uint16_t, kSize> bounces;
-    std::array<uint8_t, kSize> in_interface;
-    std::array<uint8_t, kSize> graded_steps;  // steps since the last interface check in kGraded
-    std::array<V, kSize> interface_normal;    // normal of the interface being crossed
+    std::array<InterfaceState, kSize> in_interface;
+    std::array<uint16_t, kSize> graded_steps;  // steps since the last interface check in kGraded
+    std::array<V, kSize> interface_normal;     // normal of the interface being crossed
     std::array<uint32_t, kSize> particle;
     std::array<int, kSize> path;  // index into LineOutput::paths or -1
     std::array<RandomStream, kSize> random;
@@ -92,12 +106,6 @@ struct Batch {
         particle[k] = particle[last], path[k] = path[last], random[k] = random[last];
     }
 };
-
-// Interface state of a particle (Batch::in_interface).
-constexpr uint8_t kOutside = 0;                 // flat or gently graded medium
-constexpr uint8_t kCrossing = 1;                // transmitting through a sharp interface
-constexpr uint8_t kLeavingAfterReflection = 2;  // reflected; leaves without refracting
-constexpr uint8_t kGraded = 3;                  // steep but no plateau near: graded medium
 
 template <int Dim>
 class LineTracer {
@@ -132,6 +140,8 @@ class LineTracer {
                 emit(sources[order[next]], uint32_t(next - begin), batch);
                 ++next;
             }
+            // Lockstep over the batch. (Running each particle to its end instead measured
+            // the same within noise: 36 vs 43 M steps/s synthetic, 19 vs 17 M Colin27.)
             for (int k = 0; k < batch.count;) {
                 if (step(batch, k))
                     ++k;
@@ -241,7 +251,7 @@ class LineTracer {
     // a graded medium. Returns true if the particle reflected. Rare: kept out of line.
     [[gnu::noinline]] bool enter_interface(Batch<Dim>& b, int k, const V& x, const Texel& t, V& r,
                                            float& E) {
-        uint8_t& state = b.in_interface[k];
+        InterfaceState& state = b.in_interface[k];
         V normal(0.0f);
         for (int a = 0; a < Dim; ++a) normal[a] = t.grad_impedance[a];
         normal = glm::normalize(normal);
@@ -388,7 +398,7 @@ class LineTracer {
         // -- interface: a sharp interface is crossed as a whole (one decision, one normal).
         // Squared comparisons of |grad Z| h / Z: no root or division on the common path.
         bool reflected = false;
-        uint8_t& state = b.in_interface[k];
+        InterfaceState& state = b.in_interface[k];
         float gz2 = 0.0f;
         for (int a = 0; a < Dim; ++a) gz2 += t.grad_impedance[a] * t.grad_impedance[a];
         const float scale2 = t.impedance * t.impedance * inverse_texel2_;
