@@ -12,10 +12,23 @@
 
 namespace sonotrace::ui {
 
+namespace {
+bool stage_line_open = false;  // a "sonotrace: <stage> ..." line awaits its time
+}  // namespace
+
+void StageTimer::break_line() {
+    if (stage_line_open) std::fputc('\n', stderr);
+    stage_line_open = false;
+}
+
 void StageTimer::begin(const std::string& stage) {
     stage_ = stage;
     start_ = std::chrono::steady_clock::now();
-    if (!quiet_) std::fprintf(stderr, "sonotrace: %s ...", stage.c_str()), std::fflush(stderr);
+    if (!quiet_) {
+        std::fprintf(stderr, "sonotrace: %s ...", stage.c_str());
+        std::fflush(stderr);
+        stage_line_open = true;
+    }
 }
 
 void StageTimer::end() {
@@ -23,6 +36,7 @@ void StageTimer::end() {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     timings_[stage_] = seconds;
     if (!quiet_) std::fprintf(stderr, " %.2f s\n", seconds);
+    stage_line_open = false;
 }
 
 void ProgressBar::update(std::size_t done, std::size_t total) {

@@ -35,6 +35,8 @@ class StageTimer {
     explicit StageTimer(bool quiet) : quiet_(quiet) {}
     void begin(const std::string& stage);
     void end();
+    // Ends an unfinished progress line (before an error message is printed).
+    static void break_line();
     const nlohmann::json& timings() const { return timings_; }  // seconds per stage
 
   private:

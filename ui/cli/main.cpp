@@ -33,9 +33,11 @@ int main(int argc, char** argv) {
         if (tissue_cmd->parsed()) return ui::run_tissue_command(tissue_options);
         if (trace_cmd->parsed()) return ui::run_trace_command(trace_options);
     } catch (const tissue::InputError& e) {
+        ui::StageTimer::break_line();
         std::cerr << "sonotrace: error: " << e.what() << "\n";
         return 1;
     } catch (const std::exception& e) {
+        ui::StageTimer::break_line();
         std::cerr << "sonotrace: internal error: " << e.what() << "\n";
         return 3;
     }
