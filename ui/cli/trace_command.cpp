@@ -95,6 +95,14 @@ void apply_disable(const std::string& disable, simulator::TraceSettings& s) {
     }
 }
 
+// Options that apply to built-in configurations and volume slices alike.
+void apply_integration_options(const TraceOptions& o, simulator::TraceSettings& s) {
+    s.seed = o.seed;
+    s.step_texels = o.step_texels;
+    s.frequency_mhz = o.frequency_mhz;
+    if (o.lobe_scale >= 0.0) s.lobe_scale = o.lobe_scale;
+}
+
 // Physics switches and enums from their option text.
 void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
     if (o.mode == "paper")
@@ -121,10 +129,7 @@ void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
         s.lobe_weight = simulator::LobeWeight::energy;
     else if (!o.lobe_weight.empty())
         throw tissue::InputError("--lobe-weight", "", "must be probability or energy");
-    if (o.lobe_scale >= 0.0) s.lobe_scale = o.lobe_scale;
-    s.step_texels = o.step_texels;
-    s.frequency_mhz = o.frequency_mhz;
-    s.seed = o.seed;
+    apply_integration_options(o, s);
     if (s.max_bounces != 1) s.max_bounces = o.max_bounces;
 }
 
@@ -255,10 +260,7 @@ int run_trace_command(const TraceOptions& options) {
         // Only explicitly given options override the configuration's physics.
         simulator::TraceSettings& s = scene.settings;
         apply_disable(options.disable, s);
-        s.seed = options.seed;
-        s.step_texels = options.step_texels;
-        s.frequency_mhz = options.frequency_mhz;
-        if (options.lobe_scale >= 0.0) s.lobe_scale = options.lobe_scale;
+        apply_integration_options(options, s);
     } else {
         const Slice slice = make_slice(options.slice, timer);
         scene = volume_scene(options, slice);
