@@ -74,6 +74,16 @@ struct TraceStats {
     TraceStats& operator+=(const TraceStats& o);
 };
 
+// Track-length scatter echo per line and echo-time bin (TraceSettings::echo_profile).
+template <int Dim>
+struct EchoProfile {
+    int lines = 0, bins = 0;
+    double bin_s = 0.0;
+    std::vector<float> intensity;               // [line * bins + bin], energy units
+    std::vector<glm::vec<Dim, float>> position;  // intensity-weighted mean position (mm, map)
+    float at(int line, int bin) const { return intensity[std::size_t(line) * bins + bin]; }
+};
+
 template <int Dim>
 struct TraceResult {
     std::vector<EchoEvent<Dim>> echoes;  // by line, then particle, then time of the event
@@ -81,6 +91,7 @@ struct TraceResult {
     tissue::Volume absorbed;  // energy absorbed per texel: the deposition map
     std::vector<Path<Dim>> paths;
     std::vector<double> ring_profile;  // energy per ring bin, if a ring detector was set
+    EchoProfile<Dim> echo_profile;     // lines = highest line id + 1, if requested
     EnergyLedger ledger;
     TraceStats stats;
 };

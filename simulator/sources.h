@@ -6,18 +6,12 @@
 
 #include <glm/glm.hpp>
 
+#include "probe/source_particle.h"
+
 namespace sonotrace::simulator {
 
-template <int Dim>
-struct SourceParticle {
-    glm::vec<Dim, float> position;   // mm, map frame
-    glm::vec<Dim, float> direction;  // unit
-    float energy = 1.0f;
-    uint32_t line = 0;  // scan line that emitted it
-};
-
-template <int Dim>
-using Sources = std::vector<SourceParticle<Dim>>;
+using probe::SourceParticle;
+using probe::Sources;
 
 // `count` particles spread evenly across a segment of `width_mm` centred on `centre`,
 // all travelling along `direction` (2D: the segment is perpendicular to it).

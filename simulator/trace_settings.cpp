@@ -46,6 +46,10 @@ void TraceSettings::validate(const std::string& source) const {
     in_range(record_paths, 0, 1000000, "record-paths");
     if (probe_face_2d) in_range(probe_face_2d->reflectivity, 0.0, 1.0, "probe-face.reflectivity");
     if (probe_face_3d) in_range(probe_face_3d->reflectivity, 0.0, 1.0, "probe-face.reflectivity");
+    if (echo_profile) {
+        in_range(echo_profile->bin_s, 1e-10, 1e-3, "echo-profile.bin");
+        in_range(echo_profile->bins, 1, 1 << 20, "echo-profile.bins");
+    }
     if (ring) {
         in_range(ring->radius_mm, 1e-3, 1e6, "ring.radius");
         in_range(ring->bins, 1, 100000, "ring.bins");

@@ -35,6 +35,10 @@ struct ProbeFace {
     glm::vec<Dim, float> normal{0.0f};  // unit, pointing into the tissue
     float half_width_mm = 0.0f;         // lateral half aperture
     float half_height_mm = 0.0f;        // elevation half aperture (3D)
+    // 2D: radius of curvature of a convex face (0 = flat). The face is then the arc of
+    // that radius through `centre`, bulging along `normal`, with half_width_mm of arc
+    // length on either side.
+    float radius_mm = 0.0f;
     float reflectivity = 0.0f;          // intensity fraction the face reflects (0..1)
 };
 
@@ -47,6 +51,16 @@ struct RingDetector {
     int bins = 90;
     glm::vec2 zero_direction{1.0f, 0.0f};  // unit, angle 0
     glm::vec2 up{0.0f, -1.0f};             // unit, angle 90 degrees (map rows run downwards)
+};
+
+// The track-length estimate of the echo that sub-resolution scattering sends back, per
+// scan line and echo-time bin: at every step a particle adds its expected scattered
+// intensity (energy * rate * step * fraction, times its two-way loss E/E0 and receive
+// weight) to the bin of twice its time of flight, with the position it came from. It
+// has far less variance than the scattering events themselves, which still happen.
+struct EchoProfileSettings {
+    double bin_s = 5e-8;  // echo-time bin width (s)
+    int bins = 0;         // bins per line (echo times beyond are dropped)
 };
 
 struct TraceSettings {
@@ -75,6 +89,8 @@ struct TraceSettings {
 
     int record_paths = 0;  // particles per line whose paths are kept as polylines
     bool record_scatter_echoes = true;
+
+    std::optional<EchoProfileSettings> echo_profile;
 
     // Set by the caller in the map frame; optional.
     std::optional<ProbeFace<2>> probe_face_2d;

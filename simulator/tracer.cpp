@@ -68,6 +68,8 @@ struct LineOutput {
     std::vector<EchoEvent<Dim>> echoes;
     std::vector<Path<Dim>> paths;
     std::vector<double> ring;
+    std::vector<float> profile;                        // echo profile bins of this line
+    std::vector<glm::vec<Dim, float>> profile_moment;  // intensity * position per bin
     EnergyLedger ledger;
     TraceStats stats;
 };
@@ -93,6 +95,7 @@ struct Batch {
     using V = Vec<Dim>;
     std::array<V, kSize> position, direction;
     std::array<float, kSize> energy, initial_energy, optical_depth, scatter_target;
+    std::array<float, kSize> receive_weight;
     std::array<float, kSize> previous_index;  // n sampled at the previous step's position
     // Deposits gather per particle while it stays in one texel (2-3 steps at the default
     // step), then go to the map in one write: the map writes were cache misses.
@@ -112,6 +115,7 @@ struct Batch {
         const int last = --count;
         position[k] = position[last], direction[k] = direction[last];
         energy[k] = energy[last], initial_energy[k] = initial_energy[last];
+        receive_weight[k] = receive_weight[last];
         optical_depth[k] = optical_depth[last], scatter_target[k] = scatter_target[last];
         previous_index[k] = previous_index[last];
         pending_texel[k] = pending_texel[last];
@@ -135,6 +139,8 @@ class LineTracer {
         for (int a = 1; a < Dim; ++a) texel_mm_ = std::min(texel_mm_, map.spacing()[a]);
         step_mm_ = float(settings.step_texels) * texel_mm_;
         scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
+        profile_enabled_ = settings.echo_profile.has_value();
+        if (profile_enabled_) inverse_profile_bin_ = 1.0 / settings.echo_profile->bin_s;
         threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
         for (int a = 0; a < Dim; ++a) inverse_spacing_[a] = 1.0f / map.spacing()[a];
@@ -148,6 +154,10 @@ class LineTracer {
         deposits_ = &deposits;
         out_ = &out;
         if (settings_.ring) out.ring.assign(std::size_t(settings_.ring->bins), 0.0);
+        if (settings_.echo_profile) {
+            out.profile.assign(std::size_t(settings_.echo_profile->bins), 0.0f);
+            out.profile_moment.assign(out.profile.size(), V(0.0f));
+        }
         Batch<Dim> batch;
         std::size_t next = begin;
         while (next < end || batch.count > 0) {
@@ -186,7 +196,9 @@ class LineTracer {
         b.previous_index[k] = map_.sample_refractive_index(s.position);
         b.pending_texel[k] = uint32_t(texel_index(s.position));
         b.pending_fluence[k] = b.pending_absorbed[k] = 0.0f;
-        b.time[k] = b.path_length[k] = 0.0;
+        b.receive_weight[k] = s.receive_weight;
+        b.time[k] = double(s.time_s);
+        b.path_length[k] = 0.0;
         b.bounces[k] = 0;
         b.in_interface[k] = kOutside;
         b.graded_steps[k] = 0;
@@ -198,6 +210,20 @@ class LineTracer {
             b.path[k] = int(out_->paths.size());
             out_->paths.push_back({s.line, index, {{s.position, s.energy}}});
         }
+    }
+
+    // Track-length estimate of the scattered echo of this step (EchoProfileSettings).
+    void add_to_profile(const Batch<Dim>& b, int k, const V& x, float E, float backscatter) {
+        const double echo_time = 2.0 * b.time[k];
+        if (!(echo_time >= 0.0)) return;
+        const double bin = echo_time * inverse_profile_bin_;
+        if (bin >= double(out_->profile.size())) return;
+        const float rate = float(settings_.scattering_rate_per_mm) * backscatter * step_mm_;
+        const float fraction = float(settings_.scatter_echo_fraction) * backscatter;
+        const float two_way = E / b.initial_energy[k];
+        const float intensity = E * rate * fraction * two_way * b.receive_weight[k];
+        out_->profile[std::size_t(bin)] += intensity;
+        out_->profile_moment[std::size_t(bin)] += intensity * x;
     }
 
     void flush_deposits(Batch<Dim>& b, int k) {
@@ -414,6 +440,7 @@ class LineTracer {
 
         // -- sub-resolution scattering: event when the optical depth reaches the draw
         if (scatter_enabled_ && t.backscatter > 0.0f) {
+            if (profile_enabled_) add_to_profile(b, k, x, E, t.backscatter);
             b.optical_depth[k] += float(settings_.scattering_rate_per_mm) * t.backscatter * s;
             if (b.optical_depth[k] >= b.scatter_target[k]) {
                 const float fraction = float(settings_.scatter_echo_fraction) * t.backscatter;
@@ -484,15 +511,13 @@ class LineTracer {
 
         // -- the probe face captures what comes back through it
         if (const auto* face = probe_face()) {
-            const float before = glm::dot(from - face->centre, face->normal);
-            const float after = glm::dot(x - face->centre, face->normal);
-            if (before >= 0.0f && after < 0.0f && within_aperture(*face, x)) {
+            if (crosses_face(*face, from, x)) {
                 stats.captured++;
                 const float kept = E * face->reflectivity;
                 record_echo(b, k, x, E, 1.0f - face->reflectivity, EchoKind::returned_to_probe);
                 ledger.recorded += double(E) - kept;
                 E = kept;
-                r = reflect<Dim>(r, face->normal);
+                r = reflect<Dim>(r, face_normal_at(*face, x));
                 x = from;  // stay in the tissue
                 b.bounces[k]++;
             }
@@ -550,6 +575,34 @@ class LineTracer {
             return settings_.probe_face_3d ? &*settings_.probe_face_3d : nullptr;
     }
 
+    // True if the step from -> to enters the face from the tissue side within its aperture.
+    static bool crosses_face(const ProbeFace<Dim>& face, const V& from, const V& to) {
+        if constexpr (Dim == 2) {
+            if (face.radius_mm > 0.0f) {  // convex arc: from outside its circle to inside
+                const V centre = face.centre - face.normal * face.radius_mm;
+                const float r2 = face.radius_mm * face.radius_mm;
+                const V rel = to - centre;
+                if (!(glm::dot(from - centre, from - centre) >= r2 && glm::dot(rel, rel) < r2))
+                    return false;
+                const float angle = std::atan2(std::abs(face.normal.x * rel.y - face.normal.y * rel.x),
+                                               glm::dot(face.normal, rel));
+                return angle * face.radius_mm <= face.half_width_mm;
+            }
+        }
+        const float before = glm::dot(from - face.centre, face.normal);
+        const float after = glm::dot(to - face.centre, face.normal);
+        return before >= 0.0f && after < 0.0f && within_aperture(face, to);
+    }
+
+    static V face_normal_at(const ProbeFace<Dim>& face, const V& x) {
+        if constexpr (Dim == 2) {
+            if (face.radius_mm > 0.0f)
+                return glm::normalize(x - (face.centre - face.normal * face.radius_mm));
+        }
+        (void)x;
+        return face.normal;
+    }
+
     static bool within_aperture(const ProbeFace<Dim>& face, const V& x) {
         const V offset = x - face.centre;
         if constexpr (Dim == 2) {
@@ -564,7 +617,7 @@ class LineTracer {
     }
 
   public:
-    bool scatter_enabled_ = false;
+    bool scatter_enabled_ = false, profile_enabled_ = false;
 
   private:
     const tissue::AcousticMap<Dim>& map_;
@@ -572,6 +625,7 @@ class LineTracer {
     float texel_mm_ = 1.0f, step_mm_ = 0.5f, attenuation_per_mm_ = 0.0f, seconds_per_mm_ = 0.0f;
     V inverse_spacing_{};
     float threshold2_ = 0.0f, inverse_texel2_ = 1.0f;
+    double inverse_profile_bin_ = 0.0;
     DepositMaps* deposits_ = nullptr;
     LineOutput<Dim>* out_ = nullptr;
     uint32_t line_ = 0;
@@ -641,6 +695,25 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         result.absorbed.voxels()[i] = float(double(absorbed[i]) / kFixedScale);
     }
     if (settings.ring) result.ring_profile.assign(std::size_t(settings.ring->bins), 0.0);
+    if (settings.echo_profile) {
+        // Lines are numbered by id; ids without particles keep empty rows.
+        uint32_t max_line = 0;
+        for (const auto& s : sources) max_line = std::max(max_line, s.line);
+        EchoProfile<Dim>& p = result.echo_profile;
+        p.lines = sources.empty() ? 0 : int(max_line) + 1;
+        p.bins = settings.echo_profile->bins;
+        p.bin_s = settings.echo_profile->bin_s;
+        p.intensity.assign(std::size_t(p.lines) * std::size_t(p.bins), 0.0f);
+        p.position.assign(p.intensity.size(), Vec<Dim>(0.0f));
+        for (std::size_t l = 0; l < lines; ++l) {
+            const std::size_t row = std::size_t(sources[order[starts[l]]].line) * std::size_t(p.bins);
+            for (int i = 0; i < p.bins; ++i) {
+                const float w = outputs[l].profile[std::size_t(i)];
+                p.intensity[row + std::size_t(i)] = w;
+                if (w > 0.0f) p.position[row + std::size_t(i)] = outputs[l].profile_moment[std::size_t(i)] / w;
+            }
+        }
+    }
     for (LineOutput<Dim>& o : outputs) {
         // Batches interleave particles; order each line's echoes by particle, then time.
         std::stable_sort(o.echoes.begin(), o.echoes.end(),

@@ -6,6 +6,7 @@
 #include "sonotrace_version.h"
 #include "tissue/error.h"
 #include "ui/cli/tissue_command.h"
+#include "ui/cli/simulate_command.h"
 #include "ui/cli/trace_command.h"
 
 int main(int argc, char** argv) {
@@ -23,6 +24,8 @@ int main(int argc, char** argv) {
     CLI::App* tissue_cmd = ui::add_tissue_command(app, tissue_options);
     ui::TraceOptions trace_options;
     CLI::App* trace_cmd = ui::add_trace_command(app, trace_options);
+    ui::SimulateOptions simulate_options;
+    CLI::App* simulate_cmd = ui::add_simulate_command(app, simulate_options);
 
     try {
         app.parse(argc, argv);
@@ -32,6 +35,7 @@ int main(int argc, char** argv) {
     try {
         if (tissue_cmd->parsed()) return ui::run_tissue_command(tissue_options);
         if (trace_cmd->parsed()) return ui::run_trace_command(trace_options);
+        if (simulate_cmd->parsed()) return ui::run_simulate_command(simulate_options);
     } catch (const tissue::InputError& e) {
         ui::StageTimer::break_line();
         std::cerr << "sonotrace: error: " << e.what() << "\n";

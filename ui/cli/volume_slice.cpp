@@ -55,15 +55,21 @@ json geometry_json(const tissue::VolumeGeometry& g) {
             {"direction", direction}};
 }
 
-// Default pose for a non-default volume: on the top face of the bounding box, centred,
-// beam along +j (image rows run downwards), lateral along +i.
+}  // namespace
+
 probe::Pose top_centre_pose(const tissue::VolumeGeometry& g) {
     const glm::dvec3 centre = glm::dvec3(g.dims - 1) * 0.5;
     const glm::dvec3 top = g.index_to_world({centre.x, -0.5, centre.z});
     return probe::Pose::looking(top, g.direction[1], g.direction[0]);
 }
 
-}  // namespace
+void add_volume_options(CLI::App& cmd, SliceOptions& options) {
+    add_parameter(cmd, kVolumeDoc, options.volume);
+    add_parameter(cmd, kSpacingDoc, options.spacing);
+    add_parameter(cmd, kTfDoc, options.tf);
+    add_parameter(cmd, kPoseDoc, options.pose);
+    add_parameter(cmd, kOutsideDoc, options.outside);
+}
 
 void add_slice_options(CLI::App& cmd, SliceOptions& options, bool with_elevation) {
     add_parameter(cmd, kVolumeDoc, options.volume);
@@ -77,11 +83,9 @@ void add_slice_options(CLI::App& cmd, SliceOptions& options, bool with_elevation
     add_parameter(cmd, kOutsideDoc, options.outside);
 }
 
-Slice make_slice(const SliceOptions& options, StageTimer& timer) {
-    Slice slice;
-    const bool is_default = options.volume == tissue::kDefaultVolumeName;
-
-    // ---- validate every parameter before loading anything heavy ----
+VolumeSource load_volume_source(const SliceOptions& options, StageTimer& timer) {
+    VolumeSource source;
+    source.is_default = options.volume == tissue::kDefaultVolumeName;
     tissue::VolumeRequest request{options.volume, std::nullopt};
     if (!options.spacing.empty()) {
         double s[3];
@@ -89,6 +93,40 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
             throw tissue::InputError("--spacing", "", *error);
         request.image_spacing = glm::dvec3(s[0], s[1], s[2]);
     }
+    if (!std::isnan(options.outside) && !std::isfinite(options.outside)) {
+        throw tissue::InputError("--outside", "", "must be finite");
+    }
+    const std::string tf_spec = !options.tf.empty()
+                                    ? options.tf
+                                    : (source.is_default ? "mri-t1-head" : "generic-soft-tissue");
+    timer.begin("transfer function " + tf_spec);
+    source.tf = tissue::load_transfer_function(tf_spec);
+    timer.end();
+
+    timer.begin("loading " + options.volume);
+    source.loaded = tissue::load_volume(request);
+    timer.end();
+    for (const auto& w : source.loaded.warnings) std::cerr << "sonotrace: warning: " << w << "\n";
+    const auto [vmin, vmax] = source.loaded.volume.value_range();
+    source.outside = std::isnan(options.outside) ? vmin : float(options.outside);
+    source.value_min = vmin;
+    source.value_max = vmax;
+    timer.begin("binding the transfer function to the volume");
+    source.tf->bind(source.loaded.volume);
+    timer.end();
+    return source;
+}
+
+tissue::Volume VolumeSource::resample(const tissue::VolumeGeometry& grid) const {
+    tissue::check_allocation(double(grid.voxel_count()) * 4.0 * 24.0, "--resolution",
+                             "grid of " + std::to_string(grid.voxel_count()) + " samples");
+    const auto interpolation = tf->uses_nearest_sampling() ? tissue::Interpolation::nearest
+                                                           : tissue::Interpolation::trilinear;
+    return tissue::resample(loaded.volume, grid, interpolation, outside);
+}
+
+Slice make_slice(const SliceOptions& options, StageTimer& timer) {
+    // ---- validate every parameter before loading anything heavy ----
     auto nonnegative = [](double v, const char* flag) {
         if (!(std::isfinite(v) && v >= 0.0)) {
             throw tissue::InputError(flag, "",
@@ -101,59 +139,56 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     if (!(std::isfinite(options.resolution_mm) && options.resolution_mm > 0.0)) {
         throw tissue::InputError("--resolution", "", "must be a positive number of mm per pixel");
     }
-    if (!std::isnan(options.outside) && !std::isfinite(options.outside)) {
-        throw tissue::InputError("--outside", "", "must be finite");
-    }
     std::optional<probe::Pose> pose;
     if (options.pose != "default") pose = probe::parse_pose(options.pose, "--pose");
-    const std::string tf_spec =
-        !options.tf.empty() ? options.tf : (is_default ? "mri-t1-head" : "generic-soft-tissue");
-    timer.begin("transfer function " + tf_spec);
-    slice.tf = tissue::load_transfer_function(tf_spec);
-    timer.end();
 
-    // ---- load ----
-    timer.begin("loading " + options.volume);
-    slice.loaded = tissue::load_volume(request);
-    timer.end();
-    for (const auto& w : slice.loaded.warnings) std::cerr << "sonotrace: warning: " << w << "\n";
-    const tissue::Volume& volume = slice.loaded.volume;
-    const auto [vmin, vmax] = volume.value_range();
-    const float outside = std::isnan(options.outside) ? vmin : float(options.outside);
+    VolumeSource source = load_volume_source(options, timer);
+    const tissue::Volume& volume = source.loaded.volume;
 
     // ---- grid under the probe ----
     if (!pose)
-        pose = is_default ? probe::colin27_temporal_pose() : top_centre_pose(volume.geometry());
+        pose = source.is_default ? probe::colin27_temporal_pose()
+                                 : top_centre_pose(volume.geometry());
     tissue::GridExtent extent;
     const glm::dvec3 size_mm = glm::dvec3(volume.dims()) * volume.geometry().spacing;
-    extent.width_mm = options.width_mm > 0 ? options.width_mm : (is_default ? 140.0 : size_mm.x);
-    extent.depth_mm = options.depth_mm > 0 ? options.depth_mm : (is_default ? 160.0 : size_mm.y);
+    extent.width_mm =
+        options.width_mm > 0 ? options.width_mm : (source.is_default ? 140.0 : size_mm.x);
+    extent.depth_mm =
+        options.depth_mm > 0 ? options.depth_mm : (source.is_default ? 160.0 : size_mm.y);
     extent.elevation_mm = options.elevation_mm;
     extent.pixel_mm = options.resolution_mm;
     const tissue::VolumeGeometry grid =
         tissue::probe_grid(pose->frame(), extent, "--width/--depth/--resolution");
-    tissue::check_allocation(double(grid.voxel_count()) * 4.0 * 24.0, "--resolution",
-                             "grid of " + std::to_string(grid.voxel_count()) + " samples");
 
-    timer.begin("binding the transfer function to the volume");
-    slice.tf->bind(volume);
-    timer.end();
+    Slice slice;
     timer.begin("resampling " + std::to_string(grid.dims.x) + "x" + std::to_string(grid.dims.y) +
                 "x" + std::to_string(grid.dims.z) + " samples");
-    const auto interpolation = slice.tf->uses_nearest_sampling() ? tissue::Interpolation::nearest
-                                                                 : tissue::Interpolation::trilinear;
-    slice.values = tissue::resample(volume, grid, interpolation, outside);
+    slice.values = source.resample(grid);
     timer.end();
     timer.begin("classifying");
-    slice.maps = tissue::classify(slice.values, *slice.tf);
+    slice.maps = tissue::classify(slice.values, *source.tf);
     timer.end();
+    slice.loaded = std::move(source.loaded);
+    slice.tf = std::move(source.tf);
     slice.pose = *pose;
     slice.extent = extent;
     slice.grid = grid;
-    slice.outside = outside;
-    slice.value_min = vmin;
-    slice.value_max = vmax;
+    slice.outside = source.outside;
+    slice.value_min = source.value_min;
+    slice.value_max = source.value_max;
     return slice;
+}
+
+json volume_source_json(const VolumeSource& source, const SliceOptions& options) {
+    return {{"volume",
+             {{"spec", options.volume},
+              {"path", source.loaded.path},
+              {"format", source.loaded.format},
+              {"geometry", geometry_json(source.loaded.volume.geometry())},
+              {"value_range", {source.value_min, source.value_max}},
+              {"outside_value", source.outside}}},
+            {"transfer_function", source.tf->describe()},
+            {"warnings", source.loaded.warnings}};
 }
 
 json slice_json(const Slice& slice, const SliceOptions& options) {

@@ -29,6 +29,31 @@ struct SliceOptions {
 };
 
 void add_slice_options(CLI::App& cmd, SliceOptions& options, bool with_elevation);
+// Only the volume options: --volume, --spacing, --tf, --pose, --outside.
+void add_volume_options(CLI::App& cmd, SliceOptions& options);
+
+// Default pose for a volume other than the embedded head: on the top face of its
+// bounding box, centred, beam along +j, lateral along +i.
+probe::Pose top_centre_pose(const tissue::VolumeGeometry& g);
+
+// A loaded volume with its transfer function bound to it.
+struct VolumeSource {
+    tissue::LoadedVolume loaded;
+    std::unique_ptr<tissue::TransferFunction> tf;
+    bool is_default = false;  // the embedded Colin27 head
+    float outside = 0.0f;     // value assumed outside the volume
+    float value_min = 0.0f, value_max = 0.0f;
+
+    // Resamples the volume on `grid` (trilinear, or nearest for label maps).
+    tissue::Volume resample(const tissue::VolumeGeometry& grid) const;
+};
+
+// Validates the volume options (--volume, --spacing, --tf, --outside), loads the volume
+// and binds the transfer function.
+VolumeSource load_volume_source(const SliceOptions& options, StageTimer& timer);
+
+// The volume-related part of a sidecar.
+nlohmann::json volume_source_json(const VolumeSource& source, const SliceOptions& options);
 
 struct Slice {
     tissue::LoadedVolume loaded;

@@ -1,0 +1,299 @@
+#include "imaging/bmode.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <opencv2/core.hpp>
+
+#include "tissue/acoustic_map.h"
+
+namespace sonotrace::imaging {
+
+namespace {
+
+constexpr double kFwhmPerSigma = 2.3548200450309493;  // 2 sqrt(2 ln 2)
+constexpr double kC0 = tissue::kReferenceSpeed;       // m/s
+
+uint64_t mix(uint64_t x) {  // splitmix64 finaliser
+    x += 0x9e3779b97f4a7c15ull;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+    return x ^ (x >> 31);
+}
+
+// Gaussian kernel of `sigma` samples, sum 1.
+std::vector<float> gaussian_kernel(double sigma) {
+    const int half = std::max(1, int(std::ceil(3.0 * sigma)));
+    std::vector<float> k(std::size_t(2 * half + 1));
+    double sum = 0.0;
+    for (int i = -half; i <= half; ++i)
+        sum += k[std::size_t(i + half)] = float(std::exp(-0.5 * i * i / (sigma * sigma)));
+    for (float& v : k) v = float(v / sum);
+    return k;
+}
+
+// out = in (*) kernel (centred), zero outside.
+void convolve(const float* in, int n, const std::vector<float>& kernel, float* out) {
+    const int half = int(kernel.size() / 2);
+    for (int i = 0; i < n; ++i) {
+        const int lo = std::max(0, i - half), hi = std::min(n - 1, i + half);
+        float sum = 0.0f;
+        for (int j = lo; j <= hi; ++j) sum += in[j] * kernel[std::size_t(j - i + half)];
+        out[i] = sum;
+    }
+}
+
+}  // namespace
+
+double Pulse::sigma_s() const {
+    const double sigma_f = bandwidth * frequency_hz / kFwhmPerSigma;
+    return 1.0 / (2.0 * std::numbers::pi * sigma_f);
+}
+double Pulse::envelope_fwhm_s() const {
+    return kFwhmPerSigma * sigma_s();
+}
+double Pulse::axial_fwhm_mm() const {
+    return 0.5 * kC0 * envelope_fwhm_s() * 1e3;
+}
+double Pulse::operator()(double t) const {
+    const double s = sigma_s();
+    return std::exp(-0.5 * t * t / (s * s)) * std::cos(2.0 * std::numbers::pi * frequency_hz * t);
+}
+
+double tgc_gain_db(const std::vector<TgcPoint>& curve, double depth_mm) {
+    if (curve.empty()) return 0.0;
+    if (depth_mm <= curve.front().depth_mm) return curve.front().gain_db;
+    for (std::size_t i = 1; i < curve.size(); ++i) {
+        if (depth_mm <= curve[i].depth_mm) {
+            const TgcPoint &a = curve[i - 1], &b = curve[i];
+            const double t = (depth_mm - a.depth_mm) / std::max(b.depth_mm - a.depth_mm, 1e-12);
+            return a.gain_db + t * (b.gain_db - a.gain_db);
+        }
+    }
+    return curve.back().gain_db;
+}
+
+float log_compress(float envelope, double gain_db, double dynamic_range_db) {
+    if (!(envelope > 0.0f)) return 0.0f;
+    const double db = 20.0 * std::log10(double(envelope)) + gain_db;
+    return float(std::clamp((db + dynamic_range_db) / dynamic_range_db, 0.0, 1.0));
+}
+
+double LineData::depth_mm(int i) const {
+    return 0.5 * kC0 * (double(i) / fs_hz) * 1e3;
+}
+
+LineData rf_layout(const probe::Transducer& t, const ImagingSettings& settings) {
+    LineData d;
+    d.lines = t.lines;
+    d.fs_hz = (settings.sampling_mhz > 0.0 ? settings.sampling_mhz : 8.0 * t.frequency_mhz) * 1e6;
+    d.samples = int(std::ceil(2.0 * t.depth_mm * 1e-3 / kC0 * d.fs_hz)) + 1;
+    return d;
+}
+
+ScattererField::ScattererField(uint64_t seed, double cell_mm)
+    : seed_(mix(seed ^ 0x73636174ull)), inverse_cell_(1.0 / cell_mm) {}
+
+float ScattererField::lattice(int64_t i, int64_t j, int64_t k) const {
+    const uint64_t h = mix(mix(mix(seed_ ^ uint64_t(i)) ^ uint64_t(j)) ^ uint64_t(k));
+    // Uniform on [-sqrt 3, sqrt 3]: zero mean, unit variance.
+    return float((double(h >> 11) * 0x1.0p-53 * 2.0 - 1.0) * std::numbers::sqrt3);
+}
+
+float ScattererField::operator()(const glm::dvec3& world_mm) const {
+    const glm::dvec3 p = world_mm * inverse_cell_;
+    const glm::dvec3 base = glm::floor(p);
+    const glm::dvec3 f = p - base;
+    const int64_t i = int64_t(base.x), j = int64_t(base.y), k = int64_t(base.z);
+    float v = 0.0f;
+    for (int c = 0; c < 8; ++c) {
+        const int di = c & 1, dj = (c >> 1) & 1, dk = c >> 2;
+        const double w = (di ? f.x : 1.0 - f.x) * (dj ? f.y : 1.0 - f.y) * (dk ? f.z : 1.0 - f.z);
+        v += float(w) * lattice(i + di, j + dj, k + dk);
+    }
+    // Trilinear blending of independent values has mean square prod((1-f)^2 + f^2),
+    // 8/27 on average over a cell: rescale to 1.
+    return v * float(std::sqrt(27.0 / 8.0));
+}
+
+LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
+                       const std::vector<simulator::EchoEvent<2>>& events,
+                       const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
+                       const ImagingSettings& settings) {
+    LineData rf = rf_layout(t, settings);
+    const int L = rf.lines, N = rf.samples;
+    const double fs = rf.fs_hz;
+    const Pulse pulse{t.frequency_mhz * 1e6, t.bandwidth};
+
+    // Particle (line, index within line) -> source, for energies and receive weights.
+    std::vector<std::vector<uint32_t>> of_line(static_cast<std::size_t>(L));
+    for (std::size_t s = 0; s < sources.size(); ++s) {
+        if (sources[s].line < uint32_t(L)) of_line[sources[s].line].push_back(uint32_t(s));
+    }
+
+    // -- reflections: intensity per line and sample, split linearly between samples
+    std::vector<float> reflected(std::size_t(L) * std::size_t(N), 0.0f);
+    for (const auto& e : events) {
+        if (e.kind == simulator::EchoKind::scatter || e.line >= uint32_t(L)) continue;
+        const auto& line = of_line[e.line];
+        if (e.particle >= line.size()) continue;
+        const auto& source = sources[line[e.particle]];
+        double intensity = double(e.energy) * e.weight * source.receive_weight;
+        double echo_time = e.time_s;  // the particle came back itself: the full round trip
+        if (e.kind != simulator::EchoKind::returned_to_probe) {
+            echo_time = 2.0 * e.time_s;  // monostatic estimate: twice the one-way time
+            intensity *= double(e.energy) / std::max(double(source.energy), 1e-30);
+        }
+        const double position = echo_time * fs;
+        if (!(position >= 0.0) || position >= double(N - 1)) continue;
+        const int i = int(position);
+        const float frac = float(position - i);
+        float* row = reflected.data() + std::size_t(e.line) * std::size_t(N);
+        row[i] += float(intensity) * (1.0f - frac);
+        row[i + 1] += float(intensity) * frac;
+    }
+
+    // -- speckle: sqrt(smoothed profile) x scatterer field at the mean echo position
+    std::vector<float> speckle(std::size_t(L) * std::size_t(N), 0.0f);
+    const bool with_profile = settings.speckle && profile.lines > 0 && profile.bins == N;
+    if (with_profile) {
+        const double cell =
+            settings.speckle_cell_mm > 0.0 ? settings.speckle_cell_mm : t.wavelength_mm() / 8.0;
+        const ScattererField field(settings.seed, cell);
+        const double fwhm_samples = pulse.envelope_fwhm_s() * fs;
+        const auto smooth =
+            gaussian_kernel(std::max(0.5, settings.profile_smoothing * fwhm_samples / kFwhmPerSigma));
+        tbb::parallel_for(0, std::min(L, profile.lines), [&](int l) {
+            std::vector<float> in(static_cast<std::size_t>(N)), intensity(in.size()), mx(in.size()),
+                my(in.size());
+            const std::size_t row = std::size_t(l) * std::size_t(N);
+            for (int i = 0; i < N; ++i) in[std::size_t(i)] = profile.intensity[row + std::size_t(i)];
+            convolve(in.data(), N, smooth, intensity.data());
+            for (int a = 0; a < 2; ++a) {
+                for (int i = 0; i < N; ++i)
+                    in[std::size_t(i)] = profile.intensity[row + std::size_t(i)] *
+                                         profile.position[row + std::size_t(i)][a];
+                convolve(in.data(), N, smooth, (a == 0 ? mx : my).data());
+            }
+            for (int i = 0; i < N; ++i) {
+                const float w = intensity[std::size_t(i)];
+                if (!(w > 0.0f)) continue;
+                const glm::vec2 p(mx[std::size_t(i)] / w, my[std::size_t(i)] / w);
+                speckle[row + std::size_t(i)] = std::sqrt(w) * field(to_world(p));
+            }
+        });
+    }
+
+    // -- pre-RF: reflection amplitudes + speckle through the lateral PSF
+    const probe::ScanGeometry geometry(t);
+    std::vector<float> pre(std::size_t(L) * std::size_t(N), 0.0f);
+    tbb::parallel_for(0, N, [&](int i) {
+        const double depth = rf.depth_mm(i);
+        // Dynamic receive focusing at the transducer's F-number: the receive aperture
+        // grows with depth up to the whole array, so the receive beam's FWHM is
+        // lambda * max(F, depth / array). (The transmit beam's width is in the particles.)
+        const double fwhm = t.wavelength_mm() * std::max(t.f_number, depth / t.array_length_mm());
+        const double sigma_lines =
+            std::max(1e-3, fwhm / kFwhmPerSigma / geometry.line_spacing_mm(depth));
+        const int half = std::min(L, int(std::ceil(3.0 * sigma_lines)));
+        float w[129];
+        const int h = std::min(half, 64);
+        double norm = 0.0;
+        for (int j = -h; j <= h; ++j) {
+            w[j + h] = float(std::exp(-0.5 * j * j / (sigma_lines * sigma_lines)));
+            norm += double(w[j + h]) * w[j + h];
+        }
+        const float scale = float(1.0 / std::sqrt(norm));  // sum w^2 = 1: mean intensity kept
+        for (int l = 0; l < L; ++l) {
+            float sum = std::sqrt(reflected[std::size_t(l) * std::size_t(N) + std::size_t(i)]);
+            if (with_profile) {
+                float s = 0.0f;
+                for (int j = std::max(-h, -l); j <= std::min(h, L - 1 - l); ++j)
+                    s += w[j + h] * speckle[std::size_t(l + j) * std::size_t(N) + std::size_t(i)];
+                sum += s * scale;
+            }
+            pre[std::size_t(l) * std::size_t(N) + std::size_t(i)] = sum;
+        }
+    });
+
+    // -- RF: pre-RF (*) pulse
+    const int half = int(std::ceil(4.0 * pulse.sigma_s() * fs));
+    std::vector<float> taps(std::size_t(2 * half + 1));
+    for (int i = -half; i <= half; ++i) taps[std::size_t(i + half)] = float(pulse(i / fs));
+    rf.values.assign(std::size_t(L) * std::size_t(N), 0.0f);
+    tbb::parallel_for(0, L, [&](int l) {
+        convolve(pre.data() + std::size_t(l) * std::size_t(N), N, taps,
+                 rf.values.data() + std::size_t(l) * std::size_t(N));
+    });
+    return rf;
+}
+
+LineData envelope(const LineData& rf) {
+    LineData env = rf;
+    const int n = cv::getOptimalDFTSize(rf.samples + 64);  // padding: no wrap-around
+    cv::Mat lines(rf.lines, n, CV_32F, cv::Scalar(0));
+    for (int l = 0; l < rf.lines; ++l)
+        std::copy_n(rf.values.data() + std::size_t(l) * std::size_t(rf.samples), rf.samples,
+                    lines.ptr<float>(l));
+    cv::Mat spectrum;
+    cv::dft(lines, spectrum, cv::DFT_ROWS | cv::DFT_COMPLEX_OUTPUT);
+    // Analytic signal: keep DC (and Nyquist), double positive, drop negative frequencies.
+    for (int l = 0; l < rf.lines; ++l) {
+        auto* s = spectrum.ptr<cv::Vec2f>(l);
+        for (int k = 1; k < (n + 1) / 2; ++k) s[k] *= 2.0f;
+        for (int k = n / 2 + 1; k < n; ++k) s[k] = cv::Vec2f(0.0f, 0.0f);
+    }
+    cv::Mat analytic;
+    cv::dft(spectrum, analytic, cv::DFT_ROWS | cv::DFT_INVERSE | cv::DFT_SCALE);
+    for (int l = 0; l < rf.lines; ++l) {
+        const auto* a = analytic.ptr<cv::Vec2f>(l);
+        for (int i = 0; i < rf.samples; ++i) env.at(l, i) = std::hypot(a[i][0], a[i][1]);
+    }
+    return env;
+}
+
+LineData compress(const LineData& envelope, const ImagingSettings& settings) {
+    LineData out = envelope;
+    for (int i = 0; i < envelope.samples; ++i) {
+        const double gain = settings.gain_db + tgc_gain_db(settings.tgc, envelope.depth_mm(i));
+        for (int l = 0; l < envelope.lines; ++l)
+            out.at(l, i) = log_compress(envelope.at(l, i), gain, settings.dynamic_range_db);
+    }
+    return out;
+}
+
+ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, double pixel_mm,
+                           float outside) {
+    const probe::ScanGeometry geometry(t);
+    const auto [lo, hi] = geometry.bounds();
+    ScanConverted out;
+    out.pixel_mm = pixel_mm;
+    out.origin = lo;
+    const int cols = int(std::floor((hi.x - lo.x) / pixel_mm)) + 1;
+    const int rows = int(std::floor((hi.y - lo.y) / pixel_mm)) + 1;
+    out.image = cv::Mat(rows, cols, CV_32F, cv::Scalar(outside));
+    out.inside = cv::Mat(rows, cols, CV_8U, cv::Scalar(0));
+    const double samples_per_mm = 2.0 * 1e-3 / kC0 * data.fs_hz;
+    tbb::parallel_for(0, rows, [&](int r) {
+        for (int c = 0; c < cols; ++c) {
+            const glm::dvec2 p = lo + glm::dvec2(c, r) * pixel_mm;
+            const glm::dvec2 ld = geometry.line_and_depth(p);
+            if (!(ld.x >= -0.5 && ld.x <= data.lines - 0.5 && ld.y >= 0.0 && ld.y <= t.depth_mm))
+                continue;
+            const double l = std::clamp(ld.x, 0.0, double(data.lines - 1));
+            const double s = std::clamp(ld.y * samples_per_mm, 0.0, double(data.samples - 1));
+            const int l0 = std::min(int(l), std::max(data.lines - 2, 0)), s0 = std::min(int(s), data.samples - 2);
+            const int l1 = std::min(l0 + 1, data.lines - 1);
+            const float fl = float(l - l0), fsm = float(s - s0);
+            const float a = data.at(l0, s0) * (1 - fsm) + data.at(l0, s0 + 1) * fsm;
+            const float b = data.at(l1, s0) * (1 - fsm) + data.at(l1, s0 + 1) * fsm;
+            out.image.at<float>(r, c) = a * (1 - fl) + b * fl;
+            out.inside.at<uint8_t>(r, c) = 255;
+        }
+    });
+    return out;
+}
+
+}  // namespace sonotrace::imaging

@@ -1,0 +1,121 @@
+#pragma once
+// B-mode image formation: from the tracer's echoes to a scan-converted frame.
+//
+//   echo events (reflections, probe returns)  --intensity per line and time bin-->
+//   scatter echo profile (track-length)       --x tissue-fixed speckle field, lateral PSF-->
+//   pre-RF --(*) pulse--> RF --analytic signal--> envelope --TGC--> log compression
+//   --scan conversion--> image
+//
+// Amplitudes: an echo of intensity I (energy units: the particle's energy at the event x
+// the fraction sent back x its two-way loss E/E0 x its receive weight) has amplitude
+// sqrt(I). Reflections add as intensities within an RF sample (particles of one beam
+// meeting one interface are one wavefront). Speckle: sub-resolution scatterers are a
+// white random field fixed in world (tissue) coordinates, sampled where the scattered
+// energy of each echo time came from (the profile's mean position: on the line for
+// direct echoes, beside it for mirrored ones); its amplitude is sqrt(profile intensity).
+// The axial PSF is the pulse; the lateral PSF of the speckle is a Gaussian across
+// neighbouring lines (reflections get theirs from the beam's particles, probe/beam.h).
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <opencv2/core.hpp>
+
+#include "probe/source_particle.h"
+#include "probe/transducer.h"
+#include "simulator/records.h"
+
+namespace sonotrace::imaging {
+
+// Pulse-echo response: a Gaussian-modulated sinusoid at f0 whose -6 dB spectrum width is
+// bandwidth * f0. Spectrum sigma_f = B f0 / (2 sqrt(2 ln 2)); time sigma_t = 1/(2 pi sigma_f).
+struct Pulse {
+    double frequency_hz = 3.5e6;
+    double bandwidth = 0.8;
+
+    double sigma_s() const;
+    double envelope_fwhm_s() const;  // 2 sqrt(2 ln 2) sigma_t
+    double axial_fwhm_mm() const;    // c0 / 2 * envelope FWHM
+    double operator()(double t) const;
+};
+
+// A point of the TGC curve: gain (dB) at a depth (mm); linear in between, constant beyond.
+struct TgcPoint {
+    double depth_mm = 0.0;
+    double gain_db = 0.0;
+};
+
+// Gain of a TGC curve at a depth (dB).
+double tgc_gain_db(const std::vector<TgcPoint>& curve, double depth_mm);
+
+// Log compression to [0, 1]: 20 log10(envelope) + gain mapped from -range..0 dB to 0..1.
+float log_compress(float envelope, double gain_db, double dynamic_range_db);
+
+struct ImagingSettings {
+    double sampling_mhz = 0.0;  // RF sampling rate; 0 = 8 x the centre frequency
+    bool speckle = true;
+    double speckle_cell_mm = 0.0;  // lattice of the scatterer field; 0 = wavelength / 8
+    double profile_smoothing = 1.0;  // smoothing of the scatter profile, in pulse FWHMs
+    std::vector<TgcPoint> tgc;       // empty = none
+    double gain_db = 0.0;
+    double dynamic_range_db = 60.0;
+    double pixel_mm = 0.2;  // scan-converted pixel size
+    uint64_t seed = 1;      // of the scatterer field
+};
+
+// Lines x samples of one quantity (RF, envelope, log-compressed), sample i at echo time
+// i / fs (0 = the face).
+struct LineData {
+    int lines = 0, samples = 0;
+    double fs_hz = 0.0;
+    std::vector<float> values;  // [line * samples + i]
+    float at(int l, int i) const { return values[std::size_t(l) * std::size_t(samples) + std::size_t(i)]; }
+    float& at(int l, int i) { return values[std::size_t(l) * std::size_t(samples) + std::size_t(i)]; }
+    double depth_mm(int i) const;  // c0 * t / 2
+};
+
+// Sampling of the RF lines for a transducer: rate and sample count covering its depth.
+LineData rf_layout(const probe::Transducer& t, const ImagingSettings& settings);
+
+// Maps a point of the tracer's map frame to world coordinates (mm), for the speckle field.
+using MapToWorld = std::function<glm::dvec3(const glm::vec2&)>;
+
+// The RF lines of a frame. `events` and `profile` come from one trace of `sources`
+// (profile bins must equal the layout's samples at bin width 1/fs).
+LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
+                       const std::vector<simulator::EchoEvent<2>>& events,
+                       const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
+                       const ImagingSettings& settings);
+
+// Envelope of every line: magnitude of the analytic signal (FFT Hilbert transform).
+LineData envelope(const LineData& rf);
+
+// TGC and log compression, per sample.
+LineData compress(const LineData& envelope, const ImagingSettings& settings);
+
+// The white scatterer field fixed in world coordinates: trilinear interpolation of
+// independent zero-mean values on a lattice of `cell_mm`, scaled to unit mean square.
+class ScattererField {
+  public:
+    ScattererField(uint64_t seed, double cell_mm);
+    float operator()(const glm::dvec3& world_mm) const;
+
+  private:
+    float lattice(int64_t i, int64_t j, int64_t k) const;
+    uint64_t seed_;
+    double inverse_cell_;
+};
+
+// Scan conversion of line data onto a Cartesian grid of `pixel_mm` covering the scanned
+// region (bilinear between lines and samples). Pixels outside the region are `outside`.
+struct ScanConverted {
+    cv::Mat image;       // CV_32F, rows = depth (y), cols = lateral (x)
+    cv::Mat inside;      // CV_8U, 255 where the pixel lies in the scanned region
+    glm::dvec2 origin;   // probe-plane position (mm) of pixel (0, 0)'s centre
+    double pixel_mm = 0.0;
+};
+ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, double pixel_mm,
+                           float outside = 0.0f);
+
+}  // namespace sonotrace::imaging

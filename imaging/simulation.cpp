@@ -1,0 +1,220 @@
+#include "imaging/simulation.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "probe/placement.h"
+#include "tissue/error.h"
+#include "tissue/tissue_table.h"
+
+namespace sonotrace::imaging {
+
+std::string to_string(ReceiveModel model) {
+    return model == ReceiveModel::monostatic ? "monostatic" : "capture";
+}
+
+std::string to_string(Quality quality) {
+    switch (quality) {
+        case Quality::interactive: return "interactive";
+        case Quality::standard: return "standard";
+        case Quality::high: return "high";
+    }
+    return "?";
+}
+
+QualityLevel quality_level(Quality quality) {
+    switch (quality) {
+        case Quality::interactive: return {0.5, 8};
+        case Quality::standard: return {0.25, 32};
+        case Quality::high: return {0.125, 128};
+    }
+    return {0.25, 32};
+}
+
+void SimulationSettings::validate(const std::string& source) const {
+    transducer.validate(source);
+    trace.validate(source);
+    auto in_range = [&](double v, double lo, double hi, const char* field) {
+        if (!(std::isfinite(v) && v >= lo && v <= hi)) {
+            throw tissue::InputError(source, field,
+                                     "must be in [" + std::to_string(lo) + ", " +
+                                         std::to_string(hi) + "], got " + std::to_string(v));
+        }
+    };
+    in_range(imaging.sampling_mhz, 0.0, 1000.0, "sampling");
+    if (imaging.sampling_mhz > 0.0 && imaging.sampling_mhz < 2.0 * transducer.frequency_mhz *
+                                                                (1.0 + 0.5 * transducer.bandwidth)) {
+        throw tissue::InputError(source, "sampling",
+                                 "is below the Nyquist rate of the pulse (2 x (1 + B/2) x f0 = " +
+                                     std::to_string(2.0 * transducer.frequency_mhz *
+                                                    (1.0 + 0.5 * transducer.bandwidth)) +
+                                     " MHz)");
+    }
+    in_range(imaging.speckle_cell_mm, 0.0, 10.0, "speckle-cell");
+    in_range(imaging.profile_smoothing, 0.0, 10.0, "profile-smoothing");
+    in_range(imaging.gain_db, -200.0, 200.0, "gain");
+    in_range(imaging.dynamic_range_db, 1.0, 200.0, "dynamic-range");
+    in_range(imaging.pixel_mm, 0.01, 10.0, "pixel");
+    double previous = -1e300;
+    for (const TgcPoint& p : imaging.tgc) {
+        in_range(p.depth_mm, 0.0, 1000.0, "tgc.depth");
+        in_range(p.gain_db, -200.0, 200.0, "tgc.gain");
+        if (p.depth_mm <= previous)
+            throw tissue::InputError(source, "tgc", "depths must increase along the curve");
+        previous = p.depth_mm;
+    }
+}
+
+PlaneGrid plane_grid(const probe::Transducer& t, const probe::Pose& pose, double pixel_mm) {
+    const auto [lo, hi] = probe::ScanGeometry(t).bounds();
+    const double margin = 2.0;  // mm around the scanned region: gradients need neighbours
+    PlaneGrid grid;
+    grid.top_margin_mm = std::max(0.0, -lo.y) + margin;
+    tissue::ProbeFrame frame = pose.frame();
+    frame.origin -= frame.axial * grid.top_margin_mm;  // the grid starts above the face
+    tissue::GridExtent extent;
+    extent.width_mm = 2.0 * std::max(std::abs(lo.x), std::abs(hi.x)) + 2.0 * margin;
+    extent.depth_mm = hi.y + grid.top_margin_mm + margin;
+    extent.elevation_mm = 0.0;
+    extent.pixel_mm = pixel_mm;
+    grid.geometry = tissue::probe_grid(frame, extent, "probe grid");
+    // Pixel centres: lateral (i - (nx-1)/2) h, depth from the shifted origin (j + 1/2) h.
+    grid.to_map = {0.5 * (grid.geometry.dims.x - 1) * pixel_mm,
+                   grid.top_margin_mm - 0.5 * pixel_mm};
+    return grid;
+}
+
+MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid) {
+    const glm::dvec3 origin = pose.position, lateral = pose.lateral(), axial = pose.axial();
+    const glm::dvec2 to_map = grid.to_map;
+    return [=](const glm::vec2& m) {
+        const glm::dvec2 p = glm::dvec2(m) - to_map;
+        return origin + lateral * p.x + axial * p.y;
+    };
+}
+
+Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
+                     const probe::Pose& pose, const SimulationSettings& settings,
+                     const FrameProgress& progress) {
+    using clock = std::chrono::steady_clock;
+    Frame frame;
+    auto stage = [&](const char* name, auto&& work) {
+        const auto start = clock::now();
+        work();
+        frame.timings[name] = std::chrono::duration<double>(clock::now() - start).count();
+    };
+    const probe::Transducer& t = settings.transducer;
+    const LineData layout = rf_layout(t, settings.imaging);
+
+    probe::Sources<2> sources;
+    stage("beams", [&] {
+        sources = probe::make_beams(t, {quality_level(settings.quality).particles_per_line,
+                                        settings.seed},
+                                    grid.to_map);
+    });
+
+    simulator::TraceSettings trace = settings.trace;
+    trace.frequency_mhz = t.frequency_mhz;
+    trace.seed = settings.seed;
+    trace.record_scatter_echoes = false;  // the track-length profile carries scattering
+    trace.echo_profile = simulator::EchoProfileSettings{1.0 / layout.fs_hz, layout.samples};
+    if (settings.receive == ReceiveModel::capture) {
+        simulator::ProbeFace<2> face;
+        face.centre = glm::vec2(grid.to_map);
+        face.normal = {0.0f, 1.0f};
+        face.half_width_mm = float(0.5 * t.array_length_mm());
+        face.radius_mm = float(t.radius_of_lines());
+        face.reflectivity = float(t.face_reflectivity);
+        trace.probe_face_2d = face;
+    }
+    simulator::TraceResult<2> traced;
+    stage("trace", [&] { traced = simulator::trace(map, sources, trace, progress); });
+    frame.ledger = traced.ledger;
+    frame.stats = traced.stats;
+    frame.absorbed = std::move(traced.absorbed);
+
+    // Which reflections form the image depends on the receive model.
+    std::vector<simulator::EchoEvent<2>> echoes;
+    for (const auto& e : traced.echoes) {
+        const bool returned = e.kind == simulator::EchoKind::returned_to_probe;
+        if (returned == (settings.receive == ReceiveModel::capture)) echoes.push_back(e);
+    }
+    ImagingSettings imaging = settings.imaging;
+    imaging.seed = settings.seed;
+    stage("rf", [&] {
+        frame.rf = synthesize_rf(t, sources, echoes, traced.echo_profile,
+                                 map_to_world(pose, grid), imaging);
+    });
+    stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
+    stage("compression", [&] { frame.display = compress(frame.envelope, imaging); });
+    stage("scan conversion",
+          [&] { frame.image = scan_convert(frame.display, t, imaging.pixel_mm); });
+    return frame;
+}
+
+tissue::AcousticProperties saline() {
+    return tissue::find_tissue("water", "", "").properties;
+}
+
+std::size_t prepare_plane(tissue::PropertyMaps& maps, const PlaneGrid& grid,
+                          const ScenePlacement& scene, double gel_mm) {
+    const tissue::AcousticProperties gel = saline();
+    const tissue::VolumeGeometry& g = maps.geometry();
+    std::size_t changed = 0;
+    const int rows = std::min(g.dims.y, int(std::ceil((grid.top_margin_mm + gel_mm) / g.spacing.y)));
+    for (int k = 0; k < g.dims.z; ++k) {
+        for (int j = 0; j < rows; ++j) {
+            for (int i = 0; i < g.dims.x; ++i) {
+                if (maps[tissue::Property::density].at(i, j, k) >= 100.0f) continue;  // not air
+                for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
+                    maps.fields[f].at(i, j, k) = gel.values[f];
+                ++changed;
+            }
+        }
+    }
+    if (scene.craniotomy_radius_mm > 0.0) {
+        changed += probe::open_craniotomy(maps, grid.to_map.x, scene.craniotomy_radius_mm,
+                                          grid.top_margin_mm + scene.craniotomy_depth_mm, gel);
+    }
+    return changed;
+}
+
+ScenePlacement craniotomy_scene(const tissue::Volume& head, const tissue::TransferFunction& tf) {
+    // MNI coordinates (mm): aim between the bodies of the lateral ventricles, slightly to
+    // the right, from above and to the right; coronal plane (lateral axis left-right).
+    const glm::dvec3 target(8.0, -14.0, 18.0);
+    const glm::dvec3 approach = glm::normalize(glm::dvec3(0.42, 0.0, 1.0));  // target -> entry
+    const glm::dvec3 outside = target + 130.0 * approach;
+    const auto cortex = probe::beneath_bone(head, tf, outside, -approach, 200.0);
+    if (!cortex)
+        throw tissue::InputError("scene craniotomy", "pose",
+                                 "no skull found along the approach to the ventricles: "
+                                 "is the volume the Colin27 head?");
+    ScenePlacement scene;
+    scene.pose = probe::Pose::looking(cortex->point - 0.5 * approach, -approach, {1.0, 0.0, 0.0});
+    scene.craniotomy_radius_mm = 32.0;
+    scene.craniotomy_depth_mm = 12.0;
+    scene.description =
+        "intraoperative: convex probe on the right parietal cortex through a 64 mm "
+        "craniotomy, coronal plane through the lateral ventricles";
+    return scene;
+}
+
+ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::TransferFunction& tf) {
+    const probe::Pose temple = probe::colin27_temporal_pose();
+    const glm::dvec3 outside = temple.position - 30.0 * temple.axial();
+    const auto skin = probe::skin_surface(head, tf, outside, temple.axial(), 80.0);
+    if (!skin)
+        throw tissue::InputError("scene temporal", "pose",
+                                 "no skin found on the right temple: is the volume the "
+                                 "Colin27 head?");
+    ScenePlacement scene;
+    scene.pose = temple;
+    scene.pose.position = skin->point;
+    scene.description =
+        "transtemporal: phased probe on the skin of the right temple, axial plane through "
+        "the midbrain, imaging across the skull";
+    return scene;
+}
+
+}  // namespace sonotrace::imaging

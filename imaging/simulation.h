@@ -1,0 +1,103 @@
+#pragma once
+// One B-mode frame from a volume and a probe: the grid under the probe, the acoustic
+// map, beams, tracing and image formation (imaging/bmode.h), with the scenes of the
+// `simulate` command (Colin27 through a craniotomy, through the temporal window).
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "imaging/bmode.h"
+#include "probe/beam.h"
+#include "probe/pose.h"
+#include "probe/transducer.h"
+#include "simulator/trace_settings.h"
+#include "simulator/tracer.h"
+#include "tissue/acoustic_map.h"
+#include "tissue/property_maps.h"
+#include "tissue/transfer_function.h"
+
+namespace sonotrace::imaging {
+
+// How echoes reach the image (DESIGN.md, "Echo formation").
+enum class ReceiveModel {
+    monostatic,  // every reflection/scattering event echoes at twice its time (default)
+    capture,     // reflections count only when the particle itself reaches the face, which
+                 // reflects part of it back (reverberation between face and tissue)
+};
+std::string to_string(ReceiveModel model);
+
+// Speed/quality trade-off: map resolution and particles per line.
+enum class Quality { interactive, standard, high };
+std::string to_string(Quality quality);
+struct QualityLevel {
+    double map_pixel_mm;     // resolution of the acoustic map
+    int particles_per_line;  // particles each scan line emits
+};
+QualityLevel quality_level(Quality quality);
+
+struct SimulationSettings {
+    probe::Transducer transducer;
+    Quality quality = Quality::standard;
+    ReceiveModel receive = ReceiveModel::monostatic;
+    ImagingSettings imaging;
+    simulator::TraceSettings trace;  // frequency, seed, echo profile are set from the rest
+    uint64_t seed = 1;
+
+    // Throws tissue::InputError naming the first bad parameter.
+    void validate(const std::string& source) const;
+};
+
+// The probe-aligned grid that holds a transducer's scanned region plus margins, and the
+// offset from probe-plane coordinates to the map frame (map = plane + to_map).
+struct PlaneGrid {
+    tissue::VolumeGeometry geometry;
+    glm::dvec2 to_map{0.0};
+    double top_margin_mm = 0.0;  // how far the grid starts above the face
+};
+PlaneGrid plane_grid(const probe::Transducer& t, const probe::Pose& pose, double pixel_mm);
+
+// Maps the tracer's map frame back to world coordinates.
+MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid);
+
+struct Frame {
+    LineData rf, envelope, display;  // display = TGC + log compression, 0..1
+    ScanConverted image;             // scan-converted display
+    simulator::EnergyLedger ledger;
+    simulator::TraceStats stats;
+    tissue::Volume absorbed;  // energy deposition map (the grid of the plane)
+    nlohmann::json timings = nlohmann::json::object();  // seconds per stage
+};
+
+using FrameProgress = std::function<void(std::size_t done, std::size_t total)>;
+
+// Traces and forms one frame on an acoustic map built on plane_grid(...).
+Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
+                     const probe::Pose& pose, const SimulationSettings& settings,
+                     const FrameProgress& progress = {});
+
+// ---- scenes of the Colin27 head ----
+
+// Where a scene puts the probe and what it does to the tissue under it.
+struct ScenePlacement {
+    probe::Pose pose;
+    double craniotomy_radius_mm = 0.0;  // 0 = no craniotomy
+    double craniotomy_depth_mm = 0.0;   // below the face
+    std::string description;
+};
+
+// Intraoperative view: the convex probe on the right parietal cortex through a
+// craniotomy, coronal plane down through both lateral ventricles. `tf` bound to `head`.
+ScenePlacement craniotomy_scene(const tissue::Volume& head, const tissue::TransferFunction& tf);
+// The phased probe on the skin of the right temple (transtemporal window), axial plane.
+ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::TransferFunction& tf);
+
+// Saline filling the craniotomy, and coupling gel (water properties).
+tissue::AcousticProperties saline();
+
+// Readies the property maps of a plane grid for the probe: air between the face and
+// `gel_mm` below it becomes coupling gel (as on a real scan), and the scene's craniotomy
+// is opened. Returns the number of samples changed.
+std::size_t prepare_plane(tissue::PropertyMaps& maps, const PlaneGrid& grid,
+                          const ScenePlacement& scene, double gel_mm = 5.0);
+
+}  // namespace sonotrace::imaging

@@ -1,0 +1,44 @@
+#pragma once
+// Beams of particles from a transducer: one beam per scan line, shaped by the active
+// aperture, its apodization and the transmit focus.
+//
+// Each particle leaves a point of the active aperture, drawn from the Hann apodization,
+// and travels straight towards the focal point displaced sideways by an aim offset drawn
+// from a Gaussian: the beam converges to a focal waist and diverges after it. The waist
+// stands in for diffraction, which rays do not have: its width is chosen so that the
+// pulse-echo (two-way) lateral amplitude profile at the focus has a FWHM of
+// lambda * F-number. By reciprocity the receive sensitivity for a particle's echoes is
+// the same profile at its aim offset (SourceParticle::receive_weight), so echo intensity
+// goes as transmit density x receive weight = G(offset; sigma)^2 and the envelope as
+// G(offset; sigma): FWHM = 2.355 sigma = lambda * F-number.
+//
+// Transmit delays start each particle's clock so that all reach the focus together
+// (focal time = focus / c0); the monostatic echo time 2t then places the focus at its
+// depth. Both draws are stratified over the line's particles and jittered by a
+// counter-based hash of (seed, line, particle): the same inputs give the same beams.
+#include <cstdint>
+
+#include "probe/source_particle.h"
+#include "probe/transducer.h"
+
+namespace sonotrace::probe {
+
+struct BeamSettings {
+    int particles_per_line = 64;
+    uint64_t seed = 1;
+};
+
+// Sigma (mm) of the aim-offset Gaussian at the focus for an aperture of `aperture_mm`.
+double focal_sigma_mm(const Transducer& t, double aperture_mm);
+
+// The beams of every scan line in the probe plane, shifted by `to_map` into the
+// tracer's map frame (map = probe plane + to_map). Line ids are 0..lines-1; energy 1 per
+// line.
+Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const glm::dvec2& to_map);
+
+// Inverse CDF of the Hann (raised-cosine) density 1 - cos(2 pi v) on [0, 1].
+double hann_inverse_cdf(double u);
+// Inverse CDF of the standard normal distribution, u in (0, 1).
+double normal_inverse_cdf(double u);
+
+}  // namespace sonotrace::probe

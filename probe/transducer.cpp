@@ -1,0 +1,230 @@
+#include "probe/transducer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "tissue/acoustic_map.h"
+#include "tissue/error.h"
+
+namespace sonotrace::probe {
+
+std::string to_string(TransducerType type) {
+    switch (type) {
+        case TransducerType::linear: return "linear";
+        case TransducerType::convex: return "convex";
+        case TransducerType::phased: return "phased";
+    }
+    return "?";
+}
+
+void Transducer::validate(const std::string& source) const {
+    auto in_range = [&](double v, double lo, double hi, const char* field, const char* unit) {
+        if (!(std::isfinite(v) && v >= lo && v <= hi)) {
+            throw tissue::InputError(source, field,
+                                     "must be in [" + std::to_string(lo) + ", " +
+                                         std::to_string(hi) + "] " + unit + ", got " +
+                                         std::to_string(v));
+        }
+    };
+    in_range(elements, 1, 4096, "elements", "");
+    in_range(pitch_mm, 1e-3, 10.0, "pitch", "mm");
+    in_range(frequency_mhz, 0.5, 50.0, "frequency", "MHz");
+    in_range(bandwidth, 0.05, 2.0, "bandwidth", "(fraction of the centre frequency)");
+    in_range(depth_mm, 1.0, 500.0, "depth", "mm");
+    in_range(focus_mm, 1e-3, 1e6, "focus", "mm");
+    if (focus_mm > depth_mm) {
+        throw tissue::InputError(source, "focus",
+                                 "the transmit focus (" + std::to_string(focus_mm) +
+                                     " mm) lies beyond the imaging depth (" +
+                                     std::to_string(depth_mm) + " mm)");
+    }
+    in_range(f_number, 0.5, 20.0, "f-number", "");
+    in_range(elevation_focus_mm, 1.0, 1000.0, "elevation-focus", "mm");
+    in_range(slice_thickness_mm, 0.01, 50.0, "slice-thickness", "mm");
+    in_range(lines, 1, 4096, "lines", "");
+    in_range(face_reflectivity, 0.0, 1.0, "face-reflectivity", "");
+    if (type == TransducerType::convex) {
+        in_range(radius_mm, 1.0, 1000.0, "radius", "mm");
+        const double arc_deg = array_length_mm() / radius_mm * 180.0 / std::numbers::pi;
+        in_range(fov_deg, 1e-3, 180.0, "fov", "degrees");
+        if (fov_deg > arc_deg + 1e-9) {
+            throw tissue::InputError(source, "fov",
+                                     "the field of view (" + std::to_string(fov_deg) +
+                                         " degrees) is wider than the array's arc (" +
+                                         std::to_string(arc_deg) + " degrees = elements * " +
+                                         "pitch / radius)");
+        }
+    }
+    if (type == TransducerType::phased) {
+        if (!(std::isfinite(fov_deg) && fov_deg > 0.0 && fov_deg < 180.0)) {
+            throw tissue::InputError(source, "fov",
+                                     "a phased array steers within (0, 180) degrees, got " +
+                                         std::to_string(fov_deg));
+        }
+    }
+}
+
+double Transducer::wavelength_mm() const {
+    return tissue::kReferenceSpeed / (frequency_mhz * 1e6) * 1e3;
+}
+double Transducer::array_length_mm() const {
+    return elements * pitch_mm;
+}
+double Transducer::active_aperture_mm() const {
+    return std::min(focus_mm / f_number, array_length_mm());
+}
+double Transducer::radius_of_lines() const {
+    return type == TransducerType::convex ? radius_mm : 0.0;
+}
+
+const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
+    static const std::vector<TransducerParameterDoc> docs = {
+        {"type", "", "transducer type: linear (parallel lines), convex or phased (fan of lines)"},
+        {"elements", "", "number of array elements"},
+        {"pitch", "mm", "centre-to-centre element distance"},
+        {"radius", "mm", "radius of curvature of a convex array"},
+        {"fov", "degrees", "angle spanned by the scan lines (convex, phased)"},
+        {"frequency", "MHz", "centre frequency of the pulse"},
+        {"bandwidth", "", "fractional -6 dB bandwidth of the pulse-echo spectrum"},
+        {"focus", "mm", "transmit focus depth"},
+        {"f-number", "", "focus depth / active aperture width"},
+        {"elevation-focus", "mm", "depth of the fixed elevation (lens) focus"},
+        {"slice-thickness", "mm", "elevation beam width (-6 dB) at the elevation focus"},
+        {"depth", "mm", "imaging depth from the face along each scan line"},
+        {"lines", "", "number of scan lines"},
+        {"face-reflectivity", "",
+         "intensity fraction the transducer face reflects back into the tissue"},
+    };
+    return docs;
+}
+
+// Values from the public datasheets of the modelled probes (Verasonics L11-5v, C5-2v and
+// P4-2v specification sheets): element count, pitch, radius, centre frequency, bandwidth
+// range, elevation focus and element height. Where a sheet gives an element height h,
+// the slice thickness is the diffraction-limited lambda * elevation focus / h. Transmit
+// focus, F-number, depth and line count are typical scanner settings, not probe data.
+const std::vector<Transducer>& transducer_presets() {
+    static const std::vector<Transducer> presets = [] {
+        std::vector<Transducer> p;
+        Transducer linear;
+        linear.name = "linear";
+        linear.description =
+            "linear 7.6 MHz, 128 elements at 0.30 mm (like the L11-5v: 5-11 MHz, "
+            "elevation focus 18 mm, element height 5 mm)";
+        linear.type = TransducerType::linear;
+        linear.elements = 128;
+        linear.pitch_mm = 0.30;
+        linear.radius_mm = 0.0;
+        linear.fov_deg = 0.0;
+        linear.frequency_mhz = 7.6;
+        linear.bandwidth = 0.79;  // (11 - 5) / 7.6
+        linear.focus_mm = 20.0;
+        linear.f_number = 2.0;
+        linear.elevation_focus_mm = 18.0;
+        linear.slice_thickness_mm = 0.73;  // 0.203 mm * 18 / 5
+        linear.depth_mm = 40.0;
+        linear.lines = 128;
+        p.push_back(linear);
+
+        Transducer convex;
+        convex.name = "convex";
+        convex.description =
+            "convex 3.5 MHz, 128 elements at 0.508 mm on a 49.6 mm radius (like the C5-2v: "
+            "2-5 MHz, elevation focus 60 mm, element height 13.5 mm)";
+        convex.type = TransducerType::convex;
+        convex.elements = 128;
+        convex.pitch_mm = 0.508;
+        convex.radius_mm = 49.57;
+        convex.fov_deg = 60.0;
+        convex.frequency_mhz = 3.5;
+        convex.bandwidth = 0.86;  // (5 - 2) / 3.5
+        convex.focus_mm = 50.0;
+        convex.f_number = 2.0;
+        convex.elevation_focus_mm = 60.0;
+        convex.slice_thickness_mm = 1.96;  // 0.44 mm * 60 / 13.5
+        convex.depth_mm = 80.0;
+        convex.lines = 128;
+        p.push_back(convex);
+
+        Transducer phased;
+        phased.name = "phased";
+        phased.description =
+            "phased 2.7 MHz, 64 elements at 0.30 mm (like the P4-2v: 2-4 MHz, elevation "
+            "focus 60 mm, element height 14 mm)";
+        phased.type = TransducerType::phased;
+        phased.elements = 64;
+        phased.pitch_mm = 0.30;
+        phased.radius_mm = 0.0;
+        phased.fov_deg = 90.0;
+        phased.frequency_mhz = 2.7;
+        phased.bandwidth = 0.74;  // (4 - 2) / 2.7
+        phased.focus_mm = 60.0;
+        phased.f_number = 3.2;  // the whole 19.2 mm array at 60 mm
+        phased.elevation_focus_mm = 60.0;
+        phased.slice_thickness_mm = 2.44;  // 0.570 mm * 60 / 14
+        phased.depth_mm = 120.0;
+        phased.lines = 128;
+        p.push_back(phased);
+        return p;
+    }();
+    return presets;
+}
+
+const Transducer& find_transducer(const std::string& name, const std::string& source) {
+    std::string names;
+    for (const Transducer& t : transducer_presets()) {
+        if (t.name == name) return t;
+        names += (names.empty() ? "" : ", ") + t.name;
+    }
+    throw tissue::InputError(source, "probe",
+                             "unknown transducer preset '" + name + "' (presets: " + names + ")");
+}
+
+ScanGeometry::ScanGeometry(const Transducer& t)
+    : fan_(t.is_fan()), lines_(t.lines), depth_(t.depth_mm), radius_(t.radius_of_lines()) {
+    span_ = fan_ ? t.fov_deg * std::numbers::pi / 180.0 : t.array_length_mm();
+}
+
+glm::dvec2 ScanGeometry::point(double l, double depth) const {
+    const double u = -0.5 * span_ + (l + 0.5) * span_ / lines_;
+    if (!fan_) return {u, depth};
+    const double r = radius_ + depth;
+    return {r * std::sin(u), r * std::cos(u) - radius_};
+}
+
+ScanLine ScanGeometry::line(int l) const {
+    const glm::dvec2 origin = point(l, 0.0);
+    if (!fan_) return {origin, {0.0, 1.0}};
+    const double u = -0.5 * span_ + (l + 0.5) * span_ / lines_;
+    return {origin, {std::sin(u), std::cos(u)}};
+}
+
+glm::dvec2 ScanGeometry::line_and_depth(const glm::dvec2& p) const {
+    if (!fan_) return {(p.x + 0.5 * span_) * lines_ / span_ - 0.5, p.y};
+    const glm::dvec2 v(p.x, p.y + radius_);
+    const double u = std::atan2(v.x, v.y);
+    return {(u + 0.5 * span_) * lines_ / span_ - 0.5, glm::length(v) - radius_};
+}
+
+std::pair<glm::dvec2, glm::dvec2> ScanGeometry::bounds() const {
+    glm::dvec2 lo(1e300), hi(-1e300);
+    // The region's outline: both end lines, the face and the deepest arc or segment.
+    const int n = 256;
+    for (int i = 0; i <= n; ++i) {
+        const double l = -0.5 + double(lines_) * i / n;  // outer edges of the end lines
+        const double d = depth_ * i / n;
+        for (const glm::dvec2& p : {point(l, 0.0), point(l, depth_), point(-0.5, d),
+                                    point(lines_ - 0.5, d)}) {
+            lo = glm::min(lo, p);
+            hi = glm::max(hi, p);
+        }
+    }
+    return {lo, hi};
+}
+
+double ScanGeometry::line_spacing_mm(double depth) const {
+    return fan_ ? (radius_ + depth) * span_ / lines_ : span_ / lines_;
+}
+
+}  // namespace sonotrace::probe

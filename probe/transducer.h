@@ -1,0 +1,93 @@
+#pragma once
+// Transducer models: linear (parallel scan lines), convex/curvilinear and phased (fan of
+// scan lines), their parameters (each documented once, with its unit), presets modelled
+// on real probes, and the scan geometry in the probe's own plane.
+//
+// Probe-local plane: x = lateral (along the array), y = axial (into the tissue), origin
+// at the centre of the transducer face (for a convex probe: the apex of its arc). A
+// convex probe's centre of curvature is at (0, -radius); a phased probe steers every
+// line from the origin, which is the convex geometry with radius 0.
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace sonotrace::probe {
+
+enum class TransducerType { linear, convex, phased };
+
+std::string to_string(TransducerType type);
+
+struct Transducer {
+    std::string name = "custom";
+    std::string description;
+    TransducerType type = TransducerType::convex;
+    int elements = 128;
+    double pitch_mm = 0.508;
+    double radius_mm = 49.6;  // convex only
+    double fov_deg = 60.0;    // convex and phased: angle spanned by the scan lines
+    double frequency_mhz = 3.5;
+    double bandwidth = 0.8;  // fractional, -6 dB of the pulse-echo spectrum
+    double focus_mm = 50.0;  // transmit focus depth
+    double f_number = 2.0;   // focus depth / active aperture
+    double elevation_focus_mm = 60.0;
+    double slice_thickness_mm = 3.0;  // elevation beam width (-6 dB) at the elevation focus
+    double depth_mm = 80.0;           // imaging depth from the face along each line
+    int lines = 128;
+    double face_reflectivity = 0.3;  // intensity fraction the face reflects back (capture model)
+
+    // Throws tissue::InputError(source, field) naming the first impossible parameter.
+    void validate(const std::string& source) const;
+
+    double wavelength_mm() const;       // at the centre frequency and 1540 m/s
+    double array_length_mm() const;     // elements * pitch (along the face)
+    double active_aperture_mm() const;  // focus / F-number, at most the array
+    double radius_of_lines() const;     // radius of the lines' common arc (0 for phased)
+    bool is_fan() const { return type != TransducerType::linear; }
+};
+
+// Parameter texts, reused by CLI help, the GUI and the sidecar.
+struct TransducerParameterDoc {
+    const char* key;   // JSON key and CLI flag stem
+    const char* unit;  // "" if none
+    const char* description;
+};
+const std::vector<TransducerParameterDoc>& transducer_parameter_docs();
+
+// Presets modelled on real probes (values from the public datasheets; see the .cpp).
+const std::vector<Transducer>& transducer_presets();
+// By name; throws tissue::InputError(source, "probe") listing the presets otherwise.
+const Transducer& find_transducer(const std::string& name, const std::string& source);
+
+// One scan line in the probe plane.
+struct ScanLine {
+    glm::dvec2 origin;     // mm, on the face
+    glm::dvec2 direction;  // unit
+};
+
+// Geometry of the scan lines of a transducer and its inverse for scan conversion.
+class ScanGeometry {
+  public:
+    explicit ScanGeometry(const Transducer& t);
+
+    int lines() const { return lines_; }
+    double depth_mm() const { return depth_; }
+    ScanLine line(int l) const;
+    // The point at `depth` mm along line `l` (fractional lines interpolate the geometry).
+    glm::dvec2 point(double l, double depth) const;
+    // Inverse: fractional line index and depth of a point in the probe plane. Points off
+    // the scanned region come back with a line outside [0, lines-1] or depth outside
+    // [0, depth]; the caller decides.
+    glm::dvec2 line_and_depth(const glm::dvec2& p) const;
+    // Bounding box of the scanned region (min, max corners), for the image extent.
+    std::pair<glm::dvec2, glm::dvec2> bounds() const;
+    // Distance between neighbouring lines at a depth (mm).
+    double line_spacing_mm(double depth) const;
+
+  private:
+    bool fan_;
+    int lines_;
+    double depth_, radius_, span_;  // span: lateral width (linear) or angle in radians (fan)
+};
+
+}  // namespace sonotrace::probe

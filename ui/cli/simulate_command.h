@@ -1,0 +1,42 @@
+#pragma once
+// `sonotrace simulate`: B-mode frames from a volume and a transducer.
+#include <optional>
+#include <string>
+
+#include "ui/cli/command_common.h"
+#include "ui/cli/volume_slice.h"
+
+namespace sonotrace::ui {
+
+struct SimulateOptions {
+    std::string view = "craniotomy";  // craniotomy | temporal | custom (needs --pose)
+    SliceOptions volume;
+    std::string probe;  // preset; empty = the view's probe
+    // Transducer overrides (unset = the preset's value).
+    std::optional<std::string> type;
+    std::optional<int> elements, lines;
+    std::optional<double> pitch, radius, fov, frequency, bandwidth, focus, f_number,
+        elevation_focus, slice_thickness, depth, face_reflectivity;
+    std::string quality = "standard";
+    std::string receive = "monostatic";
+    double gain_db = 52.0;
+    double dynamic_range_db = 60.0;
+    std::string tgc = "auto";
+    double pixel_mm = 0.2;
+    double step_texels = 0.5;
+    uint64_t seed = 1;
+    std::string formats = "png8";
+    bool write_rf = false, write_envelope = false, write_labels = false, write_energy = false;
+    std::string sweep;
+    double fps = 10.0;
+    std::string out_dir = "out";
+    std::string name = "bmode";
+    std::string json_path;
+    int threads = 0;
+    bool quiet = false;
+};
+
+CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& options);
+int run_simulate_command(const SimulateOptions& options);
+
+}  // namespace sonotrace::ui
