@@ -163,13 +163,14 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             settings.speckle_cell_mm > 0.0 ? settings.speckle_cell_mm : t.wavelength_mm() / 8.0;
         const ScattererField field(settings.seed, cell);
         const double fwhm_samples = pulse.envelope_fwhm_s() * fs;
-        const auto smooth =
-            gaussian_kernel(std::max(0.5, settings.profile_smoothing * fwhm_samples / kFwhmPerSigma));
+        const auto smooth = gaussian_kernel(
+            std::max(0.5, settings.profile_smoothing * fwhm_samples / kFwhmPerSigma));
         tbb::parallel_for(0, std::min(L, profile.lines), [&](int l) {
             std::vector<float> in(static_cast<std::size_t>(N)), intensity(in.size()), mx(in.size()),
                 my(in.size());
             const std::size_t row = std::size_t(l) * std::size_t(N);
-            for (int i = 0; i < N; ++i) in[std::size_t(i)] = profile.intensity[row + std::size_t(i)];
+            for (int i = 0; i < N; ++i)
+                in[std::size_t(i)] = profile.intensity[row + std::size_t(i)];
             convolve(in.data(), N, smooth, intensity.data());
             for (int a = 0; a < 2; ++a) {
                 for (int i = 0; i < N; ++i)
@@ -284,7 +285,8 @@ ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, dou
                 continue;
             const double l = std::clamp(ld.x, 0.0, double(data.lines - 1));
             const double s = std::clamp(ld.y * samples_per_mm, 0.0, double(data.samples - 1));
-            const int l0 = std::min(int(l), std::max(data.lines - 2, 0)), s0 = std::min(int(s), data.samples - 2);
+            const int l0 = std::min(int(l), std::max(data.lines - 2, 0)),
+                      s0 = std::min(int(s), data.samples - 2);
             const int l1 = std::min(l0 + 1, data.lines - 1);
             const float fl = float(l - l0), fsm = float(s - s0);
             const float a = data.at(l0, s0) * (1 - fsm) + data.at(l0, s0 + 1) * fsm;

@@ -55,7 +55,7 @@ float log_compress(float envelope, double gain_db, double dynamic_range_db);
 struct ImagingSettings {
     double sampling_mhz = 0.0;  // RF sampling rate; 0 = 8 x the centre frequency
     bool speckle = true;
-    double speckle_cell_mm = 0.0;  // lattice of the scatterer field; 0 = wavelength / 8
+    double speckle_cell_mm = 0.0;    // lattice of the scatterer field; 0 = wavelength / 8
     double profile_smoothing = 1.0;  // smoothing of the scatter profile, in pulse FWHMs
     std::vector<TgcPoint> tgc;       // empty = none
     double gain_db = 0.0;
@@ -70,8 +70,12 @@ struct LineData {
     int lines = 0, samples = 0;
     double fs_hz = 0.0;
     std::vector<float> values;  // [line * samples + i]
-    float at(int l, int i) const { return values[std::size_t(l) * std::size_t(samples) + std::size_t(i)]; }
-    float& at(int l, int i) { return values[std::size_t(l) * std::size_t(samples) + std::size_t(i)]; }
+    float at(int l, int i) const {
+        return values[std::size_t(l) * std::size_t(samples) + std::size_t(i)];
+    }
+    float& at(int l, int i) {
+        return values[std::size_t(l) * std::size_t(samples) + std::size_t(i)];
+    }
     double depth_mm(int i) const;  // c0 * t / 2
 };
 
@@ -110,9 +114,9 @@ class ScattererField {
 // Scan conversion of line data onto a Cartesian grid of `pixel_mm` covering the scanned
 // region (bilinear between lines and samples). Pixels outside the region are `outside`.
 struct ScanConverted {
-    cv::Mat image;       // CV_32F, rows = depth (y), cols = lateral (x)
-    cv::Mat inside;      // CV_8U, 255 where the pixel lies in the scanned region
-    glm::dvec2 origin;   // probe-plane position (mm) of pixel (0, 0)'s centre
+    cv::Mat image;      // CV_32F, rows = depth (y), cols = lateral (x)
+    cv::Mat inside;     // CV_8U, 255 where the pixel lies in the scanned region
+    glm::dvec2 origin;  // probe-plane position (mm) of pixel (0, 0)'s centre
     double pixel_mm = 0.0;
 };
 ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, double pixel_mm,

@@ -15,18 +15,24 @@ std::string to_string(ReceiveModel model) {
 
 std::string to_string(Quality quality) {
     switch (quality) {
-        case Quality::interactive: return "interactive";
-        case Quality::standard: return "standard";
-        case Quality::high: return "high";
+        case Quality::interactive:
+            return "interactive";
+        case Quality::standard:
+            return "standard";
+        case Quality::high:
+            return "high";
     }
     return "?";
 }
 
 QualityLevel quality_level(Quality quality) {
     switch (quality) {
-        case Quality::interactive: return {0.5, 8};
-        case Quality::standard: return {0.25, 32};
-        case Quality::high: return {0.125, 128};
+        case Quality::interactive:
+            return {0.5, 8};
+        case Quality::standard:
+            return {0.25, 32};
+        case Quality::high:
+            return {0.125, 128};
     }
     return {0.25, 32};
 }
@@ -42,8 +48,9 @@ void SimulationSettings::validate(const std::string& source) const {
         }
     };
     in_range(imaging.sampling_mhz, 0.0, 1000.0, "sampling");
-    if (imaging.sampling_mhz > 0.0 && imaging.sampling_mhz < 2.0 * transducer.frequency_mhz *
-                                                                (1.0 + 0.5 * transducer.bandwidth)) {
+    if (imaging.sampling_mhz > 0.0 &&
+        imaging.sampling_mhz <
+            2.0 * transducer.frequency_mhz * (1.0 + 0.5 * transducer.bandwidth)) {
         throw tissue::InputError(source, "sampling",
                                  "is below the Nyquist rate of the pulse (2 x (1 + B/2) x f0 = " +
                                      std::to_string(2.0 * transducer.frequency_mhz *
@@ -108,9 +115,8 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
 
     probe::Sources<2> sources;
     stage("beams", [&] {
-        sources = probe::make_beams(t, {quality_level(settings.quality).particles_per_line,
-                                        settings.seed},
-                                    grid.to_map);
+        sources = probe::make_beams(
+            t, {quality_level(settings.quality).particles_per_line, settings.seed}, grid.to_map);
     });
 
     simulator::TraceSettings trace = settings.trace;
@@ -142,8 +148,8 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     ImagingSettings imaging = settings.imaging;
     imaging.seed = settings.seed;
     stage("rf", [&] {
-        frame.rf = synthesize_rf(t, sources, echoes, traced.echo_profile,
-                                 map_to_world(pose, grid), imaging);
+        frame.rf = synthesize_rf(t, sources, echoes, traced.echo_profile, map_to_world(pose, grid),
+                                 imaging);
     });
     stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
     stage("compression", [&] { frame.display = compress(frame.envelope, imaging); });
@@ -161,7 +167,8 @@ std::size_t prepare_plane(tissue::PropertyMaps& maps, const PlaneGrid& grid,
     const tissue::AcousticProperties gel = saline();
     const tissue::VolumeGeometry& g = maps.geometry();
     std::size_t changed = 0;
-    const int rows = std::min(g.dims.y, int(std::ceil((grid.top_margin_mm + gel_mm) / g.spacing.y)));
+    const int rows =
+        std::min(g.dims.y, int(std::ceil((grid.top_margin_mm + gel_mm) / g.spacing.y)));
     for (int k = 0; k < g.dims.z; ++k) {
         for (int j = 0; j < rows; ++j) {
             for (int i = 0; i < g.dims.x; ++i) {

@@ -54,8 +54,8 @@ double normal_inverse_cdf(double u) {
     static const double c[] = {-7.784894002430293e-03, -3.223964580411365e-01,
                                -2.400758277161838e+00, -2.549732539343734e+00,
                                4.374664141464968e+00,  2.938163982698783e+00};
-    static const double d[] = {7.784695709041462e-03, 3.224671290700398e-01,
-                               2.445134137142996e+00, 3.754408661907416e+00};
+    static const double d[] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+                               3.754408661907416e+00};
     u = std::clamp(u, 1e-300, 1.0 - 1e-16);
     double x;
     if (u < 0.02425) {
@@ -111,9 +111,8 @@ Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const g
         }
         for (int i = 0; i < n; ++i) {
             const double u1 = (i + uniform(settings.seed, uint64_t(l), uint64_t(i), 0)) / n;
-            const double u2 = (strata[std::size_t(i)] +
-                               uniform(settings.seed, uint64_t(l), uint64_t(i), 1)) /
-                              n;
+            const double u2 =
+                (strata[std::size_t(i)] + uniform(settings.seed, uint64_t(l), uint64_t(i), 1)) / n;
             const double s = s_lo + (s_hi - s_lo) * hann_inverse_cdf(u1);
             glm::dvec2 element;
             if (t.type == TransducerType::convex) {

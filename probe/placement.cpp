@@ -16,17 +16,15 @@ std::optional<RayHit> march_until(
     const float outside = volume.value_range().first;
     for (double t = 0.0; t <= max_mm; t += step_mm) {
         const glm::dvec3 p = start + t * dir;
-        const float value =
-            volume.sample_trilinear(volume.geometry().world_to_index(p), outside);
+        const float value = volume.sample_trilinear(volume.geometry().world_to_index(p), outside);
         if (accept(tf.evaluate(value))) return RayHit{p, t};
     }
     return std::nullopt;
 }
 
-std::optional<RayHit> skin_surface(const tissue::Volume& volume,
-                                   const tissue::TransferFunction& tf, const glm::dvec3& start,
-                                   const glm::dvec3& direction, double max_mm,
-                                   double relative_change) {
+std::optional<RayHit> skin_surface(const tissue::Volume& volume, const tissue::TransferFunction& tf,
+                                   const glm::dvec3& start, const glm::dvec3& direction,
+                                   double max_mm, double relative_change) {
     const float outside = volume.value_range().first;
     const double z0 =
         tf.evaluate(volume.sample_trilinear(volume.geometry().world_to_index(start), outside))
@@ -38,17 +36,19 @@ std::optional<RayHit> skin_surface(const tissue::Volume& volume,
                        });
 }
 
-std::optional<RayHit> beneath_bone(const tissue::Volume& volume,
-                                   const tissue::TransferFunction& tf, const glm::dvec3& start,
-                                   const glm::dvec3& direction, double max_mm) {
-    auto bone = march_until(
-        volume, tf, start, direction, max_mm, 0.1,
-        [](const tissue::AcousticProperties& p) { return p[Property::speed_of_sound] >= kBoneSpeed; });
+std::optional<RayHit> beneath_bone(const tissue::Volume& volume, const tissue::TransferFunction& tf,
+                                   const glm::dvec3& start, const glm::dvec3& direction,
+                                   double max_mm) {
+    auto bone = march_until(volume, tf, start, direction, max_mm, 0.1,
+                            [](const tissue::AcousticProperties& p) {
+                                return p[Property::speed_of_sound] >= kBoneSpeed;
+                            });
     if (!bone) return std::nullopt;
     const glm::dvec3 dir = glm::normalize(direction);
-    auto below = march_until(
-        volume, tf, bone->point, dir, max_mm - bone->distance_mm, 0.1,
-        [](const tissue::AcousticProperties& p) { return p[Property::speed_of_sound] < kBoneSpeed; });
+    auto below = march_until(volume, tf, bone->point, dir, max_mm - bone->distance_mm, 0.1,
+                             [](const tissue::AcousticProperties& p) {
+                                 return p[Property::speed_of_sound] < kBoneSpeed;
+                             });
     if (!below) return std::nullopt;
     return RayHit{below->point, bone->distance_mm + below->distance_mm};
 }

@@ -27,19 +27,18 @@ std::optional<RayHit> march_until(
 
 // The skin: the first point whose impedance differs from the starting medium's by more
 // than `relative_change` (0.5 = 50 %); from air that is the first tissue.
-std::optional<RayHit> skin_surface(const tissue::Volume& volume,
-                                   const tissue::TransferFunction& tf, const glm::dvec3& start,
-                                   const glm::dvec3& direction, double max_mm,
-                                   double relative_change = 0.5);
+std::optional<RayHit> skin_surface(const tissue::Volume& volume, const tissue::TransferFunction& tf,
+                                   const glm::dvec3& start, const glm::dvec3& direction,
+                                   double max_mm, double relative_change = 0.5);
 
 // Speed of sound above which a sample counts as bone (m/s).
 inline constexpr float kBoneSpeed = 2000.0f;
 
 // The inner surface of the first bone along the ray: the first point after a run of
 // bone (speed >= kBoneSpeed) where the speed drops below it again.
-std::optional<RayHit> beneath_bone(const tissue::Volume& volume,
-                                   const tissue::TransferFunction& tf, const glm::dvec3& start,
-                                   const glm::dvec3& direction, double max_mm);
+std::optional<RayHit> beneath_bone(const tissue::Volume& volume, const tissue::TransferFunction& tf,
+                                   const glm::dvec3& start, const glm::dvec3& direction,
+                                   double max_mm);
 
 // A virtual craniotomy on a probe-aligned grid (tissue/resample.h axes: i lateral,
 // j depth, k elevation): within `radius_mm` of the beam axis and shallower than

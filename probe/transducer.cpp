@@ -11,9 +11,12 @@ namespace sonotrace::probe {
 
 std::string to_string(TransducerType type) {
     switch (type) {
-        case TransducerType::linear: return "linear";
-        case TransducerType::convex: return "convex";
-        case TransducerType::phased: return "phased";
+        case TransducerType::linear:
+            return "linear";
+        case TransducerType::convex:
+            return "convex";
+        case TransducerType::phased:
+            return "phased";
     }
     return "?";
 }
@@ -58,9 +61,9 @@ void Transducer::validate(const std::string& source) const {
     }
     if (type == TransducerType::phased) {
         if (!(std::isfinite(fov_deg) && fov_deg > 0.0 && fov_deg < 180.0)) {
-            throw tissue::InputError(source, "fov",
-                                     "a phased array steers within (0, 180) degrees, got " +
-                                         std::to_string(fov_deg));
+            throw tissue::InputError(
+                source, "fov",
+                "a phased array steers within (0, 180) degrees, got " + std::to_string(fov_deg));
         }
     }
 }
@@ -214,8 +217,8 @@ std::pair<glm::dvec2, glm::dvec2> ScanGeometry::bounds() const {
     for (int i = 0; i <= n; ++i) {
         const double l = -0.5 + double(lines_) * i / n;  // outer edges of the end lines
         const double d = depth_ * i / n;
-        for (const glm::dvec2& p : {point(l, 0.0), point(l, depth_), point(-0.5, d),
-                                    point(lines_ - 0.5, d)}) {
+        for (const glm::dvec2& p :
+             {point(l, 0.0), point(l, depth_), point(-0.5, d), point(lines_ - 0.5, d)}) {
             lo = glm::min(lo, p);
             hi = glm::max(hi, p);
         }

@@ -79,7 +79,7 @@ template <int Dim>
 struct EchoProfile {
     int lines = 0, bins = 0;
     double bin_s = 0.0;
-    std::vector<float> intensity;               // [line * bins + bin], energy units
+    std::vector<float> intensity;                // [line * bins + bin], energy units
     std::vector<glm::vec<Dim, float>> position;  // intensity-weighted mean position (mm, map)
     float at(int line, int bin) const { return intensity[std::size_t(line) * bins + bin]; }
 };

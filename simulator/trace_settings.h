@@ -39,7 +39,7 @@ struct ProbeFace {
     // that radius through `centre`, bulging along `normal`, with half_width_mm of arc
     // length on either side.
     float radius_mm = 0.0f;
-    float reflectivity = 0.0f;          // intensity fraction the face reflects (0..1)
+    float reflectivity = 0.0f;  // intensity fraction the face reflects (0..1)
 };
 
 // A detector on a circle (2D) in the map frame: energy of particles leaving the circle

@@ -584,8 +584,9 @@ class LineTracer {
                 const V rel = to - centre;
                 if (!(glm::dot(from - centre, from - centre) >= r2 && glm::dot(rel, rel) < r2))
                     return false;
-                const float angle = std::atan2(std::abs(face.normal.x * rel.y - face.normal.y * rel.x),
-                                               glm::dot(face.normal, rel));
+                const float angle =
+                    std::atan2(std::abs(face.normal.x * rel.y - face.normal.y * rel.x),
+                               glm::dot(face.normal, rel));
                 return angle * face.radius_mm <= face.half_width_mm;
             }
         }
@@ -706,11 +707,14 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         p.intensity.assign(std::size_t(p.lines) * std::size_t(p.bins), 0.0f);
         p.position.assign(p.intensity.size(), Vec<Dim>(0.0f));
         for (std::size_t l = 0; l < lines; ++l) {
-            const std::size_t row = std::size_t(sources[order[starts[l]]].line) * std::size_t(p.bins);
+            const std::size_t row =
+                std::size_t(sources[order[starts[l]]].line) * std::size_t(p.bins);
             for (int i = 0; i < p.bins; ++i) {
                 const float w = outputs[l].profile[std::size_t(i)];
                 p.intensity[row + std::size_t(i)] = w;
-                if (w > 0.0f) p.position[row + std::size_t(i)] = outputs[l].profile_moment[std::size_t(i)] / w;
+                if (w > 0.0f)
+                    p.position[row + std::size_t(i)] =
+                        outputs[l].profile_moment[std::size_t(i)] / w;
             }
         }
     }

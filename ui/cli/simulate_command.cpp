@@ -60,41 +60,6 @@ constexpr ParameterDoc kJsonDoc = {
     "--json", "", "also write the run record (description and timings); '-' = stdout"};
 constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
-// --scene files: a JSON object whose keys are the long option names without dashes.
-class JsonSceneFormat final : public CLI::Config {
-  public:
-    std::string to_config(const CLI::App*, bool, bool, std::string) const override {
-        return {};
-    }
-    std::vector<CLI::ConfigItem> from_config(std::istream& input) const override {
-        json scene;
-        try {
-            input >> scene;
-        } catch (const json::exception& e) {
-            throw CLI::ConversionError("--scene", std::string("not valid JSON: ") + e.what());
-        }
-        if (!scene.is_object())
-            throw CLI::ConversionError("--scene", "must be a JSON object of option: value");
-        std::vector<CLI::ConfigItem> parsed;
-        for (const auto& [key, value] : scene.items()) {
-            CLI::ConfigItem item;
-            item.name = key;
-            auto text = [](const json& v) {
-                return v.is_string() ? v.get<std::string>() : v.dump();
-            };
-            if (value.is_array()) {
-                std::string joined;
-                for (const auto& v : value) joined += (joined.empty() ? "" : ",") + text(v);
-                item.inputs = {joined};
-            } else {
-                item.inputs = {text(value)};
-            }
-            parsed.push_back(item);
-        }
-        return parsed;
-    }
-};
-
 std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::Transducer& t) {
     if (text == "none") return {};
     if (text == "auto") {
@@ -203,10 +168,6 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
         "map, their echoes become RF lines (pulse, speckle), envelope, TGC, log compression and "
         "a scan-converted image with a JSON sidecar. Without arguments: the Colin27 head, convex "
         "probe on the cortex through a craniotomy, written to out/bmode.png.");
-    cmd->config_formatter(std::make_shared<JsonSceneFormat>());
-    cmd->set_config("--scene", "", "JSON scene file: {\"option\": value} with the long option "
-                                   "names below (no dashes); command-line flags win");
-    cmd->allow_config_extras(false);
     add_parameter(*cmd, kViewDoc, o.view);
     add_volume_options(*cmd, o.volume);
     add_parameter(*cmd, kProbeDoc, o.probe);
@@ -215,20 +176,34 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
         std::string help = std::string(doc.description) + " (default: the preset's)";
         if (doc.unit[0] != '\0') help += std::string(" [") + doc.unit + "]";
         const std::string key = doc.key;
-        if (key == "type") cmd->add_option(flag, o.type, help);
-        else if (key == "elements") cmd->add_option(flag, o.elements, help);
-        else if (key == "lines") cmd->add_option(flag, o.lines, help);
-        else if (key == "pitch") cmd->add_option(flag, o.pitch, help);
-        else if (key == "radius") cmd->add_option(flag, o.radius, help);
-        else if (key == "fov") cmd->add_option(flag, o.fov, help);
-        else if (key == "frequency") cmd->add_option(flag, o.frequency, help);
-        else if (key == "bandwidth") cmd->add_option(flag, o.bandwidth, help);
-        else if (key == "focus") cmd->add_option(flag, o.focus, help);
-        else if (key == "f-number") cmd->add_option(flag, o.f_number, help);
-        else if (key == "elevation-focus") cmd->add_option(flag, o.elevation_focus, help);
-        else if (key == "slice-thickness") cmd->add_option(flag, o.slice_thickness, help);
-        else if (key == "depth") cmd->add_option(flag, o.depth, help);
-        else if (key == "face-reflectivity") cmd->add_option(flag, o.face_reflectivity, help);
+        if (key == "type")
+            cmd->add_option(flag, o.type, help);
+        else if (key == "elements")
+            cmd->add_option(flag, o.elements, help);
+        else if (key == "lines")
+            cmd->add_option(flag, o.lines, help);
+        else if (key == "pitch")
+            cmd->add_option(flag, o.pitch, help);
+        else if (key == "radius")
+            cmd->add_option(flag, o.radius, help);
+        else if (key == "fov")
+            cmd->add_option(flag, o.fov, help);
+        else if (key == "frequency")
+            cmd->add_option(flag, o.frequency, help);
+        else if (key == "bandwidth")
+            cmd->add_option(flag, o.bandwidth, help);
+        else if (key == "focus")
+            cmd->add_option(flag, o.focus, help);
+        else if (key == "f-number")
+            cmd->add_option(flag, o.f_number, help);
+        else if (key == "elevation-focus")
+            cmd->add_option(flag, o.elevation_focus, help);
+        else if (key == "slice-thickness")
+            cmd->add_option(flag, o.slice_thickness, help);
+        else if (key == "depth")
+            cmd->add_option(flag, o.depth, help);
+        else if (key == "face-reflectivity")
+            cmd->add_option(flag, o.face_reflectivity, help);
     }
     add_parameter(*cmd, kQualityDoc, o.quality);
     add_parameter(*cmd, kReceiveDoc, o.receive);
@@ -258,19 +233,20 @@ int run_simulate_command(const SimulateOptions& o) {
 
     // ---- validate everything before loading ----
     if (o.view != "craniotomy" && o.view != "temporal")
-        throw tissue::InputError("--view", "", "must be craniotomy or temporal, got '" + o.view + "'");
-    const std::string preset = !o.probe.empty() ? o.probe : (o.view == "temporal" ? "phased" : "convex");
+        throw tissue::InputError("--view", "",
+                                 "must be craniotomy or temporal, got '" + o.view + "'");
+    const std::string preset =
+        !o.probe.empty() ? o.probe : (o.view == "temporal" ? "phased" : "convex");
     imaging::SimulationSettings settings;
     settings.transducer = make_transducer(o, preset);
-    settings.quality = parse_enum<imaging::Quality>(
-        o.quality, "--quality",
-        {{"interactive", imaging::Quality::interactive},
-         {"standard", imaging::Quality::standard},
-         {"high", imaging::Quality::high}});
-    settings.receive = parse_enum<imaging::ReceiveModel>(
-        o.receive, "--receive",
-        {{"monostatic", imaging::ReceiveModel::monostatic},
-         {"capture", imaging::ReceiveModel::capture}});
+    settings.quality = parse_enum<imaging::Quality>(o.quality, "--quality",
+                                                    {{"interactive", imaging::Quality::interactive},
+                                                     {"standard", imaging::Quality::standard},
+                                                     {"high", imaging::Quality::high}});
+    settings.receive =
+        parse_enum<imaging::ReceiveModel>(o.receive, "--receive",
+                                          {{"monostatic", imaging::ReceiveModel::monostatic},
+                                           {"capture", imaging::ReceiveModel::capture}});
     settings.seed = o.seed;
     settings.trace.step_texels = o.step_texels;
     settings.imaging.gain_db = o.gain_db;
@@ -282,10 +258,14 @@ int run_simulate_command(const SimulateOptions& o) {
     {
         std::istringstream list(o.formats);
         for (std::string f; std::getline(list, f, ',');) {
-            if (f == "png8") formats.emplace_back(".png", 8);
-            else if (f == "png16") formats.emplace_back("_16.png", 16);
-            else if (f == "exr") formats.emplace_back(".exr", 32);
-            else throw tissue::InputError("--formats", f, "unknown format (png8, png16, exr)");
+            if (f == "png8")
+                formats.emplace_back(".png", 8);
+            else if (f == "png16")
+                formats.emplace_back("_16.png", 16);
+            else if (f == "exr")
+                formats.emplace_back(".exr", 32);
+            else
+                throw tissue::InputError("--formats", f, "unknown format (png8, png16, exr)");
         }
         if (formats.empty()) throw tissue::InputError("--formats", "", "is empty");
     }
@@ -348,8 +328,11 @@ int run_simulate_command(const SimulateOptions& o) {
     if (o.write_rf) write_lines(frame.rf, "_rf.exr");
     if (o.write_envelope) write_lines(frame.envelope, "_envelope.exr");
     if (o.write_energy) {
-        imaging::FieldStyle style{"absorbed energy (sedimentation)", "energy",
-                                  imaging::Colormap::inferno, std::nullopt, true,
+        imaging::FieldStyle style{"absorbed energy (sedimentation)",
+                                  "energy",
+                                  imaging::Colormap::inferno,
+                                  std::nullopt,
+                                  true,
                                   level.map_pixel_mm};
         const std::string path = (out / (o.name + "_energy.png")).string();
         imaging::write_png(imaging::render_field(frame.absorbed, style), transaction.stage(path));
@@ -399,7 +382,8 @@ int run_simulate_command(const SimulateOptions& o) {
     };
     const std::string sidecar = (out / (o.name + ".json")).string();
     write_json(record, transaction.stage(sidecar));
-    if (!o.json_path.empty() && o.json_path != "-") write_json(record, transaction.stage(o.json_path));
+    if (!o.json_path.empty() && o.json_path != "-")
+        write_json(record, transaction.stage(o.json_path));
     transaction.commit();
     if (o.json_path == "-") write_json(record, "-");
     if (!o.quiet) std::cerr << "sonotrace: wrote " << written.front() << " and " << sidecar << "\n";

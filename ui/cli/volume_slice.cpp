@@ -147,8 +147,8 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
 
     // ---- grid under the probe ----
     if (!pose)
-        pose = source.is_default ? probe::colin27_temporal_pose()
-                                 : top_centre_pose(volume.geometry());
+        pose =
+            source.is_default ? probe::colin27_temporal_pose() : top_centre_pose(volume.geometry());
     tissue::GridExtent extent;
     const glm::dvec3 size_mm = glm::dvec3(volume.dims()) * volume.geometry().spacing;
     extent.width_mm =

@@ -1,0 +1,184 @@
+// Image formation: the pulse's axial resolution, fully developed speckle statistics, TGC
+// and log compression against their closed forms, scan conversion of known points.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "imaging/bmode.h"
+#include "probe/transducer.h"
+
+namespace sonotrace {
+namespace {
+
+using imaging::LineData;
+
+constexpr double kC0 = 1540.0;  // m/s
+
+// One reflection event on line `line` at one-way time t, through the whole chain.
+LineData point_echo_envelope(const probe::Transducer& t, double one_way_time_s, int line) {
+    probe::Sources<2> sources(std::size_t(t.lines));
+    for (int l = 0; l < t.lines; ++l) sources[std::size_t(l)].line = uint32_t(l);
+    simulator::EchoEvent<2> e;
+    e.line = uint32_t(line);
+    e.particle = 0;
+    e.time_s = float(one_way_time_s);
+    e.energy = 1.0f;
+    e.weight = 0.5f;
+    e.kind = simulator::EchoKind::specular;
+    imaging::ImagingSettings settings;
+    settings.speckle = false;
+    const LineData rf = imaging::synthesize_rf(t, sources, {e}, {}, {}, settings);
+    return imaging::envelope(rf);
+}
+
+// FWHM of the envelope of line `l` around its peak, in mm of depth (linear interpolation).
+double axial_fwhm_mm(const LineData& env, int l, double* peak_depth) {
+    int peak = 0;
+    for (int i = 0; i < env.samples; ++i)
+        if (env.at(l, i) > env.at(l, peak)) peak = i;
+    const float half = 0.5f * env.at(l, peak);
+    auto crossing = [&](int step) {
+        int i = peak;
+        while (env.at(l, i + step) > half) i += step;
+        const float a = env.at(l, i), b = env.at(l, i + step);
+        return i + step * double(a - half) / double(a - b);
+    };
+    *peak_depth = env.depth_mm(peak);
+    return (crossing(1) - crossing(-1)) * (env.depth_mm(1) - env.depth_mm(0));
+}
+
+// Axial FWHM of a point reflector within 20 % (issue) of the pulse's theoretical value
+// c0/2 * 2 sqrt(2 ln 2) sigma_t, sigma_t = 2 sqrt(2 ln 2) / (2 pi B f0); and at its depth.
+TEST(Bmode, PointEchoHasThePulsesAxialResolution) {
+    for (const probe::Transducer& t : probe::transducer_presets()) {
+        const double depth_mm = 0.5 * t.depth_mm;
+        const LineData env = point_echo_envelope(t, depth_mm * 1e-3 / kC0, t.lines / 2);
+        double peak_depth = 0.0;
+        const double fwhm = axial_fwhm_mm(env, t.lines / 2, &peak_depth);
+        const double ln2 = std::log(2.0);
+        const double sigma_t = 2.0 * std::sqrt(2.0 * ln2) /
+                               (2.0 * std::numbers::pi * t.bandwidth * t.frequency_mhz * 1e6);
+        const double expected = 0.5 * kC0 * 1e3 * 2.0 * std::sqrt(2.0 * ln2) * sigma_t;
+        EXPECT_NEAR(fwhm, expected, 0.2 * expected) << t.name;
+        EXPECT_NEAR(fwhm, expected, 0.03 * expected) << t.name << " (tighter: Hilbert envelope)";
+        EXPECT_NEAR(peak_depth, depth_mm, env.depth_mm(1)) << t.name;
+        // Other lines stay silent: a reflection belongs to the line whose particle made it.
+        EXPECT_EQ(env.at(0, env.samples / 2), 0.0f) << t.name;
+    }
+}
+
+// Fully developed speckle: with a constant scattered intensity, the envelope is Rayleigh
+// distributed, mean/std = sqrt(pi / (4 - pi)) = 1.913. The issue asks 1.91 +- 0.15; with
+// 128 lines x ~900 samples the estimate's own spread is far below that.
+TEST(Bmode, FullyDevelopedSpeckleHasRayleighSnr) {
+    const probe::Transducer t = probe::find_transducer("convex", "x");
+    imaging::ImagingSettings settings;
+    const LineData layout = imaging::rf_layout(t, settings);
+    simulator::EchoProfile<2> profile;
+    profile.lines = t.lines;
+    profile.bins = layout.samples;
+    profile.bin_s = 1.0 / layout.fs_hz;
+    profile.intensity.assign(std::size_t(t.lines) * std::size_t(profile.bins), 1e-6f);
+    profile.position.resize(profile.intensity.size());
+    const probe::ScanGeometry g(t);
+    for (int l = 0; l < t.lines; ++l) {
+        for (int i = 0; i < profile.bins; ++i)
+            profile.position[std::size_t(l) * std::size_t(profile.bins) + std::size_t(i)] =
+                glm::vec2(g.point(l, layout.depth_mm(i)));
+    }
+    probe::Sources<2> sources(1);
+    const auto to_world = [](const glm::vec2& p) { return glm::dvec3(p.x, p.y, 0.0); };
+    const LineData env =
+        imaging::envelope(imaging::synthesize_rf(t, sources, {}, profile, to_world, settings));
+    double sum = 0.0, sum2 = 0.0;
+    int n = 0;
+    for (int l = 0; l < t.lines; ++l) {
+        for (int i = env.samples / 4; i < 3 * env.samples / 4; ++i) {
+            sum += env.at(l, i);
+            sum2 += double(env.at(l, i)) * env.at(l, i);
+            ++n;
+        }
+    }
+    const double mean = sum / n, sd = std::sqrt(sum2 / n - mean * mean);
+    EXPECT_NEAR(mean / sd, std::sqrt(std::numbers::pi / (4.0 - std::numbers::pi)), 0.15);
+}
+
+TEST(Bmode, TgcAndLogCompressionFollowTheirFormulas) {
+    const std::vector<imaging::TgcPoint> curve = {{10.0, 0.0}, {50.0, 20.0}, {80.0, 26.0}};
+    EXPECT_DOUBLE_EQ(imaging::tgc_gain_db(curve, 0.0), 0.0);    // constant before
+    EXPECT_DOUBLE_EQ(imaging::tgc_gain_db(curve, 30.0), 10.0);  // linear between
+    EXPECT_DOUBLE_EQ(imaging::tgc_gain_db(curve, 65.0), 23.0);
+    EXPECT_DOUBLE_EQ(imaging::tgc_gain_db(curve, 200.0), 26.0);  // constant after
+    EXPECT_DOUBLE_EQ(imaging::tgc_gain_db({}, 40.0), 0.0);
+    // 20 log10(e) + gain mapped from -range..0 dB onto 0..1.
+    EXPECT_NEAR(imaging::log_compress(float(std::pow(10.0, -30.0 / 20.0)), 10.0, 60.0),
+                (-30.0 + 10.0 + 60.0) / 60.0, 1e-6);
+    EXPECT_EQ(imaging::log_compress(1.0f, 10.0, 60.0), 1.0f);  // clipped white
+    EXPECT_EQ(imaging::log_compress(1e-9f, 0.0, 60.0), 0.0f);  // below the range: black
+    EXPECT_EQ(imaging::log_compress(0.0f, 0.0, 60.0), 0.0f);
+
+    // compress(): TGC applied at each sample's depth c0 t / 2.
+    LineData env;
+    env.lines = 1;
+    env.samples = 1000;
+    env.fs_hz = 20e6;
+    env.values.assign(1000, 1e-3f);  // -60 dB
+    imaging::ImagingSettings s;
+    s.tgc = {{0.0, 0.0}, {38.5, 20.0}};  // sample i sits at i * 0.0385 mm
+    s.gain_db = 30.0;
+    s.dynamic_range_db = 40.0;
+    const LineData out = imaging::compress(env, s);
+    for (int i : {0, 250, 500, 999}) {
+        const double depth = 0.5 * kC0 * (i / env.fs_hz) * 1e3;
+        const double db = -60.0 + 30.0 + std::min(20.0, 20.0 * depth / 38.5);
+        EXPECT_NEAR(out.at(0, i), std::clamp((db + 40.0) / 40.0, 0.0, 1.0), 1e-5) << i;
+    }
+}
+
+// A bright sample at (line, depth) lands at the pixel the probe geometry predicts,
+// computed here from the textbook formulas, for the three probe types.
+TEST(Bmode, ScanConversionPutsKnownPointsAtTheirPixels) {
+    for (const probe::Transducer& t : probe::transducer_presets()) {
+        imaging::ImagingSettings settings;
+        LineData data = imaging::rf_layout(t, settings);
+        data.values.assign(std::size_t(data.lines) * std::size_t(data.samples), 0.0f);
+        const int line = data.lines / 5;
+        const int sample = data.samples * 2 / 3;
+        const double depth = data.depth_mm(sample);
+        for (int i = sample - 8; i <= sample + 8; ++i)
+            data.at(line, i) = 1.0f;  // finer than pixels
+        const double pixel = 0.1;
+        const imaging::ScanConverted sc = imaging::scan_convert(data, t, pixel);
+        // Centroid of the pixels brighter than half.
+        glm::dvec2 sum(0.0);
+        double weight = 0.0;
+        for (int r = 0; r < sc.image.rows; ++r) {
+            for (int c = 0; c < sc.image.cols; ++c) {
+                const float v = sc.image.at<float>(r, c);
+                if (v > 0.5f) sum += double(v) * glm::dvec2(c, r), weight += v;
+            }
+        }
+        ASSERT_GT(weight, 0.0) << t.name;
+        const glm::dvec2 found = sc.origin + sum / weight * pixel;
+        glm::dvec2 expected;
+        if (t.type == probe::TransducerType::linear) {
+            const double span = t.elements * t.pitch_mm;
+            expected = {-0.5 * span + (line + 0.5) * span / t.lines, depth};
+        } else {
+            const double r = t.type == probe::TransducerType::convex ? t.radius_mm : 0.0;
+            const double fov = t.fov_deg * std::numbers::pi / 180.0;
+            const double angle = -0.5 * fov + (line + 0.5) * fov / t.lines;
+            expected = {(r + depth) * std::sin(angle), (r + depth) * std::cos(angle) - r};
+        }
+        EXPECT_NEAR(found.x, expected.x, pixel) << t.name;
+        EXPECT_NEAR(found.y, expected.y, pixel) << t.name;
+        // Inside mask: the face's centre line is inside, a far corner is not.
+        EXPECT_EQ(sc.inside.at<uint8_t>(sc.inside.rows - 1, 0),
+                  t.type == probe::TransducerType::linear ? 255 : 0)
+            << t.name;
+    }
+}
+
+}  // namespace
+}  // namespace sonotrace

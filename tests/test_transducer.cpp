@@ -1,0 +1,169 @@
+// Transducer models: parameter validation, scan geometry and its inverse for the three
+// types, and the beam sampler (Hann apodization and Gaussian aim offsets, chi-square).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "probe/beam.h"
+#include "probe/transducer.h"
+#include "tests/test_util.h"
+
+namespace sonotrace {
+namespace {
+
+using probe::Transducer;
+using probe::TransducerType;
+
+TEST(Transducer, PresetsAreValid) {
+    for (const Transducer& t : probe::transducer_presets()) {
+        EXPECT_NO_THROW(t.validate(t.name)) << t.name;
+    }
+    EXPECT_EQ(probe::find_transducer("linear", "x").type, TransducerType::linear);
+    EXPECT_DOUBLE_EQ(probe::find_transducer("linear", "x").frequency_mhz, 7.6);
+    EXPECT_EQ(probe::find_transducer("convex", "x").type, TransducerType::convex);
+    EXPECT_DOUBLE_EQ(probe::find_transducer("convex", "x").frequency_mhz, 3.5);
+    EXPECT_EQ(probe::find_transducer("phased", "x").type, TransducerType::phased);
+    EXPECT_DOUBLE_EQ(probe::find_transducer("phased", "x").frequency_mhz, 2.7);
+    test::expect_input_error([] { probe::find_transducer("sector", "--probe"); }, "--probe",
+                             "probe", "linear, convex, phased");
+}
+
+TEST(Transducer, ImpossibleGeometryIsRejected) {
+    Transducer t = probe::find_transducer("convex", "x");
+    Transducer zero = t;
+    zero.elements = 0;
+    test::expect_input_error([&] { zero.validate("probe"); }, "probe", "elements");
+    Transducer deep_focus = t;
+    deep_focus.focus_mm = t.depth_mm + 1.0;
+    test::expect_input_error([&] { deep_focus.validate("probe"); }, "probe", "focus",
+                             "beyond the imaging depth");
+    Transducer wide = probe::find_transducer("phased", "x");
+    wide.fov_deg = 190.0;
+    test::expect_input_error([&] { wide.validate("probe"); }, "probe", "fov");
+    Transducer arc = t;
+    arc.fov_deg = 100.0;  // 128 * 0.508 / 49.57 rad = 75 degrees of arc
+    test::expect_input_error([&] { arc.validate("probe"); }, "probe", "fov", "arc");
+    Transducer nan = t;
+    nan.frequency_mhz = std::nan("");
+    test::expect_input_error([&] { nan.validate("probe"); }, "probe", "frequency");
+}
+
+// Every line's points invert to (line, depth); known points land where geometry says.
+TEST(ScanGeometry, PointsAndInverseForAllTypes) {
+    for (const Transducer& t : probe::transducer_presets()) {
+        const probe::ScanGeometry g(t);
+        for (int l = 0; l < t.lines; l += 7) {
+            for (double d : {0.0, 10.0, t.depth_mm}) {
+                if (d == 0.0 && t.type == TransducerType::phased) continue;  // common origin
+                const glm::dvec2 back = g.line_and_depth(g.point(l, d));
+                EXPECT_NEAR(back.x, l, 1e-9) << t.name;
+                EXPECT_NEAR(back.y, d, 1e-9) << t.name;
+            }
+        }
+    }
+    // Linear: lines spread evenly over the array, straight down.
+    const Transducer linear = probe::find_transducer("linear", "x");
+    const probe::ScanGeometry lg(linear);
+    const double span = linear.array_length_mm();
+    EXPECT_NEAR(lg.point(0, 5.0).x, -0.5 * span + 0.5 * span / linear.lines, 1e-12);
+    EXPECT_NEAR(lg.point(0, 5.0).y, 5.0, 1e-12);
+    // Convex: the centre line at depth d lies at (0, d); the outermost line at angle
+    // -fov/2 + half a line, from the centre of curvature (0, -R).
+    const Transducer convex = probe::find_transducer("convex", "x");
+    const probe::ScanGeometry cg(convex);
+    const double half = 0.5 * convex.fov_deg * std::numbers::pi / 180.0;
+    const double first = -half + half / convex.lines;
+    const glm::dvec2 p = cg.point(0, 30.0);
+    EXPECT_NEAR(p.x, (convex.radius_mm + 30.0) * std::sin(first), 1e-9);
+    EXPECT_NEAR(p.y, (convex.radius_mm + 30.0) * std::cos(first) - convex.radius_mm, 1e-9);
+    // Phased: all lines start at the origin.
+    const probe::ScanGeometry pg(probe::find_transducer("phased", "x"));
+    EXPECT_NEAR(glm::length(pg.point(0, 0.0)), 0.0, 1e-12);
+    EXPECT_NEAR(glm::length(pg.point(77, 40.0)), 40.0, 1e-9);
+}
+
+double chi_square(const std::vector<int>& counts, const std::vector<double>& p, int n) {
+    double chi2 = 0.0;
+    for (std::size_t b = 0; b < counts.size(); ++b) {
+        const double e = p[b] * n;
+        chi2 += (counts[b] - e) * (counts[b] - e) / e;
+    }
+    return chi2;
+}
+
+// The inverse CDFs map uniform draws onto their densities: chi-square against the
+// exact bin probabilities (CDF differences), 20 bins, p = 0.001 critical value 43.82
+// (19 degrees of freedom); 20000 pseudo-random (not stratified) draws.
+TEST(BeamSampling, HannInverseCdfFollowsTheDensity) {
+    const int bins = 20, n = 20000;
+    std::vector<int> counts(bins, 0);
+    uint64_t state = 12345;
+    for (int i = 0; i < n; ++i) {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        const double u = double(state >> 11) * 0x1.0p-53;
+        counts[std::min(bins - 1, int(probe::hann_inverse_cdf(u) * bins))]++;
+    }
+    auto cdf = [](double v) {
+        return v - std::sin(2 * std::numbers::pi * v) / (2 * std::numbers::pi);
+    };
+    std::vector<double> p(bins);
+    for (int b = 0; b < bins; ++b) p[b] = cdf(double(b + 1) / bins) - cdf(double(b) / bins);
+    EXPECT_LT(chi_square(counts, p, n), 43.82);
+}
+
+TEST(BeamSampling, NormalInverseCdfMatchesErf) {
+    for (double u : {1e-10, 1e-4, 0.01, 0.2, 0.5, 0.7, 0.99, 1 - 1e-6}) {
+        const double x = probe::normal_inverse_cdf(u);
+        EXPECT_NEAR(0.5 * std::erfc(-x / std::numbers::sqrt2), u, 1e-12 * std::max(1.0, u / 1e-3))
+            << u;
+    }
+}
+
+// Beams: each line's particles leave the active aperture and aim at the focus; their
+// offsets at the focal depth follow N(0, sigma) with sigma = lambda F / 2.355 (chi-square
+// over the line's particles pooled across lines), and the transmit delays make every
+// particle reach the focal point at focus / c0.
+TEST(Beams, ConvergeOnTheFocusWithGaussianWaist) {
+    Transducer t = probe::find_transducer("linear", "x");
+    t.lines = 16;
+    const probe::BeamSettings settings{400, 7};
+    const auto sources = probe::make_beams(t, settings, {0.0, 0.0});
+    ASSERT_EQ(sources.size(), std::size_t(16 * 400));
+    const probe::ScanGeometry g(t);
+    const double c0_mm_per_s = 1540e3;
+    const int bins = 16;
+    std::vector<int> counts(bins, 0);
+    int n = 0;
+    for (const auto& s : sources) {
+        const probe::ScanLine line = g.line(int(s.line));
+        const glm::dvec2 focus = line.origin + t.focus_mm * line.direction;
+        const glm::dvec2 from(s.position), dir(s.direction);
+        EXPECT_NEAR(glm::length(dir), 1.0, 1e-6);
+        // Where the particle crosses the focal depth, relative to the focal point.
+        const double along = (focus.y - from.y) / dir.y;
+        const double offset = (from + along * dir).x - focus.x;
+        // Aperture: within the active aperture around the line (clipped to the array).
+        EXPECT_LE(std::abs(from.x - line.origin.x), 0.5 * t.active_aperture_mm() + 1e-6);
+        EXPECT_LE(std::abs(from.x), 0.5 * t.array_length_mm() + 1e-6);
+        // Delay: the particle's clock reads focus / c0 at the focal point's distance.
+        const double distance = glm::length(focus - from);
+        EXPECT_NEAR(s.time_s + distance / c0_mm_per_s, t.focus_mm / c0_mm_per_s, 1e-9);
+        if (s.line < 4 || s.line >= 12) continue;  // full-aperture lines only
+        double lo = line.origin.x - 0.5 * t.active_aperture_mm();
+        double hi = line.origin.x + 0.5 * t.active_aperture_mm();
+        lo = std::max(lo, -0.5 * t.array_length_mm());
+        hi = std::min(hi, 0.5 * t.array_length_mm());
+        const double sigma = probe::focal_sigma_mm(t, hi - lo);
+        const double z = offset / sigma;
+        const double u = 0.5 * std::erfc(-z / std::numbers::sqrt2);
+        counts[std::min(bins - 1, int(u * bins))]++;
+        ++n;
+        EXPECT_NEAR(s.receive_weight, std::exp(-0.5 * z * z), 1e-4);
+    }
+    // Stratified draws are more even than chance, so this bound is conservative.
+    EXPECT_LT(chi_square(counts, std::vector<double>(bins, 1.0 / bins), n), 37.70);  // 15 dof
+}
+
+}  // namespace
+}  // namespace sonotrace
