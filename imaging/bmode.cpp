@@ -8,6 +8,7 @@
 #include <opencv2/core.hpp>
 
 #include "tissue/acoustic_map.h"
+#include "tissue/hash.h"
 
 namespace sonotrace::imaging {
 
@@ -16,12 +17,7 @@ namespace {
 constexpr double kFwhmPerSigma = 2.3548200450309493;  // 2 sqrt(2 ln 2)
 constexpr double kC0 = tissue::kReferenceSpeed;       // m/s
 
-uint64_t mix(uint64_t x) {  // splitmix64 finaliser
-    x += 0x9e3779b97f4a7c15ull;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-    return x ^ (x >> 31);
-}
+using tissue::mix64;
 
 // Gaussian kernel of `sigma` samples, sum 1.
 std::vector<float> gaussian_kernel(double sigma) {
@@ -94,10 +90,10 @@ LineData rf_layout(const probe::Transducer& t, const ImagingSettings& settings) 
 }
 
 ScattererField::ScattererField(uint64_t seed, double cell_mm)
-    : seed_(mix(seed ^ 0x73636174ull)), inverse_cell_(1.0 / cell_mm) {}
+    : seed_(mix64(seed ^ 0x73636174ull)), inverse_cell_(1.0 / cell_mm) {}
 
 float ScattererField::lattice(int64_t i, int64_t j, int64_t k) const {
-    const uint64_t h = mix(mix(mix(seed_ ^ uint64_t(i)) ^ uint64_t(j)) ^ uint64_t(k));
+    const uint64_t h = mix64(mix64(mix64(seed_ ^ uint64_t(i)) ^ uint64_t(j)) ^ uint64_t(k));
     // Uniform on [-sqrt 3, sqrt 3]: zero mean, unit variance.
     return float((double(h >> 11) * 0x1.0p-53 * 2.0 - 1.0) * std::numbers::sqrt3);
 }

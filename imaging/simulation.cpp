@@ -41,11 +41,7 @@ void SimulationSettings::validate(const std::string& source) const {
     transducer.validate(source);
     trace.validate(source);
     auto in_range = [&](double v, double lo, double hi, const char* field) {
-        if (!(std::isfinite(v) && v >= lo && v <= hi)) {
-            throw tissue::InputError(source, field,
-                                     "must be in [" + std::to_string(lo) + ", " +
-                                         std::to_string(hi) + "], got " + std::to_string(v));
-        }
+        tissue::require_in_range(source, field, v, lo, hi);
     };
     in_range(imaging.sampling_mhz, 0.0, 1000.0, "sampling");
     if (imaging.sampling_mhz > 0.0 &&

@@ -6,21 +6,17 @@
 #include <numeric>
 
 #include "tissue/acoustic_map.h"
+#include "tissue/hash.h"
 
 namespace sonotrace::probe {
 
 namespace {
 
-uint64_t mix(uint64_t x) {  // splitmix64 finaliser
-    x += 0x9e3779b97f4a7c15ull;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-    return x ^ (x >> 31);
-}
+using tissue::mix64;
 
 // Uniform in [0, 1) from a key: 53 random bits.
 double uniform(uint64_t seed, uint64_t line, uint64_t particle, uint64_t draw) {
-    const uint64_t h = mix(mix(mix(seed ^ 0x62656d73ull) ^ line) ^ (particle << 2 | draw));
+    const uint64_t h = mix64(mix64(mix64(seed ^ 0x62656d73ull) ^ line) ^ (particle << 2 | draw));
     return double(h >> 11) * 0x1.0p-53;
 }
 

@@ -23,12 +23,7 @@ std::string to_string(TransducerType type) {
 
 void Transducer::validate(const std::string& source) const {
     auto in_range = [&](double v, double lo, double hi, const char* field, const char* unit) {
-        if (!(std::isfinite(v) && v >= lo && v <= hi)) {
-            throw tissue::InputError(source, field,
-                                     "must be in [" + std::to_string(lo) + ", " +
-                                         std::to_string(hi) + "] " + unit + ", got " +
-                                         std::to_string(v));
-        }
+        tissue::require_in_range(source, field, v, lo, hi, unit);
     };
     in_range(elements, 1, 4096, "elements", "");
     in_range(pitch_mm, 1e-3, 10.0, "pitch", "mm");

@@ -28,11 +28,7 @@ std::string to_string(LobeWeight weight) {
 
 void TraceSettings::validate(const std::string& source) const {
     auto in_range = [&](double v, double lo, double hi, const char* field) {
-        if (!(std::isfinite(v) && v >= lo && v <= hi)) {
-            throw tissue::InputError(source, field,
-                                     "must be in [" + std::to_string(lo) + ", " +
-                                         std::to_string(hi) + "], got " + std::to_string(v));
-        }
+        tissue::require_in_range(source, field, v, lo, hi);
     };
     in_range(step_texels, 0.01, 4.0, "step");
     in_range(frequency_mhz, 0.1, 100.0, "frequency");

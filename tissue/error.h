@@ -1,6 +1,7 @@
 #pragma once
 // Errors about user input. Every message names the file (or option) and the field
 // that is wrong, so that the CLI can print it verbatim and exit non-zero.
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -28,5 +29,17 @@ class InputError : public std::runtime_error {
     std::string source_;
     std::string field_;
 };
+
+// Throws InputError(source, field) unless lo <= value <= hi (and finite); `unit` is
+// appended to the bounds in the message.
+inline void require_in_range(const std::string& source, const char* field, double value, double lo,
+                             double hi, const char* unit = "") {
+    if (!(std::isfinite(value) && value >= lo && value <= hi)) {
+        throw InputError(source, field,
+                         "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]" +
+                             (unit[0] ? std::string(" ") + unit : std::string()) + ", got " +
+                             std::to_string(value));
+    }
+}
 
 }  // namespace sonotrace::tissue
