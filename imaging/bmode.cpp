@@ -192,8 +192,9 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         // grows with depth up to the whole array, so the receive beam's FWHM is
         // lambda * max(F, depth / array). (The transmit beam's width is in the particles.)
         const double fwhm = t.wavelength_mm() * std::max(t.f_number, depth / t.array_length_mm());
-        const double sigma_lines =
-            std::max(1e-3, fwhm / kFwhmPerSigma / geometry.line_spacing_mm(depth));
+        // At a phased array's apex the lines meet (spacing 0): the PSF spans them all.
+        const double sigma_lines = std::clamp(
+            fwhm / kFwhmPerSigma / std::max(geometry.line_spacing_mm(depth), 1e-9), 1e-3, 1e6);
         const int half = std::min(L, int(std::ceil(3.0 * sigma_lines)));
         float w[129];
         const int h = std::min(half, 64);
