@@ -5,8 +5,8 @@
 
 #include "sonotrace_version.h"
 #include "tissue/error.h"
-#include "ui/cli/tissue_command.h"
 #include "ui/cli/simulate_command.h"
+#include "ui/cli/tissue_command.h"
 #include "ui/cli/trace_command.h"
 
 int main(int argc, char** argv) {

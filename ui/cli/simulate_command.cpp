@@ -132,14 +132,6 @@ json transducer_json(const probe::Transducer& t) {
             {"face_reflectivity", t.face_reflectivity}};
 }
 
-json pose_json(const probe::Pose& pose) {
-    return {{"text", pose.to_string()},
-            {"position_mm", {pose.position.x, pose.position.y, pose.position.z}},
-            {"lateral", {pose.lateral().x, pose.lateral().y, pose.lateral().z}},
-            {"axial", {pose.axial().x, pose.axial().y, pose.axial().z}},
-            {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}};
-}
-
 template <typename E>
 E parse_enum(const std::string& text, const char* flag,
              const std::vector<std::pair<std::string, E>>& choices) {

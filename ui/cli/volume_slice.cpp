@@ -179,6 +179,14 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     return slice;
 }
 
+json pose_json(const probe::Pose& pose) {
+    return {{"text", pose.to_string()},
+            {"position_mm", {pose.position.x, pose.position.y, pose.position.z}},
+            {"lateral", {pose.lateral().x, pose.lateral().y, pose.lateral().z}},
+            {"axial", {pose.axial().x, pose.axial().y, pose.axial().z}},
+            {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}};
+}
+
 json volume_source_json(const VolumeSource& source, const SliceOptions& options) {
     return {{"volume",
              {{"spec", options.volume},
@@ -202,12 +210,7 @@ json slice_json(const Slice& slice, const SliceOptions& options) {
           {"value_range", {slice.value_min, slice.value_max}},
           {"outside_value", slice.outside}}},
         {"transfer_function", slice.tf->describe()},
-        {"pose",
-         {{"text", pose.to_string()},
-          {"position_mm", {pose.position.x, pose.position.y, pose.position.z}},
-          {"lateral", {pose.lateral().x, pose.lateral().y, pose.lateral().z}},
-          {"axial", {pose.axial().x, pose.axial().y, pose.axial().z}},
-          {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}}},
+        {"pose", pose_json(pose)},
         {"grid",
          {{"geometry", geometry_json(slice.grid)},
           {"width_mm", slice.extent.width_mm},

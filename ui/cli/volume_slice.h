@@ -52,6 +52,9 @@ struct VolumeSource {
 // and binds the transfer function.
 VolumeSource load_volume_source(const SliceOptions& options, StageTimer& timer);
 
+// A pose in a sidecar: its text form and its axes in world coordinates.
+nlohmann::json pose_json(const probe::Pose& pose);
+
 // The volume-related part of a sidecar.
 nlohmann::json volume_source_json(const VolumeSource& source, const SliceOptions& options);
 
