@@ -17,6 +17,7 @@ namespace {
 constexpr double kFwhmPerSigma = 2.3548200450309493;  // 2 sqrt(2 ln 2)
 constexpr double kC0 = tissue::kReferenceSpeed;       // m/s
 
+using probe::ScanLine;
 using tissue::mix64;
 
 // Gaussian kernel of `sigma` samples, sum 1.
@@ -31,14 +32,30 @@ std::vector<float> gaussian_kernel(double sigma) {
 }
 
 // out = in (*) kernel (centred), zero outside.
-void convolve(const float* in, int n, const std::vector<float>& kernel, float* out) {
+template <typename T>
+void convolve(const T* in, int n, const std::vector<float>& kernel, T* out) {
     const int half = int(kernel.size() / 2);
     for (int i = 0; i < n; ++i) {
         const int lo = std::max(0, i - half), hi = std::min(n - 1, i + half);
-        float sum = 0.0f;
+        T sum = 0;
         for (int j = lo; j <= hi; ++j) sum += in[j] * kernel[std::size_t(j - i + half)];
         out[i] = sum;
     }
+}
+
+// Sum over k of the correlation of the scatterer field between points k u cells apart
+// along a lattice axis: linear interpolation of white values has the cubic B-spline
+// autocorrelation B3(x) (phase-averaged), normalised by B3(0) = 2/3.
+double lattice_correlation_sum(double u) {
+    auto rho = [](double x) {
+        x = std::abs(x);
+        const double b = x < 1.0 ? 2.0 / 3.0 - x * x + 0.5 * x * x * x
+                                 : (x < 2.0 ? (2.0 - x) * (2.0 - x) * (2.0 - x) / 6.0 : 0.0);
+        return b * 1.5;
+    };
+    double sum = 1.0;
+    for (int k = 1; k * u < 2.0; ++k) sum += 2.0 * rho(k * u);
+    return sum;
 }
 
 }  // namespace
@@ -93,7 +110,10 @@ ScattererField::ScattererField(uint64_t seed, double cell_mm)
     : seed_(mix64(seed ^ 0x73636174ull)), inverse_cell_(1.0 / cell_mm) {}
 
 float ScattererField::lattice(int64_t i, int64_t j, int64_t k) const {
-    const uint64_t h = mix64(mix64(mix64(seed_ ^ uint64_t(i)) ^ uint64_t(j)) ^ uint64_t(k));
+    // One mix of the three indices, each spread by an odd 64-bit constant.
+    const uint64_t h =
+        mix64(seed_ + uint64_t(i) * 0x9E3779B97F4A7C15ull + uint64_t(j) * 0xC2B2AE3D27D4EB4Full +
+              uint64_t(k) * 0x165667B19E3779F9ull);
     // Uniform on [-sqrt 3, sqrt 3]: zero mean, unit variance.
     return float((double(h >> 11) * 0x1.0p-53 * 2.0 - 1.0) * std::numbers::sqrt3);
 }
@@ -112,6 +132,15 @@ float ScattererField::operator()(const glm::dvec3& world_mm) const {
     // Trilinear blending of independent values has mean square prod((1-f)^2 + f^2),
     // 8/27 on average over a cell: rescale to 1.
     return v * float(std::sqrt(27.0 / 8.0));
+}
+
+double reflection_back_fraction(double cos_incidence, double lobe_exponent,
+                                double half_acceptance_rad) {
+    const double off_axis = 2.0 * std::acos(std::clamp(cos_incidence, -1.0, 1.0));
+    const double sigma = 1.0 / std::sqrt(std::max(lobe_exponent, 1.0));
+    auto cdf = [](double z) { return 0.5 * std::erfc(-z / std::numbers::sqrt2); };
+    return cdf((half_acceptance_rad - off_axis) / sigma) -
+           cdf((-half_acceptance_rad - off_axis) / sigma);
 }
 
 LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
@@ -141,6 +170,12 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         if (e.kind != simulator::EchoKind::returned_to_probe) {
             echo_time = 2.0 * e.time_s;  // monostatic estimate: twice the one-way time
             intensity *= double(e.energy) / std::max(double(source.energy), 1e-30);
+            // Of the reflected energy, the share that returns into the receive aperture
+            // (dynamic receive at the F-number, at most the array) seen from the event.
+            const double range_mm = std::max(e.time_s * kC0 * 1e3, 1e-3);
+            const double aperture = std::min(t.array_length_mm(), range_mm / t.f_number);
+            intensity *= reflection_back_fraction(e.cos_incidence, e.lobe_exponent,
+                                                  std::atan(0.5 * aperture / range_mm));
         }
         const double position = echo_time * fs;
         if (!(position >= 0.0) || position >= double(N - 1)) continue;
@@ -151,9 +186,12 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         row[i + 1] += float(intensity) * frac;
     }
 
-    // -- speckle: sqrt(smoothed profile) x scatterer field at the mean echo position
+    // -- speckle (header): the beam's intensity at each echo time, its mean position and
+    // lateral spread, from the smoothed profile
+    const probe::ScanGeometry geometry(t);
     std::vector<float> speckle(std::size_t(L) * std::size_t(N), 0.0f);
-    const bool with_profile = settings.speckle && profile.lines > 0 && profile.bins == N;
+    const bool with_profile = settings.speckle && profile.lines > 0 && profile.bins == N &&
+                              profile.covariance.size() == profile.intensity.size();
     if (with_profile) {
         const double cell =
             settings.speckle_cell_mm > 0.0 ? settings.speckle_cell_mm : t.wavelength_mm() / 8.0;
@@ -161,60 +199,131 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         const double fwhm_samples = pulse.envelope_fwhm_s() * fs;
         const auto smooth = gaussian_kernel(
             std::max(0.5, settings.profile_smoothing * fwhm_samples / kFwhmPerSigma));
-        tbb::parallel_for(0, std::min(L, profile.lines), [&](int l) {
-            std::vector<float> in(static_cast<std::size_t>(N)), intensity(in.size()), mx(in.size()),
-                my(in.size());
+        const int profile_lines = std::min(L, profile.lines);
+        std::vector<double> w(std::size_t(L) * std::size_t(N), 0.0);
+        std::vector<glm::dvec2> mean(w.size(), glm::dvec2(0.0));
+        std::vector<glm::dmat2> spread(w.size(), glm::dmat2(0.0));
+        tbb::parallel_for(0, profile_lines, [&](int l) {
+            // Moments S0 = w, S1 = w m, S2 = w (C + m m^T), smoothed, then back.
             const std::size_t row = std::size_t(l) * std::size_t(N);
-            for (int i = 0; i < N; ++i)
-                in[std::size_t(i)] = profile.intensity[row + std::size_t(i)];
-            convolve(in.data(), N, smooth, intensity.data());
-            for (int a = 0; a < 2; ++a) {
-                for (int i = 0; i < N; ++i)
-                    in[std::size_t(i)] = profile.intensity[row + std::size_t(i)] *
-                                         profile.position[row + std::size_t(i)][a];
-                convolve(in.data(), N, smooth, (a == 0 ? mx : my).data());
+            std::vector<double> in(static_cast<std::size_t>(N)), moments[6];
+            for (int c = 0; c < 6; ++c) {
+                for (int i = 0; i < N; ++i) {
+                    const std::size_t at = row + std::size_t(i);
+                    const double wi = profile.intensity[at];
+                    const glm::dvec2 m(profile.position[at]);
+                    const glm::dmat2 s2 =
+                        glm::dmat2(profile.covariance[at]) + glm::outerProduct(m, m);
+                    const double values[6] = {1.0, m.x, m.y, s2[0][0], s2[1][0], s2[1][1]};
+                    in[std::size_t(i)] = wi > 0.0 ? wi * values[c] : 0.0;
+                }
+                moments[c].resize(std::size_t(N));
+                convolve(in.data(), N, smooth, moments[c].data());
             }
             for (int i = 0; i < N; ++i) {
-                const float w = intensity[std::size_t(i)];
-                if (!(w > 0.0f)) continue;
-                const glm::vec2 p(mx[std::size_t(i)] / w, my[std::size_t(i)] / w);
-                speckle[row + std::size_t(i)] = std::sqrt(w) * field(to_world(p));
+                const double s0 = moments[0][std::size_t(i)];
+                if (!(s0 > 0.0)) continue;
+                const std::size_t at = row + std::size_t(i);
+                w[at] = s0;
+                mean[at] = glm::dvec2(moments[1][std::size_t(i)], moments[2][std::size_t(i)]) / s0;
+                const double xy = moments[4][std::size_t(i)] / s0 - mean[at].x * mean[at].y;
+                spread[at] =
+                    glm::dmat2(moments[3][std::size_t(i)] / s0 - mean[at].x * mean[at].x, xy, xy,
+                               moments[5][std::size_t(i)] / s0 - mean[at].y * mean[at].y);
+            }
+        });
+
+        // The scatterer field on K sub-lines per gap between lines, interpolated between
+        // the lines' mean positions (the nominal line spacing where a line has no echo),
+        // so neighbouring lines see overlapping scatterers as their beams overlap; each
+        // scaled by the square root of the intensity that lights it.
+        double widest_gap = 0.0;
+        for (double d : {0.0, 0.5 * t.depth_mm, t.depth_mm})
+            widest_gap = std::max(widest_gap, geometry.line_spacing_mm(d));
+        const int K = std::clamp(int(std::ceil(widest_gap / cell)), 1, 32);
+        const int sub_lines = (L - 1) * K + 1;
+        auto gap_ends = [&](int l, int i, glm::dvec2* a, glm::dvec2* b) {
+            const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
+            const std::size_t next = at + std::size_t(N);
+            const double depth = rf.depth_mm(i);
+            const glm::dvec2 nominal = geometry.point(l + 1, depth) - geometry.point(l, depth);
+            *a = w[at] > 0.0 ? mean[at] : mean[next] - nominal;
+            *b = w[next] > 0.0 ? mean[next] : mean[at] + nominal;
+        };
+        std::vector<float> sub(std::size_t(sub_lines) * std::size_t(N), 0.0f);
+        tbb::parallel_for(0, sub_lines, [&](int s) {
+            const int l = std::min(s / K, L - 2), k = s - l * K;
+            const double f = double(k) / K;
+            for (int i = 0; i < N; ++i) {
+                const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
+                if (L == 1) {
+                    if (w[at] > 0.0)
+                        sub[std::size_t(i)] =
+                            float(std::sqrt(w[at])) * field(to_world(glm::vec2(mean[at])));
+                    continue;
+                }
+                const double lit = (1.0 - f) * w[at] + f * w[at + std::size_t(N)];
+                if (!(lit > 0.0)) continue;
+                glm::dvec2 a, b;
+                gap_ends(l, i, &a, &b);
+                // Scatterers lit by the intensity there (interpolated between the lines).
+                sub[std::size_t(s) * std::size_t(N) + std::size_t(i)] =
+                    float(std::sqrt(lit)) * field(to_world(glm::vec2(a + f * (b - a))));
+            }
+        });
+
+        // Each line sums the sub-lines under its two-way beam, amplitude weights g. The
+        // particles give the transmit beam (intensity variance v, so amplitude variance
+        // 2v; at the focus already two-way through the receive weights); dynamic receive
+        // focusing bounds it by the receive PSF, FWHM lambda * max(F, depth / array).
+        // Normalised by the field's mean square over the sum (lattice correlation along
+        // the sub-lines included), the mean speckle intensity is the profile's, averaged
+        // over the beam.
+        tbb::parallel_for(0, L, [&](int l) {
+            for (int i = 0; i < N; ++i) {
+                const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
+                if (!(w[at] > 0.0)) continue;
+                const double depth = rf.depth_mm(i);
+                const ScanLine line = geometry.line(l);
+                const glm::dvec2 across(-line.direction.y, line.direction.x);
+                const double transmit_var = std::max(0.0, glm::dot(across, spread[at] * across));
+                const double receive_sigma = t.wavelength_mm() *
+                                             std::max(t.f_number, depth / t.array_length_mm()) /
+                                             kFwhmPerSigma;
+                const double sigma_g =
+                    std::max(std::min(std::sqrt(2.0 * transmit_var), receive_sigma), cell);
+                const double d_sub = std::max(geometry.line_spacing_mm(depth), 1e-6) / K;
+                int reach = int(std::min(std::ceil(3.0 * sigma_g / d_sub), 1e6));
+                const int stride = std::max(1, (reach + 63) / 64);
+                reach = reach / stride * stride;
+                // Gaussian weights by recurrence: g(j) = exp(-alpha j^2), g(j+1) = g(j) q_j,
+                // q_j = exp(-alpha (2j + 1)).
+                const double alpha =
+                    0.5 * (stride * d_sub) * (stride * d_sub) / (sigma_g * sigma_g);
+                const int centre = l * K;
+                double sum = 0.0, norm = 0.0, g = 1.0, q = std::exp(-alpha);
+                const double q_step = q * q;
+                for (int j = 0; j * stride <= reach; ++j, g *= q, q *= q_step) {
+                    for (int side = 0; side < (j == 0 ? 1 : 2); ++side) {
+                        const int s = centre + (side == 0 ? j : -j) * stride;
+                        if (s < 0 || s >= sub_lines) continue;
+                        sum += g * sub[std::size_t(s) * std::size_t(N) + std::size_t(i)];
+                        norm += g * g;
+                    }
+                }
+                const double u = stride * d_sub / cell;
+                // The axial samples see the same lattice correlation.
+                const double u_axial = (rf.depth_mm(1) - rf.depth_mm(0)) / cell;
+                speckle[at] = float(sum / std::sqrt(norm * lattice_correlation_sum(u) *
+                                                    lattice_correlation_sum(u_axial)));
             }
         });
     }
 
-    // -- pre-RF: reflection amplitudes + speckle through the lateral PSF
-    const probe::ScanGeometry geometry(t);
+    // -- pre-RF: reflection amplitudes + speckle
     std::vector<float> pre(std::size_t(L) * std::size_t(N), 0.0f);
-    tbb::parallel_for(0, N, [&](int i) {
-        const double depth = rf.depth_mm(i);
-        // Dynamic receive focusing at the transducer's F-number: the receive aperture
-        // grows with depth up to the whole array, so the receive beam's FWHM is
-        // lambda * max(F, depth / array). (The transmit beam's width is in the particles.)
-        const double fwhm = t.wavelength_mm() * std::max(t.f_number, depth / t.array_length_mm());
-        // At a phased array's apex the lines meet (spacing 0): the PSF spans them all.
-        const double sigma_lines = std::clamp(
-            fwhm / kFwhmPerSigma / std::max(geometry.line_spacing_mm(depth), 1e-9), 1e-3, 1e6);
-        const int half = std::min(L, int(std::ceil(3.0 * sigma_lines)));
-        float w[129];
-        const int h = std::min(half, 64);
-        double norm = 0.0;
-        for (int j = -h; j <= h; ++j) {
-            w[j + h] = float(std::exp(-0.5 * j * j / (sigma_lines * sigma_lines)));
-            norm += double(w[j + h]) * w[j + h];
-        }
-        const float scale = float(1.0 / std::sqrt(norm));  // sum w^2 = 1: mean intensity kept
-        for (int l = 0; l < L; ++l) {
-            float sum = std::sqrt(reflected[std::size_t(l) * std::size_t(N) + std::size_t(i)]);
-            if (with_profile) {
-                float s = 0.0f;
-                for (int j = std::max(-h, -l); j <= std::min(h, L - 1 - l); ++j)
-                    s += w[j + h] * speckle[std::size_t(l + j) * std::size_t(N) + std::size_t(i)];
-                sum += s * scale;
-            }
-            pre[std::size_t(l) * std::size_t(N) + std::size_t(i)] = sum;
-        }
-    });
+    for (std::size_t at = 0; at < pre.size(); ++at)
+        pre[at] = std::sqrt(reflected[at]) + speckle[at];
 
     // -- RF: pre-RF (*) pulse
     const int half = int(std::ceil(4.0 * pulse.sigma_s() * fs));

@@ -9,12 +9,14 @@
 // Amplitudes: an echo of intensity I (energy units: the particle's energy at the event x
 // the fraction sent back x its two-way loss E/E0 x its receive weight) has amplitude
 // sqrt(I). Reflections add as intensities within an RF sample (particles of one beam
-// meeting one interface are one wavefront). Speckle: sub-resolution scatterers are a
-// white random field fixed in world (tissue) coordinates, sampled where the scattered
-// energy of each echo time came from (the profile's mean position: on the line for
-// direct echoes, beside it for mirrored ones); its amplitude is sqrt(profile intensity).
-// The axial PSF is the pulse; the lateral PSF of the speckle is a Gaussian across
-// neighbouring lines (reflections get theirs from the beam's particles, probe/beam.h).
+// meeting one interface are one wavefront); their lateral spread is the beam's particles.
+// Speckle: sub-resolution scatterers are a white random field fixed in world (tissue)
+// coordinates. The scatter profile gives, per line and echo time, the intensity, the
+// mean position and the lateral spread of the energy that scattered; each line sums the
+// field across its beam (weights whose square is the measured beam profile), sampled on
+// sub-lines interpolated between the lines' mean positions, so that neighbouring lines
+// share scatterers where their beams overlap, and mirrored or refracted beams sample the
+// tissue where they really went. The axial PSF is the pulse.
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -81,6 +83,14 @@ struct LineData {
 
 // Sampling of the RF lines for a transducer: rate and sample count covering its depth.
 LineData rf_layout(const probe::Transducer& t, const ImagingSettings& settings);
+
+// Fraction of the energy an interface reflects that heads back along the incident path
+// into a receiver subtending +-half_acceptance (rad): the reflected lobe cos^c about the
+// mirror direction, which lies 2 theta_i from the way back, approximated in 2D by a
+// Gaussian of sigma 1/sqrt(c), integrated over the acceptance. A smooth interface echoes
+// only near normal incidence; a rough one (bone, c ~ 3) from most angles.
+double reflection_back_fraction(double cos_incidence, double lobe_exponent,
+                                double half_acceptance_rad);
 
 // Maps a point of the tracer's map frame to world coordinates (mm), for the speckle field.
 using MapToWorld = std::function<glm::dvec3(const glm::vec2&)>;

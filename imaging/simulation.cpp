@@ -2,10 +2,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <iterator>
 
 #include "probe/placement.h"
 #include "tissue/error.h"
 #include "tissue/tissue_table.h"
+#include "tissue/transfer_function.h"
 
 namespace sonotrace::imaging {
 
@@ -118,7 +120,7 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     simulator::TraceSettings trace = settings.trace;
     trace.frequency_mhz = t.frequency_mhz;
     trace.seed = settings.seed;
-    trace.record_scatter_echoes = false;  // the track-length profile carries scattering
+    trace.record_scatter_echoes = false;
     trace.echo_profile = simulator::EchoProfileSettings{1.0 / layout.fs_hz, layout.samples};
     if (settings.receive == ReceiveModel::capture) {
         simulator::ProbeFace<2> face;
@@ -159,7 +161,7 @@ tissue::AcousticProperties saline() {
 }
 
 std::size_t prepare_plane(tissue::PropertyMaps& maps, const PlaneGrid& grid,
-                          const ScenePlacement& scene, double gel_mm) {
+                          const ScenePlacement& scene, double gel_mm, tissue::Volume* labels) {
     const tissue::AcousticProperties gel = saline();
     const tissue::VolumeGeometry& g = maps.geometry();
     std::size_t changed = 0;
@@ -179,6 +181,16 @@ std::size_t prepare_plane(tissue::PropertyMaps& maps, const PlaneGrid& grid,
         changed += probe::open_craniotomy(maps, grid.to_map.x, scene.craniotomy_radius_mm,
                                           grid.top_margin_mm + scene.craniotomy_depth_mm, gel);
     }
+    if (labels) {
+        const float water = float(tissue::tissue_label_of("water"));
+        const auto& c = maps[tissue::Property::speed_of_sound].voxels();
+        const auto& rho = maps[tissue::Property::density].voxels();
+        for (std::size_t n = 0; n < labels->size(); ++n) {
+            if (c[n] == gel[tissue::Property::speed_of_sound] &&
+                rho[n] == gel[tissue::Property::density])
+                labels->voxels()[n] = water;
+        }
+    }
     return changed;
 }
 
@@ -188,10 +200,20 @@ ScenePlacement craniotomy_scene(const tissue::Volume& head, const tissue::Transf
     const glm::dvec3 target(8.0, -14.0, 18.0);
     const glm::dvec3 approach = glm::normalize(glm::dvec3(0.42, 0.0, 1.0));  // target -> entry
     const glm::dvec3 outside = target + 130.0 * approach;
-    const auto cortex = probe::beneath_bone(head, tf, outside, -approach, 200.0);
+    // Skin, then the cortex: the first 3 mm of brain after at least 2 mm of skull and
+    // CSF (the T1 skull is dark like CSF; the scalp can look like brain).
+    const auto skin = probe::skin_surface(head, tf, outside, -approach, 120.0);
+    const int brain = tissue::tissue_label_of("brain"), csf = tissue::tissue_label_of("csf"),
+              bone = tissue::tissue_label_of("cortical_bone");
+    const auto cortex =
+        skin ? probe::after_gap(
+                   head, tf, skin->point + 1.0 * (-approach), -approach, 60.0,
+                   [&](const tissue::AcousticProperties&, int l) { return l == csf || l == bone; },
+                   2.0, [&](const tissue::AcousticProperties&, int l) { return l == brain; }, 3.0)
+             : std::nullopt;
     if (!cortex)
         throw tissue::InputError("scene craniotomy", "pose",
-                                 "no skull found along the approach to the ventricles: "
+                                 "no skull and cortex found along the approach to the ventricles: "
                                  "is the volume the Colin27 head?");
     ScenePlacement scene;
     scene.pose = probe::Pose::looking(cortex->point - 0.5 * approach, -approach, {1.0, 0.0, 0.0});
@@ -218,6 +240,52 @@ ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::Transfer
         "transtemporal: phased probe on the skin of the right temple, axial plane through "
         "the midbrain, imaging across the skull";
     return scene;
+}
+
+cv::Mat scan_convert_labels(const tissue::Volume& labels, const PlaneGrid& grid,
+                            const ScanConverted& frame) {
+    cv::Mat out(frame.image.rows, frame.image.cols, CV_8U, cv::Scalar(0));
+    const glm::dvec3 spacing = labels.geometry().spacing;
+    const glm::ivec3 dims = labels.geometry().dims;
+    for (int r = 0; r < out.rows; ++r) {
+        for (int c = 0; c < out.cols; ++c) {
+            if (!frame.inside.at<uint8_t>(r, c)) continue;
+            // Probe plane -> map frame -> texel (centres at (i + 1/2) h in the map frame).
+            const glm::dvec2 plane = frame.origin + glm::dvec2(c, r) * frame.pixel_mm;
+            const glm::dvec2 map = plane + grid.to_map;
+            const int i = int(std::floor(map.x / spacing.x + 0.5));
+            const int j = int(std::floor(map.y / spacing.y + 0.5));
+            if (i < 0 || j < 0 || i >= dims.x || j >= dims.y) continue;
+            out.at<uint8_t>(r, c) = uint8_t(std::clamp(labels.at(i, j, 0), 0.0f, 255.0f));
+        }
+    }
+    return out;
+}
+
+cv::Mat label_picture(const cv::Mat& labels) {
+    // BGR per tissue_table() entry (label - 1), chosen to read like an atlas.
+    static const cv::Vec3b kColours[] = {
+        {200, 120, 40},   // water: blue
+        {40, 40, 200},    // blood: red
+        {90, 220, 240},   // fat: yellow
+        {80, 80, 170},    // muscle: brown-red
+        {60, 100, 150},   // liver
+        {120, 90, 200},   // kidney
+        {200, 200, 200},  // brain: light grey
+        {240, 160, 60},   // csf: light blue
+        {255, 255, 255},  // cortical bone: white
+        {0, 0, 0},        // air: black
+        {150, 170, 190},  // soft tissue
+    };
+    cv::Mat out(labels.rows, labels.cols, CV_8UC3, cv::Scalar(0, 0, 0));
+    const int known = int(std::size(kColours));
+    for (int r = 0; r < labels.rows; ++r) {
+        for (int c = 0; c < labels.cols; ++c) {
+            const int l = labels.at<uint8_t>(r, c);
+            out.at<cv::Vec3b>(r, c) = l >= 1 && l <= known ? kColours[l - 1] : cv::Vec3b(0, 0, 0);
+        }
+    }
+    return out;
 }
 
 }  // namespace sonotrace::imaging

@@ -50,7 +50,55 @@ std::optional<RayHit> beneath_bone(const tissue::Volume& volume, const tissue::T
                                  return p[Property::speed_of_sound] < kBoneSpeed;
                              });
     if (!below) return std::nullopt;
-    return RayHit{below->point, bone->distance_mm + below->distance_mm};
+    RayHit inner{below->point, bone->distance_mm + below->distance_mm};
+    // A skull has two tables around the diploe (marrow: fat on T1): a second run of bone
+    // soon after the first is the inner table, and the cortex lies beneath it.
+    for (int table = 0; table < 4; ++table) {
+        const double reach = std::min(kDiploeReachMm, max_mm - inner.distance_mm);
+        auto next = march_until(volume, tf, inner.point, dir, reach, 0.1,
+                                [](const tissue::AcousticProperties& p) {
+                                    return p[Property::speed_of_sound] >= kBoneSpeed;
+                                });
+        if (!next) break;
+        auto exit = march_until(volume, tf, next->point, dir,
+                                max_mm - inner.distance_mm - next->distance_mm, 0.1,
+                                [](const tissue::AcousticProperties& p) {
+                                    return p[Property::speed_of_sound] < kBoneSpeed;
+                                });
+        if (!exit) break;
+        inner = {exit->point, inner.distance_mm + next->distance_mm + exit->distance_mm};
+    }
+    return inner;
+}
+
+std::optional<RayHit> after_gap(const tissue::Volume& volume, const tissue::TransferFunction& tf,
+                                const glm::dvec3& start, const glm::dvec3& direction, double max_mm,
+                                const RayTest& gap, double gap_mm, const RayTest& run,
+                                double run_mm) {
+    const glm::dvec3 dir = glm::normalize(direction);
+    const float outside = volume.value_range().first;
+    constexpr double kStep = 0.1;
+    double gap_start = -1.0, run_start = -1.0;
+    bool gap_done = false;
+    for (double t = 0.0; t <= max_mm; t += kStep) {
+        const glm::dvec3 p = start + t * dir;
+        const float value = volume.sample_trilinear(volume.geometry().world_to_index(p), outside);
+        const tissue::AcousticProperties props = tf.evaluate(value);
+        const int label = tf.tissue_label(value);
+        if (gap_done && run(props, label)) {
+            if (run_start < 0.0) run_start = t;
+            if (t - run_start >= run_mm) return RayHit{start + run_start * dir, run_start};
+            continue;
+        }
+        run_start = -1.0;
+        if (gap(props, label)) {
+            if (gap_start < 0.0) gap_start = t;
+            if (t - gap_start >= gap_mm) gap_done = true;
+        } else {
+            gap_start = -1.0;
+        }
+    }
+    return std::nullopt;
 }
 
 std::size_t open_craniotomy(tissue::PropertyMaps& maps, double axis_lateral_mm, double radius_mm,

@@ -35,10 +35,23 @@ std::optional<RayHit> skin_surface(const tissue::Volume& volume, const tissue::T
 inline constexpr float kBoneSpeed = 2000.0f;
 
 // The inner surface of the first bone along the ray: the first point after a run of
-// bone (speed >= kBoneSpeed) where the speed drops below it again.
+// bone (speed >= kBoneSpeed) where the speed drops below it again, or, if more bone
+// follows within kDiploeReachMm (the inner table beyond the diploe), after that.
+inline constexpr double kDiploeReachMm = 6.0;
 std::optional<RayHit> beneath_bone(const tissue::Volume& volume, const tissue::TransferFunction& tf,
                                    const glm::dvec3& start, const glm::dvec3& direction,
                                    double max_mm);
+
+// Tissue at a point of a ray: its properties and its label (TransferFunction::tissue_label).
+using RayTest = std::function<bool(const tissue::AcousticProperties&, int label)>;
+
+// The first point along the ray that begins a run of at least `run_mm` where `run`
+// holds, after a run of at least `gap_mm` where `gap` holds: the cortex beneath the
+// skull and CSF of an MRI head (whose T1 skull can look like CSF), for instance.
+std::optional<RayHit> after_gap(const tissue::Volume& volume, const tissue::TransferFunction& tf,
+                                const glm::dvec3& start, const glm::dvec3& direction, double max_mm,
+                                const RayTest& gap, double gap_mm, const RayTest& run,
+                                double run_mm);
 
 // A virtual craniotomy on a probe-aligned grid (tissue/resample.h axes: i lateral,
 // j depth, k elevation): within `radius_mm` of the beam axis and shallower than

@@ -27,6 +27,11 @@ struct EchoEvent {
     glm::vec<Dim, float> position;  // mm, map frame
     uint16_t bounces = 0;           // reflections before this event
     EchoKind kind = EchoKind::scatter;
+    // Reflections: cosine of the incidence angle and the exponent c of the lobe cos^c
+    // about the mirror direction (>= 1e4: a mirror), from which a receiver estimates how
+    // much of the reflected energy heads back the way the particle came.
+    float cos_incidence = 1.0f;
+    float lobe_exponent = 1e6f;
     bool operator==(const EchoEvent&) const = default;  // field-wise: padding is indeterminate
 };
 
@@ -81,6 +86,8 @@ struct EchoProfile {
     double bin_s = 0.0;
     std::vector<float> intensity;                // [line * bins + bin], energy units
     std::vector<glm::vec<Dim, float>> position;  // intensity-weighted mean position (mm, map)
+    // Intensity-weighted covariance of the positions (mm^2): the beam's spread.
+    std::vector<glm::mat<Dim, Dim, float>> covariance;
     float at(int line, int bin) const { return intensity[std::size_t(line) * bins + bin]; }
 };
 

@@ -81,11 +81,23 @@ struct TraceSettings {
     double lobe_scale = 1.0;  // factor on c for the paper's interpretations
 
     double interface_threshold = 0.005;  // relative change of Z per texel marking an interface
+    // How far (mm) on each side of a steep step the tracer looks for the plateaus that
+    // make it a sharp interface (one reflection decision) rather than a graded medium
+    // (refraction only). 0 = 8 texels. Volumes blur anatomy over a few voxels: MRI
+    // ventricle walls span ~2-3 mm of 1 mm voxels, so scenes from volumes use 3 voxels.
+    double interface_reach_mm = 0.0;
     double scattering_rate_per_mm =
         0.2;  // sub-resolution scattering events per mm at backscatter 1
     double scatter_echo_fraction = 1e-3;  // intensity fraction a scattering event sends back
     double roulette_energy = 1e-3;  // Russian roulette below this fraction of the initial energy
-    double max_path_mm = 2000.0;    // paths end (energy "remaining") beyond this length
+    // Reflections weaker than this intensity fraction R^2 are scored, not followed: the
+    // expected echo is recorded as always, the reflected share E R^2 leaves the particle
+    // as recorded energy and the particle transmits. Without it, a particle reflected
+    // with probability 1e-3 carries 1000x its expected energy into every later echo:
+    // isolated bright dots. The bias is the neglected multi-path through weak
+    // reflectors, of relative order R^2. 0 = every reflection stochastic (unbiased).
+    double follow_reflections_above = 0.0;
+    double max_path_mm = 2000.0;  // paths end (energy "remaining") beyond this length
 
     int record_paths = 0;  // particles per line whose paths are kept as polylines
     bool record_scatter_echoes = true;
@@ -127,6 +139,9 @@ inline constexpr const char* kScatteringRate =
     "sub-resolution scattering events per mm at backscatter 1";
 inline constexpr const char* kRoulette =
     "Russian roulette below this fraction of a particle's initial energy";
+inline constexpr const char* kFollowReflections =
+    "reflections with intensity fraction R^2 below this are scored (echo recorded, particle "
+    "transmits with E(1-R^2)) instead of followed; 0 = all stochastic (unbiased)";
 inline constexpr const char* kMaxBounces = "reflections after which a particle is retired";
 }  // namespace doc
 

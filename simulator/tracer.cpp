@@ -68,8 +68,10 @@ struct LineOutput {
     std::vector<EchoEvent<Dim>> echoes;
     std::vector<Path<Dim>> paths;
     std::vector<double> ring;
-    std::vector<float> profile;                        // echo profile bins of this line
-    std::vector<glm::vec<Dim, float>> profile_moment;  // intensity * position per bin
+    std::vector<float> profile;  // echo profile bins of this line
+    // Per bin, in double: the spread is a small difference of large second moments.
+    std::vector<glm::vec<Dim, double>> profile_moment;       // intensity * position
+    std::vector<glm::mat<Dim, Dim, double>> profile_second;  // intensity * position position^T
     EnergyLedger ledger;
     TraceStats stats;
 };
@@ -142,6 +144,11 @@ class LineTracer {
         profile_enabled_ = settings.echo_profile.has_value();
         if (profile_enabled_) inverse_profile_bin_ = 1.0 / settings.echo_profile->bin_s;
         threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
+        follow_reflections_above_ = float(settings.follow_reflections_above);
+        plateau_steps_ =
+            settings.interface_reach_mm > 0.0
+                ? std::max(1, int(std::ceil(settings.interface_reach_mm / (0.5 * texel_mm_))))
+                : 16;
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
         for (int a = 0; a < Dim; ++a) inverse_spacing_[a] = 1.0f / map.spacing()[a];
         // alpha [dB/(cm MHz)] * f [MHz] / 10 [mm/cm] -> dB/mm; * ln(10)/10 -> Np/mm (intensity).
@@ -156,7 +163,8 @@ class LineTracer {
         if (settings_.ring) out.ring.assign(std::size_t(settings_.ring->bins), 0.0);
         if (settings_.echo_profile) {
             out.profile.assign(std::size_t(settings_.echo_profile->bins), 0.0f);
-            out.profile_moment.assign(out.profile.size(), V(0.0f));
+            out.profile_moment.assign(out.profile.size(), glm::vec<Dim, double>(0.0));
+            out.profile_second.assign(out.profile.size(), glm::mat<Dim, Dim, double>(0.0));
         }
         Batch<Dim> batch;
         std::size_t next = begin;
@@ -223,7 +231,9 @@ class LineTracer {
         const float two_way = E / b.initial_energy[k];
         const float intensity = E * rate * fraction * two_way * b.receive_weight[k];
         out_->profile[std::size_t(bin)] += intensity;
-        out_->profile_moment[std::size_t(bin)] += intensity * x;
+        const glm::vec<Dim, double> xd(x);
+        out_->profile_moment[std::size_t(bin)] += double(intensity) * xd;
+        out_->profile_second[std::size_t(bin)] += glm::outerProduct(double(intensity) * xd, xd);
     }
 
     void flush_deposits(Batch<Dim>& b, int k) {
@@ -250,14 +260,15 @@ class LineTracer {
     }
 
     // Walks from x along `dir` in half-texel steps until the impedance gradient falls
-    // below the interface threshold (at most 8 texels): the plateau beyond the interface.
+    // below the interface threshold (at most the interface reach, TraceSettings): the
+    // plateau beyond the interface.
     // `reached` tells whether a plateau was found: a sharp interface has one on each side
     // within a few texels, a graded medium (the fibre of figure 4) does not.
     Texel plateau(V x, const V& dir, V* end, bool* reached) const {
         const float h = 0.5f * texel_mm_;
         Texel t = map_.sample(x);
         int i = 0;
-        for (; i < 16 && relative_z_gradient(t) > settings_.interface_threshold; ++i) {
+        for (; i < plateau_steps_ && relative_z_gradient(t) > settings_.interface_threshold; ++i) {
             x += h * dir;
             t = map_.sample(x);
         }
@@ -344,7 +355,12 @@ class LineTracer {
         const float cos_t = sin_t >= 1.0f ? 0.0f : std::sqrt(1.0f - sin_t * sin_t);
         const float R2 = reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
         const float c = settings_.diffuse_reflection ? lobe_exponent(near_side, far_side) : 1e6f;
-        record_echo(b, k, x, E, R2, c < 1e4f ? EchoKind::diffuse : EchoKind::specular);
+        record_echo(b, k, x, E, R2, c < 1e4f ? EchoKind::diffuse : EchoKind::specular, cos_i, c);
+        if (R2 < follow_reflections_above_) {  // scored, not followed (TraceSettings)
+            out_->ledger.recorded += double(E) * R2;
+            E -= E * R2;
+            return false;
+        }
         if (!(b.random[k].next() < R2)) return false;
         const V mirror = reflect<Dim>(incoming, forward);
         float weight = 1.0f;
@@ -363,9 +379,10 @@ class LineTracer {
     }
 
     [[gnu::noinline]] void record_echo(const Batch<Dim>& b, int k, const V& x, float energy,
-                                       float weight, EchoKind kind) {
-        out_->echoes.push_back(
-            {line_, b.particle[k], float(b.time[k]), energy, weight, x, b.bounces[k], kind});
+                                       float weight, EchoKind kind, float cos_incidence = 1.0f,
+                                       float lobe_exponent = 1e6f) {
+        out_->echoes.push_back({line_, b.particle[k], float(b.time[k]), energy, weight, x,
+                                b.bounces[k], kind, cos_incidence, lobe_exponent});
     }
 
     // The diffuse lobe (eq. 11) about the specular direction `mirror`; `forward` points
@@ -625,7 +642,8 @@ class LineTracer {
     const TraceSettings& settings_;
     float texel_mm_ = 1.0f, step_mm_ = 0.5f, attenuation_per_mm_ = 0.0f, seconds_per_mm_ = 0.0f;
     V inverse_spacing_{};
-    float threshold2_ = 0.0f, inverse_texel2_ = 1.0f;
+    float threshold2_ = 0.0f, inverse_texel2_ = 1.0f, follow_reflections_above_ = 0.0f;
+    int plateau_steps_ = 16;
     double inverse_profile_bin_ = 0.0;
     DepositMaps* deposits_ = nullptr;
     LineOutput<Dim>* out_ = nullptr;
@@ -706,15 +724,20 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         p.bin_s = settings.echo_profile->bin_s;
         p.intensity.assign(std::size_t(p.lines) * std::size_t(p.bins), 0.0f);
         p.position.assign(p.intensity.size(), Vec<Dim>(0.0f));
+        p.covariance.assign(p.intensity.size(), glm::mat<Dim, Dim, float>(0.0f));
         for (std::size_t l = 0; l < lines; ++l) {
             const std::size_t row =
                 std::size_t(sources[order[starts[l]]].line) * std::size_t(p.bins);
             for (int i = 0; i < p.bins; ++i) {
                 const float w = outputs[l].profile[std::size_t(i)];
                 p.intensity[row + std::size_t(i)] = w;
-                if (w > 0.0f)
-                    p.position[row + std::size_t(i)] =
-                        outputs[l].profile_moment[std::size_t(i)] / w;
+                if (!(w > 0.0f)) continue;
+                const glm::vec<Dim, double> mean =
+                    outputs[l].profile_moment[std::size_t(i)] / double(w);
+                p.position[row + std::size_t(i)] = Vec<Dim>(mean);
+                p.covariance[row + std::size_t(i)] = glm::mat<Dim, Dim, float>(
+                    outputs[l].profile_second[std::size_t(i)] / double(w) -
+                    glm::outerProduct(mean, mean));
             }
         }
     }

@@ -81,6 +81,8 @@ TEST(Bmode, FullyDevelopedSpeckleHasRayleighSnr) {
     profile.bin_s = 1.0 / layout.fs_hz;
     profile.intensity.assign(std::size_t(t.lines) * std::size_t(profile.bins), 1e-6f);
     profile.position.resize(profile.intensity.size());
+    // A beam of 0.3 mm lateral intensity spread (sigma), isotropic.
+    profile.covariance.assign(profile.intensity.size(), glm::mat2(0.09f));
     const probe::ScanGeometry g(t);
     for (int l = 0; l < t.lines; ++l) {
         for (int i = 0; i < profile.bins; ++i)

@@ -27,4 +27,13 @@ PropertyMaps classify(const Volume& values, const TransferFunction& tf) {
     return maps;
 }
 
+Volume tissue_labels(const Volume& values, const TransferFunction& tf) {
+    Volume labels(values.geometry());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values.size(), 4096), [&](const auto& r) {
+        for (std::size_t n = r.begin(); n != r.end(); ++n)
+            labels.voxels()[n] = float(tf.tissue_label(values.voxels()[n]));
+    });
+    return labels;
+}
+
 }  // namespace sonotrace::tissue

@@ -23,4 +23,7 @@ struct PropertyMaps {
 // Applies a bound transfer function to every voxel of `values`.
 PropertyMaps classify(const Volume& values, const TransferFunction& tf);
 
+// The tissue label (TransferFunction::tissue_label) of every voxel: the ground truth.
+Volume tissue_labels(const Volume& values, const TransferFunction& tf);
+
 }  // namespace sonotrace::tissue

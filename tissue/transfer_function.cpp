@@ -161,7 +161,9 @@ PiecewiseLinearTransferFunction::PiecewiseLinearTransferFunction(std::string nam
       domain_(domain),
       low_quantile_(low_quantile),
       high_quantile_(high_quantile),
-      points_(std::move(points)) {}
+      points_(std::move(points)) {
+    for (const ControlPoint& p : points_) tissue_labels_.push_back(tissue_label_of(p.tissue));
+}
 
 void PiecewiseLinearTransferFunction::bind(const Volume& volume) {
     if (domain_ == Domain::raw) return;
@@ -187,6 +189,21 @@ AcousticProperties PiecewiseLinearTransferFunction::evaluate(float value) const 
     return lerp(a.properties, b.properties, float((x - a.intensity) / (b.intensity - a.intensity)));
 }
 
+int PiecewiseLinearTransferFunction::tissue_label(float value) const {
+    const double x = (double(value) - window_low_) / (window_high_ - window_low_);
+    const auto upper =
+        std::upper_bound(points_.begin(), points_.end(), x,
+                         [](double v, const ControlPoint& p) { return v < p.intensity; });
+    std::size_t nearest = 0;
+    if (upper == points_.end()) {
+        nearest = points_.size() - 1;
+    } else if (upper != points_.begin()) {
+        const std::size_t b = std::size_t(upper - points_.begin());
+        nearest = x - points_[b - 1].intensity <= points_[b].intensity - x ? b - 1 : b;
+    }
+    return tissue_labels_[nearest];
+}
+
 json PiecewiseLinearTransferFunction::describe() const {
     json points = json::array();
     for (const ControlPoint& p : points_) {
@@ -209,6 +226,7 @@ LabelTransferFunction::LabelTransferFunction(std::string name, std::string sourc
     : name_(std::move(name)), source_(std::move(source)), entries_(std::move(entries)) {
     std::sort(entries_.begin(), entries_.end(),
               [](const Entry& a, const Entry& b) { return a.label < b.label; });
+    for (const Entry& e : entries_) tissue_labels_.push_back(tissue_label_of(e.tissue));
 }
 
 void LabelTransferFunction::bind(const Volume& volume) {
@@ -227,14 +245,34 @@ void LabelTransferFunction::bind(const Volume& volume) {
     }
 }
 
-AcousticProperties LabelTransferFunction::evaluate(float value) const {
+const LabelTransferFunction::Entry& LabelTransferFunction::entry(float value) const {
     const int label = int(std::lround(value));
     const auto it = std::lower_bound(entries_.begin(), entries_.end(), label,
                                      [](const Entry& e, int l) { return e.label < l; });
     // bind() guarantees membership for volume voxels; `outside` values of a slice may
     // still miss, and then the nearest listed label stands in.
-    if (it == entries_.end()) return entries_.back().properties;
-    return it->properties;
+    return it == entries_.end() ? entries_.back() : *it;
+}
+
+AcousticProperties LabelTransferFunction::evaluate(float value) const {
+    return entry(value).properties;
+}
+
+int LabelTransferFunction::tissue_label(float value) const {
+    return tissue_labels_[std::size_t(&entry(value) - entries_.data())];
+}
+
+int tissue_label_of(const std::string& tissue) {
+    const auto table = tissue_table();
+    for (std::size_t i = 0; i < table.size(); ++i)
+        if (table[i].key == tissue) return int(i) + 1;
+    return 0;
+}
+
+std::string tissue_label_name(int label) {
+    const auto table = tissue_table();
+    if (label <= 0 || label > int(table.size())) return "custom";
+    return std::string(table[std::size_t(label - 1)].key);
 }
 
 json LabelTransferFunction::describe() const {

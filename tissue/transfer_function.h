@@ -29,6 +29,9 @@ class TransferFunction {
     virtual void bind(const Volume& volume) = 0;
     virtual AcousticProperties evaluate(float value) const = 0;
     virtual bool uses_nearest_sampling() const = 0;
+    // The tissue a value stands for, as 1 + its index in tissue_table() (0: a point or
+    // label without a named tissue). Piecewise-linear: the nearer control point's tissue.
+    virtual int tissue_label(float value) const = 0;
     // Name, source and parameters, for sidecars.
     virtual nlohmann::json describe() const = 0;
 };
@@ -49,6 +52,7 @@ class PiecewiseLinearTransferFunction final : public TransferFunction {
     void bind(const Volume& volume) override;
     AcousticProperties evaluate(float value) const override;
     bool uses_nearest_sampling() const override { return false; }
+    int tissue_label(float value) const override;
     nlohmann::json describe() const override;
 
     const std::vector<ControlPoint>& points() const { return points_; }
@@ -62,6 +66,7 @@ class PiecewiseLinearTransferFunction final : public TransferFunction {
     double low_quantile_, high_quantile_;
     double window_low_ = 0.0, window_high_ = 1.0;
     std::vector<ControlPoint> points_;
+    std::vector<int> tissue_labels_;  // per point
 };
 
 class LabelTransferFunction final : public TransferFunction {
@@ -76,12 +81,20 @@ class LabelTransferFunction final : public TransferFunction {
     void bind(const Volume& volume) override;  // every voxel must be a listed integer label
     AcousticProperties evaluate(float value) const override;
     bool uses_nearest_sampling() const override { return true; }
+    int tissue_label(float value) const override;
     nlohmann::json describe() const override;
 
   private:
+    const Entry& entry(float value) const;
     std::string name_, source_;
-    std::vector<Entry> entries_;  // sorted by label
+    std::vector<Entry> entries_;      // sorted by label
+    std::vector<int> tissue_labels_;  // per entry
 };
+
+// 1 + the index of a named tissue in tissue_table(); 0 for an empty or unknown name.
+int tissue_label_of(const std::string& tissue);
+// The tissue_table() key of a label from tissue_label(), "custom" for 0.
+std::string tissue_label_name(int label);
 
 // Names of the presets compiled into the binary (from tissue/presets/*.json).
 std::vector<std::string> transfer_function_presets();

@@ -13,6 +13,9 @@
 #include "tissue/atomic_output.h"
 #include "tissue/error.h"
 #include "tissue/image_io.h"
+#include "tissue/property_maps.h"
+#include "tissue/tissue_table.h"
+#include "tissue/transfer_function.h"
 
 namespace sonotrace::ui {
 
@@ -209,6 +212,10 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     cmd->add_flag("--rf", o.write_rf, "also write the RF lines (NAME_rf.exr: lines x samples)");
     cmd->add_flag("--envelope", o.write_envelope,
                   "also write the envelope (NAME_envelope.exr: lines x samples)");
+    cmd->add_flag(
+        "--labels", o.write_labels,
+        "also write the ground-truth tissue labels in the frame's pixels (NAME_labels.png, "
+        "values = tissue index listed in the sidecar) and a colour preview");
     cmd->add_flag("--energy", o.write_energy,
                   "also write the energy deposition map (NAME_energy.png)");
     add_parameter(*cmd, kOutDoc, o.out_dir);
@@ -268,6 +275,10 @@ int run_simulate_command(const SimulateOptions& o) {
 
     // ---- load and place the probe ----
     const VolumeSource source = load_volume_source(o.volume, timer);
+    {
+        const glm::dvec3 voxel = source.loaded.volume.geometry().spacing;
+        settings.trace.interface_reach_mm = 3.0 * std::max({voxel.x, voxel.y, voxel.z});
+    }
     imaging::ScenePlacement scene;
     timer.begin("placing the probe (" + o.view + ")");
     if (pose) {
@@ -288,8 +299,11 @@ int run_simulate_command(const SimulateOptions& o) {
         imaging::plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
     timer.begin("acoustic map " + std::to_string(grid.geometry.dims.x) + "x" +
                 std::to_string(grid.geometry.dims.y));
-    tissue::PropertyMaps maps = tissue::classify(source.resample(grid.geometry), *source.tf);
-    imaging::prepare_plane(maps, grid, scene);
+    const tissue::Volume plane_values = source.resample(grid.geometry);
+    tissue::PropertyMaps maps = tissue::classify(plane_values, *source.tf);
+    std::optional<tissue::Volume> labels;
+    if (o.write_labels) labels = tissue::tissue_labels(plane_values, *source.tf);
+    imaging::prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
     const auto map = tissue::AcousticMap<2>::build(maps);
     timer.end();
 
@@ -319,6 +333,25 @@ int run_simulate_command(const SimulateOptions& o) {
     };
     if (o.write_rf) write_lines(frame.rf, "_rf.exr");
     if (o.write_envelope) write_lines(frame.envelope, "_envelope.exr");
+    json label_record;
+    if (labels) {
+        const cv::Mat label_image = imaging::scan_convert_labels(*labels, grid, frame.image);
+        const std::string path = (out / (o.name + "_labels.png")).string();
+        const std::vector<float> values(label_image.begin<uint8_t>(), label_image.end<uint8_t>());
+        tissue::write_gray_image(transaction.stage(path), label_image.cols, label_image.rows,
+                                 values, 8);
+        const std::string preview = (out / (o.name + "_labels_preview.png")).string();
+        imaging::write_png(imaging::label_picture(label_image), transaction.stage(preview));
+        written.push_back(path);
+        written.push_back(preview);
+        json legend = {{"0", "outside the scanned region"}};
+        for (std::size_t i = 0; i < tissue::tissue_table().size(); ++i)
+            legend[std::to_string(i + 1)] = tissue::tissue_label_name(int(i) + 1);
+        label_record = {
+            {"file", path},
+            {"legend", legend},
+            {"geometry", "same pixels as the frame; true (not echo-delayed) positions"}};
+    }
     if (o.write_energy) {
         imaging::FieldStyle style{"absorbed energy (sedimentation)",
                                   "energy",
@@ -368,6 +401,7 @@ int run_simulate_command(const SimulateOptions& o) {
           {"scatter_events", frame.stats.scatter_events},
           {"captured", frame.stats.captured},
           {"energy_balance_error", frame.ledger.relative_error()}}},
+        {"labels", label_record},
         {"timings_s", frame.timings},
         {"stage_timings_s", timer.timings()},
         {"outputs", written},

@@ -19,7 +19,7 @@ struct SimulateOptions {
         elevation_focus, slice_thickness, depth, face_reflectivity;
     std::string quality = "standard";
     std::string receive = "monostatic";
-    double gain_db = 52.0;
+    double gain_db = 36.0;
     double dynamic_range_db = 60.0;
     std::string tgc = "auto";
     double pixel_mm = 0.2;

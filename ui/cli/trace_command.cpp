@@ -193,12 +193,14 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
 
 void write_echoes_csv(const std::vector<simulator::EchoEvent<2>>& echoes, const std::string& path) {
     std::ofstream out(path);
-    out << "line,particle,time_s,energy,weight,x_mm,y_mm,bounces,kind\n";
+    out << "line,particle,time_s,energy,weight,x_mm,y_mm,bounces,kind,cos_incidence,lobe_"
+           "exponent\n";
     out.precision(9);
     for (const auto& e : echoes) {
         out << e.line << ',' << e.particle << ',' << e.time_s << ',' << e.energy << ',' << e.weight
             << ',' << e.position.x << ',' << e.position.y << ',' << e.bounces << ','
-            << simulator::to_string(e.kind) << '\n';
+            << simulator::to_string(e.kind) << ',' << e.cos_incidence << ',' << e.lobe_exponent
+            << '\n';
     }
     if (!out) throw tissue::InputError(path, "", "cannot write the echo CSV");
 }
