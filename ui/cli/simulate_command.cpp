@@ -1,9 +1,13 @@
 #include "ui/cli/simulate_command.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
 #include <sstream>
 
 #include "imaging/picture.h"
@@ -61,6 +65,20 @@ constexpr ParameterDoc kOutDoc = {"--out", "", "output directory"};
 constexpr ParameterDoc kNameDoc = {"--name", "", "file stem of the frame and its sidecar"};
 constexpr ParameterDoc kJsonDoc = {
     "--json", "", "also write the run record (description and timings); '-' = stdout"};
+constexpr ParameterDoc kSweepDoc = {
+    "--sweep", "mm",
+    "move the probe and write a numbered frame sequence (NAME_0000.png, ...): "
+    "'AXIS:LENGTH:STEP' from -LENGTH/2 to +LENGTH/2 about the pose, AXIS = elevation, lateral, "
+    "axial (the probe's axes) or X,Y,Z (world); or a text file with one --pose per line"};
+constexpr ParameterDoc kVideoDoc = {"--video", "",
+                                    "container of the sweep's video (NAME.mp4 or NAME.avi); "
+                                    "empty = frames only"};
+constexpr ParameterDoc kFpsDoc = {"--fps", "1/s", "frame rate of the sweep's video"};
+constexpr ParameterDoc kSceneDoc = {
+    "--scene", "",
+    "JSON file of option values, keys = option names without dashes (\"probe\": \"linear\", "
+    "\"gain\": 40, \"formats\": [\"png8\", \"exr\"]); options given on the command line win; "
+    "unknown keys are errors"};
 constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
 std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::Transducer& t) {
@@ -222,11 +240,183 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     add_parameter(*cmd, kNameDoc, o.name);
     add_parameter(*cmd, kJsonDoc, o.json_path);
     add_parameter(*cmd, kThreadsDoc, o.threads)->check(CLI::Range(0, 1024));
+    add_parameter(*cmd, kSweepDoc, o.sweep);
+    add_parameter(*cmd, kVideoDoc, o.video);
+    add_parameter(*cmd, kFpsDoc, o.fps);
+    add_parameter(*cmd, kSceneDoc, o.scene);
     cmd->add_flag("-q,--quiet", o.quiet, "no progress on stderr");
+    o.command = cmd;
     return cmd;
 }
 
+namespace {
+
+// Values of a --scene file become the results of the options not given on the command
+// line (the command line wins). Keys are option names without dashes; '_' = '-'.
+void apply_scene_file(CLI::App& command, const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw tissue::InputError(path, "", "cannot open the scene file");
+    json scene;
+    try {
+        in >> scene;
+    } catch (const json::exception& e) {
+        throw tissue::InputError(path, "", std::string("is not valid JSON: ") + e.what());
+    }
+    if (!scene.is_object()) throw tissue::InputError(path, "", "must be a JSON object");
+    for (const auto& [key, value] : scene.items()) {
+        std::string flag = key;
+        std::replace(flag.begin(), flag.end(), '_', '-');
+        CLI::Option* option = command.get_option_no_throw("--" + flag);
+        if (!option || flag == "scene" || flag == "help") {
+            std::string known;
+            for (const CLI::Option* o : command.get_options()) {
+                const std::string name = o->get_name(false, true);
+                if (name.rfind("--", 0) == 0 && name != "--scene" && name != "--help")
+                    known += (known.empty() ? "" : ", ") + name.substr(2);
+            }
+            throw tissue::InputError(path, key, "unknown key; known keys: " + known);
+        }
+        if (option->count() > 0) continue;  // given on the command line
+        std::string text;
+        if (value.is_string())
+            text = value.get<std::string>();
+        else if (value.is_boolean())
+            text = value.get<bool>() ? "true" : "false";
+        else if (value.is_number())
+            text = value.dump();
+        else if (value.is_array()) {
+            for (const auto& item : value)
+                text += (text.empty() ? "" : ",") +
+                        (item.is_string() ? item.get<std::string>() : item.dump());
+        } else
+            throw tissue::InputError(path, key, "must be a string, number, boolean or list");
+        try {
+            option->add_result(text);
+            option->run_callback();
+        } catch (const CLI::Error& e) {
+            throw tissue::InputError(path, key, e.what());
+        }
+    }
+}
+
+// One probe position of a run: where it is and what the scene does there.
+struct Placement {
+    imaging::ScenePlacement scene;
+    double offset_mm = 0.0;  // along the sweep
+};
+
+// --sweep: AXIS:LENGTH:STEP moves the scene's probe from -LENGTH/2 to +LENGTH/2 along
+// AXIS (elevation, lateral, axial: the probe's own axes; or X,Y,Z in world mm); or a
+// text file with one --pose per line.
+std::vector<Placement> sweep_placements(const std::string& sweep,
+                                        const imaging::ScenePlacement& base) {
+    std::vector<Placement> out;
+    if (sweep.empty()) return {{base, 0.0}};
+    if (std::filesystem::exists(sweep)) {
+        std::ifstream in(sweep);
+        int line_number = 0;
+        for (std::string line; std::getline(in, line);) {
+            ++line_number;
+            if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
+            Placement p{base, double(out.size())};
+            p.scene.pose = probe::parse_pose(line, sweep + ":" + std::to_string(line_number));
+            p.scene.description = base.description + " (pose from " + sweep + ")";
+            out.push_back(p);
+        }
+        if (out.empty()) throw tissue::InputError(sweep, "", "lists no poses");
+        return out;
+    }
+    std::vector<std::string> parts;
+    {
+        std::istringstream list(sweep);
+        for (std::string part; std::getline(list, part, ':');) parts.push_back(part);
+    }
+    if (parts.size() != 3)
+        throw tissue::InputError("--sweep", sweep,
+                                 "expected AXIS:LENGTH:STEP (mm) or a file of poses");
+    glm::dvec3 axis;
+    if (parts[0] == "elevation")
+        axis = base.pose.elevation();
+    else if (parts[0] == "lateral")
+        axis = base.pose.lateral();
+    else if (parts[0] == "axial")
+        axis = base.pose.axial();
+    else {
+        std::istringstream xyz(parts[0]);
+        char c1 = 0, c2 = 0;
+        if (!(xyz >> axis.x >> c1 >> axis.y >> c2 >> axis.z) || c1 != ',' || c2 != ',' ||
+            !(glm::length(axis) > 0.0) || !std::isfinite(glm::length(axis)))
+            throw tissue::InputError("--sweep", parts[0],
+                                     "axis must be elevation, lateral, axial or X,Y,Z");
+        axis = glm::normalize(axis);
+    }
+    double length = 0.0, step = 0.0;
+    try {
+        length = std::stod(parts[1]);
+        step = std::stod(parts[2]);
+    } catch (const std::exception&) {
+        throw tissue::InputError("--sweep", sweep, "LENGTH and STEP must be numbers (mm)");
+    }
+    tissue::require_in_range("--sweep", "length", length, 0.0, 1000.0, "mm");
+    tissue::require_in_range("--sweep", "step", step, 1e-3, 1000.0, "mm");
+    const int frames = int(std::floor(length / step + 1e-9)) + 1;
+    if (frames > 10000)
+        throw tissue::InputError("--sweep", sweep, "would make more than 10000 frames");
+    for (int f = 0; f < frames; ++f) {
+        Placement p{base, -0.5 * length + f * step};
+        p.scene.pose.position += p.offset_mm * axis;
+        out.push_back(p);
+    }
+    return out;
+}
+
+// The grid under the probe, its map and (optionally) its labels, then the frame.
+struct SimulatedFrame {
+    imaging::Frame frame;
+    std::optional<cv::Mat> labels;
+};
+
+SimulatedFrame simulate_at(const VolumeSource& source, const imaging::ScenePlacement& scene,
+                           const imaging::SimulationSettings& settings, bool with_labels,
+                           const imaging::FrameProgress& progress) {
+    const imaging::QualityLevel level = imaging::quality_level(settings.quality);
+    const imaging::PlaneGrid grid =
+        imaging::plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
+    const tissue::Volume plane_values = source.resample(grid.geometry);
+    tissue::PropertyMaps maps = tissue::classify(plane_values, *source.tf);
+    std::optional<tissue::Volume> labels;
+    if (with_labels) labels = tissue::tissue_labels(plane_values, *source.tf);
+    imaging::prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
+    const auto map = tissue::AcousticMap<2>::build(maps);
+    SimulatedFrame out;
+    out.frame = imaging::simulate_frame(map, grid, scene.pose, settings, progress);
+    if (labels) out.labels = imaging::scan_convert_labels(*labels, grid, out.frame.image);
+    return out;
+}
+
+// The probe face must sit inside the volume (or its margin of air): a pose far away
+// images nothing.
+void require_pose_in_volume(const probe::Pose& pose, const tissue::Volume& volume,
+                            const std::string& source) {
+    const tissue::VolumeGeometry& g = volume.geometry();
+    const glm::dvec3 ijk = g.world_to_index(pose.position);
+    for (int a = 0; a < 3; ++a) {
+        const double margin = 10.0 / g.spacing[a];  // 10 mm of coupling margin
+        if (!(ijk[a] >= -margin && ijk[a] <= g.dims[a] - 1 + margin)) {
+            throw tissue::InputError(source, "pose",
+                                     "the probe at (" + std::to_string(pose.position.x) + ", " +
+                                         std::to_string(pose.position.y) + ", " +
+                                         std::to_string(pose.position.z) +
+                                         ") mm is outside the volume");
+        }
+    }
+}
+
+}  // namespace
+
 int run_simulate_command(const SimulateOptions& o) {
+    // The scene file writes into the options bound to the command, i.e. into `o`.
+    if (!o.scene.empty() && o.command) apply_scene_file(*o.command, o.scene);
     StageTimer timer(o.quiet);
     const auto thread_limit = limit_threads(o.threads);
 
@@ -253,6 +443,7 @@ int run_simulate_command(const SimulateOptions& o) {
     settings.imaging.pixel_mm = o.pixel_mm;
     settings.imaging.tgc = parse_tgc(o.tgc, settings.transducer);
     settings.validate("simulate options");
+    tissue::require_in_range("simulate options", "fps", o.fps, 0.1, 240.0);
     std::vector<std::pair<std::string, int>> formats;  // file suffix, bits
     {
         std::istringstream list(o.formats);
@@ -270,6 +461,9 @@ int run_simulate_command(const SimulateOptions& o) {
     }
     if (o.name.empty() || o.name.find('/') != std::string::npos)
         throw tissue::InputError("--name", "", "must be a plain file stem");
+    const std::string video_suffix = o.video.empty() ? "" : "." + o.video;
+    if (!o.video.empty() && o.video != "mp4" && o.video != "avi")
+        throw tissue::InputError("--video", o.video, "must be mp4, avi or empty");
     std::optional<probe::Pose> pose;
     if (o.volume.pose != "default") pose = probe::parse_pose(o.volume.pose, "--pose");
 
@@ -291,80 +485,110 @@ int run_simulate_command(const SimulateOptions& o) {
         scene.pose = top_centre_pose(source.loaded.volume.geometry());
         scene.description = "probe on the top face of the volume";
     }
+    const std::vector<Placement> placements = sweep_placements(o.sweep, scene);
+    for (const Placement& p : placements)
+        require_pose_in_volume(p.scene.pose, source.loaded.volume,
+                               o.sweep.empty() ? "--pose" : "--sweep");
     timer.end();
 
-    // ---- the plane under the probe ----
+    // ---- trace and form the frames; outputs staged and committed together ----
+    const bool sweeping = !o.sweep.empty();
     const imaging::QualityLevel level = imaging::quality_level(settings.quality);
-    const imaging::PlaneGrid grid =
-        imaging::plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
-    timer.begin("acoustic map " + std::to_string(grid.geometry.dims.x) + "x" +
-                std::to_string(grid.geometry.dims.y));
-    const tissue::Volume plane_values = source.resample(grid.geometry);
-    tissue::PropertyMaps maps = tissue::classify(plane_values, *source.tf);
-    std::optional<tissue::Volume> labels;
-    if (o.write_labels) labels = tissue::tissue_labels(plane_values, *source.tf);
-    imaging::prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
-    const auto map = tissue::AcousticMap<2>::build(maps);
-    timer.end();
-
-    // ---- trace and form the frame ----
     const std::size_t particles =
         std::size_t(settings.transducer.lines) * std::size_t(level.particles_per_line);
-    ProgressBar bar("simulating " + std::to_string(particles) + " particles", o.quiet);
-    const imaging::Frame frame = imaging::simulate_frame(
-        map, grid, scene.pose, settings,
-        [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
-    bar.finish();
-
-    // ---- outputs, staged and committed together ----
-    timer.begin("writing");
     tissue::OutputTransaction transaction;
     const std::filesystem::path out(o.out_dir);
     std::vector<std::string> written;
-    for (const auto& [suffix, bits] : formats) {
-        const std::string path = (out / (o.name + suffix)).string();
-        write_frame(frame.image.image, transaction.stage(path), bits);
-        written.push_back(path);
-    }
-    auto write_lines = [&](const imaging::LineData& d, const std::string& suffix) {
-        const std::string path = (out / (o.name + suffix)).string();
-        tissue::write_gray_image(transaction.stage(path), d.samples, d.lines, d.values, 32);
-        written.push_back(path);
-    };
-    if (o.write_rf) write_lines(frame.rf, "_rf.exr");
-    if (o.write_envelope) write_lines(frame.envelope, "_envelope.exr");
+    json frames_record = json::array();
     json label_record;
-    if (labels) {
-        const cv::Mat label_image = imaging::scan_convert_labels(*labels, grid, frame.image);
-        const std::string path = (out / (o.name + "_labels.png")).string();
-        const std::vector<float> values(label_image.begin<uint8_t>(), label_image.end<uint8_t>());
-        tissue::write_gray_image(transaction.stage(path), label_image.cols, label_image.rows,
-                                 values, 8);
-        const std::string preview = (out / (o.name + "_labels_preview.png")).string();
-        imaging::write_png(imaging::label_picture(label_image), transaction.stage(preview));
-        written.push_back(path);
-        written.push_back(preview);
-        json legend = {{"0", "outside the scanned region"}};
-        for (std::size_t i = 0; i < tissue::tissue_table().size(); ++i)
-            legend[std::to_string(i + 1)] = tissue::tissue_label_name(int(i) + 1);
-        label_record = {
-            {"file", path},
-            {"legend", legend},
-            {"geometry", "same pixels as the frame; true (not echo-delayed) positions"}};
-    }
-    if (o.write_energy) {
-        imaging::FieldStyle style{"absorbed energy (sedimentation)",
-                                  "energy",
-                                  imaging::Colormap::inferno,
-                                  std::nullopt,
-                                  true,
-                                  level.map_pixel_mm};
-        const std::string path = (out / (o.name + "_energy.png")).string();
-        imaging::write_png(imaging::render_field(frame.absorbed, style), transaction.stage(path));
-        written.push_back(path);
-    }
-    timer.end();
+    std::optional<cv::VideoWriter> video;
+    std::string video_path;
+    ProgressBar sweep_bar("sweep of " + std::to_string(placements.size()) + " frames", o.quiet);
+    imaging::Frame last;
+    for (std::size_t f = 0; f < placements.size(); ++f) {
+        const Placement& placement = placements[f];
+        char numbered[32];
+        std::snprintf(numbered, sizeof numbered, "_%04zu", f);
+        const std::string stem = o.name + (sweeping ? numbered : "");
+        ProgressBar bar("simulating " + std::to_string(particles) + " particles",
+                        o.quiet || sweeping);
+        SimulatedFrame simulated =
+            simulate_at(source, placement.scene, settings, o.write_labels,
+                        [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
+        bar.finish();
+        const imaging::Frame& frame = simulated.frame;
 
+        for (const auto& [suffix, bits] : formats) {
+            const std::string path = (out / (stem + suffix)).string();
+            write_frame(frame.image.image, transaction.stage(path), bits);
+            written.push_back(path);
+        }
+        auto write_lines = [&](const imaging::LineData& d, const std::string& suffix) {
+            const std::string path = (out / (stem + suffix)).string();
+            tissue::write_gray_image(transaction.stage(path), d.samples, d.lines, d.values, 32);
+            written.push_back(path);
+        };
+        if (o.write_rf) write_lines(frame.rf, "_rf.exr");
+        if (o.write_envelope) write_lines(frame.envelope, "_envelope.exr");
+        if (simulated.labels) {
+            const cv::Mat& label_image = *simulated.labels;
+            const std::string path = (out / (stem + "_labels.png")).string();
+            const std::vector<float> values(label_image.begin<uint8_t>(),
+                                            label_image.end<uint8_t>());
+            tissue::write_gray_image(transaction.stage(path), label_image.cols, label_image.rows,
+                                     values, 8);
+            const std::string preview = (out / (stem + "_labels_preview.png")).string();
+            imaging::write_png(imaging::label_picture(label_image), transaction.stage(preview));
+            written.push_back(path);
+            written.push_back(preview);
+            json legend = {{"0", "outside the scanned region"}};
+            for (std::size_t i = 0; i < tissue::tissue_table().size(); ++i)
+                legend[std::to_string(i + 1)] = tissue::tissue_label_name(int(i) + 1);
+            label_record = {
+                {"files", (out / (o.name + (sweeping ? "_NNNN" : "") + "_labels.png")).string()},
+                {"legend", legend},
+                {"geometry", "same pixels as the frame; true (not echo-delayed) positions"}};
+        }
+        if (o.write_energy) {
+            imaging::FieldStyle style{"absorbed energy (sedimentation)",
+                                      "energy",
+                                      imaging::Colormap::inferno,
+                                      std::nullopt,
+                                      true,
+                                      level.map_pixel_mm};
+            const std::string path = (out / (stem + "_energy.png")).string();
+            imaging::write_png(imaging::render_field(frame.absorbed, style),
+                               transaction.stage(path));
+            written.push_back(path);
+        }
+        if (sweeping && !video_suffix.empty()) {
+            cv::Mat grey;
+            frame.image.image.convertTo(grey, CV_8U, 255.0);
+            cv::Mat bgr;
+            cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+            if (!video) {
+                video_path = (out / (o.name + video_suffix)).string();
+                const int fourcc = o.video == "mp4" ? cv::VideoWriter::fourcc('m', 'p', '4', 'v')
+                                                    : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+                video.emplace(transaction.stage(video_path), fourcc, o.fps, bgr.size(), true);
+                if (!video->isOpened())
+                    throw tissue::InputError(video_path, "",
+                                             "OpenCV cannot write this video format here");
+                written.push_back(video_path);
+            }
+            video->write(bgr);
+        }
+        frames_record.push_back({{"index", f},
+                                 {"offset_mm", placement.offset_mm},
+                                 {"pose", pose_json(placement.scene.pose)},
+                                 {"timings_s", frame.timings}});
+        if (sweeping) sweep_bar.update(f + 1, placements.size());
+        last = std::move(simulated.frame);
+    }
+    if (sweeping) sweep_bar.finish();
+    if (video) video->release();
+
+    const imaging::Frame& frame = last;
     json record = {
         {"command", "simulate"},
         {"version", SONOTRACE_VERSION},
@@ -406,6 +630,11 @@ int run_simulate_command(const SimulateOptions& o) {
         {"stage_timings_s", timer.timings()},
         {"outputs", written},
     };
+    if (sweeping) {
+        record["sweep"] = {{"spec", o.sweep}, {"frames", frames_record}};
+        if (video) record["sweep"]["video"] = {{"file", video_path}, {"fps", o.fps}};
+    }
+    if (!o.scene.empty()) record["scene_file"] = o.scene;
     const std::string sidecar = (out / (o.name + ".json")).string();
     write_json(record, transaction.stage(sidecar));
     if (!o.json_path.empty() && o.json_path != "-")

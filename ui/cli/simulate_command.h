@@ -28,7 +28,10 @@ struct SimulateOptions {
     std::string formats = "png8";
     bool write_rf = false, write_envelope = false, write_labels = false, write_energy = false;
     std::string sweep;
+    std::string video = "mp4";
     double fps = 10.0;
+    std::string scene;            // --scene JSON file
+    CLI::App* command = nullptr;  // set by add_simulate_command (for --scene)
     std::string out_dir = "out";
     std::string name = "bmode";
     std::string json_path;
@@ -37,6 +40,7 @@ struct SimulateOptions {
 };
 
 CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& options);
+// Applies --scene to the options bound to `options.command`, then runs.
 int run_simulate_command(const SimulateOptions& options);
 
 }  // namespace sonotrace::ui
