@@ -1,0 +1,73 @@
+// The standard frame of issue 4: the default scene (Colin27, convex probe on the cortex
+// through the craniotomy, coronal plane through the lateral ventricles), 128 lines,
+// 60 degrees, 8 cm, 3.5 MHz, at the three quality presets. Reports ms per frame (the
+// whole frame: plane resampling, map, beams, trace, RF, envelope, compression, scan
+// conversion) and particle steps per second of the trace.
+//   ./build/bench/bench_frame --benchmark_repetitions=20 --benchmark_report_aggregates_only
+#include <benchmark/benchmark.h>
+
+#include "imaging/simulation.h"
+#include "tissue/property_maps.h"
+#include "tissue/resample.h"
+#include "tissue/transfer_function.h"
+#include "tissue/volume_io.h"
+
+namespace {
+
+using namespace sonotrace;
+
+struct Scene {
+    tissue::LoadedVolume head;
+    std::unique_ptr<tissue::TransferFunction> tf;
+    imaging::ScenePlacement placement;
+    Scene() {
+        head = tissue::load_volume(tissue::VolumeRequest{});
+        tf = tissue::load_transfer_function("mri-t1-head");
+        tf->bind(head.volume);
+        placement = imaging::craniotomy_scene(head.volume, *tf);
+    }
+};
+
+const Scene& scene() {
+    static const Scene s;
+    return s;
+}
+
+void frame(benchmark::State& state, imaging::Quality quality) {
+    const Scene& s = scene();
+    imaging::SimulationSettings settings;
+    settings.transducer = probe::find_transducer("convex", "bench");
+    settings.quality = quality;
+    settings.trace.interface_reach_mm = 3.0;
+    settings.imaging.gain_db = 36.0;
+    const imaging::QualityLevel level = imaging::quality_level(quality);
+    uint64_t steps = 0;
+    for (auto _ : state) {
+        const imaging::PlaneGrid grid =
+            imaging::plane_grid(settings.transducer, s.placement.pose, level.map_pixel_mm);
+        const tissue::Volume plane =
+            tissue::resample(s.head.volume, grid.geometry, tissue::Interpolation::trilinear,
+                             s.head.volume.value_range().first);
+        tissue::PropertyMaps maps = tissue::classify(plane, *s.tf);
+        imaging::prepare_plane(maps, grid, s.placement);
+        const auto map = tissue::AcousticMap<2>::build(maps);
+        const imaging::Frame f = imaging::simulate_frame(map, grid, s.placement.pose, settings);
+        steps += f.stats.steps;
+        benchmark::DoNotOptimize(f.image.image.data);
+    }
+    state.counters["steps/s"] = benchmark::Counter(double(steps), benchmark::Counter::kIsRate);
+    state.counters["frames/s"] =
+        benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+BENCHMARK_CAPTURE(frame, interactive, imaging::Quality::interactive)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(frame, standard, imaging::Quality::standard)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(frame, high, imaging::Quality::high)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();
