@@ -59,10 +59,9 @@ configure_and_build "$build_dir" -DCMAKE_BUILD_TYPE=Release
 case "$mode" in
   build) ;;
   demo)
-    out="out/tissue"
-    say "running: $build_dir/sonotrace tissue --volume default --out $out"
-    "$build_dir/sonotrace" tissue --volume default --out "$out"
-    say "done: open $out/overview.png (every acoustic field of the Colin27 slice) and $out/tissue.json"
+    say "running: $build_dir/sonotrace simulate --out out --labels"
+    "$build_dir/sonotrace" simulate --out out --labels
+    say "done: open out/bmode.png (intraoperative B-mode of the Colin27 head through a craniotomy), out/bmode_labels_preview.png (ground truth) and out/bmode.json"
     ;;
   test)
     say "running the test suite (Release)"
