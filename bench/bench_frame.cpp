@@ -66,7 +66,9 @@ BENCHMARK_CAPTURE(frame, interactive, imaging::Quality::interactive)
 BENCHMARK_CAPTURE(frame, standard, imaging::Quality::standard)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK_CAPTURE(frame, high, imaging::Quality::high)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(frame, high, imaging::Quality::high)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
 
