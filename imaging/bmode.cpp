@@ -245,10 +245,12 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         auto gap_ends = [&](int l, int i, glm::dvec2* a, glm::dvec2* b) {
             const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
             const std::size_t next = at + std::size_t(N);
-            const double depth = rf.depth_mm(i);
+            *a = mean[at], *b = mean[next];
+            if (w[at] > 0.0 && w[next] > 0.0) return;
+            const double depth = rf.depth_mm(i);  // a line without echo: nominal spacing
             const glm::dvec2 nominal = geometry.point(l + 1, depth) - geometry.point(l, depth);
-            *a = w[at] > 0.0 ? mean[at] : mean[next] - nominal;
-            *b = w[next] > 0.0 ? mean[next] : mean[at] + nominal;
+            if (!(w[at] > 0.0)) *a = mean[next] - nominal;
+            if (!(w[next] > 0.0)) *b = mean[at] + nominal;
         };
         std::vector<float> sub(std::size_t(sub_lines) * std::size_t(N), 0.0f);
         tbb::parallel_for(0, sub_lines, [&](int s) {
@@ -280,12 +282,12 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         // the sub-lines included), the mean speckle intensity is the profile's, averaged
         // over the beam.
         tbb::parallel_for(0, L, [&](int l) {
+            const ScanLine line = geometry.line(l);
+            const glm::dvec2 across(-line.direction.y, line.direction.x);
             for (int i = 0; i < N; ++i) {
                 const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
                 if (!(w[at] > 0.0)) continue;
                 const double depth = rf.depth_mm(i);
-                const ScanLine line = geometry.line(l);
-                const glm::dvec2 across(-line.direction.y, line.direction.x);
                 const double transmit_var = std::max(0.0, glm::dot(across, spread[at] * across));
                 const double receive_sigma = t.wavelength_mm() *
                                              std::max(t.f_number, depth / t.array_length_mm()) /
