@@ -20,17 +20,6 @@ constexpr double kC0 = tissue::kReferenceSpeed;       // m/s
 using probe::ScanLine;
 using tissue::mix64;
 
-// Gaussian kernel of `sigma` samples, sum 1.
-std::vector<float> gaussian_kernel(double sigma) {
-    const int half = std::max(1, int(std::ceil(3.0 * sigma)));
-    std::vector<float> k(std::size_t(2 * half + 1));
-    double sum = 0.0;
-    for (int i = -half; i <= half; ++i)
-        sum += k[std::size_t(i + half)] = float(std::exp(-0.5 * i * i / (sigma * sigma)));
-    for (float& v : k) v = float(v / sum);
-    return k;
-}
-
 // out = in (*) kernel (centred), zero outside.
 template <typename T>
 void convolve(const T* in, int n, const std::vector<float>& kernel, T* out) {
@@ -56,6 +45,167 @@ double lattice_correlation_sum(double u) {
     double sum = 1.0;
     for (int k = 1; k * u < 2.0; ++k) sum += 2.0 * rho(k * u);
     return sum;
+}
+
+// Three passes of a centred box of odd width b: a Gaussian of variance (b^2 - 1) / 4 to
+// within a few per cent (zero outside, sum 1), in O(n) whatever the width.
+void smooth_box3(std::vector<double>& v, double sigma, std::vector<double>& scratch) {
+    const int n = int(v.size());
+    int b = int(std::lround(std::sqrt(4.0 * sigma * sigma + 1.0)));
+    b += 1 - b % 2;
+    const int r = b / 2;
+    if (r == 0 || n == 0) return;
+    scratch.resize(v.size());
+    for (int pass = 0; pass < 3; ++pass) {
+        double sum = 0.0;
+        for (int i = 0; i < std::min(r, n); ++i) sum += v[std::size_t(i)];
+        for (int i = 0; i < n; ++i) {
+            if (i + r < n) sum += v[std::size_t(i + r)];
+            scratch[std::size_t(i)] = sum / b;
+            if (i - r >= 0) sum -= v[std::size_t(i - r)];
+        }
+        v.swap(scratch);
+    }
+}
+
+// The speckle term of every line (see the header): the scatter profile smoothed over a
+// pulse length, the scatterer field on sub-lines between the lines' mean positions, and
+// each line's Gaussian sum across its beam.
+void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& profile,
+                   const MapToWorld& to_world, const ImagingSettings& settings, const LineData& rf,
+                   std::vector<float>& speckle) {
+    const int L = rf.lines, N = rf.samples;
+    const double fs = rf.fs_hz;
+    const Pulse pulse{t.frequency_mhz * 1e6, t.bandwidth};
+    const probe::ScanGeometry geometry(t);
+    const double cell =
+        settings.speckle_cell_mm > 0.0 ? settings.speckle_cell_mm : t.wavelength_mm() / 8.0;
+    const ScattererField field(settings.seed, cell);
+    // The field in lattice units straight from map coordinates (one affine map).
+    const MapToWorld to_lattice{to_world.origin / cell, to_world.x_axis / cell,
+                                to_world.y_axis / cell};
+    const double smooth_sigma =
+        std::max(0.5, settings.profile_smoothing * pulse.envelope_fwhm_s() * fs / kFwhmPerSigma);
+
+    // Per line and sample: intensity w, mean position, variance across the line, from
+    // moments S0 = w, S1 = w d, S2 = w (var + d_across^2) smoothed along the line, with
+    // d the offset from the nominal point (small numbers: no cancellation).
+    const std::size_t size = std::size_t(L) * std::size_t(N);
+    std::vector<double> w(size, 0.0), across_var(size, 0.0);
+    std::vector<glm::dvec2> mean(size, glm::dvec2(0.0));
+    const int profile_lines = std::min(L, profile.lines);
+    tbb::parallel_for(0, profile_lines, [&](int l) {
+        const ScanLine line = geometry.line(l);
+        const glm::dvec2 across(-line.direction.y, line.direction.x);
+        const std::size_t row = std::size_t(l) * std::size_t(N);
+        std::vector<double> m[4], scratch;
+        for (auto& v : m) v.assign(std::size_t(N), 0.0);
+        double peak = 0.0;
+        for (int i = 0; i < N; ++i) {
+            const std::size_t at = row + std::size_t(i);
+            const double wi = profile.intensity[at];
+            if (!(wi > 0.0)) continue;
+            const glm::dvec2 d =
+                glm::dvec2(profile.position[at]) - (line.origin + line.direction * rf.depth_mm(i));
+            const double da = glm::dot(d, across);
+            const double var = glm::dot(across, glm::dmat2(profile.covariance[at]) * across);
+            m[0][std::size_t(i)] = wi;
+            m[1][std::size_t(i)] = wi * d.x;
+            m[2][std::size_t(i)] = wi * d.y;
+            m[3][std::size_t(i)] = wi * (std::max(var, 0.0) + da * da);
+            peak = std::max(peak, wi);
+        }
+        for (auto& v : m) smooth_box3(v, smooth_sigma, scratch);
+        for (int i = 0; i < N; ++i) {
+            const double s0 = m[0][std::size_t(i)];
+            // Running sums leave rounding residues where there was nothing.
+            if (!(s0 > 1e-9 * peak)) continue;
+            const std::size_t at = row + std::size_t(i);
+            const glm::dvec2 d(m[1][std::size_t(i)] / s0, m[2][std::size_t(i)] / s0);
+            const double da = glm::dot(d, across);
+            w[at] = s0;
+            mean[at] = (line.origin + line.direction * rf.depth_mm(i)) + d;
+            across_var[at] = std::max(0.0, m[3][std::size_t(i)] / s0 - da * da);
+        }
+    });
+
+    // The scatterer field on K sub-lines per gap between lines, interpolated between the
+    // lines' mean positions (the nominal line spacing where a line has no echo), so that
+    // neighbouring lines see the same scatterers where their beams overlap; each scaled by
+    // the square root of the intensity that lights it. Sub-lines at most half the
+    // narrowest beam (the receive PSF at the F-number) apart resolve every line's sum.
+    double widest_gap = 0.0;
+    for (double d : {0.0, 0.5 * t.depth_mm, t.depth_mm})
+        widest_gap = std::max(widest_gap, geometry.line_spacing_mm(d));
+    const double narrowest_sigma = std::max(cell, t.wavelength_mm() * t.f_number / kFwhmPerSigma);
+    const int K = std::clamp(int(std::ceil(widest_gap / (0.5 * narrowest_sigma))), 1, 32);
+    const int sub_lines = std::max(L - 1, 0) * K + 1;
+    std::vector<float> sub(std::size_t(sub_lines) * std::size_t(N), 0.0f);
+    tbb::parallel_for(0, sub_lines, [&](int s) {
+        const int l = std::clamp(s / K, 0, std::max(L - 2, 0)), k = s - l * K;
+        const double f = double(k) / K;
+        float* out = sub.data() + std::size_t(s) * std::size_t(N);
+        for (int i = 0; i < N; ++i) {
+            const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
+            if (L == 1) {
+                if (w[at] > 0.0)
+                    out[i] = float(std::sqrt(w[at])) * field.at_lattice(to_lattice(mean[at]));
+                continue;
+            }
+            const std::size_t next = at + std::size_t(N);
+            const double lit = (1.0 - f) * w[at] + f * w[next];
+            if (!(lit > 0.0)) continue;
+            glm::dvec2 a = mean[at], b = mean[next];
+            if (!(w[at] > 0.0) || !(w[next] > 0.0)) {  // a line without echo: nominal gap
+                const double depth = rf.depth_mm(i);
+                const glm::dvec2 nominal = geometry.point(l + 1, depth) - geometry.point(l, depth);
+                if (!(w[at] > 0.0)) a = b - nominal;
+                if (!(w[next] > 0.0)) b = a + nominal;
+            }
+            out[i] = float(std::sqrt(lit)) * field.at_lattice(to_lattice(a + f * (b - a)));
+        }
+    });
+
+    // Each line sums the sub-lines under its two-way beam, amplitude weights g. The
+    // particles give the transmit beam (intensity variance v, so amplitude variance 2v; at
+    // the focus already two-way through the receive weights); dynamic receive focusing
+    // bounds it by the receive PSF, FWHM lambda * max(F, depth / array). Normalised by the
+    // field's mean square over the sum (lattice correlation along the sub-lines and along
+    // the samples included), the mean speckle intensity is the profile's, averaged over
+    // the beam.
+    const double axial_correlation =
+        lattice_correlation_sum((rf.depth_mm(1) - rf.depth_mm(0)) / cell);
+    tbb::parallel_for(0, L, [&](int l) {
+        for (int i = 0; i < N; ++i) {
+            const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
+            if (!(w[at] > 0.0)) continue;
+            const double depth = rf.depth_mm(i);
+            const double receive_sigma = t.wavelength_mm() *
+                                         std::max(t.f_number, depth / t.array_length_mm()) /
+                                         kFwhmPerSigma;
+            const double sigma_g =
+                std::max(std::min(std::sqrt(2.0 * across_var[at]), receive_sigma), cell);
+            const double d_sub = std::max(geometry.line_spacing_mm(depth), 1e-6) / K;
+            const int reach = std::min(int(std::ceil(3.0 * sigma_g / d_sub)), 8 * K);
+            // Gaussian weights by recurrence: g(j) = exp(-alpha j^2) = g(j-1) exp(-alpha (2j-1)).
+            const double alpha = 0.5 * (d_sub / sigma_g) * (d_sub / sigma_g);
+            auto value = [&](int s) {
+                return double(sub[std::size_t(s) * std::size_t(N) + std::size_t(i)]);
+            };
+            double sum = value(l * K), norm = 1.0, g = 1.0, q = std::exp(-alpha);
+            const double q_step = q * q;
+            for (int j = 1; j <= reach; ++j, q *= q_step) {
+                g *= q;
+                for (const int s : {l * K - j, l * K + j}) {
+                    if (s < 0 || s >= sub_lines) continue;
+                    sum += g * value(s);
+                    norm += g * g;
+                }
+            }
+            speckle[at] = float(
+                sum / std::sqrt(norm * lattice_correlation_sum(d_sub / cell) * axial_correlation));
+        }
+    });
 }
 
 }  // namespace
@@ -101,38 +251,15 @@ double LineData::depth_mm(int i) const {
 LineData rf_layout(const probe::Transducer& t, const ImagingSettings& settings) {
     LineData d;
     d.lines = t.lines;
-    d.fs_hz = (settings.sampling_mhz > 0.0 ? settings.sampling_mhz : 8.0 * t.frequency_mhz) * 1e6;
+    // 4 f0, as research scanners sample RF: the pulse spectrum at 2 f0 is 37 dB down at
+    // B = 0.8; the envelope and scan conversion interpolate between samples.
+    d.fs_hz = (settings.sampling_mhz > 0.0 ? settings.sampling_mhz : 4.0 * t.frequency_mhz) * 1e6;
     d.samples = int(std::ceil(2.0 * t.depth_mm * 1e-3 / kC0 * d.fs_hz)) + 1;
     return d;
 }
 
 ScattererField::ScattererField(uint64_t seed, double cell_mm)
-    : seed_(mix64(seed ^ 0x73636174ull)), inverse_cell_(1.0 / cell_mm) {}
-
-float ScattererField::lattice(int64_t i, int64_t j, int64_t k) const {
-    // One mix of the three indices, each spread by an odd 64-bit constant.
-    const uint64_t h =
-        mix64(seed_ + uint64_t(i) * 0x9E3779B97F4A7C15ull + uint64_t(j) * 0xC2B2AE3D27D4EB4Full +
-              uint64_t(k) * 0x165667B19E3779F9ull);
-    // Uniform on [-sqrt 3, sqrt 3]: zero mean, unit variance.
-    return float((double(h >> 11) * 0x1.0p-53 * 2.0 - 1.0) * std::numbers::sqrt3);
-}
-
-float ScattererField::operator()(const glm::dvec3& world_mm) const {
-    const glm::dvec3 p = world_mm * inverse_cell_;
-    const glm::dvec3 base = glm::floor(p);
-    const glm::dvec3 f = p - base;
-    const int64_t i = int64_t(base.x), j = int64_t(base.y), k = int64_t(base.z);
-    float v = 0.0f;
-    for (int c = 0; c < 8; ++c) {
-        const int di = c & 1, dj = (c >> 1) & 1, dk = c >> 2;
-        const double w = (di ? f.x : 1.0 - f.x) * (dj ? f.y : 1.0 - f.y) * (dk ? f.z : 1.0 - f.z);
-        v += float(w) * lattice(i + di, j + dj, k + dk);
-    }
-    // Trilinear blending of independent values has mean square prod((1-f)^2 + f^2),
-    // 8/27 on average over a cell: rescale to 1.
-    return v * float(std::sqrt(27.0 / 8.0));
-}
+    : seed_(uint32_t(mix64(seed ^ 0x73636174ull))), inverse_cell_(1.0 / cell_mm) {}
 
 double reflection_back_fraction(double cos_incidence, double lobe_exponent,
                                 double half_acceptance_rad) {
@@ -158,8 +285,11 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         if (sources[s].line < uint32_t(L)) of_line[sources[s].line].push_back(uint32_t(s));
     }
 
-    // -- reflections: intensity per line and sample, split linearly between samples
-    std::vector<float> reflected(std::size_t(L) * std::size_t(N), 0.0f);
+    // -- reflections: intensity per line and sample bin, with its intensity-weighted
+    // echo time (the pulse goes there exactly: a split between samples 1/(4 f0) apart
+    // would add two pulses a quarter period out of phase)
+    std::vector<double> reflected(std::size_t(L) * std::size_t(N), 0.0),
+        reflected_time(reflected.size(), 0.0);
     for (const auto& e : events) {
         if (e.kind == simulator::EchoKind::scatter || e.line >= uint32_t(L)) continue;
         const auto& line = of_line[e.line];
@@ -179,162 +309,36 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         }
         const double position = echo_time * fs;
         if (!(position >= 0.0) || position >= double(N - 1)) continue;
-        const int i = int(position);
-        const float frac = float(position - i);
-        float* row = reflected.data() + std::size_t(e.line) * std::size_t(N);
-        row[i] += float(intensity) * (1.0f - frac);
-        row[i + 1] += float(intensity) * frac;
+        const std::size_t at = std::size_t(e.line) * std::size_t(N) + std::size_t(position);
+        reflected[at] += intensity;
+        reflected_time[at] += intensity * position;
     }
 
-    // -- speckle (header): the beam's intensity at each echo time, its mean position and
-    // lateral spread, from the smoothed profile
-    const probe::ScanGeometry geometry(t);
+    // -- speckle (header)
     std::vector<float> speckle(std::size_t(L) * std::size_t(N), 0.0f);
-    const bool with_profile = settings.speckle && profile.lines > 0 && profile.bins == N &&
-                              profile.covariance.size() == profile.intensity.size();
-    if (with_profile) {
-        const double cell =
-            settings.speckle_cell_mm > 0.0 ? settings.speckle_cell_mm : t.wavelength_mm() / 8.0;
-        const ScattererField field(settings.seed, cell);
-        const double fwhm_samples = pulse.envelope_fwhm_s() * fs;
-        const auto smooth = gaussian_kernel(
-            std::max(0.5, settings.profile_smoothing * fwhm_samples / kFwhmPerSigma));
-        const int profile_lines = std::min(L, profile.lines);
-        std::vector<double> w(std::size_t(L) * std::size_t(N), 0.0);
-        std::vector<glm::dvec2> mean(w.size(), glm::dvec2(0.0));
-        std::vector<glm::dmat2> spread(w.size(), glm::dmat2(0.0));
-        tbb::parallel_for(0, profile_lines, [&](int l) {
-            // Moments S0 = w, S1 = w m, S2 = w (C + m m^T), smoothed, then back.
-            const std::size_t row = std::size_t(l) * std::size_t(N);
-            std::vector<double> in(static_cast<std::size_t>(N)), moments[6];
-            for (int c = 0; c < 6; ++c) {
-                for (int i = 0; i < N; ++i) {
-                    const std::size_t at = row + std::size_t(i);
-                    const double wi = profile.intensity[at];
-                    const glm::dvec2 m(profile.position[at]);
-                    const glm::dmat2 s2 =
-                        glm::dmat2(profile.covariance[at]) + glm::outerProduct(m, m);
-                    const double values[6] = {1.0, m.x, m.y, s2[0][0], s2[1][0], s2[1][1]};
-                    in[std::size_t(i)] = wi > 0.0 ? wi * values[c] : 0.0;
-                }
-                moments[c].resize(std::size_t(N));
-                convolve(in.data(), N, smooth, moments[c].data());
-            }
-            for (int i = 0; i < N; ++i) {
-                const double s0 = moments[0][std::size_t(i)];
-                if (!(s0 > 0.0)) continue;
-                const std::size_t at = row + std::size_t(i);
-                w[at] = s0;
-                mean[at] = glm::dvec2(moments[1][std::size_t(i)], moments[2][std::size_t(i)]) / s0;
-                const double xy = moments[4][std::size_t(i)] / s0 - mean[at].x * mean[at].y;
-                spread[at] =
-                    glm::dmat2(moments[3][std::size_t(i)] / s0 - mean[at].x * mean[at].x, xy, xy,
-                               moments[5][std::size_t(i)] / s0 - mean[at].y * mean[at].y);
-            }
-        });
-
-        // The scatterer field on K sub-lines per gap between lines, interpolated between
-        // the lines' mean positions (the nominal line spacing where a line has no echo),
-        // so neighbouring lines see overlapping scatterers as their beams overlap; each
-        // scaled by the square root of the intensity that lights it.
-        double widest_gap = 0.0;
-        for (double d : {0.0, 0.5 * t.depth_mm, t.depth_mm})
-            widest_gap = std::max(widest_gap, geometry.line_spacing_mm(d));
-        const int K = std::clamp(int(std::ceil(widest_gap / cell)), 1, 32);
-        const int sub_lines = (L - 1) * K + 1;
-        auto gap_ends = [&](int l, int i, glm::dvec2* a, glm::dvec2* b) {
-            const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
-            const std::size_t next = at + std::size_t(N);
-            *a = mean[at], *b = mean[next];
-            if (w[at] > 0.0 && w[next] > 0.0) return;
-            const double depth = rf.depth_mm(i);  // a line without echo: nominal spacing
-            const glm::dvec2 nominal = geometry.point(l + 1, depth) - geometry.point(l, depth);
-            if (!(w[at] > 0.0)) *a = mean[next] - nominal;
-            if (!(w[next] > 0.0)) *b = mean[at] + nominal;
-        };
-        std::vector<float> sub(std::size_t(sub_lines) * std::size_t(N), 0.0f);
-        tbb::parallel_for(0, sub_lines, [&](int s) {
-            const int l = std::min(s / K, L - 2), k = s - l * K;
-            const double f = double(k) / K;
-            for (int i = 0; i < N; ++i) {
-                const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
-                if (L == 1) {
-                    if (w[at] > 0.0)
-                        sub[std::size_t(i)] =
-                            float(std::sqrt(w[at])) * field(to_world(glm::vec2(mean[at])));
-                    continue;
-                }
-                const double lit = (1.0 - f) * w[at] + f * w[at + std::size_t(N)];
-                if (!(lit > 0.0)) continue;
-                glm::dvec2 a, b;
-                gap_ends(l, i, &a, &b);
-                // Scatterers lit by the intensity there (interpolated between the lines).
-                sub[std::size_t(s) * std::size_t(N) + std::size_t(i)] =
-                    float(std::sqrt(lit)) * field(to_world(glm::vec2(a + f * (b - a))));
-            }
-        });
-
-        // Each line sums the sub-lines under its two-way beam, amplitude weights g. The
-        // particles give the transmit beam (intensity variance v, so amplitude variance
-        // 2v; at the focus already two-way through the receive weights); dynamic receive
-        // focusing bounds it by the receive PSF, FWHM lambda * max(F, depth / array).
-        // Normalised by the field's mean square over the sum (lattice correlation along
-        // the sub-lines included), the mean speckle intensity is the profile's, averaged
-        // over the beam.
-        tbb::parallel_for(0, L, [&](int l) {
-            const ScanLine line = geometry.line(l);
-            const glm::dvec2 across(-line.direction.y, line.direction.x);
-            for (int i = 0; i < N; ++i) {
-                const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
-                if (!(w[at] > 0.0)) continue;
-                const double depth = rf.depth_mm(i);
-                const double transmit_var = std::max(0.0, glm::dot(across, spread[at] * across));
-                const double receive_sigma = t.wavelength_mm() *
-                                             std::max(t.f_number, depth / t.array_length_mm()) /
-                                             kFwhmPerSigma;
-                const double sigma_g =
-                    std::max(std::min(std::sqrt(2.0 * transmit_var), receive_sigma), cell);
-                const double d_sub = std::max(geometry.line_spacing_mm(depth), 1e-6) / K;
-                int reach = int(std::min(std::ceil(3.0 * sigma_g / d_sub), 1e6));
-                const int stride = std::max(1, (reach + 63) / 64);
-                reach = reach / stride * stride;
-                // Gaussian weights by recurrence: g(j) = exp(-alpha j^2), g(j+1) = g(j) q_j,
-                // q_j = exp(-alpha (2j + 1)).
-                const double alpha =
-                    0.5 * (stride * d_sub) * (stride * d_sub) / (sigma_g * sigma_g);
-                const int centre = l * K;
-                double sum = 0.0, norm = 0.0, g = 1.0, q = std::exp(-alpha);
-                const double q_step = q * q;
-                for (int j = 0; j * stride <= reach; ++j, g *= q, q *= q_step) {
-                    for (int side = 0; side < (j == 0 ? 1 : 2); ++side) {
-                        const int s = centre + (side == 0 ? j : -j) * stride;
-                        if (s < 0 || s >= sub_lines) continue;
-                        sum += g * sub[std::size_t(s) * std::size_t(N) + std::size_t(i)];
-                        norm += g * g;
-                    }
-                }
-                const double u = stride * d_sub / cell;
-                // The axial samples see the same lattice correlation.
-                const double u_axial = (rf.depth_mm(1) - rf.depth_mm(0)) / cell;
-                speckle[at] = float(sum / std::sqrt(norm * lattice_correlation_sum(u) *
-                                                    lattice_correlation_sum(u_axial)));
-            }
-        });
+    if (settings.speckle && profile.lines > 0 && profile.bins == N &&
+        profile.covariance.size() == profile.intensity.size()) {
+        speckle_lines(t, profile, to_world, settings, rf, speckle);
     }
 
-    // -- pre-RF: reflection amplitudes + speckle
-    std::vector<float> pre(std::size_t(L) * std::size_t(N), 0.0f);
-    for (std::size_t at = 0; at < pre.size(); ++at)
-        pre[at] = std::sqrt(reflected[at]) + speckle[at];
-
-    // -- RF: pre-RF (*) pulse
+    // -- RF: speckle (*) pulse, plus a pulse at each reflection bin's echo time
     const int half = int(std::ceil(4.0 * pulse.sigma_s() * fs));
     std::vector<float> taps(std::size_t(2 * half + 1));
     for (int i = -half; i <= half; ++i) taps[std::size_t(i + half)] = float(pulse(i / fs));
     rf.values.assign(std::size_t(L) * std::size_t(N), 0.0f);
     tbb::parallel_for(0, L, [&](int l) {
-        convolve(pre.data() + std::size_t(l) * std::size_t(N), N, taps,
-                 rf.values.data() + std::size_t(l) * std::size_t(N));
+        const std::size_t row = std::size_t(l) * std::size_t(N);
+        float* out = rf.values.data() + row;
+        convolve(speckle.data() + row, N, taps, out);
+        for (int i = 0; i < N; ++i) {
+            const double intensity = reflected[row + std::size_t(i)];
+            if (!(intensity > 0.0)) continue;
+            const double at = reflected_time[row + std::size_t(i)] / intensity;  // samples
+            const double amplitude = std::sqrt(intensity);
+            const int lo = std::max(0, int(std::ceil(at - half))),
+                      hi = std::min(N - 1, int(std::floor(at + half)));
+            for (int n = lo; n <= hi; ++n) out[n] += float(amplitude * pulse((n - at) / fs));
+        }
     });
     return rf;
 }

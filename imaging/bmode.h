@@ -55,7 +55,7 @@ double tgc_gain_db(const std::vector<TgcPoint>& curve, double depth_mm);
 float log_compress(float envelope, double gain_db, double dynamic_range_db);
 
 struct ImagingSettings {
-    double sampling_mhz = 0.0;  // RF sampling rate; 0 = 8 x the centre frequency
+    double sampling_mhz = 0.0;  // RF sampling rate; 0 = 4 x the centre frequency
     bool speckle = true;
     double speckle_cell_mm = 0.0;    // lattice of the scatterer field; 0 = wavelength / 8
     double profile_smoothing = 1.0;  // smoothing of the scatter profile, in pulse FWHMs
@@ -92,8 +92,14 @@ LineData rf_layout(const probe::Transducer& t, const ImagingSettings& settings);
 double reflection_back_fraction(double cos_incidence, double lobe_exponent,
                                 double half_acceptance_rad);
 
-// Maps a point of the tracer's map frame to world coordinates (mm), for the speckle field.
-using MapToWorld = std::function<glm::dvec3(const glm::vec2&)>;
+// Maps a point of the tracer's map frame (mm) to world coordinates (mm), for the speckle
+// field: the plane's origin and axes in the world.
+struct MapToWorld {
+    glm::dvec3 origin{0.0}, x_axis{1.0, 0.0, 0.0}, y_axis{0.0, 1.0, 0.0};
+    glm::dvec3 operator()(const glm::dvec2& map) const {
+        return origin + x_axis * map.x + y_axis * map.y;
+    }
+};
 
 // The RF lines of a frame. `events` and `profile` come from one trace of `sources`
 // (profile bins must equal the layout's samples at bin width 1/fs).
@@ -113,11 +119,44 @@ LineData compress(const LineData& envelope, const ImagingSettings& settings);
 class ScattererField {
   public:
     ScattererField(uint64_t seed, double cell_mm);
-    float operator()(const glm::dvec3& world_mm) const;
+    float operator()(const glm::dvec3& world_mm) const {
+        return at_lattice(world_mm * inverse_cell_);
+    }
+    // The same at a point given in lattice cells (world_mm / cell_mm).
+    float at_lattice(const glm::dvec3& p) const {
+        const glm::dvec3 base = glm::floor(p);
+        const glm::vec3 f(p - base);
+        // Lattice keys: one 32-bit sum of the indices spread by odd constants, so that
+        // neighbours differ by a constant and only the finaliser runs per corner.
+        const uint32_t key = seed_ + uint32_t(int64_t(base.x)) * kSpreadI +
+                             uint32_t(int64_t(base.y)) * kSpreadJ +
+                             uint32_t(int64_t(base.z)) * kSpreadK;
+        float v = 0.0f;
+        for (int c = 0; c < 8; ++c) {
+            const int di = c & 1, dj = (c >> 1) & 1, dk = c >> 2;
+            const float w =
+                (di ? f.x : 1.0f - f.x) * (dj ? f.y : 1.0f - f.y) * (dk ? f.z : 1.0f - f.z);
+            v += w * value(key + uint32_t(di) * kSpreadI + uint32_t(dj) * kSpreadJ +
+                           uint32_t(dk) * kSpreadK);
+        }
+        // Trilinear blending of independent values has mean square prod((1-f)^2 + f^2),
+        // 8/27 on average over a cell: rescale to 1.
+        return v * 1.8371173f;  // sqrt(27 / 8)
+    }
 
   private:
-    float lattice(int64_t i, int64_t j, int64_t k) const;
-    uint64_t seed_;
+    static constexpr uint32_t kSpreadI = 0x9E3779B1u, kSpreadJ = 0x85EBCA77u,
+                              kSpreadK = 0xC2B2AE3Du;
+    // Uniform on [-sqrt 3, sqrt 3): zero mean, unit variance (lowbias32 finaliser).
+    static float value(uint32_t h) {
+        h ^= h >> 16;
+        h *= 0x7feb352du;
+        h ^= h >> 15;
+        h *= 0x846ca68bu;
+        h ^= h >> 16;
+        return float(int32_t(h)) * 8.0654901e-10f;  // sqrt(3) / 2^31
+    }
+    uint32_t seed_;
     double inverse_cell_;
 };
 

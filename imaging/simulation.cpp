@@ -90,12 +90,9 @@ PlaneGrid plane_grid(const probe::Transducer& t, const probe::Pose& pose, double
 }
 
 MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid) {
-    const glm::dvec3 origin = pose.position, lateral = pose.lateral(), axial = pose.axial();
-    const glm::dvec2 to_map = grid.to_map;
-    return [=](const glm::vec2& m) {
-        const glm::dvec2 p = glm::dvec2(m) - to_map;
-        return origin + lateral * p.x + axial * p.y;
-    };
+    // world = position + lateral (m.x - to_map.x) + axial (m.y - to_map.y)
+    const glm::dvec3 lateral = pose.lateral(), axial = pose.axial();
+    return {pose.position - lateral * grid.to_map.x - axial * grid.to_map.y, lateral, axial};
 }
 
 Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,

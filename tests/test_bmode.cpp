@@ -90,7 +90,7 @@ TEST(Bmode, FullyDevelopedSpeckleHasRayleighSnr) {
                 glm::vec2(g.point(l, layout.depth_mm(i)));
     }
     probe::Sources<2> sources(1);
-    const auto to_world = [](const glm::vec2& p) { return glm::dvec3(p.x, p.y, 0.0); };
+    const imaging::MapToWorld to_world;  // the map plane is the world's xy plane
     const LineData env =
         imaging::envelope(imaging::synthesize_rf(t, sources, {}, profile, to_world, settings));
     double sum = 0.0, sum2 = 0.0;
