@@ -6,6 +6,8 @@
 //   ./build/bench/bench_frame --benchmark_repetitions=20 --benchmark_report_aggregates_only
 #include <benchmark/benchmark.h>
 
+#include <chrono>
+
 #include "imaging/simulation.h"
 #include "tissue/property_maps.h"
 #include "tissue/resample.h"
@@ -25,7 +27,9 @@ struct Scene {
         tf = tissue::load_transfer_function("mri-t1-head");
         tf->bind(head.volume);
         placement = imaging::craniotomy_scene(head.volume, *tf);
+        outside = head.volume.value_range().first;
     }
+    float outside = 0.0f;  // the resampling's value outside the volume
 };
 
 const Scene& scene() {
@@ -42,20 +46,29 @@ void frame(benchmark::State& state, imaging::Quality quality) {
     settings.imaging.gain_db = 36.0;
     const imaging::QualityLevel level = imaging::quality_level(quality);
     uint64_t steps = 0;
+    double plane_s = 0.0, trace_s = 0.0, rf_s = 0.0;
     for (auto _ : state) {
+        const auto start = std::chrono::steady_clock::now();
         const imaging::PlaneGrid grid =
             imaging::plane_grid(settings.transducer, s.placement.pose, level.map_pixel_mm);
-        const tissue::Volume plane =
-            tissue::resample(s.head.volume, grid.geometry, tissue::Interpolation::trilinear,
-                             s.head.volume.value_range().first);
+        const tissue::Volume plane = tissue::resample(s.head.volume, grid.geometry,
+                                                      tissue::Interpolation::trilinear, s.outside);
         tissue::PropertyMaps maps = tissue::classify(plane, *s.tf);
         imaging::prepare_plane(maps, grid, s.placement);
         const auto map = tissue::AcousticMap<2>::build(maps);
+        plane_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const imaging::Frame f = imaging::simulate_frame(map, grid, s.placement.pose, settings);
         steps += f.stats.steps;
+        trace_s += f.timings["trace"].get<double>();
+        rf_s += f.timings["rf"].get<double>();
         benchmark::DoNotOptimize(f.image.image.data);
     }
     state.counters["steps/s"] = benchmark::Counter(double(steps), benchmark::Counter::kIsRate);
+    // Mean seconds per frame of the main stages (the rest: beams, envelope, scan conversion).
+    const double n = double(std::max<int64_t>(state.iterations(), 1));
+    state.counters["plane_ms"] = 1e3 * plane_s / n;
+    state.counters["trace_ms"] = 1e3 * trace_s / n;
+    state.counters["rf_ms"] = 1e3 * rf_s / n;
     state.counters["frames/s"] =
         benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
 }

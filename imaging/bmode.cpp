@@ -3,7 +3,10 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <memory>
+#include <mutex>
 #include <numbers>
 #include <opencv2/core.hpp>
 
@@ -132,13 +135,13 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     // The scatterer field on K sub-lines per gap between lines, interpolated between the
     // lines' mean positions (the nominal line spacing where a line has no echo), so that
     // neighbouring lines see the same scatterers where their beams overlap; each scaled by
-    // the square root of the intensity that lights it. Sub-lines at most half the
-    // narrowest beam (the receive PSF at the F-number) apart resolve every line's sum.
+    // the square root of the intensity that lights it. Sub-lines at most the narrowest
+    // beam's sigma (the receive PSF at the F-number) apart: every line sums >= 7 of them.
     double widest_gap = 0.0;
     for (double d : {0.0, 0.5 * t.depth_mm, t.depth_mm})
         widest_gap = std::max(widest_gap, geometry.line_spacing_mm(d));
     const double narrowest_sigma = std::max(cell, t.wavelength_mm() * t.f_number / kFwhmPerSigma);
-    const int K = std::clamp(int(std::ceil(widest_gap / (0.5 * narrowest_sigma))), 1, 32);
+    const int K = std::clamp(int(std::ceil(widest_gap / narrowest_sigma)), 1, 32);
     const int sub_lines = std::max(L - 1, 0) * K + 1;
     std::vector<float> sub(std::size_t(sub_lines) * std::size_t(N), 0.0f);
     tbb::parallel_for(0, sub_lines, [&](int s) {
@@ -369,42 +372,107 @@ LineData envelope(const LineData& rf) {
 
 LineData compress(const LineData& envelope, const ImagingSettings& settings) {
     LineData out = envelope;
-    for (int i = 0; i < envelope.samples; ++i) {
-        const double gain = settings.gain_db + tgc_gain_db(settings.tgc, envelope.depth_mm(i));
-        for (int l = 0; l < envelope.lines; ++l)
-            out.at(l, i) = log_compress(envelope.at(l, i), gain, settings.dynamic_range_db);
-    }
+    std::vector<double> gain(std::size_t(envelope.samples));
+    for (int i = 0; i < envelope.samples; ++i)
+        gain[std::size_t(i)] = settings.gain_db + tgc_gain_db(settings.tgc, envelope.depth_mm(i));
+    tbb::parallel_for(0, envelope.lines, [&](int l) {
+        for (int i = 0; i < envelope.samples; ++i)
+            out.at(l, i) =
+                log_compress(envelope.at(l, i), gain[std::size_t(i)], settings.dynamic_range_db);
+    });
     return out;
 }
 
-ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, double pixel_mm,
-                           float outside) {
+namespace {
+
+// Where each pixel of a scan conversion reads the line data. The arctangent per pixel of
+// a fan costs as much as the rest of the conversion, so the table is kept for the next
+// frames of the same geometry (a sweep, the GUI).
+struct ScanTable {
+    std::array<double, 8> key{};
+    int rows = 0, cols = 0;
+    glm::dvec2 origin{0.0};
+    std::vector<int32_t> first;      // l0 * samples + s0, -1 outside the scanned region
+    std::vector<int32_t> next_line;  // offset to line l0 + 1 (0 with one line)
+    std::vector<float> line_frac, sample_frac;
+};
+
+std::shared_ptr<const ScanTable> scan_table(const LineData& data, const probe::Transducer& t,
+                                            double pixel_mm) {
     const probe::ScanGeometry geometry(t);
     const auto [lo, hi] = geometry.bounds();
-    ScanConverted out;
-    out.pixel_mm = pixel_mm;
-    out.origin = lo;
-    const int cols = int(std::floor((hi.x - lo.x) / pixel_mm)) + 1;
-    const int rows = int(std::floor((hi.y - lo.y) / pixel_mm)) + 1;
-    out.image = cv::Mat(rows, cols, CV_32F, cv::Scalar(outside));
-    out.inside = cv::Mat(rows, cols, CV_8U, cv::Scalar(0));
+    const std::array<double, 8> key{double(t.is_fan()),
+                                    double(data.lines),
+                                    double(data.samples),
+                                    data.fs_hz,
+                                    pixel_mm,
+                                    t.depth_mm,
+                                    t.radius_of_lines(),
+                                    t.is_fan() ? t.fov_deg : t.array_length_mm()};
+    static std::mutex mutex;
+    static std::vector<std::shared_ptr<const ScanTable>> cache;  // most recent last
+    {
+        const std::lock_guard<std::mutex> lock(mutex);
+        for (const auto& table : cache)
+            if (table->key == key) return table;
+    }
+    auto table = std::make_shared<ScanTable>();
+    table->key = key;
+    table->origin = lo;
+    table->cols = int(std::floor((hi.x - lo.x) / pixel_mm)) + 1;
+    table->rows = int(std::floor((hi.y - lo.y) / pixel_mm)) + 1;
+    const std::size_t pixels = std::size_t(table->rows) * std::size_t(table->cols);
+    table->first.assign(pixels, -1);
+    table->next_line.assign(pixels, 0);
+    table->line_frac.assign(pixels, 0.0f);
+    table->sample_frac.assign(pixels, 0.0f);
     const double samples_per_mm = 2.0 * 1e-3 / kC0 * data.fs_hz;
-    tbb::parallel_for(0, rows, [&](int r) {
-        for (int c = 0; c < cols; ++c) {
+    tbb::parallel_for(0, table->rows, [&](int r) {
+        for (int c = 0; c < table->cols; ++c) {
             const glm::dvec2 p = lo + glm::dvec2(c, r) * pixel_mm;
             const glm::dvec2 ld = geometry.line_and_depth(p);
             if (!(ld.x >= -0.5 && ld.x <= data.lines - 0.5 && ld.y >= 0.0 && ld.y <= t.depth_mm))
                 continue;
             const double l = std::clamp(ld.x, 0.0, double(data.lines - 1));
-            const double s = std::clamp(ld.y * samples_per_mm, 0.0, double(data.samples - 1));
+            const double sm = std::clamp(ld.y * samples_per_mm, 0.0, double(data.samples - 1));
             const int l0 = std::min(int(l), std::max(data.lines - 2, 0)),
-                      s0 = std::min(int(s), data.samples - 2);
-            const int l1 = std::min(l0 + 1, data.lines - 1);
-            const float fl = float(l - l0), fsm = float(s - s0);
-            const float a = data.at(l0, s0) * (1 - fsm) + data.at(l0, s0 + 1) * fsm;
-            const float b = data.at(l1, s0) * (1 - fsm) + data.at(l1, s0 + 1) * fsm;
-            out.image.at<float>(r, c) = a * (1 - fl) + b * fl;
-            out.inside.at<uint8_t>(r, c) = 255;
+                      s0 = std::min(int(sm), data.samples - 2);
+            const std::size_t at = std::size_t(r) * std::size_t(table->cols) + std::size_t(c);
+            table->first[at] = l0 * data.samples + s0;
+            table->next_line[at] = std::min(l0 + 1, data.lines - 1) == l0 ? 0 : data.samples;
+            table->line_frac[at] = float(l - l0);
+            table->sample_frac[at] = float(sm - s0);
+        }
+    });
+    const std::lock_guard<std::mutex> lock(mutex);
+    cache.push_back(table);
+    if (cache.size() > 4) cache.erase(cache.begin());
+    return table;
+}
+
+}  // namespace
+
+ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, double pixel_mm,
+                           float outside) {
+    const auto table = scan_table(data, t, pixel_mm);
+    ScanConverted out;
+    out.pixel_mm = pixel_mm;
+    out.origin = table->origin;
+    out.image = cv::Mat(table->rows, table->cols, CV_32F, cv::Scalar(outside));
+    out.inside = cv::Mat(table->rows, table->cols, CV_8U, cv::Scalar(0));
+    tbb::parallel_for(0, table->rows, [&](int r) {
+        float* image = out.image.ptr<float>(r);
+        uint8_t* inside = out.inside.ptr<uint8_t>(r);
+        for (int c = 0; c < table->cols; ++c) {
+            const std::size_t at = std::size_t(r) * std::size_t(table->cols) + std::size_t(c);
+            if (table->first[at] < 0) continue;
+            // Bilinear between the two samples of the two lines around the pixel.
+            const float* a = data.values.data() + table->first[at];
+            const float* b = a + table->next_line[at];
+            const float fl = table->line_frac[at], fsm = table->sample_frac[at];
+            const float va = a[0] * (1 - fsm) + a[1] * fsm, vb = b[0] * (1 - fsm) + b[1] * fsm;
+            image[c] = va * (1 - fl) + vb * fl;
+            inside[c] = 255;
         }
     });
     return out;

@@ -28,15 +28,18 @@ std::string to_string(Quality quality) {
 }
 
 QualityLevel quality_level(Quality quality) {
+    // Interactive steps a whole texel (0.5 mm, about a wavelength at 3.5 MHz): half the
+    // steps; refraction through the smoothed interfaces of a 0.5 mm map still takes
+    // several steps.
     switch (quality) {
         case Quality::interactive:
-            return {0.5, 8};
+            return {0.5, 8, 1.0};
         case Quality::standard:
-            return {0.25, 32};
+            return {0.25, 32, 0.5};
         case Quality::high:
-            return {0.125, 128};
+            return {0.125, 128, 0.5};
     }
-    return {0.25, 32};
+    return {0.25, 32, 0.5};
 }
 
 void SimulationSettings::validate(const std::string& source) const {
@@ -45,6 +48,7 @@ void SimulationSettings::validate(const std::string& source) const {
     auto in_range = [&](double v, double lo, double hi, const char* field) {
         tissue::require_in_range(source, field, v, lo, hi);
     };
+    in_range(step_texels, 0.0, 100.0, "step");
     in_range(imaging.sampling_mhz, 0.0, 1000.0, "sampling");
     if (imaging.sampling_mhz > 0.0 &&
         imaging.sampling_mhz <
@@ -115,10 +119,16 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     });
 
     simulator::TraceSettings trace = settings.trace;
+    trace.step_texels = settings.step_texels > 0.0 ? settings.step_texels
+                                                   : quality_level(settings.quality).step_texels;
     trace.frequency_mhz = t.frequency_mhz;
     trace.seed = settings.seed;
     trace.record_scatter_echoes = false;
     trace.echo_profile = simulator::EchoProfileSettings{1.0 / layout.fs_hz, layout.samples};
+    // The echo window closes at the last sample: monostatic echoes come at twice the
+    // one-way time, captured ones at the particle's own time.
+    const double window_s = layout.samples / layout.fs_hz;
+    trace.max_time_s = settings.receive == ReceiveModel::capture ? window_s : 0.5 * window_s;
     if (settings.receive == ReceiveModel::capture) {
         simulator::ProbeFace<2> face;
         face.centre = glm::vec2(grid.to_map);

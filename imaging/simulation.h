@@ -32,6 +32,7 @@ std::string to_string(Quality quality);
 struct QualityLevel {
     double map_pixel_mm;     // resolution of the acoustic map
     int particles_per_line;  // particles each scan line emits
+    double step_texels;      // the tracer's step length, in map texels
 };
 QualityLevel quality_level(Quality quality);
 
@@ -53,6 +54,7 @@ struct SimulationSettings {
         return s;
     }();
     uint64_t seed = 1;
+    double step_texels = 0.0;  // the tracer's step (texels); 0 = the quality's
 
     // Throws tissue::InputError naming the first bad parameter.
     void validate(const std::string& source) const;
@@ -75,7 +77,8 @@ struct Frame {
     ScanConverted image;             // scan-converted display
     simulator::EnergyLedger ledger;
     simulator::TraceStats stats;
-    tissue::Volume absorbed;  // energy deposition map (the grid of the plane)
+    // Energy deposition map on the grid of the plane, up to the close of the echo window.
+    tissue::Volume absorbed;
     nlohmann::json timings = nlohmann::json::object();  // seconds per stage
 };
 

@@ -40,6 +40,7 @@ void TraceSettings::validate(const std::string& source) const {
     in_range(follow_reflections_above, 0.0, 1.0, "follow-reflections-above");
     in_range(interface_reach_mm, 0.0, 100.0, "interface-reach");
     in_range(max_path_mm, 1.0, 1e6, "max-path");
+    in_range(max_time_s, 0.0, 1.0, "max-time");
     in_range(max_bounces, 0, 1000000, "max-bounces");
     in_range(record_paths, 0, 1000000, "record-paths");
     if (probe_face_2d) in_range(probe_face_2d->reflectivity, 0.0, 1.0, "probe-face.reflectivity");

@@ -98,6 +98,9 @@ struct TraceSettings {
     // reflectors, of relative order R^2. 0 = every reflection stochastic (unbiased).
     double follow_reflections_above = 0.0;
     double max_path_mm = 2000.0;  // paths end (energy "remaining") beyond this length
+    // Paths end (energy "remaining") once their time of flight passes this (s); 0 = never.
+    // An image's echo window: nothing a particle does later lands in it.
+    double max_time_s = 0.0;
 
     int record_paths = 0;  // particles per line whose paths are kept as polylines
     bool record_scatter_echoes = true;

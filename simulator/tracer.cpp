@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <numeric>
 
 #include "simulator/interactions.h"
@@ -154,6 +155,8 @@ class LineTracer {
         // alpha [dB/(cm MHz)] * f [MHz] / 10 [mm/cm] -> dB/mm; * ln(10)/10 -> Np/mm (intensity).
         attenuation_per_mm_ = float(settings.frequency_mhz * 0.1 * std::log(10.0) / 10.0);
         seconds_per_mm_ = float(1e-3 / tissue::kReferenceSpeed);  // times n gives 1/c
+        max_time_s_ = settings.max_time_s > 0.0 ? settings.max_time_s
+                                                : std::numeric_limits<double>::infinity();
     }
 
     void run(const Sources<Dim>& sources, const std::vector<uint32_t>& order, std::size_t begin,
@@ -567,7 +570,8 @@ class LineTracer {
             ledger.escaped += E;
             return false;
         }
-        if (b.path_length[k] > settings_.max_path_mm || b.bounces[k] > settings_.max_bounces) {
+        if (b.path_length[k] > settings_.max_path_mm || b.bounces[k] > settings_.max_bounces ||
+            b.time[k] > max_time_s_) {
             ledger.remaining += E;
             return false;
         }
@@ -641,6 +645,7 @@ class LineTracer {
     const tissue::AcousticMap<Dim>& map_;
     const TraceSettings& settings_;
     float texel_mm_ = 1.0f, step_mm_ = 0.5f, attenuation_per_mm_ = 0.0f, seconds_per_mm_ = 0.0f;
+    double max_time_s_ = 0.0;
     V inverse_spacing_{};
     float threshold2_ = 0.0f, inverse_texel2_ = 1.0f, follow_reflections_above_ = 0.0f;
     int plateau_steps_ = 16;

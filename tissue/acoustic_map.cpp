@@ -26,16 +26,18 @@ float axis_difference(const Volume& f, const glm::ivec3& i, int axis) {
 }
 
 float derivative(const Volume& f, const glm::ivec3& i, int axis) {
-    double sum = 0.0, weight = 0.0;
     const glm::ivec3 d = f.dims();
-    for (int u = -1; u <= 1; ++u) {
-        for (int v = -1; v <= 1; ++v) {
+    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    // Neighbours across the other axes that exist (none across a flat axis).
+    const int u_lo = d[a1] < 2 ? 0 : std::max(-1, -i[a1]),
+              u_hi = d[a1] < 2 ? 0 : std::min(1, d[a1] - 1 - i[a1]);
+    const int v_lo = d[a2] < 2 ? 0 : std::max(-1, -i[a2]),
+              v_hi = d[a2] < 2 ? 0 : std::min(1, d[a2] - 1 - i[a2]);
+    double sum = 0.0, weight = 0.0;
+    for (int u = u_lo; u <= u_hi; ++u) {
+        for (int v = v_lo; v <= v_hi; ++v) {
             glm::ivec3 j = i;
-            const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
-            if (d[a1] < 2 && u != 0) continue;
-            if (d[a2] < 2 && v != 0) continue;
             j[a1] += u, j[a2] += v;
-            if (j[a1] < 0 || j[a1] >= d[a1] || j[a2] < 0 || j[a2] >= d[a2]) continue;
             const double w = (u == 0 ? 2.0 : 1.0) * (v == 0 ? 2.0 : 1.0);
             sum += w * axis_difference(f, j, axis);
             weight += w;
@@ -92,6 +94,24 @@ AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Vo
             t.backscatter = value(backscatter, v);
             t.scatterer_density = value(scatterer_density, v);
             t.roughness = value(roughness, v);
+            if (Dim == 2 && i > 0 && i + 1 < n.x && j > 0 && j + 1 < n.y) {
+                // Interior of a slice: the same Sobel weights, straight from the rows.
+                for (const auto& [f, grad] :
+                     {std::pair{&refractive_index, &t.grad_refractive_index[0]},
+                      std::pair{&impedance, &t.grad_impedance[0]}}) {
+                    const float* up = f->voxels().data() + f->linear_index(0, j - 1, k);
+                    const float* mid = f->voxels().data() + f->linear_index(0, j, k);
+                    const float* down = f->voxels().data() + f->linear_index(0, j + 1, k);
+                    auto d = [](float a, float b) { return double(a) - double(b); };
+                    grad[0] = float((d(up[i + 1], up[i - 1]) + 2.0 * d(mid[i + 1], mid[i - 1]) +
+                                     d(down[i + 1], down[i - 1])) /
+                                    (8.0 * map.geometry_.spacing.x));
+                    grad[1] = float((d(down[i - 1], up[i - 1]) + 2.0 * d(down[i], up[i]) +
+                                     d(down[i + 1], up[i + 1])) /
+                                    (8.0 * map.geometry_.spacing.y));
+                }
+                continue;
+            }
             for (int a = 0; a < Dim; ++a) {
                 t.grad_refractive_index[a] = derivative(refractive_index, {i, j, k}, a);
                 t.grad_impedance[a] = derivative(impedance, {i, j, k}, a);

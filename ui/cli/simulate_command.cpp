@@ -54,7 +54,9 @@ constexpr ParameterDoc kTgcDoc = {
     "time-gain compensation: 'auto' (2 x 0.6 dB/(cm MHz) x f x depth, brain attenuation), "
     "'none', or a curve 'DEPTH:GAIN,DEPTH:GAIN,...' (linear in between)"};
 constexpr ParameterDoc kPixelDoc = {"--pixel", "mm", "pixel size of the scan-converted image"};
-constexpr ParameterDoc kStepDoc = {"--step", "texels", simulator::doc::kStep};
+constexpr ParameterDoc kStepDoc = {
+    "--step", "texels",
+    "integration step s, in texels of the map; 0 = the quality's (interactive 1, else 0.5)"};
 constexpr ParameterDoc kSeedDoc = {"--seed", "",
                                    "random seed of the beams, tracing and scatterer field"};
 constexpr ParameterDoc kFormatsDoc = {
@@ -437,7 +439,7 @@ int run_simulate_command(const SimulateOptions& o) {
                                           {{"monostatic", imaging::ReceiveModel::monostatic},
                                            {"capture", imaging::ReceiveModel::capture}});
     settings.seed = o.seed;
-    settings.trace.step_texels = o.step_texels;
+    settings.step_texels = o.step_texels;
     settings.imaging.gain_db = o.gain_db;
     settings.imaging.dynamic_range_db = o.dynamic_range_db;
     settings.imaging.pixel_mm = o.pixel_mm;
@@ -601,7 +603,8 @@ int run_simulate_command(const SimulateOptions& o) {
         {"quality",
          {{"name", imaging::to_string(settings.quality)},
           {"map_pixel_mm", level.map_pixel_mm},
-          {"particles_per_line", level.particles_per_line}}},
+          {"particles_per_line", level.particles_per_line},
+          {"step_texels", settings.step_texels > 0.0 ? settings.step_texels : level.step_texels}}},
         {"receive", imaging::to_string(settings.receive)},
         {"craniotomy",
          {{"radius_mm", scene.craniotomy_radius_mm}, {"depth_mm", scene.craniotomy_depth_mm}}},

@@ -23,7 +23,7 @@ struct SimulateOptions {
     double dynamic_range_db = 60.0;
     std::string tgc = "auto";
     double pixel_mm = 0.2;
-    double step_texels = 0.5;
+    double step_texels = 0.0;  // 0 = the quality's
     uint64_t seed = 1;
     std::string formats = "png8";
     bool write_rf = false, write_envelope = false, write_labels = false, write_energy = false;
