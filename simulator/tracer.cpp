@@ -280,6 +280,27 @@ class LineTracer {
         return t;
     }
 
+    // The first point from `from` towards `to` where the impedance crosses the geometric
+    // mean of two plateaus' (linear between samples a quarter texel apart); `to` if none.
+    V halfway_point(const V& from, const V& to, const Texel& near_side,
+                    const Texel& far_side) const {
+        const float half = std::sqrt(near_side.impedance * far_side.impedance);
+        const float sign = far_side.impedance >= near_side.impedance ? 1.0f : -1.0f;
+        const int steps = std::max(1, int(std::ceil(4.0f * glm::length(to - from) / texel_mm_)));
+        float previous = sign * (map_.sample(from).impedance - half);
+        if (previous >= 0.0f) return from;
+        for (int i = 1; i <= steps; ++i) {
+            const V p = from + (to - from) * (float(i) / float(steps));
+            const float now = sign * (map_.sample(p).impedance - half);
+            if (now >= 0.0f) {
+                const float f = previous / (previous - now);  // previous < 0 <= now
+                return from + (to - from) * ((float(i - 1) + f) / float(steps));
+            }
+            previous = now;
+        }
+        return to;
+    }
+
     // The interface normal: the sum of grad Z over a patch of the transition, lines from
     // the near to the far plateau at lateral offsets of up to 2 texels, samples a texel
     // apart (a cross of lines in 3D). On a transition a few texels wide, finite differences alias
@@ -338,14 +359,23 @@ class LineTracer {
         normal = interface_normal(near_end, far_end, forward);
         forward = glm::dot(forward, normal) >= 0.0f ? normal : -normal;
         b.interface_normal[k] = normal;
+        // The particle meets the transition at its near fringe; the interface itself is
+        // about half the smoothing width further on, where ln Z is halfway between the
+        // plateaus (a transition thinner than the pulse reflects like a step at the centre
+        // of d(ln Z)/dx). Echoes and reflections are timed there, or every echo would
+        // come early by that much.
+        const float ahead = glm::dot(halfway_point(x, far_end, near_side, far_side) - x, forward);
+        const float to_middle_mm = std::max(ahead, 0.0f) / std::max(glm::dot(r, forward), 0.1f);
         return settings_.specular_reflection &&
-               decide_reflection(b, k, x, t, near_side, far_side, forward, r, E);
+               decide_reflection(b, k, x, t, near_side, far_side, forward, to_middle_mm, r, E);
     }
 
     // The reflection decision at a sharp interface (eq. 10 with the plateau values on
     // both sides). Records the expected echo R^2 and reflects with probability R^2.
+    // `to_middle_mm`: path from x to the middle of the transition, where it reflects.
     bool decide_reflection(Batch<Dim>& b, int k, const V& x, const Texel& t, const Texel& near_side,
-                           const Texel& far_side, const V& forward, V& r, float& E) {
+                           const Texel& far_side, const V& forward, float to_middle_mm, V& r,
+                           float& E) {
         // The direction the particle had on the near plateau: undo the slight
         // refraction it met in the fringe, using the conserved n sin(theta).
         const float cos_now = glm::dot(r, forward);
@@ -358,7 +388,10 @@ class LineTracer {
         const float cos_t = sin_t >= 1.0f ? 0.0f : std::sqrt(1.0f - sin_t * sin_t);
         const float R2 = reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
         const float c = settings_.diffuse_reflection ? lobe_exponent(near_side, far_side) : 1e6f;
-        record_echo(b, k, x, E, R2, c < 1e4f ? EchoKind::diffuse : EchoKind::specular, cos_i, c);
+        const double to_middle_s =
+            double(to_middle_mm) * seconds_per_mm_ * near_side.refractive_index;
+        record_echo(b, k, x + r * to_middle_mm, E, R2,
+                    c < 1e4f ? EchoKind::diffuse : EchoKind::specular, cos_i, c, to_middle_s);
         if (R2 < follow_reflections_above_) {  // scored, not followed (TraceSettings)
             out_->ledger.recorded += double(E) * R2;
             E -= E * R2;
@@ -375,6 +408,9 @@ class LineTracer {
             (*deposits_)[texel_index(x)].absorbed += to_fixed(lost);
         }
         b.in_interface[k] = kLeavingAfterReflection;  // leave on the near side, unrefracted
+        // To the middle and back: the time and path of the reflection where it happens.
+        b.time[k] += 2.0 * to_middle_s;
+        b.path_length[k] += 2.0 * to_middle_mm;
         b.bounces[k]++;
         out_->stats.reflections++;
         if (cos_t == 0.0f) out_->stats.total_reflections++;
@@ -383,9 +419,9 @@ class LineTracer {
 
     [[gnu::noinline]] void record_echo(const Batch<Dim>& b, int k, const V& x, float energy,
                                        float weight, EchoKind kind, float cos_incidence = 1.0f,
-                                       float lobe_exponent = 1e6f) {
-        out_->echoes.push_back({line_, b.particle[k], float(b.time[k]), energy, weight, x,
-                                b.bounces[k], kind, cos_incidence, lobe_exponent});
+                                       float lobe_exponent = 1e6f, double extra_time_s = 0.0) {
+        out_->echoes.push_back({line_, b.particle[k], float(b.time[k] + extra_time_s), energy,
+                                weight, x, b.bounces[k], kind, cos_incidence, lobe_exponent});
     }
 
     // The diffuse lobe (eq. 11) about the specular direction `mirror`; `forward` points

@@ -164,6 +164,64 @@ TEST(Tracer, ReflectedFractionMatchesObliqueIncidenceCoefficient) {
     }
 }
 
+TEST(Tracer, ProbeFaceReverberationFollowsTheGeometry) {
+    // The capture model of the receive side: a parallel beam leaves a face at y0 towards a
+    // flat reflector at depth d (water 1.5 MRayl over bone-like 5.7 MRayl, mirror-smooth,
+    // no losses). Every particle that comes back crosses the face, which keeps 1 - r_f and
+    // reflects r_f. Geometry and eq. 10 predict returns at t1 = 2 (d - y0) / c and
+    // t2 = 2 t1 (one reverberation), with captured energies
+    //   E1 = E0 R^2 (1 - r_f),  E2 = E1 r_f R^2.
+    // Bounds: particles reflect with probability R^2 (binomial); 5 sigma of the counts.
+    constexpr double kY0 = 2.0, kDepth = 12.0, kFaceReflectivity = 0.4;
+    const auto water = medium(1540, 1000), bone = medium(3000, 1900);
+    const auto map = tissue::AcousticMap<2>::build(
+        planar_interface(160, 160, kH, {20.0, kDepth}, {0.0, 1.0}, water, bone, 2.0));
+    const double z1 = 1.54, z2 = 5.7, r2 = std::pow((z2 - z1) / (z2 + z1), 2.0);
+    TraceSettings s = clean_settings();
+    ProbeFace<2> face;
+    face.centre = {20.0f, float(kY0)};
+    face.normal = {0.0f, 1.0f};
+    face.half_width_mm = 15.0f;
+    face.reflectivity = float(kFaceReflectivity);
+    s.probe_face_2d = face;
+    constexpr int kParticles = 20000;
+    Sources<2> src;
+    for (int line = 0; line < 8; ++line) {
+        auto beam = parallel_beam({20.0f, float(kY0) + 0.01f}, {0.0f, 1.0f}, 10.0f, kParticles / 8,
+                                  uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    const auto result = trace(map, src, s);
+    const double t1 = 2.0 * (kDepth - kY0) * 1e-3 / 1540.0;
+    double e1 = 0.0, e2 = 0.0, other = 0.0, time1 = 0.0, time2 = 0.0;
+    int n1 = 0, n2 = 0;
+    for (const auto& e : result.echoes) {
+        if (e.kind != EchoKind::returned_to_probe) continue;
+        const double intensity = double(e.energy) * e.weight;
+        // Windows of +-0.5 us (0.4 mm of depth) around t1 and 2 t1, 13 us apart.
+        if (std::abs(e.time_s - t1) < 0.5e-6) {
+            e1 += intensity, ++n1, time1 += e.time_s;
+        } else if (std::abs(e.time_s - 2.0 * t1) < 0.5e-6) {
+            e2 += intensity, ++n2, time2 += e.time_s;
+        } else {
+            other += intensity;
+        }
+    }
+    const double e0 = kParticles;  // unit energy per particle
+    const double sigma1 = std::sqrt(r2 * (1.0 - r2) / kParticles);
+    EXPECT_NEAR(e1 / e0, r2 * (1.0 - kFaceReflectivity), 5.0 * sigma1 * (1.0 - kFaceReflectivity));
+    ASSERT_GT(n1, 0);
+    const double sigma2 = std::sqrt(r2 * (1.0 - r2) / n1);
+    EXPECT_NEAR(e2 / e1, kFaceReflectivity * r2, 5.0 * sigma2 * kFaceReflectivity);
+    // Third and later returns carry (r_f R^2)^k more: nothing else comes back early.
+    EXPECT_LT(other, 0.2 * e2);
+    ASSERT_GT(n2, 0);
+    // Timed at the middle of the smoothed interface: mean return times within 0.1 us
+    // (0.08 mm of depth, under one 0.125 mm step) of the geometric ones.
+    EXPECT_NEAR(time1 / n1, t1, 0.1e-6);
+    EXPECT_NEAR(time2 / n2, 2.0 * t1, 0.1e-6);
+}
+
 TEST(Tracer, HomogeneousAttenuationIsExponential) {
     // alpha = 0.5 dB/(cm MHz), f = 5 MHz: intensity falls as exp(-2 alpha_Np f d) with
     // alpha_Np = alpha / 8.686 per cm. Particles run straight down a 60 mm column.
