@@ -157,6 +157,7 @@ void write_png(const cv::Mat& picture, const std::string& path) {
     auto out = OIIO::ImageOutput::create(path);
     if (!out) throw tissue::InputError(path, "", "no PNG writer: " + OIIO::geterror());
     OIIO::ImageSpec spec(rgb.cols, rgb.rows, rgb.channels(), OIIO::TypeDesc::UINT8);
+    spec.attribute("DateTime", "");  // no write time: same inputs, same bytes
     if (!out->open(path, spec) ||
         !out->write_image(OIIO::TypeDesc::UINT8, rgb.data, OIIO::AutoStride, rgb.step[0]) ||
         !out->close()) {

@@ -2,6 +2,9 @@
 // frames on 1 and 2 threads, JSON scene files, and bad input that fails cleanly.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <thread>
+
 #include <fstream>
 #include <map>
 
@@ -57,10 +60,13 @@ TEST(CliSimulate, DefaultFrameWithSidecar) {
 
 TEST(CliSimulate, FramesByteIdenticalOnOneAndTwoThreads) {
     ScratchDir dir;
-    const std::string common = "simulate -q --quality interactive --formats png16,png8 ";
+    const std::string common =
+        "simulate -q --quality interactive --formats png16,png8,exr --labels ";
     ASSERT_EQ(run(dir, common + "--threads 1 --out " + (dir / "a")).exit_code, 0);
+    // A second apart at least: no write time may reach the files.
+    std::this_thread::sleep_for(std::chrono::milliseconds(1100));
     ASSERT_EQ(run(dir, common + "--threads 2 --out " + (dir / "b")).exit_code, 0);
-    for (const char* f : {"bmode_16.png", "bmode.png"})
+    for (const char* f : {"bmode_16.png", "bmode.png", "bmode.exr", "bmode_labels.png"})
         EXPECT_TRUE(slurp(dir / ("a/" + std::string(f))) == slurp(dir / ("b/" + std::string(f))))
             << f;
 }

@@ -187,6 +187,7 @@ void write_gray_image(const std::string& path, int width, int height,
     auto out = OIIO::ImageOutput::create(temporary);
     if (!out) throw InputError(path, "", "no image writer for this extension: " + OIIO::geterror());
     OIIO::ImageSpec spec(width, height, 1, format);
+    spec.attribute("DateTime", "");  // no write time: same inputs, same bytes
     // OIIO converts float -> integer by normalising 0..1; pass raw values as float for
     // float files, otherwise scale so stored integers equal the given values.
     std::vector<float> scaled(pixels);
