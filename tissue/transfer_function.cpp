@@ -16,8 +16,8 @@ namespace {
 
 using nlohmann::json;
 
-// Reads a tissue reference and/or explicit property values from one point or label
-// object. Without a tissue, every property must be given.
+}  // namespace
+
 AcousticProperties read_properties(const json& object, const std::string& source,
                                    const std::string& where, std::string* tissue_name) {
     AcousticProperties properties;
@@ -39,6 +39,8 @@ AcousticProperties read_properties(const json& object, const std::string& source
     }
     return properties;
 }
+
+namespace {
 
 std::vector<std::string_view> point_keys(std::string_view position_key) {
     std::vector<std::string_view> keys = {position_key, "tissue", "comment"};

@@ -91,6 +91,12 @@ class LabelTransferFunction final : public TransferFunction {
     std::vector<int> tissue_labels_;  // per entry
 };
 
+// Reads a tissue reference ("tissue": "liver") and/or explicit property values (keys of
+// kPropertyInfo) from a JSON object at path `where` of `source`. Without a tissue, every
+// property must be given. `tissue_name` receives the tissue's key ("" without one).
+AcousticProperties read_properties(const nlohmann::json& object, const std::string& source,
+                                   const std::string& where, std::string* tissue_name);
+
 // 1 + the index of a named tissue in tissue_table(); 0 for an empty or unknown name.
 int tissue_label_of(const std::string& tissue);
 // The tissue_table() key of a label from tissue_label(), "custom" for 0.

@@ -12,6 +12,7 @@
 
 #include "imaging/picture.h"
 #include "imaging/simulation.h"
+#include "phantoms/phantom.h"
 #include "probe/placement.h"
 #include "sonotrace_version.h"
 #include "tissue/atomic_output.h"
@@ -28,6 +29,11 @@ namespace {
 using nlohmann::json;
 
 // ---- parameters, documented once ----
+constexpr ParameterDoc kPhantomDoc = {
+    "--phantom", "",
+    "JSON phantom (phantoms/*.json: background tissue and analytic shapes, mm) to image "
+    "instead of a volume; its 'probe' entry places the probe (default: top centre, looking "
+    "down +y), the probe preset defaults to the phantom's or 'linear'"};
 constexpr ParameterDoc kViewDoc = {
     "--view", "",
     "scene of the default head: 'craniotomy' (convex probe on the right parietal cortex "
@@ -185,6 +191,7 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
         "probe on the cortex through a craniotomy, written to out/bmode.png.");
     add_parameter(*cmd, kViewDoc, o.view);
     add_volume_options(*cmd, o.volume);
+    add_parameter(*cmd, kPhantomDoc, o.phantom);
     add_parameter(*cmd, kProbeDoc, o.probe);
     for (const auto& doc : probe::transducer_parameter_docs()) {
         const std::string flag = std::string("--") + doc.key;
@@ -378,16 +385,19 @@ struct SimulatedFrame {
     std::optional<cv::Mat> labels;
 };
 
-SimulatedFrame simulate_at(const VolumeSource& source, const imaging::ScenePlacement& scene,
+// What lies on a plane grid: property maps and, on request, tissue labels.
+using PlaneMapper =
+    std::function<tissue::PropertyMaps(const tissue::VolumeGeometry& grid, tissue::Volume* labels)>;
+
+SimulatedFrame simulate_at(const PlaneMapper& mapper, const imaging::ScenePlacement& scene,
                            const imaging::SimulationSettings& settings, bool with_labels,
                            const imaging::FrameProgress& progress) {
     const imaging::QualityLevel level = imaging::quality_level(settings.quality);
     const imaging::PlaneGrid grid =
         imaging::plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
-    const tissue::Volume plane_values = source.resample(grid.geometry);
-    tissue::PropertyMaps maps = tissue::classify(plane_values, *source.tf);
     std::optional<tissue::Volume> labels;
-    if (with_labels) labels = tissue::tissue_labels(plane_values, *source.tf);
+    if (with_labels) labels.emplace();
+    tissue::PropertyMaps maps = mapper(grid.geometry, labels ? &*labels : nullptr);
     imaging::prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
     const auto map = tissue::AcousticMap<2>::build(maps);
     SimulatedFrame out;
@@ -396,22 +406,27 @@ SimulatedFrame simulate_at(const VolumeSource& source, const imaging::ScenePlace
     return out;
 }
 
-// The probe face must sit inside the volume (or its margin of air): a pose far away
-// images nothing.
-void require_pose_in_volume(const probe::Pose& pose, const tissue::Volume& volume,
-                            const std::string& source) {
-    const tissue::VolumeGeometry& g = volume.geometry();
-    const glm::dvec3 ijk = g.world_to_index(pose.position);
+// The probe face must sit inside the imaged object (or within 10 mm of coupling margin):
+// a pose far away images nothing. `in_box` is the position along the box's axes.
+void require_pose_in_box(const glm::dvec3& in_box, const glm::dvec3& box_size,
+                         const probe::Pose& pose, const std::string& source, const char* what) {
     for (int a = 0; a < 3; ++a) {
-        const double margin = 10.0 / g.spacing[a];  // 10 mm of coupling margin
-        if (!(ijk[a] >= -margin && ijk[a] <= g.dims[a] - 1 + margin)) {
+        const double margin = 10.0;
+        if (!(in_box[a] >= -margin && in_box[a] <= box_size[a] + margin)) {
             throw tissue::InputError(source, "pose",
                                      "the probe at (" + std::to_string(pose.position.x) + ", " +
                                          std::to_string(pose.position.y) + ", " +
-                                         std::to_string(pose.position.z) +
-                                         ") mm is outside the volume");
+                                         std::to_string(pose.position.z) + ") mm is outside the " +
+                                         what);
         }
     }
+}
+
+void require_pose_in_volume(const probe::Pose& pose, const tissue::Volume& volume,
+                            const std::string& source) {
+    const tissue::VolumeGeometry& g = volume.geometry();
+    require_pose_in_box(g.world_to_index(pose.position) * g.spacing,
+                        glm::dvec3(g.dims - 1) * g.spacing, pose, source, "volume");
 }
 
 }  // namespace
@@ -426,8 +441,18 @@ int run_simulate_command(const SimulateOptions& o) {
     if (o.view != "craniotomy" && o.view != "temporal")
         throw tissue::InputError("--view", "",
                                  "must be craniotomy or temporal, got '" + o.view + "'");
+    // A phantom is read first: it is small, and it names the default probe.
+    std::optional<phantoms::Phantom> phantom;
+    if (!o.phantom.empty()) {
+        if (o.volume.volume != "default")
+            throw tissue::InputError("--phantom", "", "cannot be combined with --volume");
+        phantom = phantoms::load_phantom(o.phantom);
+    }
     const std::string preset =
-        !o.probe.empty() ? o.probe : (o.view == "temporal" ? "phased" : "convex");
+        !o.probe.empty()
+            ? o.probe
+            : (phantom ? (phantom->probe_preset.empty() ? "linear" : phantom->probe_preset)
+                       : (o.view == "temporal" ? "phased" : "convex"));
     imaging::SimulationSettings settings;
     settings.transducer = make_transducer(o, preset);
     settings.quality = parse_enum<imaging::Quality>(o.quality, "--quality",
@@ -470,28 +495,49 @@ int run_simulate_command(const SimulateOptions& o) {
     if (o.volume.pose != "default") pose = probe::parse_pose(o.volume.pose, "--pose");
 
     // ---- load and place the probe ----
-    const VolumeSource source = load_volume_source(o.volume, timer);
-    {
-        const glm::dvec3 voxel = source.loaded.volume.geometry().spacing;
-        settings.trace.interface_reach_mm = 3.0 * std::max({voxel.x, voxel.y, voxel.z});
-    }
+    std::optional<VolumeSource> source;
+    PlaneMapper mapper;
     imaging::ScenePlacement scene;
-    timer.begin("placing the probe (" + o.view + ")");
-    if (pose) {
-        scene.pose = *pose;
-        scene.description = "probe at --pose";
-    } else if (source.is_default) {
-        scene = o.view == "temporal" ? imaging::temporal_scene(source.loaded.volume, *source.tf)
-                                     : imaging::craniotomy_scene(source.loaded.volume, *source.tf);
+    if (phantom) {
+        // Interfaces blend over the phantom's smoothing width; plateaus lie beyond it.
+        settings.trace.interface_reach_mm = std::max(2.0 * phantom->smoothing_mm, 1.0);
+        scene.pose = pose ? *pose : phantom->pose;
+        scene.description = "phantom " + phantom->name + (pose ? ", probe at --pose" : "");
+        mapper = [&phantom](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
+            return phantoms::rasterise(*phantom, grid, labels);
+        };
     } else {
-        scene.pose = top_centre_pose(source.loaded.volume.geometry());
-        scene.description = "probe on the top face of the volume";
+        source.emplace(load_volume_source(o.volume, timer));
+        const glm::dvec3 voxel = source->loaded.volume.geometry().spacing;
+        settings.trace.interface_reach_mm = 3.0 * std::max({voxel.x, voxel.y, voxel.z});
+        mapper = [&source](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
+            const tissue::Volume values = source->resample(grid);
+            if (labels) *labels = tissue::tissue_labels(values, *source->tf);
+            return tissue::classify(values, *source->tf);
+        };
+        timer.begin("placing the probe (" + o.view + ")");
+        if (pose) {
+            scene.pose = *pose;
+            scene.description = "probe at --pose";
+        } else if (source->is_default) {
+            scene = o.view == "temporal"
+                        ? imaging::temporal_scene(source->loaded.volume, *source->tf)
+                        : imaging::craniotomy_scene(source->loaded.volume, *source->tf);
+        } else {
+            scene.pose = top_centre_pose(source->loaded.volume.geometry());
+            scene.description = "probe on the top face of the volume";
+        }
+        timer.end();
     }
     const std::vector<Placement> placements = sweep_placements(o.sweep, scene);
-    for (const Placement& p : placements)
-        require_pose_in_volume(p.scene.pose, source.loaded.volume,
-                               o.sweep.empty() ? "--pose" : "--sweep");
-    timer.end();
+    const std::string pose_source = o.sweep.empty() ? "--pose" : "--sweep";
+    for (const Placement& p : placements) {
+        if (phantom)
+            require_pose_in_box(p.scene.pose.position, phantom->size, p.scene.pose,
+                                o.phantom + " " + pose_source, "phantom");
+        else
+            require_pose_in_volume(p.scene.pose, source->loaded.volume, pose_source);
+    }
 
     // ---- trace and form the frames; outputs staged and committed together ----
     const bool sweeping = !o.sweep.empty();
@@ -515,7 +561,7 @@ int run_simulate_command(const SimulateOptions& o) {
         ProgressBar bar("simulating " + std::to_string(particles) + " particles",
                         o.quiet || sweeping);
         SimulatedFrame simulated =
-            simulate_at(source, placement.scene, settings, o.write_labels,
+            simulate_at(mapper, placement.scene, settings, o.write_labels,
                         [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
         bar.finish();
         const imaging::Frame& frame = simulated.frame;
@@ -597,7 +643,10 @@ int run_simulate_command(const SimulateOptions& o) {
         {"seed", o.seed},
         {"view", o.view},
         {"scene", scene.description},
-        {"source", volume_source_json(source, o.volume)},
+        {"source", phantom ? json{{"phantom", o.phantom},
+                                  {"name", phantom->name},
+                                  {"description", phantom->description}}
+                           : volume_source_json(*source, o.volume)},
         {"probe", transducer_json(settings.transducer)},
         {"pose", pose_json(scene.pose)},
         {"quality",

@@ -11,7 +11,8 @@ namespace sonotrace::ui {
 struct SimulateOptions {
     std::string view = "craniotomy";  // craniotomy | temporal | custom (needs --pose)
     SliceOptions volume;
-    std::string probe;  // preset; empty = the view's probe
+    std::string phantom;  // JSON phantom file instead of a volume
+    std::string probe;    // preset; empty = the view's probe
     // Transducer overrides (unset = the preset's value).
     std::optional<std::string> type;
     std::optional<int> elements, lines;
