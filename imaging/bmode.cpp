@@ -353,24 +353,30 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
 LineData envelope(const LineData& rf) {
     LineData env = rf;
     const int n = cv::getOptimalDFTSize(rf.samples + 64);  // padding: no wrap-around
-    cv::Mat lines(rf.lines, n, CV_32F, cv::Scalar(0));
-    for (int l = 0; l < rf.lines; ++l)
-        std::copy_n(rf.values.data() + std::size_t(l) * std::size_t(rf.samples), rf.samples,
-                    lines.ptr<float>(l));
-    cv::Mat spectrum;
-    cv::dft(lines, spectrum, cv::DFT_ROWS | cv::DFT_COMPLEX_OUTPUT);
-    // Analytic signal: keep DC (and Nyquist), double positive, drop negative frequencies.
-    for (int l = 0; l < rf.lines; ++l) {
-        auto* s = spectrum.ptr<cv::Vec2f>(l);
-        for (int k = 1; k < (n + 1) / 2; ++k) s[k] *= 2.0f;
-        for (int k = n / 2 + 1; k < n; ++k) s[k] = cv::Vec2f(0.0f, 0.0f);
-    }
-    cv::Mat analytic;
-    cv::dft(spectrum, analytic, cv::DFT_ROWS | cv::DFT_INVERSE | cv::DFT_SCALE);
-    for (int l = 0; l < rf.lines; ++l) {
-        const auto* a = analytic.ptr<cv::Vec2f>(l);
-        for (int i = 0; i < rf.samples; ++i) env.at(l, i) = std::hypot(a[i][0], a[i][1]);
-    }
+    // Blocks of lines on the worker threads (cv::dft of DFT_ROWS runs on one).
+    constexpr int kBlock = 16;
+    tbb::parallel_for(0, (rf.lines + kBlock - 1) / kBlock, [&](int block) {
+        const int first = block * kBlock, count = std::min(kBlock, rf.lines - first);
+        cv::Mat lines(count, n, CV_32F, cv::Scalar(0));
+        for (int l = 0; l < count; ++l)
+            std::copy_n(rf.values.data() + std::size_t(first + l) * std::size_t(rf.samples),
+                        rf.samples, lines.ptr<float>(l));
+        cv::Mat spectrum;
+        cv::dft(lines, spectrum, cv::DFT_ROWS | cv::DFT_COMPLEX_OUTPUT);
+        // Analytic signal: keep DC (and Nyquist), double positive, drop negative frequencies.
+        for (int l = 0; l < count; ++l) {
+            auto* sp = spectrum.ptr<cv::Vec2f>(l);
+            for (int k = 1; k < (n + 1) / 2; ++k) sp[k] *= 2.0f;
+            for (int k = n / 2 + 1; k < n; ++k) sp[k] = cv::Vec2f(0.0f, 0.0f);
+        }
+        cv::Mat analytic;
+        cv::dft(spectrum, analytic, cv::DFT_ROWS | cv::DFT_INVERSE | cv::DFT_SCALE);
+        for (int l = 0; l < count; ++l) {
+            const auto* a = analytic.ptr<cv::Vec2f>(l);
+            for (int i = 0; i < rf.samples; ++i)
+                env.at(first + l, i) = std::hypot(a[i][0], a[i][1]);
+        }
+    });
     return env;
 }
 
