@@ -35,18 +35,12 @@ const std::vector<ShapeKeys>& shape_keys() {
     return keys;
 }
 
+// The keys of a shape (`geometry`, its type) or of the background: plus the properties.
 void require_keys(const json& object, std::vector<std::string_view> keys, const std::string& source,
                   const std::string& where) {
     for (const auto& p : tissue::kPropertyInfo) keys.push_back(p.key);
-    for (const char* k : {"type", "tissue", "comment"}) keys.push_back(k);
-    jsonio::require_object(object, source, where);
-    for (const auto& item : object.items()) {
-        if (std::find(keys.begin(), keys.end(), item.key()) != keys.end()) continue;
-        std::string list;
-        for (auto k : keys) list += (list.empty() ? "" : ", ") + std::string(k);
-        throw tissue::InputError(source, jsonio::join(where, item.key()),
-                                 "unknown key (known keys here: " + list + ")");
-    }
+    keys.insert(keys.end(), {"tissue", "comment"});
+    jsonio::require_known_keys(object, keys, source, where);
 }
 
 glm::dvec3 unit(const json& object, const std::string& key, const std::string& source,
@@ -69,7 +63,9 @@ Shape parse_shape(const json& j, const std::string& source, const std::string& w
         throw tissue::InputError(source, jsonio::join(where, "type"),
                                  "unknown shape '" + type + "' (known: " + list + ")");
     }
-    require_keys(j, found->geometry, source, where);
+    std::vector<std::string_view> keys = found->geometry;
+    keys.push_back("type");
+    require_keys(j, keys, source, where);
     Shape s;
     s.type = found->type;
     auto vec = [&](const char* key) { return jsonio::get_vec3(j, key, source, where); };
@@ -193,12 +189,7 @@ Phantom parse_phantom(const json& j, const std::string& source) {
     if (!j.contains("background")) throw tissue::InputError(source, "background", "is required");
     {
         const json& b = j.at("background");
-        jsonio::require_object(b, source, "background");
-        std::vector<std::string_view> keys = {"tissue", "comment"};
-        for (const auto& p : tissue::kPropertyInfo) keys.push_back(p.key);
-        for (const auto& item : b.items())
-            if (std::find(keys.begin(), keys.end(), item.key()) == keys.end())
-                throw tissue::InputError(source, "background." + item.key(), "unknown key");
+        require_keys(b, {}, source, "background");
         std::string tissue_name;
         ph.background = tissue::read_properties(b, source, "background", &tissue_name);
         ph.background_label = tissue::tissue_label_of(tissue_name);

@@ -58,6 +58,12 @@ void require_object(const json& value, const std::string& source, const std::str
 
 void require_known_keys(const json& object, std::initializer_list<std::string_view> known,
                         const std::string& source, const std::string& where) {
+    require_known_keys(object, std::span<const std::string_view>(known.begin(), known.size()),
+                       source, where);
+}
+
+void require_known_keys(const json& object, std::span<const std::string_view> known,
+                        const std::string& source, const std::string& where) {
     require_object(object, source, where);
     for (const auto& item : object.items()) {
         bool found = false;

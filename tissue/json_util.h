@@ -3,6 +3,7 @@
 // errors that name the file and the JSON path of the field ("points[2].density").
 #include <initializer_list>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -20,6 +21,8 @@ json parse(const std::string& text, const std::string& source);
 
 // Throws if `object` (at JSON path `where`) has a key not in `known`; lists the known ones.
 void require_known_keys(const json& object, std::initializer_list<std::string_view> known,
+                        const std::string& source, const std::string& where);
+void require_known_keys(const json& object, std::span<const std::string_view> known,
                         const std::string& source, const std::string& where);
 void require_object(const json& value, const std::string& source, const std::string& where);
 

@@ -48,19 +48,6 @@ std::vector<std::string_view> point_keys(std::string_view position_key) {
     return keys;
 }
 
-void require_keys(const json& object, const std::vector<std::string_view>& keys,
-                  const std::string& source, const std::string& where) {
-    jsonio::require_object(object, source, where);
-    for (const auto& item : object.items()) {
-        if (std::find(keys.begin(), keys.end(), item.key()) == keys.end()) {
-            std::string list;
-            for (auto k : keys) list += (list.empty() ? "" : ", ") + std::string(k);
-            throw InputError(source, jsonio::join(where, item.key()),
-                             "unknown key (known keys here: " + list + ")");
-        }
-    }
-}
-
 json properties_json(const AcousticProperties& properties) {
     json j;
     for (std::size_t n = 0; n < kPropertyCount; ++n) {
@@ -103,7 +90,7 @@ std::unique_ptr<TransferFunction> parse_piecewise(const json& j, const std::stri
     for (std::size_t n = 0; n < j.at("points").size(); ++n) {
         const json& p = j.at("points")[n];
         const std::string where = "points[" + std::to_string(n) + "]";
-        require_keys(p, keys, source, where);
+        jsonio::require_known_keys(p, keys, source, where);
         ControlPoint point;
         point.intensity = jsonio::get_number(p, "intensity", source, where, -1e30, 1e30);
         if (!points.empty() && !(point.intensity > points.back().intensity)) {
@@ -131,7 +118,7 @@ std::unique_ptr<TransferFunction> parse_labels(const json& j, const std::string&
     for (std::size_t n = 0; n < j.at("labels").size(); ++n) {
         const json& e = j.at("labels")[n];
         const std::string where = "labels[" + std::to_string(n) + "]";
-        require_keys(e, keys, source, where);
+        jsonio::require_known_keys(e, keys, source, where);
         const double label =
             jsonio::get_number(e, "label", source, where, -2147483648.0, 2147483647.0);
         if (label != std::floor(label)) {
