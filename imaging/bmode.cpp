@@ -285,6 +285,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     const int L = rf.lines, N = rf.samples;
     const double fs = rf.fs_hz;
     const Pulse pulse{t.frequency_mhz * 1e6, t.bandwidth};
+    const probe::ScanGeometry geometry(t);
 
     // Particle (line, index within line) -> source, for energies and receive weights.
     std::vector<std::vector<uint32_t>> of_line(static_cast<std::size_t>(L));
@@ -306,13 +307,33 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         double echo_time = e.time_s;  // the particle came back itself: the full round trip
         if (e.kind != simulator::EchoKind::returned_to_probe) {
             echo_time = 2.0 * e.time_s;  // monostatic estimate: twice the one-way time
-            intensity *= double(e.energy) / std::max(double(source.energy), 1e-30);
+            intensity *=
+                double(e.energy) / std::max(double(source.energy), 1e-30) * double(e.return_weight);
             // Of the reflected energy, the share that returns into the receive aperture
             // (dynamic receive at the F-number, at most the array) seen from the event.
             const double range_mm = std::max(e.time_s * kC0 * 1e3, 1e-3);
             const double aperture = std::min(t.array_length_mm(), range_mm / t.f_number);
             intensity *= reflection_back_fraction(e.cos_incidence, e.lobe_exponent,
                                                   std::atan(0.5 * aperture / range_mm));
+            // Dynamic receive focusing: the receive beam of the line at the event's range
+            // (intensity FWHM lambda F#_rx, as the speckle's) weights an echo by how far
+            // the event lies across the beam. Without it every line whose wide transmit
+            // beam grazes a strong target would show it: streaks beyond the focus. By
+            // reciprocity the receive beam bends as the transmit beam does, so it is
+            // centred on the transmit beam's centroid at that echo time (the scatter
+            // profile), or on the straight line where the profile is empty.
+            const ScanLine axis = geometry.line(int(e.line));
+            const double bin = echo_time * fs;
+            glm::dvec2 centre = to_world.face_in_map + axis.origin + axis.direction * range_mm;
+            if (int(e.line) < profile.lines && bin >= 0.0 && bin < double(profile.bins)) {
+                const std::size_t at =
+                    std::size_t(e.line) * std::size_t(profile.bins) + std::size_t(bin);
+                if (profile.intensity[at] > 0.0f) centre = glm::dvec2(profile.position[at]);
+            }
+            const glm::dvec2 q = glm::dvec2(e.position) - centre;
+            const double across = q.x * axis.direction.y - q.y * axis.direction.x;
+            const double sigma = t.wavelength_mm() * (range_mm / aperture) / kFwhmPerSigma;
+            intensity *= std::exp(-0.5 * across * across / (sigma * sigma));
         }
         const double position = echo_time * fs;
         if (!(position >= 0.0) || position >= double(N - 1)) continue;

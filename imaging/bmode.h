@@ -93,9 +93,11 @@ double reflection_back_fraction(double cos_incidence, double lobe_exponent,
                                 double half_acceptance_rad);
 
 // Maps a point of the tracer's map frame (mm) to world coordinates (mm), for the speckle
-// field: the plane's origin and axes in the world.
+// field: the plane's origin and axes in the world; and where the probe plane's origin
+// (the face centre, ScanGeometry's frame) lies in the map frame.
 struct MapToWorld {
     glm::dvec3 origin{0.0}, x_axis{1.0, 0.0, 0.0}, y_axis{0.0, 1.0, 0.0};
+    glm::dvec2 face_in_map{0.0};
     glm::dvec3 operator()(const glm::dvec2& map) const {
         return origin + x_axis * map.x + y_axis * map.y;
     }

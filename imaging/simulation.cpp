@@ -96,7 +96,8 @@ PlaneGrid plane_grid(const probe::Transducer& t, const probe::Pose& pose, double
 MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid) {
     // world = position + lateral (m.x - to_map.x) + axial (m.y - to_map.y)
     const glm::dvec3 lateral = pose.lateral(), axial = pose.axial();
-    return {pose.position - lateral * grid.to_map.x - axial * grid.to_map.y, lateral, axial};
+    return {pose.position - lateral * grid.to_map.x - axial * grid.to_map.y, lateral, axial,
+            grid.to_map};
 }
 
 Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
@@ -292,6 +293,22 @@ cv::Mat label_picture(const cv::Mat& labels) {
             out.at<cv::Vec3b>(r, c) = l >= 1 && l <= known ? kColours[l - 1] : cv::Vec3b(0, 0, 0);
         }
     }
+    return out;
+}
+
+SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
+                              const SimulationSettings& settings, bool with_labels,
+                              const FrameProgress& progress) {
+    const QualityLevel level = quality_level(settings.quality);
+    const PlaneGrid grid = plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
+    std::optional<tissue::Volume> labels;
+    if (with_labels) labels.emplace();
+    tissue::PropertyMaps maps = mapper(grid.geometry, labels ? &*labels : nullptr);
+    prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
+    const auto map = tissue::AcousticMap<2>::build(maps);
+    SimulatedFrame out;
+    out.frame = simulate_frame(map, grid, scene.pose, settings, progress);
+    if (labels) out.labels = scan_convert_labels(*labels, grid, out.frame.image);
     return out;
 }
 

@@ -89,6 +89,22 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                      const probe::Pose& pose, const SimulationSettings& settings,
                      const FrameProgress& progress = {});
 
+// What lies on a plane grid: property maps and, on request, tissue labels.
+using PlaneMapper =
+    std::function<tissue::PropertyMaps(const tissue::VolumeGeometry& grid, tissue::Volume* labels)>;
+
+struct ScenePlacement;
+struct SimulatedFrame {
+    Frame frame;
+    std::optional<cv::Mat> labels;  // scan-converted ground truth, on request
+};
+
+// The grid under the probe, its properties from `mapper`, prepared for the scene
+// (prepare_plane), its acoustic map, then the frame and (optionally) its labels.
+SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
+                              const SimulationSettings& settings, bool with_labels,
+                              const FrameProgress& progress = {});
+
 // ---- scenes of the Colin27 head ----
 
 // Where a scene puts the probe and what it does to the tissue under it.

@@ -32,6 +32,9 @@ struct EchoEvent {
     // much of the reflected energy heads back the way the particle came.
     float cos_incidence = 1.0f;
     float lobe_exponent = 1e6f;
+    // Monostatic receive: the probabilities of the particle's stochastic choices before
+    // the event (tracer.cpp, Batch::return_factor), which the echo's way back repeats.
+    float return_weight = 1.0f;
     bool operator==(const EchoEvent&) const = default;  // field-wise: padding is indeterminate
 };
 

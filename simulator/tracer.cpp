@@ -99,6 +99,10 @@ struct Batch {
     std::array<V, kSize> position, direction;
     std::array<float, kSize> energy, initial_energy, optical_depth, scatter_target;
     std::array<float, kSize> receive_weight;
+    // Product of the probabilities of the stochastic choices made so far (R^2 for each
+    // reflection taken, 1 - R^2 for each transmission): by reciprocity the echo's way
+    // back makes the same crossings, so its two-way intensity carries this factor again.
+    std::array<float, kSize> return_factor;
     std::array<float, kSize> previous_index;  // n sampled at the previous step's position
     // Deposits gather per particle while it stays in one texel (2-3 steps at the default
     // step), then go to the map in one write: the map writes were cache misses.
@@ -118,7 +122,7 @@ struct Batch {
         const int last = --count;
         position[k] = position[last], direction[k] = direction[last];
         energy[k] = energy[last], initial_energy[k] = initial_energy[last];
-        receive_weight[k] = receive_weight[last];
+        receive_weight[k] = receive_weight[last], return_factor[k] = return_factor[last];
         optical_depth[k] = optical_depth[last], scatter_target[k] = scatter_target[last];
         previous_index[k] = previous_index[last];
         pending_texel[k] = pending_texel[last];
@@ -208,6 +212,7 @@ class LineTracer {
         b.pending_texel[k] = uint32_t(texel_index(s.position));
         b.pending_fluence[k] = b.pending_absorbed[k] = 0.0f;
         b.receive_weight[k] = s.receive_weight;
+        b.return_factor[k] = 1.0f;
         b.time[k] = double(s.time_s);
         b.path_length[k] = 0.0;
         b.bounces[k] = 0;
@@ -231,7 +236,7 @@ class LineTracer {
         if (bin >= double(out_->profile.size())) return;
         const float rate = float(settings_.scattering_rate_per_mm) * backscatter * step_mm_;
         const float fraction = float(settings_.scatter_echo_fraction) * backscatter;
-        const float two_way = E / b.initial_energy[k];
+        const float two_way = E / b.initial_energy[k] * b.return_factor[k];
         const float intensity = E * rate * fraction * two_way * b.receive_weight[k];
         out_->profile[std::size_t(bin)] += intensity;
         const glm::vec<Dim, double> xd(x);
@@ -397,7 +402,11 @@ class LineTracer {
             E -= E * R2;
             return false;
         }
-        if (!(b.random[k].next() < R2)) return false;
+        if (!(b.random[k].next() < R2)) {
+            b.return_factor[k] *= 1.0f - R2;
+            return false;
+        }
+        b.return_factor[k] *= R2;
         const V mirror = reflect<Dim>(incoming, forward);
         float weight = 1.0f;
         r = c < 1e4f ? diffuse(mirror, forward, c, b, k, &weight) : mirror;
@@ -421,7 +430,8 @@ class LineTracer {
                                        float weight, EchoKind kind, float cos_incidence = 1.0f,
                                        float lobe_exponent = 1e6f, double extra_time_s = 0.0) {
         out_->echoes.push_back({line_, b.particle[k], float(b.time[k] + extra_time_s), energy,
-                                weight, x, b.bounces[k], kind, cos_incidence, lobe_exponent});
+                                weight, x, b.bounces[k], kind, cos_incidence, lobe_exponent,
+                                b.return_factor[k]});
     }
 
     // The diffuse lobe (eq. 11) about the specular direction `mirror`; `forward` points

@@ -26,6 +26,8 @@ LineData point_echo_envelope(const probe::Transducer& t, double one_way_time_s, 
     e.energy = 1.0f;
     e.weight = 0.5f;
     e.kind = simulator::EchoKind::specular;
+    // On the line's axis at its depth (the receive beam weights echoes across the line).
+    e.position = glm::vec2(probe::ScanGeometry(t).point(line, one_way_time_s * kC0 * 1e3));
     imaging::ImagingSettings settings;
     settings.speckle = false;
     const LineData rf = imaging::synthesize_rf(t, sources, {e}, {}, {}, settings);

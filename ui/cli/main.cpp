@@ -8,6 +8,7 @@
 #include "ui/cli/simulate_command.h"
 #include "ui/cli/tissue_command.h"
 #include "ui/cli/trace_command.h"
+#include "ui/cli/validate_command.h"
 
 int main(int argc, char** argv) {
     using namespace sonotrace;
@@ -26,6 +27,8 @@ int main(int argc, char** argv) {
     CLI::App* trace_cmd = ui::add_trace_command(app, trace_options);
     ui::SimulateOptions simulate_options;
     CLI::App* simulate_cmd = ui::add_simulate_command(app, simulate_options);
+    ui::ValidateOptions validate_options;
+    CLI::App* validate_cmd = ui::add_validate_command(app, validate_options);
 
     try {
         app.parse(argc, argv);
@@ -36,6 +39,7 @@ int main(int argc, char** argv) {
         if (tissue_cmd->parsed()) return ui::run_tissue_command(tissue_options);
         if (trace_cmd->parsed()) return ui::run_trace_command(trace_options);
         if (simulate_cmd->parsed()) return ui::run_simulate_command(simulate_options);
+        if (validate_cmd->parsed()) return ui::run_validate_command(validate_options);
     } catch (const tissue::InputError& e) {
         ui::StageTimer::break_line();
         std::cerr << "sonotrace: error: " << e.what() << "\n";

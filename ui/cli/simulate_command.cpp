@@ -379,33 +379,6 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
     return out;
 }
 
-// The grid under the probe, its map and (optionally) its labels, then the frame.
-struct SimulatedFrame {
-    imaging::Frame frame;
-    std::optional<cv::Mat> labels;
-};
-
-// What lies on a plane grid: property maps and, on request, tissue labels.
-using PlaneMapper =
-    std::function<tissue::PropertyMaps(const tissue::VolumeGeometry& grid, tissue::Volume* labels)>;
-
-SimulatedFrame simulate_at(const PlaneMapper& mapper, const imaging::ScenePlacement& scene,
-                           const imaging::SimulationSettings& settings, bool with_labels,
-                           const imaging::FrameProgress& progress) {
-    const imaging::QualityLevel level = imaging::quality_level(settings.quality);
-    const imaging::PlaneGrid grid =
-        imaging::plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
-    std::optional<tissue::Volume> labels;
-    if (with_labels) labels.emplace();
-    tissue::PropertyMaps maps = mapper(grid.geometry, labels ? &*labels : nullptr);
-    imaging::prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
-    const auto map = tissue::AcousticMap<2>::build(maps);
-    SimulatedFrame out;
-    out.frame = imaging::simulate_frame(map, grid, scene.pose, settings, progress);
-    if (labels) out.labels = imaging::scan_convert_labels(*labels, grid, out.frame.image);
-    return out;
-}
-
 // The probe face must sit inside the imaged object (or within 10 mm of coupling margin):
 // a pose far away images nothing. `in_box` is the position along the box's axes.
 void require_pose_in_box(const glm::dvec3& in_box, const glm::dvec3& box_size,
@@ -496,7 +469,7 @@ int run_simulate_command(const SimulateOptions& o) {
 
     // ---- load and place the probe ----
     std::optional<VolumeSource> source;
-    PlaneMapper mapper;
+    imaging::PlaneMapper mapper;
     imaging::ScenePlacement scene;
     if (phantom) {
         // Interfaces blend over the phantom's smoothing width; plateaus lie beyond it.
@@ -560,9 +533,9 @@ int run_simulate_command(const SimulateOptions& o) {
         const std::string stem = o.name + (sweeping ? numbered : "");
         ProgressBar bar("simulating " + std::to_string(particles) + " particles",
                         o.quiet || sweeping);
-        SimulatedFrame simulated =
-            simulate_at(mapper, placement.scene, settings, o.write_labels,
-                        [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
+        imaging::SimulatedFrame simulated = imaging::simulate_plane(
+            mapper, placement.scene, settings, o.write_labels,
+            [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
         bar.finish();
         const imaging::Frame& frame = simulated.frame;
 
