@@ -130,6 +130,7 @@ float line_peak(const imaging::LineData& env, int line, double from_mm, double t
 // (the per-line peaks within a depth window), linear interpolation at the crossings.
 struct LateralProfile {
     double centre = std::nan(""), fwhm = std::nan("");
+    std::vector<double> x, peak;  // per line
 };
 LateralProfile lateral_profile(const PhantomFrame& f, double from_mm, double to_mm, double x_from,
                                double x_to) {
@@ -142,6 +143,7 @@ LateralProfile lateral_profile(const PhantomFrame& f, double from_mm, double to_
         peak.push_back(line_peak(f.frame.envelope, l, from_mm, to_mm));
     }
     LateralProfile out;
+    out.x = x, out.peak = peak;
     if (peak.size() < 3) return out;
     const auto top = std::size_t(std::max_element(peak.begin(), peak.end()) - peak.begin());
     const double half = 0.5 * peak[top];
@@ -432,7 +434,7 @@ CaseResult shadow_and_enhancement(const CaseContext& ctx) {
     return r;
 }
 
-CaseResult resolution(const CaseContext& ctx) {
+CaseResult resolution(const CaseContext&) {
     CaseResult r;
     // Axial: the echo of a flat interface (water over a bone-like half-space at 15 mm,
     // one reflection, no back wall) is the pulse's envelope. Its FWHM in depth is
@@ -481,6 +483,20 @@ CaseResult resolution(const CaseContext& ctx) {
         const double expected = 0.5 * kC0 * 1e3 * 2.0 * std::sqrt(2.0 * ln2) * sigma_t;
         r.measurements.push_back(
             {"axial FWHM (linear 7.6 MHz, B 0.79)", fwhm, expected, 0.2 * expected, "mm"});
+        Plot plot{"axial profile of a flat interface's echo", "depth from the peak (mm)",
+                  "envelope / peak",
+                  {{"Gaussian of the theoretical FWHM", {}, {}, false}, {"measured", {}, {}, true}},
+                  {}};
+        const double sigma_mm = expected / 2.3548200450309493;
+        for (int i = std::max(0, peak - 12); i <= std::min(env.samples - 1, peak + 12); ++i) {
+            plot.series[1].x.push_back(env.depth_mm(i) - env.depth_mm(peak));
+            plot.series[1].y.push_back(env.at(l, i) / env.at(l, peak));
+        }
+        for (double d = -0.5; d <= 0.5; d += 0.01) {
+            plot.series[0].x.push_back(d);
+            plot.series[0].y.push_back(std::exp(-0.5 * d * d / (sigma_mm * sigma_mm)));
+        }
+        r.plots.push_back(plot);
     }
     // Lateral: a thin wire (0.12 mm) at the transmit focus traces the two-way lateral PSF
     // across 256 lines 0.15 mm apart: FWHM = lambda F# within 25 % (the issue).
@@ -517,9 +533,22 @@ CaseResult resolution(const CaseContext& ctx) {
         const double expected = t.wavelength_mm() * t.f_number;
         r.measurements.push_back(
             {"lateral FWHM at the focus (20 mm, F/2)", p.fwhm, expected, 0.25 * expected, "mm"});
-        if (ctx.pictures)
-            r.figures.push_back(
-                frame_figure(f, "A 0.12 mm wire at the focus, 256 lines (no speckle)"));
+        Plot plot{"lateral profile of a 0.12 mm wire at the focus (256 lines)",
+                  "lateral position (mm)",
+                  "envelope / peak",
+                  {{"Gaussian of FWHM lambda F#", {}, {}, false}, {"measured", {}, {}, true}},
+                  {}};
+        const double top = *std::max_element(p.peak.begin(), p.peak.end());
+        const double sigma_mm = expected / 2.3548200450309493;
+        for (std::size_t i = 0; i < p.x.size(); ++i) {
+            if (std::abs(p.x[i] - p.centre) > 1.0) continue;
+            plot.series[1].x.push_back(p.x[i]), plot.series[1].y.push_back(p.peak[i] / top);
+        }
+        for (double x = -1.0; x <= 1.0; x += 0.01) {
+            plot.series[0].x.push_back(p.centre + x);
+            plot.series[0].y.push_back(std::exp(-0.5 * x * x / (sigma_mm * sigma_mm)));
+        }
+        r.plots.push_back(plot);
     }
     return r;
 }

@@ -395,7 +395,7 @@ CaseResult reverberation(const CaseContext&) {
                                       ratio, Rh * Rp, 4.0 * sigma, ""});
         }
         r.plots.push_back(histogram_plot(
-            h, "plate 4 mm over a reflector: energy returned to the face (dashed: deep + k gap)",
+            h, "plate 4 mm above a reflector: returns (dashed: deep echo + k gap)",
             expected_mm));
     }
     // (b) A reflector parallel to a reflecting face: water over bone-like 5.7 MRayl at
@@ -434,7 +434,7 @@ CaseResult reverberation(const CaseContext&) {
         r.measurements.push_back(
             {"face: second / first return energy", e2 / e1, kFace * R2, 4.0 * sigma, ""});
         r.plots.push_back(histogram_plot(
-            h, "reflector 10 mm below a face that reflects 40 %: returns at d, 2d, 3d",
+            h, "reflector 10 mm below a 40 % face: returns at d, 2d, 3d",
             {d, 2 * d, 3 * d}));
     }
     return r;
