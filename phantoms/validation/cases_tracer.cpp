@@ -395,8 +395,7 @@ CaseResult reverberation(const CaseContext&) {
                                       ratio, Rh * Rp, 4.0 * sigma, ""});
         }
         r.plots.push_back(histogram_plot(
-            h, "plate 4 mm above a reflector: returns (dashed: deep echo + k gap)",
-            expected_mm));
+            h, "plate 4 mm above a reflector: returns (dashed: deep echo + k gap)", expected_mm));
     }
     // (b) A reflector parallel to a reflecting face: water over bone-like 5.7 MRayl at
     // depth d below the face (r_f = 0.4). Returns at d, 2d, ... with energies
@@ -434,8 +433,7 @@ CaseResult reverberation(const CaseContext&) {
         r.measurements.push_back(
             {"face: second / first return energy", e2 / e1, kFace * R2, 4.0 * sigma, ""});
         r.plots.push_back(histogram_plot(
-            h, "reflector 10 mm below a 40 % face: returns at d, 2d, 3d",
-            {d, 2 * d, 3 * d}));
+            h, "reflector 10 mm below a 40 % face: returns at d, 2d, 3d", {d, 2 * d, 3 * d}));
     }
     return r;
 }

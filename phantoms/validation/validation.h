@@ -3,6 +3,7 @@
 // quantity from the images, echo events or energy maps, and compare it with the value
 // physics or geometry predicts from the phantom's own parameters. Expected values never
 // come from earlier simulator output; each case states and justifies its tolerance.
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -56,6 +57,7 @@ struct CaseResult {
 struct CaseContext {
     std::string phantom_dir;
     bool pictures = true;  // figures and plots for a report (skipped otherwise)
+    uint64_t seed = 1;     // of the simulated frames (tracer and speckle)
 };
 
 struct Case {

@@ -24,6 +24,10 @@ constexpr ParameterDoc kJsonDoc = {
     "check, pass}; '-' = stdout"};
 constexpr ParameterDoc kPhantomsDoc = {"--phantoms", "",
                                        "directory of the phantom catalogue (phantoms/*.json)"};
+constexpr ParameterDoc kSeedDoc = {
+    "--seed", "",
+    "random seed of the simulated frames; the expectations do not depend on it, so other seeds "
+    "show the Monte Carlo spread of each measurement"};
 constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
 std::string format(double v) {
@@ -46,6 +50,7 @@ CLI::App* add_validate_command(CLI::App& app, ValidateOptions& options) {
     add_parameter(*cmd, kReportDoc, options.report_dir);
     add_parameter(*cmd, kJsonDoc, options.json_path);
     add_parameter(*cmd, kPhantomsDoc, options.phantom_dir);
+    add_parameter(*cmd, kSeedDoc, options.seed);
     add_parameter(*cmd, kThreadsDoc, options.threads)->check(CLI::Range(0, 1024));
     cmd->add_flag("--list", options.list, "list the cases and exit");
     cmd->add_flag("-q,--quiet", options.quiet, "print only the summary line per case");
@@ -83,6 +88,7 @@ int run_validate_command(const ValidateOptions& o) {
     validation::CaseContext ctx;
     ctx.phantom_dir = o.phantom_dir;
     ctx.pictures = !o.report_dir.empty();
+    ctx.seed = o.seed;
     std::vector<validation::CaseResult> results;
     int failed = 0;
     for (const validation::Case* c : run) {

@@ -2,6 +2,7 @@
 // `sonotrace validate`: runs the validation suite (phantoms/validation), prints PASS/FAIL
 // with measured, expected and tolerance per quantity, and writes an HTML report and JSON
 // records on request.
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,7 @@ struct ValidateOptions {
     std::string report_dir;          // empty = no report
     std::string json_path;           // empty = none; "-" = stdout
     std::string phantom_dir;         // the catalogue (default: the source tree's phantoms/)
+    uint64_t seed = 1;
     bool list = false;
     int threads = 0;
     bool quiet = false;
