@@ -7,6 +7,7 @@
 
 #include "tissue/error.h"
 #include "tissue/json_util.h"
+#include "tissue/memory.h"
 #include "tissue/transfer_function.h"
 
 namespace sonotrace::phantoms {
@@ -31,15 +32,21 @@ const std::vector<ShapeKeys>& shape_keys() {
         {"wire", ShapeType::wire, {"at", "radius"}},
         {"half_space", ShapeType::half_space, {"point", "normal"}},
         {"layer", ShapeType::layer, {"point", "normal", "thickness"}},
+        {"tube", ShapeType::tube, {"path", "radius"}},
     };
     return keys;
 }
 
 // The keys of a shape (`geometry`, its type) or of the background: plus the properties.
 void require_keys(const json& object, std::vector<std::string_view> keys, const std::string& source,
-                  const std::string& where) {
-    for (const auto& p : tissue::kPropertyInfo) keys.push_back(p.key);
-    keys.insert(keys.end(), {"tissue", "comment"});
+                  const std::string& where, bool paper) {
+    if (paper) {
+        keys.push_back("paper_density");
+    } else {
+        for (const auto& p : tissue::kPropertyInfo) keys.push_back(p.key);
+        keys.push_back("tissue");
+    }
+    keys.push_back("comment");
     jsonio::require_known_keys(object, keys, source, where);
 }
 
@@ -51,7 +58,7 @@ glm::dvec3 unit(const json& object, const std::string& key, const std::string& s
     return glm::normalize(v);
 }
 
-Shape parse_shape(const json& j, const std::string& source, const std::string& where) {
+Shape parse_shape(const json& j, const std::string& source, const std::string& where, bool paper) {
     jsonio::require_object(j, source, where);
     const std::string type = jsonio::get_string(j, "type", source, where);
     const auto& all = shape_keys();
@@ -64,8 +71,9 @@ Shape parse_shape(const json& j, const std::string& source, const std::string& w
                                  "unknown shape '" + type + "' (known: " + list + ")");
     }
     std::vector<std::string_view> keys = found->geometry;
-    keys.push_back("type");
-    require_keys(j, keys, source, where);
+    keys.insert(keys.end(), {"type", "profile"});
+    if (paper) keys.push_back("texture");
+    require_keys(j, keys, source, where, paper);
     Shape s;
     s.type = found->type;
     auto vec = [&](const char* key) { return jsonio::get_vec3(j, key, source, where); };
@@ -109,11 +117,73 @@ Shape parse_shape(const json& j, const std::string& source, const std::string& w
             s.a = vec("point"), s.b = unit(j, "normal", source, where);
             s.radius = length("thickness");
             break;
+        case ShapeType::tube: {
+            const json* path = j.contains("path") ? &j.at("path") : nullptr;
+            if (!path || !path->is_array() || path->size() < 2)
+                throw tissue::InputError(source, jsonio::join(where, "path"),
+                                         "must be an array of at least two [x, y, z] points (mm)");
+            for (std::size_t i = 0; i < path->size(); ++i) {
+                const json& q = (*path)[i];
+                if (!q.is_array() || q.size() != 3 ||
+                    !std::all_of(q.begin(), q.end(), [](const json& v) { return v.is_number(); }))
+                    throw tissue::InputError(source,
+                                             jsonio::join(where, "path[" + std::to_string(i) + "]"),
+                                             "must be [x, y, z] (mm)");
+                s.path.push_back({q[0].get<double>(), q[1].get<double>(), q[2].get<double>()});
+            }
+            s.radius = length("radius");
+            break;
+        }
+    }
+    if (j.contains("profile")) {
+        const std::string profile = jsonio::get_string(j, "profile", source, where);
+        const bool radial = s.type == ShapeType::sphere || s.type == ShapeType::cylinder ||
+                            s.type == ShapeType::wire || s.type == ShapeType::tube;
+        if (profile == "parabolic" && radial)
+            s.parabolic = true;
+        else if (profile != "smooth")
+            throw tissue::InputError(source, jsonio::join(where, "profile"),
+                                     "must be 'smooth' or (sphere, cylinder, wire, tube) "
+                                     "'parabolic', got '" +
+                                         profile + "'");
+    }
+    if (paper) {
+        s.paper_density = jsonio::get_number(j, "paper_density", source, where, 0.01, 100.0);
+        if (j.contains("texture")) {
+            const json& t = j.at("texture");
+            const std::string at = jsonio::join(where, "texture");
+            jsonio::require_object(t, source, at);
+            jsonio::require_known_keys(t, {"amplitude", "cell"}, source, at);
+            s.texture_amplitude = jsonio::get_number(t, "amplitude", source, at, 0.0, 100.0);
+            s.texture_cell_mm = jsonio::get_number(t, "cell", source, at, 1e-3, 1e4);
+        }
+        return s;
     }
     std::string tissue_name;
     s.properties = tissue::read_properties(j, source, where, &tissue_name);
     s.label = tissue::tissue_label_of(tissue_name);
     return s;
+}
+
+// Whether a shape reaches into the box [0, size]: its anchor points clamped into the box
+// (exact for spheres and half-spaces), then a 17^3 lattice of the box.
+bool touches_box(const Shape& s, const glm::dvec3& size) {
+    std::vector<glm::dvec3> anchors = {s.a};
+    if (s.type == ShapeType::box || s.type == ShapeType::cylinder) anchors.push_back(s.b);
+    if (s.type == ShapeType::box) anchors.push_back(0.5 * (s.a + s.b));
+    anchors.insert(anchors.end(), s.path.begin(), s.path.end());
+    for (const glm::dvec3& p : anchors) {
+        glm::dvec3 q = glm::clamp(p, glm::dvec3(0.0), size);
+        if (s.type == ShapeType::wire) q.z = 0.5 * size.z;
+        if (s.signed_distance(q) <= 0.0) return true;
+    }
+    constexpr int kSteps = 16;
+    for (int k = 0; k <= kSteps; ++k)
+        for (int j = 0; j <= kSteps; ++j)
+            for (int i = 0; i <= kSteps; ++i)
+                if (s.signed_distance(glm::dvec3(i, j, k) / double(kSteps) * size) <= 0.0)
+                    return true;
+    return false;
 }
 
 }  // namespace
@@ -146,18 +216,64 @@ double Shape::signed_distance(const glm::dvec3& p) const {
             return -glm::dot(p - a, b);
         case ShapeType::layer:
             return std::abs(glm::dot(p - a, b) - 0.5 * radius) - 0.5 * radius;
+        case ShapeType::tube: {
+            double nearest = 1e30;
+            for (std::size_t i = 0; i + 1 < path.size(); ++i) {
+                const glm::dvec3 seg = path[i + 1] - path[i];
+                const double t = std::clamp(
+                    glm::dot(p - path[i], seg) / std::max(glm::dot(seg, seg), 1e-30), 0.0, 1.0);
+                nearest = std::min(nearest, glm::length(p - path[i] - t * seg));
+            }
+            return nearest - radius;
+        }
     }
     return 1e30;
+}
+
+double Shape::weight(const glm::dvec3& p, double smoothing_mm) const {
+    const double d = signed_distance(p);
+    if (parabolic) {  // distance from the axis = d + radius
+        const double rho = (d + radius) / radius;
+        return std::max(0.0, 1.0 - rho * rho);
+    }
+    // Linear ramp across the boundary: inside fully at -w/2, outside at +w/2.
+    return smoothing_mm > 0.0 ? std::clamp(0.5 - d / smoothing_mm, 0.0, 1.0)
+                              : (d <= 0.0 ? 1.0 : 0.0);
+}
+
+double value_noise(double x, double y, double cell) {
+    auto hash = [](int i, int j) {
+        uint32_t h = uint32_t(i) * 0x8da6b343u ^ uint32_t(j) * 0xd8163841u;
+        h ^= h >> 13, h *= 0x5bd1e995u, h ^= h >> 15;
+        return double(h & 0xffffff) / double(0xffffff) * 2.0 - 1.0;
+    };
+    const double fx = x / cell, fy = y / cell;
+    const int i = int(std::floor(fx)), j = int(std::floor(fy));
+    auto smooth = [](double t) { return t * t * (3 - 2 * t); };
+    const double tx = smooth(fx - i), ty = smooth(fy - j);
+    const double a = hash(i, j) * (1 - tx) + hash(i + 1, j) * tx;
+    const double b = hash(i, j + 1) * (1 - tx) + hash(i + 1, j + 1) * tx;
+    return a * (1 - ty) + b * ty;
+}
+
+double Phantom::paper_density_at(const glm::dvec3& p) const {
+    double d = background_paper_density;
+    for (const Shape& s : shapes) {
+        const double inside = s.weight(p, smoothing_mm);
+        if (inside <= 0.0) continue;
+        double target = s.paper_density;
+        if (s.texture_amplitude > 0.0)
+            target += s.texture_amplitude * value_noise(p.x, p.y, s.texture_cell_mm);
+        d += inside * (target - d);
+    }
+    return d;
 }
 
 tissue::AcousticProperties Phantom::at(const glm::dvec3& p, int* label) const {
     tissue::AcousticProperties value = background;
     int l = background_label;
     for (const Shape& s : shapes) {
-        const double d = s.signed_distance(p);
-        // Linear ramp across the boundary: inside fully at -w/2, outside at +w/2.
-        const double inside = smoothing_mm > 0.0 ? std::clamp(0.5 - d / smoothing_mm, 0.0, 1.0)
-                                                 : (d <= 0.0 ? 1.0 : 0.0);
+        const double inside = s.weight(p, smoothing_mm);
         if (inside <= 0.0) continue;
         for (std::size_t n = 0; n < tissue::kPropertyCount; ++n)
             value.values[n] =
@@ -169,10 +285,11 @@ tissue::AcousticProperties Phantom::at(const glm::dvec3& p, int* label) const {
 }
 
 Phantom parse_phantom(const json& j, const std::string& source) {
-    jsonio::require_known_keys(j,
-                               {"name", "description", "size", "resolution", "smoothing",
-                                "background", "shapes", "probe", "comment"},
-                               source, "");
+    jsonio::require_known_keys(
+        j,
+        {"name", "description", "size", "resolution", "smoothing", "background", "shapes", "probe",
+         "comment", "mode", "source", "trace"},
+        source, "");
     Phantom ph;
     ph.source = source;
     ph.name = jsonio::get_string(j, "name", source, "");
@@ -186,20 +303,80 @@ Phantom parse_phantom(const json& j, const std::string& source) {
         ph.resolution_mm = *r;
     if (auto w = jsonio::get_optional_number(j, "smoothing", source, "", 0.0, 100.0))
         ph.smoothing_mm = *w;
+    // The whole phantom rasterised at its resolution (property maps, 4 bytes a field)
+    // must fit: an absurd resolution fails here, not in an allocation.
+    const glm::dvec3 texels = glm::floor(ph.size / ph.resolution_mm) + 1.0;
+    tissue::check_allocation(texels.x * texels.y * texels.z * 4.0 * double(tissue::kPropertyCount),
+                             source, "resolution");
+    if (j.contains("mode")) {
+        const std::string mode = jsonio::get_string(j, "mode", source, "");
+        if (mode != "acoustic" && mode != "paper")
+            throw tissue::InputError(source, "mode",
+                                     "must be 'acoustic' or 'paper', got '" + mode + "'");
+        ph.paper_mode = mode == "paper";
+    }
     if (!j.contains("background")) throw tissue::InputError(source, "background", "is required");
     {
         const json& b = j.at("background");
-        require_keys(b, {}, source, "background");
-        std::string tissue_name;
-        ph.background = tissue::read_properties(b, source, "background", &tissue_name);
-        ph.background_label = tissue::tissue_label_of(tissue_name);
+        jsonio::require_object(b, source, "background");
+        require_keys(b, {}, source, "background", ph.paper_mode);
+        if (ph.paper_mode) {
+            ph.background_paper_density =
+                jsonio::get_number(b, "paper_density", source, "background", 0.01, 100.0);
+        } else {
+            std::string tissue_name;
+            ph.background = tissue::read_properties(b, source, "background", &tissue_name);
+            ph.background_label = tissue::tissue_label_of(tissue_name);
+        }
     }
     if (j.contains("shapes")) {
         const json& shapes = j.at("shapes");
         if (!shapes.is_array()) throw tissue::InputError(source, "shapes", "must be an array");
-        for (std::size_t i = 0; i < shapes.size(); ++i)
-            ph.shapes.push_back(
-                parse_shape(shapes[i], source, "shapes[" + std::to_string(i) + "]"));
+        for (std::size_t i = 0; i < shapes.size(); ++i) {
+            const std::string where = "shapes[" + std::to_string(i) + "]";
+            ph.shapes.push_back(parse_shape(shapes[i], source, where, ph.paper_mode));
+            if (!touches_box(ph.shapes.back(), ph.size))
+                throw tissue::InputError(source, where,
+                                         "lies entirely outside the phantom (size " +
+                                             std::to_string(ph.size.x) + " x " +
+                                             std::to_string(ph.size.y) + " x " +
+                                             std::to_string(ph.size.z) + " mm from the origin)");
+        }
+    }
+    if (j.contains("source")) {
+        const json& src = j.at("source");
+        jsonio::require_object(src, source, "source");
+        jsonio::require_known_keys(
+            src, {"type", "at", "direction", "half_angle", "width", "particles", "comment"}, source,
+            "source");
+        ParticleSource ps;
+        const std::string type = jsonio::get_string(src, "type", source, "source");
+        if (type != "fan" && type != "parallel")
+            throw tissue::InputError(source, "source.type",
+                                     "must be 'fan' or 'parallel', got '" + type + "'");
+        ps.type = type == "fan" ? ParticleSource::Type::fan : ParticleSource::Type::parallel;
+        auto vec2 = [&](const char* key) {
+            const json* v = src.contains(key) ? &src.at(key) : nullptr;
+            if (!v || !v->is_array() || v->size() != 2 || !(*v)[0].is_number() ||
+                !(*v)[1].is_number())
+                throw tissue::InputError(source, std::string("source.") + key, "must be [x, y]");
+            return glm::dvec2((*v)[0].get<double>(), (*v)[1].get<double>());
+        };
+        ps.at = vec2("at");
+        ps.direction = vec2("direction");
+        if (!(glm::length(ps.direction) > 0.0))
+            throw tissue::InputError(source, "source.direction", "must not be zero");
+        ps.direction = glm::normalize(ps.direction);
+        if (ps.type == ParticleSource::Type::fan)
+            ps.half_angle_deg = jsonio::get_number(src, "half_angle", source, "source", 0.0, 89.0);
+        else
+            ps.width_mm = jsonio::get_number(src, "width", source, "source", 1e-3, 1e4);
+        ps.particles = int(jsonio::get_number(src, "particles", source, "source", 1.0, 1e7));
+        ph.injection = ps;
+    }
+    if (j.contains("trace")) {
+        jsonio::require_object(j.at("trace"), source, "trace");
+        ph.trace = j.at("trace");
     }
     glm::dvec3 at(0.5 * ph.size.x, 0.0, 0.5 * ph.size.z), beam(0, 1, 0), lateral(1, 0, 0);
     if (j.contains("probe")) {
@@ -222,6 +399,27 @@ Phantom parse_phantom(const json& j, const std::string& source) {
 
 Phantom load_phantom(const std::string& path) {
     return parse_phantom(jsonio::read_file(path), path);
+}
+
+tissue::Volume rasterise_paper_density(const Phantom& phantom, const tissue::VolumeGeometry& grid) {
+    tissue::Volume d(grid);
+    const glm::ivec3 n = grid.dims;
+    tbb::parallel_for(0, n.y * n.z, [&](int row) {
+        const int j = row % n.y, k = row / n.y;
+        for (int i = 0; i < n.x; ++i)
+            d.at(i, j, k) = float(
+                phantom.paper_density_at(grid.index_to_world({double(i), double(j), double(k)})));
+    });
+    return d;
+}
+
+tissue::VolumeGeometry plane_grid_2d(const Phantom& phantom) {
+    tissue::VolumeGeometry g;
+    const double h = phantom.resolution_mm;
+    g.dims = {int(std::floor(phantom.size.x / h)) + 1, int(std::floor(phantom.size.y / h)) + 1, 1};
+    g.spacing = {h, h, h};
+    g.origin = {0.0, 0.0, 0.5 * phantom.size.z};
+    return g;
 }
 
 tissue::PropertyMaps rasterise(const Phantom& phantom, const tissue::VolumeGeometry& grid,

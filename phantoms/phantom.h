@@ -17,8 +17,21 @@
 //   wire        at [x, y], radius                 (along z through the whole phantom)
 //   half_space  point, normal                     (everything beyond the plane along normal)
 //   layer       point, normal, thickness          (a slab from the plane along normal)
+//   tube        path [[x,y,z], ...], radius       (a bent tube along a polyline)
 // Later shapes paint over earlier ones. Each shape also takes the property keys of a
-// transfer-function point ("tissue", "speed_of_sound", ...).
+// transfer-function point ("tissue", "speed_of_sound", ...), and optionally
+//   "profile": "parabolic"   weight 1 - (r/R)^2 from the axis (sphere, cylinder, wire,
+//                            tube: a graded-index fibre) instead of the smoothed step
+// Paper-mode phantoms (the particle paper's figures: one density d acting as the
+// refractive index) set "mode": "paper" and give "paper_density" (d, relative) instead of
+// acoustic properties, a shape optionally with "texture": {"amplitude": a, "cell": mm}
+// (smooth value noise of +-a on d); "source" injects particles for `sonotrace trace`
+// (2D, in the z = size/2 plane): {"type": "fan" | "parallel", "at": [x, y], "direction":
+// [dx, dy], "half_angle": deg (fan) | "width": mm (parallel), "particles": n}; "trace"
+// sets the tracer's physics (simulator/trace_settings.h names): {"specular_reflection":
+// false, "diffuse_reflection": true, "lobe_exponent": "reflecting_density", "lobe_scale":
+// 5, "lobe_weight": "energy", "roulette_energy": 1e-3, "ring": {"centre": [x, y],
+// "radius": mm, "bins": n}}.
 #include <optional>
 #include <string>
 #include <vector>
@@ -33,18 +46,34 @@
 
 namespace sonotrace::phantoms {
 
-enum class ShapeType { sphere, ellipsoid, box, cylinder, wire, half_space, layer };
+enum class ShapeType { sphere, ellipsoid, box, cylinder, wire, half_space, layer, tube };
 
 struct Shape {
     ShapeType type = ShapeType::sphere;
-    glm::dvec3 a{0.0}, b{0.0};  // centre / min / from / point; radii / max / to / normal
-    double radius = 0.0;        // sphere, cylinder, wire; layer: thickness
+    glm::dvec3 a{0.0}, b{0.0};     // centre / min / from / point; radii / max / to / normal
+    double radius = 0.0;           // sphere, cylinder, wire; layer: thickness
+    std::vector<glm::dvec3> path;  // tube: the centreline
     tissue::AcousticProperties properties;
-    int label = 0;  // tissue label (tissue_label_of), 0 for explicit properties
+    int label = 0;               // tissue label (tissue_label_of), 0 for explicit properties
+    bool parabolic = false;      // "profile": "parabolic"
+    double paper_density = 1.0;  // paper mode
+    double texture_amplitude = 0.0, texture_cell_mm = 1.0;  // paper mode
 
     // Signed distance (mm): negative inside. Exact for sphere, box, cylinder, wire,
-    // half-space and layer; for an ellipsoid the distance scaled by its smallest radius.
+    // half-space, layer and tube; for an ellipsoid the distance scaled by its smallest
+    // radius.
     double signed_distance(const glm::dvec3& p) const;
+    // How much of the shape is at p (0..1): the linear ramp over `smoothing` across the
+    // boundary, or the parabolic profile.
+    double weight(const glm::dvec3& p, double smoothing_mm) const;
+};
+
+// 2D particle injection of a paper-mode (or any) phantom for `sonotrace trace`.
+struct ParticleSource {
+    enum class Type { fan, parallel } type = Type::fan;
+    glm::dvec2 at{0.0}, direction{0.0, 1.0};
+    double half_angle_deg = 30.0, width_mm = 10.0;
+    int particles = 100;
 };
 
 struct Phantom {
@@ -57,10 +86,16 @@ struct Phantom {
     std::vector<Shape> shapes;
     std::string probe_preset;  // "" = the command's default
     probe::Pose pose;          // default: top centre, beam +y, lateral +x
+    bool paper_mode = false;
+    double background_paper_density = 1.0;
+    std::optional<ParticleSource> injection;          // "source" entry
+    nlohmann::json trace = nlohmann::json::object();  // tracer settings ("trace" entry)
 
     // Properties (blended linearly across each shape's boundary over smoothing_mm) and
     // the label (the shape covering the point by half or more) at a point.
     tissue::AcousticProperties at(const glm::dvec3& p, int* label = nullptr) const;
+    // Paper mode: the density d at a point (blended like the properties, plus textures).
+    double paper_density_at(const glm::dvec3& p) const;
 };
 
 // Parses a phantom; errors name `source` and the JSON path of the field.
@@ -70,5 +105,12 @@ Phantom load_phantom(const std::string& path);
 // The phantom on a grid: property maps and, on request, tissue labels (nearest).
 tissue::PropertyMaps rasterise(const Phantom& phantom, const tissue::VolumeGeometry& grid,
                                tissue::Volume* labels = nullptr);
+// Paper mode: the density d on a grid.
+tissue::Volume rasterise_paper_density(const Phantom& phantom, const tissue::VolumeGeometry& grid);
+// The phantom's 2D grid for tracing: the z = size/2 plane at its resolution.
+tissue::VolumeGeometry plane_grid_2d(const Phantom& phantom);
+
+// Smooth value noise in [-1, 1] with cells of `cell` mm (deterministic hash).
+double value_noise(double x, double y, double cell);
 
 }  // namespace sonotrace::phantoms

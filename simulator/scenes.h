@@ -1,6 +1,7 @@
 #pragma once
-// Built-in trace configurations: the figures of Reis & Bertram (paper mode) and simple
-// analytic media for tests. The phantom library will take these over.
+// Built-in trace configurations: figure 5 of Reis & Bertram (a Colin27 slice in paper
+// mode; figures 2, 4 and 6 are catalogue phantoms, phantoms/paper_fig*.json) and simple
+// analytic media for tests.
 #include <string>
 #include <vector>
 
@@ -20,9 +21,7 @@ struct Scene2D {
     TraceSettings settings;
 };
 
-// Names accepted by make_paper_scene: fig2, fig4a, fig4b, fig5, fig6.
-std::vector<std::string> paper_scene_names();
-// Throws tissue::InputError("--config", ...) for an unknown name. fig5 loads Colin27.
+// "fig5" (loads Colin27); throws tissue::InputError("--config", ...) for other names.
 Scene2D make_paper_scene(const std::string& name, int particles);
 
 // Two media separated by a plane through `point` with unit `normal` (pointing into

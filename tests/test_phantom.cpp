@@ -5,6 +5,8 @@
 #include <filesystem>
 
 #include "phantoms/phantom.h"
+#include "phantoms/trace_scene.h"
+#include "test_util.h"
 #include "tissue/error.h"
 #include "tissue/json_util.h"
 #include "tissue/tissue_table.h"
@@ -100,6 +102,37 @@ TEST(Phantom, BadInputNamesTheField) {
         {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
              "probe": {"beam": [0, 1, 0], "lateral": [0, 2, 0]}})",
          "probe.lateral"},
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "shapes": [{"type": "sphere", "centre": [30, 5, 5], "radius": 2, "tissue": "fat"}]})",
+         "shapes[0]"},  // entirely outside the phantom
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "shapes": [{"type": "half_space", "point": [0, 12, 0], "normal": [0, 1, 0],
+                         "tissue": "fat"}]})",
+         "shapes[0]"},
+        {R"({"name": "x", "size": [1000, 1000, 1000], "resolution": 0.01,
+             "background": {"tissue": "water"}})",
+         "resolution"},  // 10^15 texels
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "shapes": [{"type": "box", "min": [1, 1, 1], "max": [2, 2, 2], "profile": "parabolic",
+                         "tissue": "fat"}]})",
+         "shapes[0].profile"},
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "shapes": [{"type": "tube", "path": [[1, 1, 1]], "radius": 1, "tissue": "fat"}]})",
+         "shapes[0].path"},
+        {R"({"name": "x", "mode": "paper", "size": [10, 10, 10], "background": {"paper_density": 1},
+             "shapes": [{"type": "sphere", "centre": [5, 5, 5], "radius": 1}]})",
+         "shapes[0].paper_density"},
+        {R"({"name": "x", "mode": "paper", "size": [10, 10, 10], "background": {"tissue": "water"}})",
+         "background.tissue"},  // paper mode has no acoustic properties
+        {R"({"name": "x", "mode": "sound", "size": [10, 10, 10], "background": {"tissue": "water"}})",
+         "mode"},
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "source": {"type": "cone", "at": [1, 1], "direction": [0, 1], "particles": 5}})",
+         "source.type"},
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "source": {"type": "fan", "at": [1, 1], "direction": [0, 0], "half_angle": 5,
+                        "particles": 5}})",
+         "source.direction"},
     };
     for (const auto& c : cases) {
         try {
@@ -110,6 +143,90 @@ TEST(Phantom, BadInputNamesTheField) {
             EXPECT_NE(std::string(e.what()).find(c.field), std::string::npos) << e.what();
         }
     }
+}
+
+TEST(Phantom, TubeDistanceAndParabolicProfile) {
+    // An L-shaped centreline, radius 1: distances to the nearest segment minus the radius.
+    Shape tube = shape(ShapeType::tube, {}, {}, 1.0);
+    tube.path = {{0, 0, 0}, {10, 0, 0}, {10, 10, 0}};
+    EXPECT_NEAR(tube.signed_distance({5, 3, 0}), 2.0, 1e-12);
+    EXPECT_NEAR(tube.signed_distance({12, 5, 0}), 1.0, 1e-12);
+    EXPECT_NEAR(tube.signed_distance({10, 0, 0}), -1.0, 1e-12);
+    EXPECT_NEAR(tube.signed_distance({10, 13, 0}), 2.0, 1e-12);  // beyond the end
+    EXPECT_NEAR(tube.signed_distance({-3, 0, 4}), 4.0, 1e-12);   // 3-4-5 from the start
+    // Parabolic profile 1 - (r/R)^2, whatever the smoothing width.
+    tube.radius = 2.0, tube.parabolic = true;
+    EXPECT_NEAR(tube.weight({5, 0, 0}, 0.5), 1.0, 1e-12);
+    EXPECT_NEAR(tube.weight({5, 1, 0}, 0.5), 0.75, 1e-12);
+    EXPECT_NEAR(tube.weight({5, 0, std::sqrt(2.0)}, 0.5), 0.5, 1e-12);
+    EXPECT_EQ(tube.weight({5, 2.5, 0}, 0.5), 0.0);
+}
+
+TEST(Phantom, PaperFiguresReproduceTheirMedia) {
+    const std::string dir = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/";
+    // Figure 2: d 1.0 left of x = 30, 1.6 between it and the plane tilted 35 degrees
+    // through (65, 37.5), 1.0 beyond that plane.
+    const phantoms::Phantom fig2 = phantoms::load_phantom(dir + "paper_fig2.json");
+    EXPECT_DOUBLE_EQ(fig2.paper_density_at({20, 37.5, 0.5}), 1.0);
+    EXPECT_DOUBLE_EQ(fig2.paper_density_at({45, 37.5, 0.5}), 1.6);
+    EXPECT_DOUBLE_EQ(fig2.paper_density_at({90, 60, 0.5}), 1.0);
+    // Figure 4: d = 1 + 0.5 (1 - (r/5)^2) across the fibre's straight entry (x = 15).
+    const phantoms::Phantom fig4 = phantoms::load_phantom(dir + "paper_fig4a.json");
+    EXPECT_NEAR(fig4.paper_density_at({15, 110, 0.5}), 1.5, 1e-9);
+    EXPECT_NEAR(fig4.paper_density_at({17.5, 110, 0.5}), 1.375, 1e-9);
+    EXPECT_NEAR(fig4.paper_density_at({25, 110, 0.5}), 1.0, 1e-9);
+    // On the bend (radius 70 about (85, 98)), 2.5 mm outwards: the polyline of 128
+    // segments sags by 70 (1 - cos(pi / 256)) = 5e-3 mm at most.
+    const double a = 0.6;  // radians along the quarter circle
+    const glm::dvec3 axis(85 - 70 * std::cos(a), 98 - 70 * std::sin(a), 0.5);
+    const glm::dvec3 out = axis + 2.5 * glm::dvec3(-std::cos(a), -std::sin(a), 0.0);
+    EXPECT_NEAR(fig4.paper_density_at(axis), 1.5, 1e-4);
+    EXPECT_NEAR(fig4.paper_density_at(out), 1.375, 1e-3);
+    // Figure 6: d 1 above y = 30, 3 in the reflector, 2 +- 0.6 in the textured matter.
+    const phantoms::Phantom fig6 = phantoms::load_phantom(dir + "paper_fig6.json");
+    EXPECT_DOUBLE_EQ(fig6.paper_density_at({50, 20, 0.5}), 1.0);
+    EXPECT_DOUBLE_EQ(fig6.paper_density_at({50, 31, 0.5}), 3.0);
+    double lo = 10.0, hi = 0.0;
+    for (int i = 0; i < 400; ++i) {
+        const double d = fig6.paper_density_at({0.25 * i, 50.0 + 0.05 * i, 0.5});
+        lo = std::min(lo, d), hi = std::max(hi, d);
+    }
+    EXPECT_GE(lo, 1.4);
+    EXPECT_LE(hi, 2.6);
+    EXPECT_GT(hi - lo, 0.5) << "the texture varies";
+    // Each traces: particles from its source, the paper's physics.
+    const simulator::Scene2D scene = phantoms::trace_scene(fig6, 10);
+    EXPECT_EQ(scene.sources.size(), 10u);
+    EXPECT_EQ(scene.settings.mode, simulator::PhysicsMode::paper);
+    EXPECT_TRUE(scene.settings.ring.has_value());
+    EXPECT_EQ(scene.settings.lobe_weight, simulator::LobeWeight::energy);
+}
+
+TEST(Phantom, TraceEntryErrorsNameTheField) {
+    auto parse = [](const char* text) {
+        return phantoms::parse_phantom(nlohmann::json::parse(text), "t.json");
+    };
+    const char* base = R"({"name": "x", "mode": "paper", "size": [10, 10, 10],
+        "background": {"paper_density": 1}, %s})";
+    auto with = [&](const std::string& extra) {
+        std::string text = base;
+        text.replace(text.find("%s"), 2, extra);
+        return text;
+    };
+    test::expect_input_error(
+        [&] { phantoms::trace_scene(parse(with(R"("comment": "no source")").c_str())); }, "t.json",
+        "source");
+    const std::string src =
+        R"("source": {"type": "fan", "at": [1, 1], "direction": [1, 0], "half_angle": 10, "particles": 3})";
+    test::expect_input_error(
+        [&] { phantoms::trace_scene(parse(with(src + R"(, "trace": {"lobe": 3})").c_str())); },
+        "t.json", "trace.lobe");
+    test::expect_input_error(
+        [&] {
+            phantoms::trace_scene(
+                parse(with(src + R"(, "trace": {"lobe_weight": "heavy"})").c_str()));
+        },
+        "t.json", "trace.lobe_weight");
 }
 
 TEST(Phantom, CatalogueParses) {

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "phantoms/trace_scene.h"
 #include "simulator/interactions.h"
 #include "simulator/scenes.h"
 #include "simulator/tracer.h"
@@ -331,7 +332,8 @@ TEST(Tracer, FibreGuideKeepsEveryParticleAndItsTrackWidth) {
     // a window) must not grow by more than 5 % from the first to the last third.
     const FibreGeometry fibre;
     for (const char* name : {"fig4a", "fig4b"}) {
-        Scene2D scene = make_paper_scene(name, 21);
+        Scene2D scene = phantoms::trace_scene(phantoms::load_phantom(
+            std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/paper_" + name + ".json"));
         const auto result = trace(scene.map, scene.sources, scene.settings);
         ASSERT_EQ(result.paths.size(), 21u);
         const double length = fibre.length_mm() - 6.0;
@@ -352,7 +354,9 @@ TEST(Tracer, FibreGuideKeepsEveryParticleAndItsTrackWidth) {
 }
 
 TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
-    Scene2D scene = make_paper_scene("fig6", 400);
+    Scene2D scene = phantoms::trace_scene(
+        phantoms::load_phantom(std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/paper_fig6.json"),
+        400);
     scene.settings.mode = PhysicsMode::acoustic;  // exercise scattering and roulette too
     scene.settings.scattering = true;
     scene.settings.roulette_energy = 0.2;

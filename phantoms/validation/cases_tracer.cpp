@@ -7,6 +7,7 @@
 
 #include "imaging/picture.h"
 #include "imaging/trace_pictures.h"
+#include "phantoms/trace_scene.h"
 #include "phantoms/validation/validation.h"
 #include "simulator/interactions.h"
 #include "simulator/scenes.h"
@@ -217,7 +218,8 @@ CaseResult fibre_guide(const CaseContext& ctx) {
     const simulator::FibreGeometry fibre;
     CaseResult r;
     for (const char* name : {"fig4a", "fig4b"}) {
-        simulator::Scene2D scene = simulator::make_paper_scene(name, 21);
+        simulator::Scene2D scene = phantoms::trace_scene(
+            phantoms::load_phantom(ctx.phantom_dir + "/paper_" + name + ".json"), 21);
         const auto result = simulator::trace(scene.map, scene.sources, scene.settings);
         const double length = fibre.length_mm() - 6.0;
         double first = 0.0, last = 0.0, worst = 0.0;

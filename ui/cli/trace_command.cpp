@@ -14,6 +14,7 @@
 
 #include "imaging/picture.h"
 #include "imaging/trace_pictures.h"
+#include "phantoms/trace_scene.h"
 #include "simulator/scenes.h"
 #include "simulator/tracer.h"
 #include "sonotrace_version.h"
@@ -33,7 +34,12 @@ constexpr ParameterDoc kConfigDoc = {
     "refraction and total reflection), fig4a / fig4b (bent fibre, parallel / fan injection), "
     "fig5 (Colin27 slice, parallel injection from the upper right), fig6 (45-degree beam on a "
     "reflector over inhomogeneous matter, with the intensity profile over a semicircle). "
+    "Figures 2, 4 and 6 are the catalogue phantoms phantoms/paper_fig*.json. "
     "Empty: trace a volume slice (the --volume options)"};
+constexpr ParameterDoc kPhantomDoc = {
+    "--phantom", "",
+    "JSON phantom with a \"source\" entry (phantoms/paper_fig*.json, or any phantom with one): "
+    "its medium on the z = size/2 plane, its particles and its \"trace\" physics"};
 constexpr ParameterDoc kModeDoc = {"--mode", "", simulator::doc::kMode};
 constexpr ParameterDoc kParticlesDoc = {
     "--particles", "", "particles in total; 0 = the configuration's default (volume: 4000)"};
@@ -216,6 +222,7 @@ CLI::App* add_trace_command(CLI::App& app, TraceOptions& options) {
         "trace.json with the energy ledger. Built-in configurations reproduce the paper's "
         "figures.");
     add_parameter(*cmd, kConfigDoc, options.config);
+    add_parameter(*cmd, kPhantomDoc, options.phantom);
     add_slice_options(*cmd, options.slice, false);
     add_parameter(*cmd, kModeDoc, options.mode);
     add_parameter(*cmd, kParticlesDoc, options.particles)->check(CLI::Range(0, 10000000));
@@ -249,16 +256,25 @@ int run_trace_command(const TraceOptions& options) {
     // ---- the scene (everything validated before tracing) ----
     Scene2D scene;
     json source_record;
-    if (!options.config.empty()) {
-        timer.begin("building configuration " + options.config);
-        const auto defaults = std::map<std::string, int>{
-            {"fig2", 41}, {"fig4a", 21}, {"fig4b", 21}, {"fig5", 4000}, {"fig6", 300}};
-        const auto found = defaults.find(options.config);
-        scene = simulator::make_paper_scene(
-            options.config, options.particles > 0 ? options.particles
-                                                  : (found != defaults.end() ? found->second : 1));
+    if (!options.config.empty() || !options.phantom.empty()) {
+        if (!options.config.empty() && !options.phantom.empty())
+            throw tissue::InputError("--phantom", "", "cannot be combined with --config");
+        // The paper's figures 2, 4 and 6 are catalogue phantoms; figure 5 is an MRI slice.
+        std::string file = options.phantom;
+        for (const auto& [config, name] : phantoms::kPaperFigurePhantoms)
+            if (options.config == config)
+                file = std::string(SONOTRACE_PHANTOM_DIR) + "/" + name + ".json";
+        timer.begin("building configuration " + (file.empty() ? options.config : file));
+        if (!file.empty()) {
+            scene = phantoms::trace_scene(phantoms::load_phantom(file), options.particles);
+            if (!options.config.empty()) scene.name = options.config;
+        } else {
+            scene = simulator::make_paper_scene(options.config,
+                                                options.particles > 0 ? options.particles : 4000);
+        }
         timer.end();
         source_record = {{"config", scene.name}, {"description", scene.description}};
+        if (!file.empty()) source_record["phantom"] = file;
         // Only explicitly given options override the configuration's physics.
         simulator::TraceSettings& s = scene.settings;
         apply_disable(options.disable, s);

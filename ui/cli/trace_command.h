@@ -10,7 +10,8 @@
 namespace sonotrace::ui {
 
 struct TraceOptions {
-    std::string config;  // fig2, fig4a, fig4b, fig5, fig6; empty = volume slice
+    std::string config;   // fig2, fig4a, fig4b, fig5, fig6; empty = volume slice
+    std::string phantom;  // JSON phantom with a "source" entry
     SliceOptions slice;
     std::string mode = "acoustic";
     int particles = 0;  // 0 = the configuration's default
