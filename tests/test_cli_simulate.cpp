@@ -160,6 +160,20 @@ TEST(CliSimulate, PhantomShowsEnhancementBehindTheCystAndShadowBehindTheStone) {
     EXPECT_LT(stone, liver - 12.0);
 }
 
+// The Colin27 scenes of the phantom catalogue (phantoms/scenes/) run as scene files.
+TEST(CliSimulate, CatalogueHeadScenesRun) {
+    for (const char* name : {"colin27_craniotomy", "colin27_temporal"}) {
+        ScratchDir dir;
+        const auto r = run(dir, std::string("simulate -q --quality interactive --scene ") +
+                                    SONOTRACE_SOURCE_DIR + "/phantoms/scenes/" + name +
+                                    ".json --out " + (dir / "o"));
+        ASSERT_EQ(r.exit_code, 0) << name << ": " << r.err;
+        const auto sidecar = nlohmann::json::parse(slurp(dir / "o/bmode.json"));
+        EXPECT_EQ(sidecar.at("view"),
+                  std::string(name) == "colin27_craniotomy" ? "craniotomy" : "temporal");
+    }
+}
+
 // A scene file sets options; the command line overrides it.
 TEST(CliSimulate, SceneFileSetsOptionsAndCommandLineWins) {
     ScratchDir dir;

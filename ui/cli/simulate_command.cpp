@@ -273,6 +273,7 @@ void apply_scene_file(CLI::App& command, const std::string& path) {
     }
     if (!scene.is_object()) throw tissue::InputError(path, "", "must be a JSON object");
     for (const auto& [key, value] : scene.items()) {
+        if (key == "comment") continue;  // notes for people, as in phantoms
         std::string flag = key;
         std::replace(flag.begin(), flag.end(), '_', '-');
         CLI::Option* option = command.get_option_no_throw("--" + flag);
