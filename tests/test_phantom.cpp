@@ -229,6 +229,40 @@ TEST(Phantom, TraceEntryErrorsNameTheField) {
         "t.json", "trace.lobe_weight");
 }
 
+TEST(Phantom, RasterisesIn3D) {
+    // A sphere of radius 3 mm at the centre of an 11^3 grid of 1 mm: inside along every
+    // axis up to 2 mm (beyond the 0.5 mm half-width of the blend), outside from 4 mm.
+    const phantoms::Phantom ph = phantoms::parse_phantom(nlohmann::json::parse(R"({
+        "name": "ball", "size": [10, 10, 10], "smoothing": 1.0, "background": {"tissue": "water"},
+        "shapes": [{"type": "sphere", "centre": [5, 5, 5], "radius": 3, "tissue": "fat"}]})"),
+                                                         "ball");
+    tissue::VolumeGeometry g;
+    g.dims = {11, 11, 11};
+    g.spacing = {1, 1, 1};
+    tissue::Volume labels;
+    const auto maps = phantoms::rasterise(ph, g, &labels);
+    const float fat = tissue::find_tissue("fat", "", "").properties[Property::speed_of_sound];
+    const float water = tissue::find_tissue("water", "", "").properties[Property::speed_of_sound];
+    for (const glm::ivec3 axis : {glm::ivec3(1, 0, 0), glm::ivec3(0, 1, 0), glm::ivec3(0, 0, 1)}) {
+        const glm::ivec3 in = glm::ivec3(5) + 2 * axis, out = glm::ivec3(5) + 4 * axis;
+        EXPECT_FLOAT_EQ(maps[Property::speed_of_sound].at(in.x, in.y, in.z), fat);
+        EXPECT_FLOAT_EQ(maps[Property::speed_of_sound].at(out.x, out.y, out.z), water);
+        EXPECT_EQ(labels.at(in.x, in.y, in.z), float(tissue::tissue_label_of("fat")));
+    }
+}
+
+TEST(Phantom, KeyGivenTwiceIsRefused) {
+    // Two definitions of one radius: which one is meant cannot be resolved.
+    const std::string text =
+        R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+        "shapes": [{"type": "sphere", "centre": [5, 5, 5], "radius": 1, "radius": 2,
+                    "tissue": "fat"}]})";
+    test::expect_input_error([&] { tissue::jsonio::parse(text, "twice.json"); }, "twice.json",
+                             "radius", "twice");
+    // The same key in different objects is fine.
+    EXPECT_NO_THROW(tissue::jsonio::parse(R"({"a": {"k": 1}, "b": {"k": 2}})", "ok.json"));
+}
+
 TEST(Phantom, CatalogueParses) {
     int count = 0;
     for (const auto& entry :

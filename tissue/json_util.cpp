@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "tissue/error.h"
@@ -31,8 +32,35 @@ json read_file(const std::string& path) {
 }
 
 json parse(const std::string& text, const std::string& source) {
+    // A key given twice in one object is two definitions of one thing: JSON parsers
+    // silently keep one of them, so it is refused here (the path names the key).
+    std::vector<std::set<std::string>> keys;  // per open object
+    std::string duplicate;
+    const json::parser_callback_t check = [&](int, json::parse_event_t event, json& parsed) {
+        switch (event) {
+            case json::parse_event_t::object_start:
+                keys.emplace_back();
+                break;
+            case json::parse_event_t::object_end:
+                if (!keys.empty()) keys.pop_back();
+                break;
+            case json::parse_event_t::key: {
+                const std::string key = parsed.get<std::string>();
+                if (!keys.empty() && !keys.back().insert(key).second && duplicate.empty())
+                    duplicate = key;
+                break;
+            }
+            default:
+                break;
+        }
+        return true;
+    };
     try {
-        return json::parse(text);
+        json result = json::parse(text, check);
+        if (!duplicate.empty())
+            throw InputError(source, duplicate,
+                             "is given twice in one object (which one is meant?)");
+        return result;
     } catch (const json::parse_error& e) {
         // Turn the byte offset into line:column for the message.
         std::size_t line = 1, column = 1;
