@@ -118,6 +118,17 @@ CaseResult refraction_angle(const CaseContext& ctx) {
         plot.series[0].y.push_back(
             glm::degrees(std::asin(std::min(1.0, std::sin(glm::radians(i)) * c2 / c1))));
     }
+    // The reverse direction (fast -> slow) bends towards the normal, at any incidence.
+    const auto reverse =
+        tissue::AcousticMap<2>::build(interface_maps(medium(c2, 1000), medium(c1, 1000)));
+    for (double incidence : {10.0, 30.0, 60.0, 80.0}) {
+        const double expected =
+            glm::degrees(std::asin(std::sin(glm::radians(incidence)) * c1 / c2));
+        const glm::dvec2 out = final_direction(shoot(reverse, incidence, s));
+        r.measurements.push_back({"fast -> slow: transmitted angle at " +
+                                      std::to_string(int(incidence)) + " deg incidence",
+                                  angle_to_normal_deg(out), expected, 0.5, "deg"});
+    }
     r.plots.push_back(plot);
     if (ctx.pictures) {
         imaging::PathStyle style;
