@@ -225,16 +225,19 @@ Figure frame_figure(const PhantomFrame& f, const std::string& caption,
     const imaging::ScanConverted& sc = f.frame.image;
     cv::Mat grey;
     sc.image.convertTo(grey, CV_8U, 255.0);
+    // Twice the frame's pixels (0.1 mm at the default 0.2), so the targets are visible.
+    constexpr int kScale = 2;
     cv::Mat bgr;
     cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+    cv::resize(bgr, bgr, {}, kScale, kScale, cv::INTER_NEAREST);
     auto pixel = [&](const glm::dvec2& p) {
-        const glm::dvec2 q = (p - sc.origin) / sc.pixel_mm;
+        const glm::dvec2 q = ((p - sc.origin) / sc.pixel_mm + 0.5) * double(kScale) - 0.5;
         return cv::Point(int(std::lround(q.x)), int(std::lround(q.y)));
     };
     for (const auto& p : expected)
-        cv::circle(bgr, pixel(p), 9, cv::Scalar(0, 200, 0), 1, cv::LINE_AA);
+        cv::circle(bgr, pixel(p), 14, cv::Scalar(0, 200, 0), 1, cv::LINE_AA);
     for (const auto& p : measured)
-        cv::circle(bgr, pixel(p), 5, cv::Scalar(0, 0, 230), 1, cv::LINE_AA);
+        cv::circle(bgr, pixel(p), 8, cv::Scalar(0, 0, 230), 1, cv::LINE_AA);
     return {caption, bgr};
 }
 

@@ -198,13 +198,15 @@ void write_report(const std::string& dir, const std::vector<const Case*>& run,
          "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
          "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:3px "
          "8px;text-align:right}td:first-child,th:first-child{text-align:left}"
+         "table.summary td:nth-child(2){text-align:left}"
          ".pass{color:#080;font-weight:bold}.fail{color:#c00;font-weight:bold}"
          "figure{display:inline-block;margin:.5em;vertical-align:top}figcaption{font-size:90%;"
-         "max-width:520px}img{max-width:520px;border:1px solid #ccc}h2{margin-top:2em;"
+         "max-width:520px}img{max-width:640px;border:1px solid #ccc}h2{margin-top:2em;"
          "border-bottom:1px solid #ccc}</style></head><body>\n";
     h << "<h1>sonotrace " SONOTRACE_VERSION " validation</h1>\n<p>" << passed << " of "
       << results.size() << " cases pass. " << html_escape(header_note) << "</p>\n";
-    h << "<table><tr><th>case</th><th>what</th><th>result</th><th>seconds</th></tr>\n";
+    h << "<table "
+         "class='summary'><tr><th>case</th><th>what</th><th>result</th><th>seconds</th></tr>\n";
     for (std::size_t c = 0; c < run.size(); ++c) {
         h << "<tr><td><a href='#" << run[c]->name << "'>" << run[c]->name << "</a></td><td>"
           << html_escape(run[c]->title) << "</td><td class='"
