@@ -128,16 +128,21 @@ class ScattererField {
     float at_lattice(const glm::dvec3& p) const {
         const glm::dvec3 base = glm::floor(p);
         const glm::vec3 f(p - base);
-        // Lattice keys: one 32-bit sum of the indices spread by odd constants, so that
-        // neighbours differ by a constant and only the finaliser runs per corner.
-        const uint32_t key = seed_ + uint32_t(int64_t(base.x)) * kSpreadI +
-                             uint32_t(int64_t(base.y)) * kSpreadJ +
-                             uint32_t(int64_t(base.z)) * kSpreadK;
+        return blend(key(base), f.x, f.y, f.z);
+    }
+    // Lattice key of a cell: one 32-bit sum of the indices spread by odd constants, so
+    // that neighbours differ by a constant and only the finaliser runs per corner.
+    uint32_t key(const glm::dvec3& base) const {
+        return seed_ + uint32_t(int64_t(base.x)) * kSpreadI + uint32_t(int64_t(base.y)) * kSpreadJ +
+               uint32_t(int64_t(base.z)) * kSpreadK;
+    }
+    // Trilinear blend of the cell's 8 corner values at fractions (fx, fy, fz). Plain
+    // integer and float arithmetic: loops over it vectorise.
+    static float blend(uint32_t key, float fx, float fy, float fz) {
         float v = 0.0f;
         for (int c = 0; c < 8; ++c) {
             const int di = c & 1, dj = (c >> 1) & 1, dk = c >> 2;
-            const float w =
-                (di ? f.x : 1.0f - f.x) * (dj ? f.y : 1.0f - f.y) * (dk ? f.z : 1.0f - f.z);
+            const float w = (di ? fx : 1.0f - fx) * (dj ? fy : 1.0f - fy) * (dk ? fz : 1.0f - fz);
             v += w * value(key + uint32_t(di) * kSpreadI + uint32_t(dj) * kSpreadJ +
                            uint32_t(dk) * kSpreadK);
         }
