@@ -71,15 +71,15 @@ void smooth_box3(std::vector<double>& v, double sigma, std::vector<double>& scra
     }
 }
 
-// out[i] = amplitude[i] * field value of cell keys[i] at fractions (fx, fy, fz)[i]. The
-// hot loop of the speckle: built for AVX2 and for the baseline, picked at load time
-// (IEEE operations in the same order and no contraction: the same numbers either way).
-[[gnu::target_clones("avx2", "default")]] void field_values(const uint32_t* keys, const float* fx,
-                                                            const float* fy, const float* fz,
+// out[i] = amplitude[i] * the field at lattice point (x, y, z)[i]. The hot loop of the
+// speckle: built for AVX2 and for the baseline, picked at load time (IEEE operations in
+// the same order, no FMA in either: the same numbers either way).
+[[gnu::target_clones("avx2", "default")]] void field_values(uint32_t seed, const float* x,
+                                                            const float* y, const float* z,
                                                             const float* amplitude, int n,
                                                             float* out) {
     for (int i = 0; i < n; ++i)
-        out[i] = amplitude[i] * ScattererField::blend(keys[i], fx[i], fy[i], fz[i]);
+        out[i] = amplitude[i] * ScattererField::at_lattice_float(seed, x[i], y[i], z[i]);
 }
 
 // The speckle term of every line (see the header): the scatter profile smoothed over a
@@ -152,17 +152,17 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     for (double d : {0.0, 0.5 * t.depth_mm, t.depth_mm})
         widest_gap = std::max(widest_gap, geometry.line_spacing_mm(d));
     const double narrowest_sigma = std::max(cell, t.wavelength_mm() * t.f_number / kFwhmPerSigma);
-    const int K = std::clamp(int(std::ceil(widest_gap / narrowest_sigma)), 1, 32);
+    const int K = std::clamp(
+        int(std::ceil(widest_gap / (narrowest_sigma * settings.sub_line_sigmas))), 1, 32);
     const int sub_lines = std::max(L - 1, 0) * K + 1;
     std::vector<float> sub(std::size_t(sub_lines) * std::size_t(N), 0.0f);
     tbb::parallel_for(0, sub_lines, [&](int s) {
         const int l = std::clamp(s / K, 0, std::max(L - 2, 0)), k = s - l * K;
         const double f = double(k) / K;
         float* out = sub.data() + std::size_t(s) * std::size_t(N);
-        // Pass 1: where each sample looks into the field (cell key, fractions) and how
-        // strongly it is lit; pass 2: the field values, a loop that vectorises.
-        std::vector<uint32_t> keys(std::size_t(N), 0u);
-        std::vector<float> fx(std::size_t(N), 0.0f), fy(fx), fz(fx), amplitude(fx);
+        // Pass 1: where each sample looks into the field (lattice units) and how strongly
+        // it is lit; pass 2: the field values, a loop that vectorises.
+        std::vector<float> px(std::size_t(N), 0.0f), py(px), pz(px), amplitude(px);
         for (int i = 0; i < N; ++i) {
             const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
             glm::dvec3 p;
@@ -185,13 +185,11 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
                 }
                 p = to_lattice(a + f * (b - a));
             }
-            const glm::dvec3 base = glm::floor(p);
-            const glm::vec3 frac(p - base);
             const std::size_t u = std::size_t(i);
-            keys[u] = field.key(base), fx[u] = frac.x, fy[u] = frac.y, fz[u] = frac.z;
+            px[u] = float(p.x), py[u] = float(p.y), pz[u] = float(p.z);
             amplitude[u] = float(std::sqrt(lit));
         }
-        field_values(keys.data(), fx.data(), fy.data(), fz.data(), amplitude.data(), N, out);
+        field_values(field.seed(), px.data(), py.data(), pz.data(), amplitude.data(), N, out);
     });
 
     // Each line sums the sub-lines under its two-way beam, amplitude weights g. The

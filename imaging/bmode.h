@@ -17,6 +17,7 @@
 // sub-lines interpolated between the lines' mean positions, so that neighbouring lines
 // share scatterers where their beams overlap, and mirrored or refracted beams sample the
 // tissue where they really went. The axial PSF is the pulse.
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -59,7 +60,10 @@ struct ImagingSettings {
     bool speckle = true;
     double speckle_cell_mm = 0.0;    // lattice of the scatterer field; 0 = wavelength / 8
     double profile_smoothing = 1.0;  // smoothing of the scatter profile, in pulse FWHMs
-    std::vector<TgcPoint> tgc;       // empty = none
+    // Spacing of the speckle's sub-lines between scan lines, in units of the narrowest
+    // beam sigma (the receive PSF at the F-number); larger is faster and coarser.
+    double sub_line_sigmas = 1.0;
+    std::vector<TgcPoint> tgc;  // empty = none
     double gain_db = 0.0;
     double dynamic_range_db = 60.0;
     double pixel_mm = 0.2;  // scan-converted pixel size
@@ -136,6 +140,15 @@ class ScattererField {
         return seed_ + uint32_t(int64_t(base.x)) * kSpreadI + uint32_t(int64_t(base.y)) * kSpreadJ +
                uint32_t(int64_t(base.z)) * kSpreadK;
     }
+    // The same in single precision, for batches (cells up to 2^24 from the origin: the
+    // lattice spans at most a few thousand cells).
+    static float at_lattice_float(uint32_t seed, float x, float y, float z) {
+        const float bx = std::floor(x), by = std::floor(y), bz = std::floor(z);
+        const uint32_t key = seed + uint32_t(int32_t(bx)) * kSpreadI +
+                             uint32_t(int32_t(by)) * kSpreadJ + uint32_t(int32_t(bz)) * kSpreadK;
+        return blend(key, x - bx, y - by, z - bz);
+    }
+    uint32_t seed() const { return seed_; }
     // Trilinear blend of the cell's 8 corner values at fractions (fx, fy, fz). Plain
     // integer and float arithmetic: loops over it vectorise.
     static float blend(uint32_t key, float fx, float fy, float fz) {

@@ -33,6 +33,7 @@ struct QualityLevel {
     double map_pixel_mm;     // resolution of the acoustic map
     int particles_per_line;  // particles each scan line emits
     double step_texels;      // the tracer's step length, in map texels
+    double sub_line_sigmas;  // speckle sub-line spacing (ImagingSettings::sub_line_sigmas)
 };
 QualityLevel quality_level(Quality quality);
 

@@ -46,8 +46,9 @@ constexpr ParameterDoc kProbeDoc = {
     "phased (2.7 MHz, like the P4-2v); empty = the view's probe"};
 constexpr ParameterDoc kQualityDoc = {
     "--quality", "",
-    "interactive (0.5 mm map, 8 particles per line), standard (0.25 mm, 32), high "
-    "(0.125 mm, 128)"};
+    "interactive (0.5 mm map, 8 particles per line, whole-texel steps, speckle sub-lines 1.5 "
+    "beam sigmas apart), standard (0.25 mm, 32, half-texel steps, 1 sigma), high (0.125 mm, "
+    "128, half-texel steps, 1 sigma)"};
 constexpr ParameterDoc kReceiveDoc = {
     "--receive", "",
     "echo model: 'monostatic' (each reflection echoes at twice its time, two-way loss) or "
