@@ -141,6 +141,22 @@ tissue::PropertyMaps planar_interface(int nx, int ny, double h, glm::dvec2 point
     return maps;
 }
 
+tissue::AcousticProperties lossless_medium(double speed, double density) {
+    tissue::AcousticProperties p;
+    p[tissue::Property::speed_of_sound] = float(speed);
+    p[tissue::Property::density] = float(density);
+    return p;
+}
+
+TraceSettings interfaces_only_settings() {
+    TraceSettings s;
+    s.absorption = false;
+    s.scattering = false;
+    s.diffuse_reflection = false;
+    s.roulette_energy = 0.0;
+    return s;
+}
+
 tissue::PropertyMaps homogeneous(int nx, int ny, double h, const tissue::AcousticProperties& p) {
     tissue::PropertyMaps maps;
     for (std::size_t f = 0; f < tissue::kPropertyCount; ++f) {

@@ -30,6 +30,12 @@ Scene2D make_paper_scene(const std::string& name, int particles);
 tissue::PropertyMaps planar_interface(int nx, int ny, double h, glm::dvec2 point, glm::dvec2 normal,
                                       const tissue::AcousticProperties& a,
                                       const tissue::AcousticProperties& b, double smoothing_texels);
+// Speed (m/s) and density (kg/m^3) only: no attenuation, scatterers or roughness.
+tissue::AcousticProperties lossless_medium(double speed, double density);
+// Refraction and interface decisions only (no absorption, scattering, diffuse lobes or
+// roulette): the quantities tests and validation cases compare with closed forms.
+TraceSettings interfaces_only_settings();
+
 // Homogeneous medium of nx x ny texels.
 tissue::PropertyMaps homogeneous(int nx, int ny, double h, const tissue::AcousticProperties& p);
 

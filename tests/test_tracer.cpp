@@ -23,19 +23,11 @@ using tissue::AcousticProperties;
 using tissue::Property;
 
 AcousticProperties medium(float speed, float density) {
-    AcousticProperties p;
-    p[Property::speed_of_sound] = speed;
-    p[Property::density] = density;
-    return p;  // no attenuation, scattering or roughness
+    return simulator::lossless_medium(speed, density);
 }
 
 TraceSettings clean_settings() {
-    TraceSettings s;
-    s.absorption = false;
-    s.scattering = false;
-    s.diffuse_reflection = false;
-    s.roulette_energy = 0.0;
-    return s;
+    return simulator::interfaces_only_settings();
 }
 
 // A 60 x 60 mm map at 0.25 mm with a plane through its centre whose normal is tilted by

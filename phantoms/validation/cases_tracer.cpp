@@ -24,20 +24,11 @@ using tissue::Property;
 constexpr double kC0 = 1540.0;  // m/s: the scanner's assumed speed
 
 AcousticProperties medium(double speed, double density) {
-    AcousticProperties p;
-    p[Property::speed_of_sound] = float(speed);
-    p[Property::density] = float(density);
-    return p;  // lossless, no scatterers, mirror-smooth
+    return simulator::lossless_medium(speed, density);
 }
 
-// Refraction, interface decisions and nothing else: the quantities are then exact.
 TraceSettings clean_settings() {
-    TraceSettings s;
-    s.absorption = false;
-    s.scattering = false;
-    s.diffuse_reflection = false;
-    s.roulette_energy = 0.0;
-    return s;
+    return simulator::interfaces_only_settings();
 }
 
 // ---- an interface tilted by 20 degrees (not grid-aligned) through (30, 30) mm ----
