@@ -113,7 +113,7 @@ simulator::Scene2D trace_scene(const Phantom& ph, int particles) {
     // Consecutive particles form 16 "lines" so the trace spreads over the threads.
     const std::size_t count = scene.sources.size();
     for (std::size_t p = 0; p < count; ++p) scene.sources[p].line = uint32_t(p * 16 / count);
-    scene.settings.record_paths = n;  // a figure draws every path
+    scene.settings.record_paths = (n + 15) / 16;  // every path: a figure draws them all
     return scene;
 }
 

@@ -251,7 +251,6 @@ CaseResult wire_depth(const CaseContext& ctx) {
     // interest: at 50 mm the beam is then ~5 mm wide instead of ~8.
     const PhantomFrame f = image_phantom(catalogue(ctx, "qa_multipurpose"),
                                          {60.0, 0, imaging::Quality::high, true, 30.0}, ctx.seed);
-    const probe::ScanGeometry g(f.transducer);
     CaseResult r;
     std::vector<glm::dvec2> expected, measured;
     for (const auto& s : f.phantom.shapes) {
@@ -283,7 +282,6 @@ CaseResult speed_displacement(const CaseContext& ctx) {
     const double c_layer = property(layer.properties, tissue::Property::speed_of_sound);
     const double c_bg = property(f.phantom.background, tissue::Property::speed_of_sound);
     const double expected = L * (kC0 / c_layer - kC0 / c_bg);
-    const probe::ScanGeometry g(f.transducer);
     double under = 0.0, beside = 0.0;
     int n_under = 0, n_beside = 0;
     std::vector<glm::dvec2> measured;

@@ -23,14 +23,6 @@ using tissue::Property;
 
 constexpr double kC0 = 1540.0;  // m/s: the scanner's assumed speed
 
-AcousticProperties medium(double speed, double density) {
-    return simulator::lossless_medium(speed, density);
-}
-
-TraceSettings clean_settings() {
-    return simulator::interfaces_only_settings();
-}
-
 // ---- an interface tilted by 20 degrees (not grid-aligned) through (30, 30) mm ----
 
 constexpr double kH = 0.25, kTilt = 20.0;
@@ -77,9 +69,10 @@ tissue::Volume speed_field(const tissue::PropertyMaps& maps) {
 CaseResult refraction_angle(const CaseContext& ctx) {
     // c 1500 -> 1800 m/s: sin(theta_t) = sin(theta_i) c2 / c1 below the critical angle.
     const double c1 = 1500.0, c2 = 1800.0;
-    const auto maps = interface_maps(medium(c1, 1000), medium(c2, 1000));
+    const auto maps =
+        interface_maps(simulator::lossless_medium(c1, 1000), simulator::lossless_medium(c2, 1000));
     const auto map = tissue::AcousticMap<2>::build(maps);
-    TraceSettings s = clean_settings();
+    TraceSettings s = simulator::interfaces_only_settings();
     s.specular_reflection = false;  // isolate refraction
     CaseResult r;
     Plot plot{"transmitted angle against Snell's law (c 1500 -> 1800 m/s)",
@@ -110,8 +103,8 @@ CaseResult refraction_angle(const CaseContext& ctx) {
             glm::degrees(std::asin(std::min(1.0, std::sin(glm::radians(i)) * c2 / c1))));
     }
     // The reverse direction (fast -> slow) bends towards the normal, at any incidence.
-    const auto reverse =
-        tissue::AcousticMap<2>::build(interface_maps(medium(c2, 1000), medium(c1, 1000)));
+    const auto reverse = tissue::AcousticMap<2>::build(
+        interface_maps(simulator::lossless_medium(c2, 1000), simulator::lossless_medium(c1, 1000)));
     for (double incidence : {10.0, 30.0, 60.0, 80.0}) {
         const double expected =
             glm::degrees(std::asin(std::sin(glm::radians(incidence)) * c1 / c2));
@@ -134,9 +127,9 @@ CaseResult refraction_angle(const CaseContext& ctx) {
 CaseResult critical_angle(const CaseContext&) {
     // Slow -> fast: theta_c = asin(c1 / c2). Scan the incidence in 0.1 degree steps.
     const double c1 = 1500.0, c2 = 1800.0;
-    const auto map =
-        tissue::AcousticMap<2>::build(interface_maps(medium(c1, 1000), medium(c2, 1000)));
-    TraceSettings s = clean_settings();
+    const auto map = tissue::AcousticMap<2>::build(
+        interface_maps(simulator::lossless_medium(c1, 1000), simulator::lossless_medium(c2, 1000)));
+    TraceSettings s = simulator::interfaces_only_settings();
     s.specular_reflection = false;
     const double critical = glm::degrees(std::asin(c1 / c2));
     double last_transmitted = 0.0, first_reflected = 90.0;
@@ -160,6 +153,16 @@ CaseResult critical_angle(const CaseContext&) {
         {"largest transmitted incidence", last_transmitted, critical, 0.5, "deg"});
     r.measurements.push_back(
         {"smallest totally reflected incidence", first_reflected, critical, 0.5, "deg"});
+    // Beyond it every particle reflects, and a mirror keeps the angle (the law of
+    // reflection, within the same 0.5 deg).
+    for (double incidence : {60.0, 65.0, 70.0, 75.0, 80.0}) {
+        const glm::dvec2 out =
+            final_direction(shoot(map, incidence, simulator::interfaces_only_settings()));
+        const bool reflected = glm::dot(out, interface_normal()) < 0.0;
+        r.measurements.push_back(
+            {"reflection angle at " + std::to_string(int(incidence)) + " deg incidence",
+             reflected ? angle_to_normal_deg(out) : std::nan(""), incidence, 0.5, "deg"});
+    }
     r.plots.push_back(plot);
     return r;
 }
@@ -169,9 +172,9 @@ CaseResult reflected_fraction(const CaseContext&) {
     // pressure coefficient (Z2 cos i - Z1 cos t) / (Z2 cos i + Z1 cos t), for 11 angles.
     // 4000 particles each: the reflected fraction is binomial; tolerance 3 sigma (99.7 %).
     const double c1 = 1500.0, c2 = 1800.0, z1 = 1.5, z2 = 4.5;
-    const auto map =
-        tissue::AcousticMap<2>::build(interface_maps(medium(c1, 1000), medium(c2, 2500)));
-    TraceSettings s = clean_settings();
+    const auto map = tissue::AcousticMap<2>::build(
+        interface_maps(simulator::lossless_medium(c1, 1000), simulator::lossless_medium(c2, 2500)));
+    TraceSettings s = simulator::interfaces_only_settings();
     constexpr int kParticles = 4000;
     CaseResult r;
     Plot plot{"reflected energy fraction against the oblique-incidence coefficient",
@@ -338,22 +341,23 @@ CaseResult reverberation(const CaseContext&) {
         const double Rp = R + T * T * R * A / (1.0 - R * R * A);
         const double Rh = std::pow((z3 - z1) / (z3 + z1), 2.0);
         const int nx = 80, ny = 120;  // 20 x 30 mm
-        auto plate = medium(c_plate, rho_plate);
+        auto plate = simulator::lossless_medium(c_plate, rho_plate);
         plate[Property::attenuation] = float(alpha_plate);
-        tissue::PropertyMaps maps = simulator::homogeneous(nx, ny, kH, medium(kC0, 1000.0));
+        tissue::PropertyMaps maps =
+            simulator::homogeneous(nx, ny, kH, simulator::lossless_medium(kC0, 1000.0));
         for (int j = 0; j < ny; ++j) {
             const double y = j * kH;
             // Linear blends over 2 texels across each face, centred on the face.
             auto ramp = [](double d) { return std::clamp(d / (2 * kH) + 0.5, 0.0, 1.0); };
             const double in_plate = ramp(y - top1) * (1.0 - ramp(y - top1 - thickness));
-            auto p = tissue::lerp(medium(kC0, 1000.0), plate, float(in_plate));
-            p = tissue::lerp(p, medium(3000.0, 1900.0), float(ramp(y - deep)));
+            auto p = tissue::lerp(simulator::lossless_medium(kC0, 1000.0), plate, float(in_plate));
+            p = tissue::lerp(p, simulator::lossless_medium(3000.0, 1900.0), float(ramp(y - deep)));
             for (int i = 0; i < nx; ++i)
                 for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
                     maps.fields[f].at(i, j) = p.values[f];
         }
         const auto map = tissue::AcousticMap<2>::build(maps);
-        TraceSettings s = clean_settings();
+        TraceSettings s = simulator::interfaces_only_settings();
         s.absorption = true;
         s.frequency_mhz = f_mhz;
         simulator::ProbeFace<2> face;
@@ -407,9 +411,10 @@ CaseResult reverberation(const CaseContext&) {
     {
         constexpr double kY0 = 2.0, kDepth = 12.0, kFace = 0.4;
         const auto map = tissue::AcousticMap<2>::build(simulator::planar_interface(
-            160, 160, kH, {20.0, kDepth}, {0.0, 1.0}, medium(kC0, 1000), medium(3000, 1900), 2.0));
+            160, 160, kH, {20.0, kDepth}, {0.0, 1.0}, simulator::lossless_medium(kC0, 1000),
+            simulator::lossless_medium(3000, 1900), 2.0));
         const double z1 = 1.54, z2 = 5.7, R2 = std::pow((z2 - z1) / (z2 + z1), 2.0);
-        TraceSettings s = clean_settings();
+        TraceSettings s = simulator::interfaces_only_settings();
         simulator::ProbeFace<2> face;
         face.centre = {20.0f, float(kY0)};
         face.normal = {0.0f, 1.0f};
@@ -498,7 +503,8 @@ void add_tracer_cases(std::vector<Case>& out) {
     out.push_back({"critical_angle", "total reflection beyond the critical angle",
                    "Slow to fast (1500 -> 1800 m/s): incidences in 0.1 degree steps around "
                    "asin(c1/c2) = 56.44 degrees; the last transmitted and the first totally "
-                   "reflected must both lie within 0.5 degrees of it.",
+                   "reflected must both lie within 0.5 degrees of it, and beyond it the "
+                   "reflection angle must equal the incidence within 0.5 degrees.",
                    critical_angle});
     out.push_back({"reflected_fraction", "reflected energy fraction against the angle",
                    "Z 1.5 -> 4.5 MRayl: for 11 incidences, 4000 particles each decide between "
