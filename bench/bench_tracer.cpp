@@ -95,16 +95,19 @@ void run(benchmark::State& state, const tissue::AcousticMap<Dim>& map,
          const simulator::Sources<Dim>& sources) {
     simulator::TraceSettings settings;  // full acoustic physics, echoes recorded
     settings.frequency_mhz = 3.5;
-    uint64_t steps = 0;
+    uint64_t steps = 0, uniform_steps = 0;
     std::size_t echoes = 0;
     for (auto _ : state) {
         const auto result = simulator::trace(map, sources, settings);
         steps += result.stats.steps;
+        uniform_steps += result.stats.uniform_steps;
         echoes = result.echoes.size();
         benchmark::DoNotOptimize(result.echoes.data());
     }
     state.counters["steps/s"] = benchmark::Counter(double(steps), benchmark::Counter::kIsRate);
     state.counters["echoes"] = double(echoes);
+    state.counters["uniform_steps"] = double(uniform_steps) / double(std::max<uint64_t>(steps, 1));
+    state.counters["uniform_blocks"] = map.uniform_block_fraction();
 }
 
 void BM_Trace2D_Synthetic1024(benchmark::State& state) {
@@ -113,6 +116,15 @@ void BM_Trace2D_Synthetic1024(benchmark::State& state) {
     run<2>(state, map, sources);
 }
 BENCHMARK(BM_Trace2D_Synthetic1024)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The same fan in plain soft tissue: every step on the uniform-block path.
+void BM_Trace2D_Uniform1024(benchmark::State& state) {
+    static const auto map = tissue::AcousticMap<2>::build(simulator::homogeneous(
+        1024, 1024, 0.1, tissue::find_tissue("soft_tissue", "", "").properties));
+    static const auto sources = fan_2d(map, 64, 256);
+    run<2>(state, map, sources);
+}
+BENCHMARK(BM_Trace2D_Uniform1024)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_Trace2D_Colin27(benchmark::State& state) {
     static const auto map = tissue::AcousticMap<2>::build(colin27_maps(0.25, 0.0));

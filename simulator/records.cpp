@@ -24,7 +24,8 @@ EnergyLedger& EnergyLedger::operator+=(const EnergyLedger& o) {
 }
 
 TraceStats& TraceStats::operator+=(const TraceStats& o) {
-    particles += o.particles, steps += o.steps, interface_events += o.interface_events;
+    particles += o.particles, steps += o.steps, uniform_steps += o.uniform_steps;
+    interface_events += o.interface_events;
     reflections += o.reflections, total_reflections += o.total_reflections;
     scatter_events += o.scatter_events, captured += o.captured;
     return *this;

@@ -102,6 +102,11 @@ struct TraceSettings {
     // An image's echo window: nothing a particle does later lands in it.
     double max_time_s = 0.0;
 
+    // Uniform blocks of the map (AcousticMap::uniform_block) are crossed in a tight loop
+    // without interpolation: the same arithmetic as the general step there. Off: every
+    // step interpolates (for tests and benchmarks that compare the two).
+    bool uniform_runs = true;
+
     int record_paths = 0;  // particles per line whose paths are kept as polylines
     bool record_scatter_echoes = true;
 

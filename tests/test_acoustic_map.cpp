@@ -133,5 +133,62 @@ TEST(AcousticMap, DomainIsTheTexelCentreBox) {
     EXPECT_EQ(map.sample({-3.0f, 0.0f}).impedance, map.texel({0, 0}).impedance);
 }
 
+// A step in speed of sound at x = 20.5 texels (between texels 20 and 21), 2D and 3D:
+// a block is uniform exactly when its texel range, widened by one texel on each side
+// (the far corners of its cells), stays on one side.
+template <int Dim>
+void check_uniform_blocks() {
+    const glm::ivec3 dims = Dim == 2 ? glm::ivec3(50, 30, 1) : glm::ivec3(50, 30, 20);
+    PropertyMaps maps = smooth_maps(dims, 0.5);
+    for (int k = 0; k < dims.z; ++k)
+        for (int j = 0; j < dims.y; ++j)
+            for (int i = 0; i < dims.x; ++i) {
+                maps[Property::speed_of_sound].at(i, j, k) = i <= 20 ? 1540.0f : 1580.0f;
+                maps[Property::attenuation].at(i, j, k) = 0.5f;
+            }
+    const auto map = AcousticMap<Dim>::build(maps);
+    constexpr int B = AcousticMap<Dim>::kBlock;
+    std::mt19937 rng(3);
+    int uniform = 0, varying = 0;
+    for (int s = 0; s < 4000; ++s) {
+        glm::vec<Dim, float> p;
+        for (int a = 0; a < Dim; ++a)
+            p[a] = std::uniform_real_distribution<float>(0.0f, map.extent_mm()[a])(rng);
+        const int block_x = int(p[0] / 0.5f) / B;
+        // Texels block_x*B - 1 .. (block_x+1)*B must lie on one side of 20 | 21; the
+        // gradient is non-zero at texels 20 and 21 themselves.
+        const int lo = block_x * B - 1, hi = (block_x + 1) * B;
+        const bool expect_uniform = hi < 20 || lo > 21;
+        const AcousticTexel<Dim>* record = map.uniform_block(p);
+        ASSERT_EQ(record != nullptr, expect_uniform) << "x = " << p[0];
+        if (!record) {
+            ++varying;
+            continue;
+        }
+        ++uniform;
+        // Anywhere in a uniform block, interpolation returns the record (to rounding).
+        const AcousticTexel<Dim> t = map.sample(p);
+        EXPECT_NEAR(t.refractive_index, record->refractive_index, 1e-6f);
+        EXPECT_NEAR(t.impedance, record->impedance, 1e-6f);
+        EXPECT_NEAR(t.attenuation, record->attenuation, 1e-6f);
+        EXPECT_EQ(record->grad_impedance[0], 0.0f);
+    }
+    EXPECT_GT(uniform, 1000);
+    EXPECT_GT(varying, 100);
+    // Two distinct records (either side): the fraction of uniform blocks is
+    // (blocks of x clear of texels 19..22) / (blocks of x) over all other axes.
+    const int blocks_x = (dims.x + B - 1) / B;
+    int clear = 0;
+    for (int b = 0; b < blocks_x; ++b) clear += ((b + 1) * B < 20 || b * B - 1 > 21);
+    EXPECT_DOUBLE_EQ(map.uniform_block_fraction(), double(clear) / blocks_x);
+}
+
+TEST(AcousticMap, UniformBlocksAreExactlyTheBlocksClearOfAnInterface2D) {
+    check_uniform_blocks<2>();
+}
+TEST(AcousticMap, UniformBlocksAreExactlyTheBlocksClearOfAnInterface3D) {
+    check_uniform_blocks<3>();
+}
+
 }  // namespace
 }  // namespace sonotrace::tissue

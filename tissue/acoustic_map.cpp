@@ -3,7 +3,9 @@
 #include <tbb/parallel_for.h>
 
 #include <cstring>
+#include <map>
 #include <stdexcept>
+#include <string>
 
 namespace sonotrace::tissue {
 
@@ -118,7 +120,64 @@ AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Vo
             }
         }
     });
+    map.find_uniform_blocks();
     return map;
+}
+
+template <int Dim>
+void AcousticMap<Dim>::find_uniform_blocks() {
+    std::size_t blocks = 1;
+    for (int a = 0; a < Dim; ++a) {
+        block_dims_[a] = (dims_[a] + kBlock - 1) / kBlock;
+        blocks *= std::size_t(block_dims_[a]);
+    }
+    block_record_.assign(blocks, -1);
+    tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t block) {
+        IVec lo, hi, b;
+        std::size_t rest = block;
+        for (int a = 0; a < Dim; ++a) {
+            b[a] = int(rest % std::size_t(block_dims_[a]));
+            rest /= std::size_t(block_dims_[a]);
+            // The margin covers the far corners of the block's cells and the cell
+            // sample() uses at the clamped upper edge.
+            lo[a] = std::max(0, b[a] * kBlock - 1);
+            hi[a] = std::min(dims_[a] - 1, (b[a] + 1) * kBlock);
+        }
+        const AcousticTexel<Dim>& first = texel(lo);
+        for (int a = 0; a < 3; ++a) {
+            if (first.grad_refractive_index[a] != 0.0f || first.grad_impedance[a] != 0.0f) return;
+        }
+        IVec i = lo;
+        while (true) {
+            if (std::memcmp(&texel(i), &first, sizeof first) != 0) return;
+            int a = 0;
+            for (; a < Dim; ++a) {
+                if (++i[a] <= hi[a]) break;
+                i[a] = lo[a];
+            }
+            if (a == Dim) break;
+        }
+        block_record_[block] = int32_t(linear(lo));
+    });
+    // Distinct records, numbered in block order (deterministic).
+    std::map<std::string, int32_t> index_of;
+    uniform_records_.clear();
+    for (int32_t& record : block_record_) {
+        if (record < 0) continue;
+        const AcousticTexel<Dim>& t = texels_[std::size_t(record)];
+        const auto [it, inserted] = index_of.try_emplace(
+            std::string(reinterpret_cast<const char*>(&t), sizeof t), int32_t(index_of.size()));
+        if (inserted) uniform_records_.push_back(t);
+        record = it->second;
+    }
+}
+
+template <int Dim>
+double AcousticMap<Dim>::uniform_block_fraction() const {
+    if (block_record_.empty()) return 0.0;
+    const auto uniform =
+        std::count_if(block_record_.begin(), block_record_.end(), [](int32_t r) { return r >= 0; });
+    return double(uniform) / double(block_record_.size());
 }
 
 template class AcousticMap<2>;

@@ -76,6 +76,15 @@ class AcousticMap {
     // The refractive index alone (one float per texel read), same interpolation.
     float sample_refractive_index(const Vec& p_mm) const;
 
+    // Uniform blocks: kBlock^Dim texels that, with a one-texel margin on every side,
+    // hold one record with zero gradients. Anywhere in such a block sample() returns
+    // that record, so the tracer skips interpolation and refraction there (water, soft
+    // tissue of phantoms, air). p_mm must be inside(); nullptr if the block varies.
+    static constexpr int kBlockShift = 3, kBlock = 1 << kBlockShift;
+    const AcousticTexel<Dim>* uniform_block(const Vec& p_mm) const;
+    // Fraction of blocks that are uniform (for benchmarks and logs).
+    double uniform_block_fraction() const;
+
   private:
     std::size_t linear(const IVec& i) const;
     void locate(const Vec& p_mm, IVec* i0, Vec* f) const;
@@ -89,6 +98,12 @@ class AcousticMap {
     Vec inverse_spacing_{};
     Vec extent_{};  // (n - 1) * h per axis: the domain for inside()
     std::vector<AcousticTexel<Dim>> texels_;
+    IVec block_dims_{};
+    // Per block: its record's index in uniform_records_ (distinct records, a handful in
+    // practice, so they stay in L1), or -1.
+    std::vector<int32_t> block_record_;
+    std::vector<AcousticTexel<Dim>> uniform_records_;
+    void find_uniform_blocks();
 };
 
 // ---- inline hot path: sampling is called once per particle step ----
@@ -176,6 +191,19 @@ template <int Dim>
                             f[1] * ((1 - f[0]) * u[dy] + f[0] * u[dy + K]);
         return (1 - f[2]) * lower + f[2] * upper;
     }
+}
+
+template <int Dim>
+[[gnu::always_inline]] inline const AcousticTexel<Dim>* AcousticMap<Dim>::uniform_block(
+    const Vec& p_mm) const {
+    std::size_t index = 0;
+    for (int a = Dim - 1; a >= 0; --a) {
+        const int b =
+            std::min(int(p_mm[a] * inverse_spacing_[a]) >> kBlockShift, block_dims_[a] - 1);
+        index = index * std::size_t(block_dims_[a]) + std::size_t(b);
+    }
+    const int32_t record = block_record_[index];
+    return record < 0 ? nullptr : &uniform_records_[std::size_t(record)];
 }
 
 extern template class AcousticMap<2>;
