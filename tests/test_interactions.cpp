@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "simulator/interactions.h"
+#include "test_util.h"
 #include "simulator/rng.h"
 
 namespace sonotrace::simulator {
@@ -68,15 +69,7 @@ TEST(ReflectedFraction, LimitsAndReciprocity) {
     }
 }
 
-// Chi-square on equal-probability bins (expected counts from the analytic CDF).
-double chi_square(const std::vector<int>& counts, const std::vector<double>& probabilities, int n) {
-    double chi2 = 0.0;
-    for (std::size_t b = 0; b < counts.size(); ++b) {
-        const double e = probabilities[b] * n;
-        chi2 += (counts[b] - e) * (counts[b] - e) / e;
-    }
-    return chi2;
-}
+using test::chi_square;
 
 class Lobe2D : public ::testing::TestWithParam<float> {};
 

@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -48,6 +49,27 @@ inline void expect_input_error(const std::function<void()>& action, const std::s
             << "field '" << e.field() << "' lacks '" << field_part << "'; message: " << what;
         EXPECT_NE(what.find(text_part), std::string::npos) << "message: " << what;
     }
+}
+
+// ---- statistics ----
+
+// Pearson's chi-square statistic of `counts` against expected probabilities (n samples).
+inline double chi_square(const std::vector<int>& counts, const std::vector<double>& probabilities,
+                         int n) {
+    double chi2 = 0.0;
+    for (std::size_t b = 0; b < counts.size(); ++b) {
+        const double e = probabilities[b] * n;
+        chi2 += (counts[b] - e) * (counts[b] - e) / e;
+    }
+    return chi2;
+}
+
+// The chi-square value exceeded with probability 0.001 for `df` degrees of freedom
+// (Wilson-Hilferty: within 1 % for df >= 5; z = 3.0902 is the normal 0.999 quantile).
+inline double chi_square_critical_001(int df) {
+    const double k = 2.0 / (9.0 * df), z = 3.0902;
+    const double c = 1.0 - k + z * std::sqrt(k);
+    return df * c * c * c;
 }
 
 // ---- running the sonotrace binary (SONOTRACE_BINARY, set by tests/CMakeLists.txt) ----

@@ -5,6 +5,7 @@
 
 #include "sonotrace_version.h"
 #include "tissue/error.h"
+#include "ui/cli/render_command.h"
 #include "ui/cli/simulate_command.h"
 #include "ui/cli/tissue_command.h"
 #include "ui/cli/trace_command.h"
@@ -29,6 +30,8 @@ int main(int argc, char** argv) {
     CLI::App* simulate_cmd = ui::add_simulate_command(app, simulate_options);
     ui::ValidateOptions validate_options;
     CLI::App* validate_cmd = ui::add_validate_command(app, validate_options);
+    ui::RenderOptions render_options;
+    CLI::App* render_cmd = ui::add_render_command(app, render_options);
 
     try {
         app.parse(argc, argv);
@@ -40,6 +43,7 @@ int main(int argc, char** argv) {
         if (trace_cmd->parsed()) return ui::run_trace_command(trace_options);
         if (simulate_cmd->parsed()) return ui::run_simulate_command(simulate_options);
         if (validate_cmd->parsed()) return ui::run_validate_command(validate_options);
+        if (render_cmd->parsed()) return ui::run_render_command(render_options);
     } catch (const tissue::InputError& e) {
         ui::StageTimer::break_line();
         std::cerr << "sonotrace: error: " << e.what() << "\n";

@@ -1,0 +1,209 @@
+#pragma once
+// Object-space particle-based volume rendering (Sakamoto & Koyamada, sec. 3.1-3.5) on the
+// CPU, streaming, deterministic; and the emission-absorption ray caster it is measured
+// against.
+//
+// Model: opaque spheres of radius r, a Poisson process of density rho = sigma / (pi r^2)
+// (eq. 12, sigma from the transfer function). A ray meets the first sphere whose centre
+// lies within r of it; the probability that none lies within a segment is
+// exp(-integral sigma dt), so the expected colour of a sub-pixel is the emission-
+// absorption integral (eq. 6). Each particle is drawn as the disc of its projected
+// radius f r / z: every sub-pixel whose centre the disc covers sees it (a Z-buffer keeps
+// the nearest). The disc is what keeps the density independent of the camera: r is a
+// world length, tied to the sub-pixel footprint at the orbit target only to set how many
+// particles there are. Each repetition generates, projects and drops its particles, so
+// memory is the volume plus a few image-sized buffers; the ensemble average over
+// repetitions converges to the integral.
+//
+// Determinism: random numbers come from Philox keyed by (seed, repetition, cell); the
+// Z-buffer orders by (depth, particle key), a total order, and thread-local buffers merge
+// by the same order, so images are byte-identical on any thread count.
+#include <cstdint>
+#include <cstring>
+#include <optional>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <opencv2/core.hpp>
+
+#include "imaging/pbvr/camera.h"
+#include "imaging/pbvr/colour_tf.h"
+#include "imaging/pbvr/sampling.h"
+#include "tissue/volume.h"
+
+namespace sonotrace::imaging::pbvr {
+
+// The scalar (normalized by the transfer function's window) and its gradient (1/mm, in
+// the volume's local frame) at a voxel, interleaved so one trilinear fetch reads both.
+struct VoxelSample {
+    float value = 0.0f;
+    glm::vec3 gradient{0.0f};
+};
+
+// The volume as the renderers sample it. Local frame: mm along the index axes,
+// q = spacing * ijk; world = origin + direction * q.
+class RenderVolume {
+  public:
+    RenderVolume(const tissue::Volume& volume, const ColourTransferFunction& tf);
+
+    const tissue::VolumeGeometry& geometry() const { return geometry_; }
+    glm::ivec3 dims() const { return geometry_.dims; }
+    glm::vec3 spacing() const { return spacing_; }
+    glm::vec3 extent() const { return extent_; }  // (dims - 1) * spacing
+    // Trilinear at local position q (clamped to the domain).
+    VoxelSample sample(const glm::vec3& q) const;
+    const VoxelSample& voxel(int i, int j, int k) const {
+        return voxels_[(std::size_t(k) * std::size_t(geometry_.dims.y) + std::size_t(j)) *
+                           std::size_t(geometry_.dims.x) +
+                       std::size_t(i)];
+    }
+
+  private:
+    tissue::VolumeGeometry geometry_;
+    glm::vec3 spacing_{1.0f}, inverse_spacing_{1.0f}, extent_{0.0f};
+    std::vector<VoxelSample> voxels_;
+};
+
+// Inline: called once per particle candidate and ray-cast sample.
+inline VoxelSample RenderVolume::sample(const glm::vec3& q) const {
+    const glm::ivec3 n = geometry_.dims;
+    glm::ivec3 i0;
+    glm::vec3 f;
+    for (int a = 0; a < 3; ++a) {
+        const float x = glm::clamp(q[a] * inverse_spacing_[a], 0.0f, float(n[a] - 1));
+        i0[a] = std::min(int(x), n[a] - 2);
+        f[a] = x - float(i0[a]);
+    }
+    // Blend the four floats of a record as one vector.
+    typedef float v4 __attribute__((vector_size(16)));
+    static_assert(sizeof(VoxelSample) == sizeof(v4));
+    const std::size_t dy = std::size_t(n.x), dz = std::size_t(n.x) * std::size_t(n.y);
+    const VoxelSample* base = &voxels_[std::size_t(i0.z) * dz + std::size_t(i0.y) * dy +
+                                       std::size_t(i0.x)];
+    auto load = [](const VoxelSample* p) {
+        v4 v;
+        std::memcpy(&v, p, sizeof v);
+        return v;
+    };
+    auto plane = [&](const VoxelSample* p) {
+        const v4 lower = load(p) + f.x * (load(p + 1) - load(p));
+        const v4 upper = load(p + dy) + f.x * (load(p + dy + 1) - load(p + dy));
+        return lower + f.y * (upper - lower);
+    };
+    const v4 a = plane(base), b = plane(base + dz);
+    const v4 v = a + f.z * (b - a);
+    VoxelSample out;
+    std::memcpy(static_cast<void*>(&out), &v, sizeof out);
+    return out;
+}
+
+struct Shading {
+    enum class Model { none, lambert, blinn_phong };
+    Model model = Model::blinn_phong;
+    float ambient = 0.35f, diffuse = 0.65f, specular = 0.25f, shininess = 24.0f;
+};
+
+// An axis-aligned box in the volume's local frame (mm) whose content is not drawn: a
+// cut-away that opens the head.
+struct CutAway {
+    glm::vec3 low{0.0f}, high{0.0f};
+    bool contains(const glm::vec3& q) const {
+        return q.x >= low.x && q.y >= low.y && q.z >= low.z && q.x <= high.x && q.y <= high.y &&
+               q.z <= high.z;
+    }
+};
+
+struct RenderSettings {
+    int repetitions = 100;  // ensemble size
+    int subpixel_level = 1;  // sub-pixels per pixel side (L x L rays per pixel)
+    uint64_t seed = 1;
+    Sampling sampling = Sampling::uniform;
+    double radius_scale = 1.0;  // particle radius relative to the sub-pixel footprint
+    Shading shading;
+    glm::vec3 background{0.0f};
+    std::optional<CutAway> cut_away;
+
+    // Throws tissue::InputError("render settings", field).
+    void validate() const;
+};
+
+// Document each parameter once; the CLI and GUI reuse these.
+namespace doc {
+inline constexpr const char* kRepetitions =
+    "ensemble size: repetitions of particle generation and projection averaged per image";
+inline constexpr const char* kSubpixel = "sub-pixel level L: L x L particle rays per pixel";
+inline constexpr const char* kRadiusScale =
+    "particle radius as a multiple of the sub-pixel footprint at the camera target";
+inline constexpr const char* kSampling =
+    "particle generation per cell: 'uniform' (thinning, exact counts) or 'metropolis'";
+}  // namespace doc
+
+struct RgbImage {
+    int width = 0, height = 0;
+    std::vector<glm::vec3> pixels;  // linear RGB, rows top to bottom
+    glm::vec3& at(int x, int y) { return pixels[std::size_t(y) * std::size_t(width) + std::size_t(x)]; }
+    const glm::vec3& at(int x, int y) const {
+        return pixels[std::size_t(y) * std::size_t(width) + std::size_t(x)];
+    }
+};
+
+// PSNR in dB of `image` against `reference` (colours clamped to 0..1, all channels).
+double psnr(const RgbImage& image, const RgbImage& reference);
+// 8-bit BGR picture with display gamma 2.2 (for imaging::write_png and overlays).
+cv::Mat to_picture(const RgbImage& image);
+
+// The colour a sample shows: the transfer function's colour, shaded with the gradient
+// as normal under a headlight (light and view along `to_eye`, a unit vector in the local
+// frame). Shared by both renderers.
+glm::vec3 shade(const glm::vec3& colour, const glm::vec3& gradient, const glm::vec3& to_eye,
+                const Shading& shading);
+
+class PbvrRenderer {
+  public:
+    // `tf` gives colours and opacity. With `generation_tf`, particles are generated from
+    // its density and drawn with the radius adapted to `tf`'s opacity (eq. 13), as after
+    // an opacity edit without regeneration. Throws InputError on bad settings/camera.
+    PbvrRenderer(const RenderVolume& volume, const ColourTransferFunction& tf,
+                 const OrbitCamera& camera, const RenderSettings& settings,
+                 const ColourTransferFunction* generation_tf = nullptr);
+
+    // Adds one repetition to the ensemble.
+    void add_repetition();
+    int repetitions_done() const { return repetitions_; }
+    // The ensemble average so far (background where nothing was ever drawn).
+    RgbImage image() const;
+
+    float particle_radius_mm() const { return radius_; }
+    uint64_t particles_drawn() const { return particles_; }  // over all repetitions
+    std::size_t occupied_cells() const { return cells_.size(); }
+
+  private:
+    struct Cell {
+        uint32_t index;   // linear cell index ((dims - 1) grid)
+        float majorant;   // max sigma over the cell (generation TF)
+    };
+    const RenderVolume& volume_;
+    const ColourTransferFunction& tf_;
+    const ColourTransferFunction& generation_tf_;
+    bool adapt_radius_ = false;
+    OrbitCamera camera_;
+    RenderSettings settings_;
+    glm::mat3 to_camera_{1.0f};  // local frame -> camera
+    glm::vec3 camera_offset_{0.0f};
+    glm::vec3 to_eye_{0.0f, 0.0f, 1.0f};  // headlight, local frame
+    float focal_ = 1.0f, centre_x_ = 0.0f, centre_y_ = 0.0f;
+    int sub_width_ = 0, sub_height_ = 0;
+    float radius_ = 0.0f;
+    std::vector<Cell> cells_;
+    std::vector<glm::dvec3> accumulated_;  // per pixel, sum over repetitions of sub-pixel means
+    int repetitions_ = 0;
+    uint64_t particles_ = 0;
+};
+
+// Emission-absorption ray casting through the same transfer function and shading, one
+// ray per sub-pixel centre, midpoint samples every `step_mm`, stopped when the
+// transmittance falls below 1e-5.
+RgbImage raycast(const RenderVolume& volume, const ColourTransferFunction& tf,
+                 const OrbitCamera& camera, const RenderSettings& settings, double step_mm);
+
+}  // namespace sonotrace::imaging::pbvr

@@ -1,0 +1,299 @@
+#include "ui/cli/render_command.h"
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include "imaging/pbvr/pbvr.h"
+#include "imaging/picture.h"
+#include "sonotrace_version.h"
+#include "tissue/atomic_output.h"
+#include "tissue/error.h"
+#include "tissue/volume_io.h"
+
+namespace sonotrace::ui {
+
+namespace {
+
+using nlohmann::json;
+namespace pbvr = imaging::pbvr;
+
+constexpr ParameterDoc kVolumeDoc = {
+    "--volume", "", "the volume: 'default' (Colin27 T1 head), a NIfTI file or a raw sidecar"};
+constexpr ParameterDoc kTfDoc = {
+    "--tf", "",
+    "colour/opacity transfer function: a preset (head, ramp) or a JSON file with \"points\": "
+    "[{\"value\": 0..1, \"colour\": [r,g,b], \"opacity\": 0..1 per unit_length_mm}]"};
+constexpr ParameterDoc kAzimuthDoc = {"--azimuth", "degrees",
+                                      "camera turn about the up axis (+z); 0 looks along +y"};
+constexpr ParameterDoc kElevationDoc = {"--elevation", "degrees", "camera height angle"};
+constexpr ParameterDoc kDistanceDoc = {
+    "--distance", "mm", "camera distance from the volume centre; 0 = fit the volume"};
+constexpr ParameterDoc kFovDoc = {"--fov", "degrees", "vertical field of view"};
+constexpr ParameterDoc kWidthDoc = {"--width", "pixels", "image width"};
+constexpr ParameterDoc kHeightDoc = {"--height", "pixels", "image height"};
+constexpr ParameterDoc kRepetitionsDoc = {"--repetitions", "", pbvr::doc::kRepetitions};
+constexpr ParameterDoc kSubpixelDoc = {"--subpixel", "", pbvr::doc::kSubpixel};
+constexpr ParameterDoc kRadiusDoc = {"--radius-scale", "", pbvr::doc::kRadiusScale};
+constexpr ParameterDoc kSamplingDoc = {"--sampling", "", pbvr::doc::kSampling};
+constexpr ParameterDoc kShadingDoc = {
+    "--shading", "", "none, lambert or blinn-phong (headlight, gradient normals)"};
+constexpr ParameterDoc kBackgroundDoc = {"--background", "0..1", "background colour r,g,b"};
+constexpr ParameterDoc kCutDoc = {
+    "--cut-away", "",
+    "box not drawn, opening the volume: 'auto' (the octant facing the camera with the head "
+    "preset, else none), 'none', 'octant', or x0,y0,z0,x1,y1,z1 in mm of the volume's index "
+    "frame (spacing * index)"};
+constexpr ParameterDoc kTimeLimitDoc = {
+    "--time-limit", "s", "stop adding repetitions after this time; 0 = no limit (Ctrl-C also "
+                         "stops and keeps the image so far)"};
+constexpr ParameterDoc kSeedDoc = {
+    "--seed", "", "random seed; the same seed gives identical images on any thread count"};
+constexpr ParameterDoc kReferenceDoc = {
+    "--reference", "",
+    "also render the emission-absorption ray-cast reference to this PNG and report the PSNR"};
+constexpr ParameterDoc kReferenceStepDoc = {"--reference-step", "mm",
+                                            "sample spacing of the reference ray caster"};
+constexpr ParameterDoc kOutDoc = {"--out", "", "output PNG"};
+constexpr ParameterDoc kJsonDoc = {
+    "--json", "", "also write the run record to this file; '-' prints it on stdout"};
+constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void on_interrupt(int) {
+    g_interrupted = true;
+}
+
+std::vector<double> parse_numbers(const std::string& text, const std::string& option,
+                                  std::size_t count) {
+    std::vector<double> values;
+    std::stringstream list(text);
+    for (std::string item; std::getline(list, item, ',');) {
+        try {
+            std::size_t used = 0;
+            values.push_back(std::stod(item, &used));
+            if (used != item.size()) throw std::invalid_argument(item);
+        } catch (const std::exception&) {
+            throw tissue::InputError(option, "", "'" + item + "' is not a number");
+        }
+    }
+    if (values.size() != count)
+        throw tissue::InputError(option, "", "needs " + std::to_string(count) +
+                                                 " comma-separated numbers, got '" + text + "'");
+    return values;
+}
+
+}  // namespace
+
+CLI::App* add_render_command(CLI::App& app, RenderOptions& options) {
+    CLI::App* cmd = app.add_subcommand(
+        "render",
+        "Particle-based volume rendering (Sakamoto & Koyamada) of the 3D tissue context: "
+        "opaque particles generated from the transfer function's opacity, projected with a "
+        "Z-buffer and averaged over repetitions. Writes a PNG (and with --reference the "
+        "ray-cast reference and the PSNR).");
+    add_parameter(*cmd, kVolumeDoc, options.volume);
+    add_parameter(*cmd, kTfDoc, options.tf);
+    add_parameter(*cmd, kAzimuthDoc, options.azimuth_deg);
+    add_parameter(*cmd, kElevationDoc, options.elevation_deg);
+    add_parameter(*cmd, kDistanceDoc, options.distance_mm);
+    add_parameter(*cmd, kFovDoc, options.fov_deg);
+    add_parameter(*cmd, kWidthDoc, options.width);
+    add_parameter(*cmd, kHeightDoc, options.height);
+    add_parameter(*cmd, kRepetitionsDoc, options.repetitions);
+    add_parameter(*cmd, kSubpixelDoc, options.subpixel);
+    add_parameter(*cmd, kRadiusDoc, options.radius_scale);
+    add_parameter(*cmd, kSamplingDoc, options.sampling);
+    add_parameter(*cmd, kShadingDoc, options.shading);
+    add_parameter(*cmd, kBackgroundDoc, options.background);
+    add_parameter(*cmd, kCutDoc, options.cut_away);
+    add_parameter(*cmd, kTimeLimitDoc, options.time_limit_s);
+    add_parameter(*cmd, kSeedDoc, options.seed);
+    add_parameter(*cmd, kReferenceDoc, options.reference);
+    add_parameter(*cmd, kReferenceStepDoc, options.reference_step_mm);
+    add_parameter(*cmd, kOutDoc, options.out);
+    add_parameter(*cmd, kJsonDoc, options.json_path);
+    add_parameter(*cmd, kThreadsDoc, options.threads)->check(CLI::Range(0, 1024));
+    cmd->add_flag("-q,--quiet", options.quiet, "no progress on stderr");
+    return cmd;
+}
+
+int run_render_command(const RenderOptions& options) {
+    StageTimer timer(options.quiet);
+    const auto thread_limit = limit_threads(options.threads);
+
+    // ---- parameters, validated before any heavy work ----
+    pbvr::RenderSettings settings;
+    settings.repetitions = options.repetitions;
+    settings.subpixel_level = options.subpixel;
+    settings.radius_scale = options.radius_scale;
+    settings.seed = options.seed;
+    if (options.sampling == "uniform")
+        settings.sampling = pbvr::Sampling::uniform;
+    else if (options.sampling == "metropolis")
+        settings.sampling = pbvr::Sampling::metropolis;
+    else
+        throw tissue::InputError("--sampling", "", "must be 'uniform' or 'metropolis'");
+    if (options.shading == "none")
+        settings.shading.model = pbvr::Shading::Model::none;
+    else if (options.shading == "lambert")
+        settings.shading.model = pbvr::Shading::Model::lambert;
+    else if (options.shading == "blinn-phong")
+        settings.shading.model = pbvr::Shading::Model::blinn_phong;
+    else
+        throw tissue::InputError("--shading", "", "must be 'none', 'lambert' or 'blinn-phong'");
+    const auto bg = parse_numbers(options.background, "--background", 3);
+    settings.background = glm::vec3(bg[0], bg[1], bg[2]);
+    tissue::require_in_range("--time-limit", "", options.time_limit_s, 0.0, 1e6, "s");
+    settings.validate();
+    const std::filesystem::path out_path(options.out);
+    if (out_path.extension() != ".png")
+        throw tissue::InputError("--out", "", "must name a .png file, got '" + options.out + "'");
+
+    timer.begin("loading transfer function " + options.tf);
+    pbvr::ColourTransferFunction tf = pbvr::load_colour_tf(options.tf);
+    timer.end();
+    timer.begin("loading volume " + options.volume);
+    const tissue::LoadedVolume loaded = tissue::load_volume({options.volume, std::nullopt});
+    loaded.volume.require_finite(loaded.path);
+    tf.bind(loaded.volume);
+    timer.end();
+
+    pbvr::OrbitCamera camera;
+    const tissue::VolumeGeometry& g = loaded.volume.geometry();
+    const glm::dvec3 extent = glm::dvec3(g.dims - 1) * g.spacing;
+    camera.target = g.index_to_world(glm::dvec3(g.dims - 1) * 0.5);
+    camera.azimuth_deg = options.azimuth_deg;
+    camera.elevation_deg = options.elevation_deg;
+    camera.fov_deg = options.fov_deg;
+    camera.width = options.width;
+    camera.height = options.height;
+    // fit: the box's half diagonal (times 0.8: heads do not fill their box's corners)
+    camera.distance_mm = options.distance_mm > 0.0
+                             ? options.distance_mm
+                             : 0.8 * 0.5 * glm::length(extent) /
+                                   std::sin(0.5 * glm::radians(options.fov_deg));
+    camera.validate();
+
+    if (options.cut_away == "octant" || (options.cut_away == "auto" && options.tf == "head")) {
+        // the octant of the box centre that faces the eye, in the index frame
+        const glm::dvec3 to_eye = glm::inverse(g.linear()) * (camera.eye() - camera.target);
+        pbvr::CutAway cut;
+        for (int a = 0; a < 3; ++a) {
+            const float mid = float(0.5 * extent[a]);
+            cut.low[a] = to_eye[a] > 0.0 ? mid : -1.0f;
+            cut.high[a] = to_eye[a] > 0.0 ? float(extent[a]) + 1.0f : mid;
+        }
+        settings.cut_away = cut;
+    } else if (options.cut_away != "auto" && options.cut_away != "none") {
+        const auto v = parse_numbers(options.cut_away, "--cut-away", 6);
+        settings.cut_away = pbvr::CutAway{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5])};
+    }
+
+    timer.begin("preparing volume (normalized values, gradients)");
+    const pbvr::RenderVolume volume(loaded.volume, tf);
+    timer.end();
+    timer.begin("finding occupied cells");
+    pbvr::PbvrRenderer renderer(volume, tf, camera, settings);
+    timer.end();
+    json warnings = json::array();
+    if (renderer.occupied_cells() == 0) {
+        const std::string warning =
+            "the transfer function makes every voxel transparent: the image is the background";
+        warnings.push_back(warning);
+        if (!options.quiet) std::cerr << "sonotrace: warning: " << warning << "\n";
+    }
+
+    // ---- progressive refinement ----
+    g_interrupted = false;
+    const auto previous_handler = std::signal(SIGINT, on_interrupt);
+    const auto start = std::chrono::steady_clock::now();
+    ProgressBar bar("rendering", options.quiet);
+    std::vector<double> repetition_ms;
+    std::string stopped_by = "repetitions";
+    for (int r = 0; r < settings.repetitions; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        renderer.add_repetition();
+        const auto t1 = std::chrono::steady_clock::now();
+        repetition_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+        bar.update(std::size_t(r + 1), std::size_t(settings.repetitions));
+        if (g_interrupted) {
+            stopped_by = "interrupt";
+            break;
+        }
+        if (options.time_limit_s > 0.0 &&
+            std::chrono::duration<double>(t1 - start).count() >= options.time_limit_s) {
+            stopped_by = "time limit";
+            break;
+        }
+    }
+    bar.finish();
+    std::signal(SIGINT, previous_handler);
+    const double render_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const pbvr::RgbImage image = renderer.image();
+
+    json record = {
+        {"version", SONOTRACE_VERSION},
+        {"volume", loaded.path},
+        {"transfer_function", tf.describe()},
+        {"camera",
+         {{"target_mm", {camera.target.x, camera.target.y, camera.target.z}},
+          {"distance_mm", camera.distance_mm},
+          {"azimuth_deg", camera.azimuth_deg},
+          {"elevation_deg", camera.elevation_deg},
+          {"fov_deg", camera.fov_deg},
+          {"width", camera.width},
+          {"height", camera.height}}},
+        {"seed", settings.seed},
+        {"sampling", options.sampling},
+        {"shading", options.shading},
+        {"subpixel_level", settings.subpixel_level},
+        {"particle_radius_mm", renderer.particle_radius_mm()},
+        {"occupied_cells", renderer.occupied_cells()},
+        {"repetitions", renderer.repetitions_done()},
+        {"stopped_by", stopped_by},
+        {"particles_per_repetition",
+         renderer.repetitions_done() > 0
+             ? double(renderer.particles_drawn()) / renderer.repetitions_done()
+             : 0.0},
+        {"render_s", render_s},
+        {"warnings", warnings},
+    };
+    if (settings.cut_away)
+        record["cut_away_mm"] = {settings.cut_away->low.x,  settings.cut_away->low.y,
+                                 settings.cut_away->low.z,  settings.cut_away->high.x,
+                                 settings.cut_away->high.y, settings.cut_away->high.z};
+    if (!repetition_ms.empty()) {
+        std::vector<double> sorted = repetition_ms;
+        std::sort(sorted.begin(), sorted.end());
+        record["ms_per_repetition_median"] = sorted[sorted.size() / 2];
+    }
+
+    tissue::OutputTransaction transaction;
+    imaging::write_png(pbvr::to_picture(image), transaction.stage(options.out));
+    if (!options.reference.empty()) {
+        timer.begin("ray-casting the reference");
+        const pbvr::RgbImage reference =
+            pbvr::raycast(volume, tf, camera, settings, options.reference_step_mm);
+        timer.end();
+        const double db = pbvr::psnr(image, reference);
+        record["reference"] = {{"file", options.reference},
+                               {"step_mm", options.reference_step_mm},
+                               {"psnr_db", db}};
+        if (!options.quiet) std::cerr << "sonotrace: PSNR against the reference: " << db << " dB\n";
+        imaging::write_png(pbvr::to_picture(reference), transaction.stage(options.reference));
+    }
+    record["timings_s"] = timer.timings();
+    if (!options.json_path.empty() && options.json_path != "-")
+        write_json(record, transaction.stage(options.json_path));
+    transaction.commit();
+    if (options.json_path == "-") write_json(record, "-");
+    if (!options.quiet) std::cerr << "sonotrace: wrote " << options.out << "\n";
+    return 0;
+}
+
+}  // namespace sonotrace::ui

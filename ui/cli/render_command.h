@@ -1,0 +1,36 @@
+#pragma once
+// `sonotrace render`: particle-based volume rendering of a volume (the 3D tissue
+// context), with an optional ray-cast reference and its PSNR.
+#include <string>
+
+#include "ui/cli/command_common.h"
+
+namespace sonotrace::ui {
+
+struct RenderOptions {
+    std::string volume = "default";
+    std::string tf = "head";
+    double azimuth_deg = 235.0, elevation_deg = 25.0, distance_mm = 0.0;  // 0 = fit
+    double fov_deg = 30.0;
+    int width = 512, height = 512;
+    int repetitions = 100;
+    int subpixel = 1;
+    double radius_scale = 1.0;
+    std::string sampling = "uniform";
+    std::string shading = "blinn-phong";
+    std::string background = "0,0,0";
+    std::string cut_away = "auto";
+    double time_limit_s = 0.0;
+    uint64_t seed = 1;
+    std::string reference;  // also ray-cast the reference to this PNG and report PSNR
+    double reference_step_mm = 0.25;
+    std::string out = "out/render.png";
+    std::string json_path;
+    int threads = 0;
+    bool quiet = false;
+};
+
+CLI::App* add_render_command(CLI::App& app, RenderOptions& options);
+int run_render_command(const RenderOptions& options);
+
+}  // namespace sonotrace::ui
