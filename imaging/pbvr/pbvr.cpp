@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -27,6 +28,7 @@ RenderVolume::RenderVolume(const tissue::Volume& volume, const ColourTransferFun
     inverse_spacing_ = 1.0f / spacing_;
     extent_ = glm::vec3(n - 1) * spacing_;
     voxels_.resize(volume.size());
+    values_.resize(volume.size());
     tbb::parallel_for(0, n.z, [&](int k) {
         for (int j = 0; j < n.y; ++j) {
             for (int i = 0; i < n.x; ++i) {
@@ -44,6 +46,7 @@ RenderVolume::RenderVolume(const tissue::Volume& volume, const ColourTransferFun
                 const int i0 = std::max(i - 1, 0), i1 = std::min(i + 1, n.x - 1);
                 const int j0 = std::max(j - 1, 0), j1 = std::min(j + 1, n.y - 1);
                 const int k0 = std::max(k - 1, 0), k1 = std::min(k + 1, n.z - 1);
+                values_[volume.linear_index(i, j, k)] = v.value;
                 v.gradient = {d(i0, i1, s(i0, j, k), s(i1, j, k), spacing_.x),
                               d(j0, j1, s(i, j0, k), s(i, j1, k), spacing_.y),
                               d(k0, k1, s(i, j, k0), s(i, j, k1), spacing_.z)};
@@ -74,9 +77,9 @@ glm::vec3 shade(const glm::vec3& colour, const glm::vec3& gradient, const glm::v
     // No surface where the field is flat: ambient + diffuse as if facing the light.
     const float facing = g2 > 1e-12f ? std::abs(glm::dot(gradient, to_eye)) / std::sqrt(g2) : 1.0f;
     glm::vec3 c = colour * (shading.ambient + shading.diffuse * facing);
-    if (shading.model == Shading::Model::blinn_phong) {
+    if (shading.model == Shading::Model::blinn_phong && facing > 0.0f) {
         // headlight: the half vector is the view direction itself
-        c += glm::vec3(shading.specular * std::pow(facing, shading.shininess));
+        c += glm::vec3(shading.specular * std::exp2(shading.shininess * std::log2(facing)));
     }
     return c;
 }
@@ -111,20 +114,64 @@ cv::Mat to_picture(const RgbImage& image) {
     return picture;
 }
 
+namespace {
+
+// Camera rays in the volume's local frame, through points of the sub-pixel grid.
+struct LocalRays {
+    glm::dvec3 eye, right, down, forward, extent;
+    double focal = 1.0, centre_x = 0.0, centre_y = 0.0;
+
+    LocalRays(const RenderVolume& volume, const OrbitCamera& camera, int scale) {
+        const tissue::VolumeGeometry& g = volume.geometry();
+        const glm::dmat3 to_local = glm::inverse(g.direction);  // q = D^-1 (world - origin)
+        eye = to_local * (camera.eye() - g.origin);
+        right = to_local * camera.right(), down = to_local * -camera.up();
+        forward = to_local * camera.forward();
+        extent = glm::dvec3(volume.extent());
+        focal = camera.focal_px() * scale;
+        centre_x = 0.5 * camera.width * scale, centre_y = 0.5 * camera.height * scale;
+    }
+    // Unit direction through the grid point (x, y) (sub-pixel centres at +0.5).
+    glm::dvec3 direction(double x, double y) const {
+        return glm::normalize(forward + (x - centre_x) / focal * right +
+                              (y - centre_y) / focal * down);
+    }
+    // The ray's parameter range inside the volume box (t0 >= t1: misses it).
+    std::pair<double, double> clip(const glm::dvec3& dir) const {
+        double t0 = 0.0, t1 = std::numeric_limits<double>::max();
+        for (int a = 0; a < 3; ++a) {
+            if (std::abs(dir[a]) < 1e-12) {
+                if (eye[a] < 0.0 || eye[a] > extent[a]) t1 = -1.0;
+                continue;
+            }
+            double ta = (0.0 - eye[a]) / dir[a], tb = (extent[a] - eye[a]) / dir[a];
+            if (ta > tb) std::swap(ta, tb);
+            t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+        }
+        return {t0, t1};
+    }
+};
+
+}  // namespace
+
 // ---- particle renderer -------------------------------------------------------------
 
 namespace {
 
-// The Z-buffer of one thread: per sub-pixel the nearest particle's key (depth bits
-// above, particle id below: a total order) and colour.
-struct SubpixelBuffer {
-    std::vector<uint64_t> key;
-    std::vector<glm::vec3> colour;
-    void reset(std::size_t n) {
-        key.assign(n, std::numeric_limits<uint64_t>::max());
-        colour.resize(n);
-    }
-};
+// One Z-buffer entry: depth (float bits, which order like the floats for positive
+// values) above the colour (RGB8) and 8 bits of particle id. The minimum over all
+// particles is a total order, so the buffer's content does not depend on the order in
+// which threads write it (ties in depth are broken by colour, then id).
+constexpr uint64_t kEmpty = std::numeric_limits<uint64_t>::max();
+uint64_t pack(float depth, const glm::vec3& colour, uint32_t id) {
+    auto byte = [](float v) { return uint64_t(std::lround(glm::clamp(v, 0.0f, 1.0f) * 255.0f)); };
+    return uint64_t(std::bit_cast<uint32_t>(depth)) << 32 | byte(colour.x) << 24 |
+           byte(colour.y) << 16 | byte(colour.z) << 8 | (id & 0xFFu);
+}
+glm::vec3 unpack_colour(uint64_t entry) {
+    return glm::vec3(float(entry >> 24 & 0xFF), float(entry >> 16 & 0xFF), float(entry >> 8 & 0xFF)) *
+           (1.0f / 255.0f);
+}
 
 uint32_t particle_id(uint32_t cell, uint32_t k) {
     uint32_t h = cell * 0x9E3779B1u ^ (k + 0x7F4A7C15u) * 0x85EBCA77u;
@@ -164,6 +211,10 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
 
     // Cells that can hold particles, with their majorants.
     const glm::ivec3 n = volume.dims() - 1;
+    if (glm::any(glm::greaterThan(n, glm::ivec3(65535))))
+        throw InputError("volume", "dims", "at most 65536 voxels per axis");
+    const float inverse_area = float(1.0 / (std::numbers::pi * double(radius_) * radius_));
+    const float cell_volume = volume.spacing().x * volume.spacing().y * volume.spacing().z;
     std::vector<std::vector<Cell>> slabs(std::size_t(n.z));
     tbb::parallel_for(0, n.z, [&](int k) {
         for (int j = 0; j < n.y; ++j) {
@@ -178,25 +229,98 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
                     const uint32_t index = uint32_t((std::size_t(k) * std::size_t(n.y) + std::size_t(j)) *
                                                         std::size_t(n.x) +
                                                     std::size_t(i));
-                    slabs[std::size_t(k)].push_back({index, majorant});
+                    const float candidates = majorant * inverse_area * cell_volume;
+                    slabs[std::size_t(k)].push_back(
+                        {uint16_t(i), uint16_t(j), uint16_t(k), index, majorant, candidates,
+                         candidates <= 100.0f ? std::exp(-candidates) : 0.0f});
                 }
             }
         }
     });
     for (auto& slab : slabs) cells_.insert(cells_.end(), slab.begin(), slab.end());
+    // Eq. 13's radii are unbounded, so its particles are never culled.
+    if (settings.occlusion_culling && !adapt_radius_ && !cells_.empty()) cull_hidden_cells();
     accumulated_.assign(std::size_t(camera.width) * std::size_t(camera.height), glm::dvec3(0.0));
+}
+
+void PbvrRenderer::cull_hidden_cells() {
+    // -- the occlusion depth: how deep each ray of a grid over the image (tile corners,
+    // kTile pixels apart) goes before its optical depth reaches kOpticalDepth
+    constexpr int kTile = 4;
+    constexpr float kOpticalDepth = 7.0f;  // transmittance e^-7 < 1e-3 beyond
+    constexpr float kMargin = 2.0f;        // mm
+    const LocalRays rays(volume_, camera_, 1);
+    const int tiles_x = (camera_.width + kTile - 1) / kTile, tiles_y = (camera_.height + kTile - 1) / kTile;
+    const int grid_x = tiles_x + 1, grid_y = tiles_y + 1;
+    const float step = 0.5f * std::min({volume_.spacing().x, volume_.spacing().y, volume_.spacing().z});
+    std::vector<float> occluded_beyond(std::size_t(grid_x) * std::size_t(grid_y),
+                                       std::numeric_limits<float>::infinity());
+    tbb::parallel_for(0, grid_y, [&](int gy) {
+        for (int gx = 0; gx < grid_x; ++gx) {
+            const glm::dvec3 dir = rays.direction(gx * kTile, gy * kTile);
+            const auto [t0, t1] = rays.clip(dir);
+            float tau = 0.0f;
+            for (double t = t0; t < t1; t += step) {
+                const glm::vec3 q(rays.eye + (t + 0.5 * step) * dir);
+                if (settings_.cut_away && settings_.cut_away->contains(q)) continue;
+                tau += generation_tf_.extinction(volume_.sample(q).value) * step;
+                if (tau >= kOpticalDepth) {
+                    occluded_beyond[std::size_t(gy) * std::size_t(grid_x) + std::size_t(gx)] =
+                        float((t + step) * glm::dot(dir, rays.forward));
+                    break;
+                }
+            }
+        }
+    });
+    // -- a cell is hidden if its nearest point lies beyond the occlusion depth of every
+    // grid ray around its projection (with a margin), or off the image
+    const glm::vec3 h = volume_.spacing();
+    const float bound = 0.5f * glm::length(h) + radius_;
+    const float L = float(settings_.subpixel_level);
+    std::vector<uint8_t> keep(cells_.size());
+    tbb::parallel_for(std::size_t(0), cells_.size(), [&](std::size_t c) {
+        const Cell& cell = cells_[c];
+        const glm::vec3 centre = (glm::vec3(float(cell.i), float(cell.j), float(cell.k)) + 0.5f) * h;
+        const glm::vec3 e = to_camera_ * centre + camera_offset_;
+        const float nearest = e.z - bound;
+        if (nearest <= 1e-3f) {
+            keep[c] = 1;
+            return;
+        }
+        const float px = (centre_x_ + focal_ * e.x / e.z) / L, py = (centre_y_ + focal_ * e.y / e.z) / L;
+        const float pr = focal_ * bound / nearest / L;
+        if (px + pr < 0.0f || py + pr < 0.0f || px - pr > float(camera_.width) ||
+            py - pr > float(camera_.height)) {
+            keep[c] = 0;  // off the image
+            return;
+        }
+        const int x0 = std::clamp(int(std::floor((px - pr) / kTile)), 0, tiles_x - 1);
+        const int x1 = std::clamp(int(std::floor((px + pr) / kTile)), 0, tiles_x - 1);
+        const int y0 = std::clamp(int(std::floor((py - pr) / kTile)), 0, tiles_y - 1);
+        const int y1 = std::clamp(int(std::floor((py + pr) / kTile)), 0, tiles_y - 1);
+        float deepest = 0.0f;
+        for (int gy = y0; gy <= y1 + 1; ++gy)
+            for (int gx = x0; gx <= x1 + 1; ++gx)
+                deepest = std::max(deepest, occluded_beyond[std::size_t(gy) * std::size_t(grid_x) +
+                                                            std::size_t(gx)]);
+        keep[c] = nearest <= deepest + kMargin;
+    });
+    std::size_t kept = 0;
+    for (std::size_t c = 0; c < cells_.size(); ++c)
+        if (keep[c]) cells_[kept++] = cells_[c];
+    culled_cells_ = cells_.size() - kept;
+    cells_.resize(kept);
 }
 
 void PbvrRenderer::add_repetition() {
     const std::size_t subpixels = std::size_t(sub_width_) * std::size_t(sub_height_);
-    tbb::enumerable_thread_specific<SubpixelBuffer> buffers([&] {
-        SubpixelBuffer b;
-        b.reset(subpixels);
-        return b;
+    if (zbuffer_.size() != subpixels) zbuffer_ = std::vector<std::atomic<uint64_t>>(subpixels);
+    tbb::parallel_for(std::size_t(0), subpixels, [&](std::size_t s) {
+        zbuffer_[s].store(kEmpty, std::memory_order_relaxed);
     });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
-    const glm::ivec3 n = volume_.dims() - 1;
     const glm::vec3 h = volume_.spacing();
+    const glm::vec3 inverse_h = 1.0f / h;
     const float inverse_area = float(1.0 / (std::numbers::pi * double(radius_) * radius_));
     const uint32_t repetition = uint32_t(repetitions_);
     const auto& cut = settings_.cut_away;
@@ -204,22 +328,28 @@ void PbvrRenderer::add_repetition() {
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, cells_.size(), 2048),
         [&](const tbb::blocked_range<std::size_t>& range) {
-            SubpixelBuffer& buffer = buffers.local();
             uint64_t& drawn = counts.local();
             for (std::size_t c = range.begin(); c != range.end(); ++c) {
-                const Cell cell = cells_[c];
-                const uint32_t i = cell.index % uint32_t(n.x);
-                const uint32_t j = cell.index / uint32_t(n.x) % uint32_t(n.y);
-                const uint32_t k = cell.index / (uint32_t(n.x) * uint32_t(n.y));
-                const glm::vec3 origin = glm::vec3(float(i), float(j), float(k)) * h;
+                const Cell& cell = cells_[c];
+                const glm::vec3 origin = glm::vec3(float(cell.i), float(cell.j), float(cell.k)) * h;
                 CellRandom random(settings_.seed, repetition, cell.index);
                 uint32_t emitted = 0;
-                // -- density: rho = sigma / (pi r^2) of the generation transfer function
+                // -- density: rho = sigma / (pi r^2) of the generation transfer function,
+                // the value interpolated from the cell's corners (loaded once per cell)
+                float corner[8];
+                for (int v = 0; v < 8; ++v)
+                    corner[v] = volume_.value(cell.i + (v & 1), cell.j + (v >> 1 & 1), cell.k + (v >> 2));
                 auto density = [&](const glm::vec3& q) {
-                    const VoxelSample v = volume_.sample(q);
-                    return std::pair{generation_tf_.extinction(v.value) * inverse_area, v};
+                    const glm::vec3 f = (q - origin) * inverse_h;
+                    const float x0 = corner[0] + f.x * (corner[1] - corner[0]);
+                    const float x1 = corner[2] + f.x * (corner[3] - corner[2]);
+                    const float x2 = corner[4] + f.x * (corner[5] - corner[4]);
+                    const float x3 = corner[6] + f.x * (corner[7] - corner[6]);
+                    const float y0 = x0 + f.y * (x1 - x0), y1 = x2 + f.y * (x3 - x2);
+                    const float value = y0 + f.z * (y1 - y0);
+                    return std::pair{generation_tf_.extinction(value) * inverse_area, value};
                 };
-                auto emit = [&](const glm::vec3& q, const VoxelSample& v) {
+                auto emit = [&](const glm::vec3& q, float value) {
                     const uint32_t id = particle_id(cell.index, emitted++);
                     if (cut && cut->contains(q)) return;
                     float radius = radius_;
@@ -227,8 +357,8 @@ void PbvrRenderer::add_repetition() {
                         // Eq. 13 keeps the density and changes the radius. As printed the
                         // ratio is inverted: from eq. 12 with rho fixed,
                         // r' = r sqrt(ln(1 - alpha') / ln(1 - alpha)) = r sqrt(sigma'/sigma).
-                        const float before = generation_tf_.extinction(v.value);
-                        const float after = tf_.extinction(v.value);
+                        const float before = generation_tf_.extinction(value);
+                        const float after = tf_.extinction(value);
                         if (!(after > 0.0f) || !(before > 0.0f)) return;
                         radius *= std::sqrt(after / before);
                     }
@@ -244,41 +374,47 @@ void PbvrRenderer::add_repetition() {
                     const int y0 = std::max(0, int(std::ceil(py - rp - 0.5f)));
                     const int y1 = std::min(sub_height_ - 1, int(std::floor(py + rp - 0.5f)));
                     if (x0 > x1 || y0 > y1) return;
-                    const uint64_t key = uint64_t(std::bit_cast<uint32_t>(e.z)) << 32 | id;
-                    bool shaded = false;
-                    glm::vec3 colour;
-                    // -- the disc: every sub-pixel centre within rp, nearest wins
+                    const uint32_t depth_bits = std::bit_cast<uint32_t>(e.z);
+                    uint64_t entry = 0;  // packed once the particle wins a sub-pixel
+                    // -- the disc, row by row: sub-pixel centres within rp, nearest wins
                     for (int y = y0; y <= y1; ++y) {
                         const float dy = float(y) + 0.5f - py;
-                        for (int x = x0; x <= x1; ++x) {
-                            const float dx = float(x) + 0.5f - px;
-                            if (dx * dx + dy * dy > rp * rp) continue;
-                            const std::size_t s = std::size_t(y) * std::size_t(sub_width_) +
-                                                  std::size_t(x);
-                            if (key >= buffer.key[s]) continue;
-                            if (!shaded) {
-                                colour = shade(tf_.colour(v.value), v.gradient, to_eye_,
-                                               settings_.shading);
-                                shaded = true;
+                        const float half = std::sqrt(std::max(rp * rp - dy * dy, 0.0f));
+                        const int xa = std::max(x0, int(std::ceil(px - half - 0.5f)));
+                        const int xb = std::min(x1, int(std::floor(px + half - 0.5f)));
+                        std::atomic<uint64_t>* row = &zbuffer_[std::size_t(y) * std::size_t(sub_width_)];
+                        for (int x = xa; x <= xb; ++x) {
+                            uint64_t current = row[x].load(std::memory_order_relaxed);
+                            if (uint32_t(current >> 32) < depth_bits) continue;
+                            if (entry == 0) {  // the gradient and shading only for visible particles
+                                entry = pack(e.z,
+                                             shade(tf_.colour(value), volume_.sample(q).gradient,
+                                                   to_eye_, settings_.shading),
+                                             id);
                             }
-                            buffer.key[s] = key;
-                            buffer.colour[s] = colour;
+                            while (entry < current &&
+                                   !row[x].compare_exchange_weak(current, entry,
+                                                                 std::memory_order_relaxed)) {
+                            }
                         }
                     }
                     ++drawn;
                 };
                 const glm::vec3 size = h;
-                if (settings_.sampling == Sampling::uniform)
-                    sample_cell_uniform(origin, size, cell.majorant * inverse_area, density,
-                                        random, emit);
+                if (settings_.sampling == Sampling::uniform) {
+                    const int candidates =
+                        cell.candidates <= 100.0f
+                            ? poisson_count_inversion(cell.candidates, cell.no_candidate, random)
+                            : poisson_count(cell.candidates, random);
+                    thin_candidates(origin, size, cell.majorant * inverse_area, candidates,
+                                    density, random, emit);
+                }
                 else
                     sample_cell_metropolis(origin, size, density, random, emit);
             }
         });
 
-    // -- merge the thread buffers by the same total order, then average sub-pixels
-    std::vector<const SubpixelBuffer*> all;
-    for (const SubpixelBuffer& b : buffers) all.push_back(&b);
+    // -- average the sub-pixels into the ensemble
     for (const uint64_t c : counts) particles_ += c;
     const int L = settings_.subpixel_level;
     const double weight = 1.0 / double(L * L);
@@ -287,14 +423,11 @@ void PbvrRenderer::add_repetition() {
             glm::dvec3 sum(0.0);
             for (int sy = 0; sy < L; ++sy) {
                 for (int sx = 0; sx < L; ++sx) {
-                    const std::size_t s = std::size_t(y * L + sy) * std::size_t(sub_width_) +
-                                          std::size_t(x * L + sx);
-                    uint64_t best = std::numeric_limits<uint64_t>::max();
-                    glm::vec3 colour = settings_.background;
-                    for (const SubpixelBuffer* b : all) {
-                        if (b->key[s] < best) best = b->key[s], colour = b->colour[s];
-                    }
-                    sum += glm::dvec3(colour);
+                    const uint64_t entry =
+                        zbuffer_[std::size_t(y * L + sy) * std::size_t(sub_width_) +
+                                 std::size_t(x * L + sx)]
+                            .load(std::memory_order_relaxed);
+                    sum += glm::dvec3(entry == kEmpty ? settings_.background : unpack_colour(entry));
                 }
             }
             accumulated_[std::size_t(y) * std::size_t(camera_.width) + std::size_t(x)] +=
@@ -321,15 +454,8 @@ RgbImage raycast(const RenderVolume& volume, const ColourTransferFunction& tf,
     settings.validate();
     tissue::require_in_range("raycast", "step", step_mm, 1e-4, 100.0, "mm");
     const int L = settings.subpixel_level;
-    const tissue::VolumeGeometry& g = volume.geometry();
-    // Rays in the local frame: q = D^-1 (world - origin).
-    const glm::dmat3 to_local = glm::inverse(g.direction);
-    const glm::dvec3 eye = to_local * (camera.eye() - g.origin);
-    const glm::dvec3 right = to_local * camera.right(), down = to_local * -camera.up(),
-                     forward = to_local * camera.forward();
-    const glm::vec3 to_eye = glm::normalize(glm::vec3(-forward));
-    const double focal = camera.focal_px() * L;
-    const glm::dvec3 extent(volume.extent());
+    const LocalRays rays(volume, camera, L);
+    const glm::vec3 to_eye = glm::normalize(glm::vec3(-rays.forward));
     const float step = float(step_mm);
     RgbImage out{camera.width, camera.height, {}};
     out.pixels.assign(std::size_t(camera.width) * std::size_t(camera.height), glm::vec3(0.0f));
@@ -338,20 +464,9 @@ RgbImage raycast(const RenderVolume& volume, const ColourTransferFunction& tf,
             glm::dvec3 pixel(0.0);
             for (int sy = 0; sy < L; ++sy) {
                 for (int sx = 0; sx < L; ++sx) {
-                    const double u = (x * L + sx + 0.5 - 0.5 * camera.width * L) / focal;
-                    const double v = (y * L + sy + 0.5 - 0.5 * camera.height * L) / focal;
-                    const glm::dvec3 dir = glm::normalize(forward + u * right + v * down);
-                    // -- clip the ray to the volume box
-                    double t0 = 0.0, t1 = std::numeric_limits<double>::max();
-                    for (int a = 0; a < 3; ++a) {
-                        if (std::abs(dir[a]) < 1e-12) {
-                            if (eye[a] < 0.0 || eye[a] > extent[a]) t1 = -1.0;
-                            continue;
-                        }
-                        double ta = (0.0 - eye[a]) / dir[a], tb = (extent[a] - eye[a]) / dir[a];
-                        if (ta > tb) std::swap(ta, tb);
-                        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
-                    }
+                    const glm::dvec3 dir = rays.direction(x * L + sx + 0.5, y * L + sy + 0.5);
+                    const auto [t0, t1] = rays.clip(dir);
+                    const glm::dvec3& eye = rays.eye;
                     glm::vec3 colour(0.0f);
                     float transmittance = 1.0f;
                     // -- front to back, midpoint samples

@@ -18,6 +18,7 @@
 // Determinism: random numbers come from Philox keyed by (seed, repetition, cell); the
 // Z-buffer orders by (depth, particle key), a total order, and thread-local buffers merge
 // by the same order, so images are byte-identical on any thread count.
+#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <optional>
@@ -52,6 +53,12 @@ class RenderVolume {
     glm::vec3 extent() const { return extent_; }  // (dims - 1) * spacing
     // Trilinear at local position q (clamped to the domain).
     VoxelSample sample(const glm::vec3& q) const;
+    // The normalized value alone (a 4-byte array: generation reads it most).
+    float value(int i, int j, int k) const {
+        return values_[(std::size_t(k) * std::size_t(geometry_.dims.y) + std::size_t(j)) *
+                           std::size_t(geometry_.dims.x) +
+                       std::size_t(i)];
+    }
     const VoxelSample& voxel(int i, int j, int k) const {
         return voxels_[(std::size_t(k) * std::size_t(geometry_.dims.y) + std::size_t(j)) *
                            std::size_t(geometry_.dims.x) +
@@ -62,10 +69,11 @@ class RenderVolume {
     tissue::VolumeGeometry geometry_;
     glm::vec3 spacing_{1.0f}, inverse_spacing_{1.0f}, extent_{0.0f};
     std::vector<VoxelSample> voxels_;
+    std::vector<float> values_;
 };
 
 // Inline: called once per particle candidate and ray-cast sample.
-inline VoxelSample RenderVolume::sample(const glm::vec3& q) const {
+[[gnu::always_inline]] inline VoxelSample RenderVolume::sample(const glm::vec3& q) const {
     const glm::ivec3 n = geometry_.dims;
     glm::ivec3 i0;
     glm::vec3 f;
@@ -122,6 +130,9 @@ struct RenderSettings {
     Shading shading;
     glm::vec3 background{0.0f};
     std::optional<CutAway> cut_away;
+    // Skip cells hidden behind an optical depth of 7 (transmittance < 1e-3) along every
+    // ray of a grid 4 pixels apart around their projection, and cells off the image.
+    bool occlusion_culling = true;
 
     // Throws tissue::InputError("render settings", field).
     void validate() const;
@@ -175,12 +186,17 @@ class PbvrRenderer {
 
     float particle_radius_mm() const { return radius_; }
     uint64_t particles_drawn() const { return particles_; }  // over all repetitions
-    std::size_t occupied_cells() const { return cells_.size(); }
+    std::size_t occupied_cells() const { return cells_.size(); }  // after culling
+    std::size_t culled_cells() const { return culled_cells_; }
 
   private:
+    void cull_hidden_cells();
     struct Cell {
-        uint32_t index;   // linear cell index ((dims - 1) grid)
-        float majorant;   // max sigma over the cell (generation TF)
+        uint16_t i, j, k;       // the cell's corner voxel
+        uint32_t index;         // linear cell index ((dims - 1) grid): its random stream
+        float majorant;         // max sigma over the cell (generation TF), 1/mm
+        float candidates;       // expected candidates: majorant rho * cell volume
+        float no_candidate;     // exp(-candidates) (0 if candidates > 100)
     };
     const RenderVolume& volume_;
     const ColourTransferFunction& tf_;
@@ -195,7 +211,9 @@ class PbvrRenderer {
     int sub_width_ = 0, sub_height_ = 0;
     float radius_ = 0.0f;
     std::vector<Cell> cells_;
+    std::size_t culled_cells_ = 0;
     std::vector<glm::dvec3> accumulated_;  // per pixel, sum over repetitions of sub-pixel means
+    std::vector<std::atomic<uint64_t>> zbuffer_;  // per sub-pixel: depth | RGB8 | id
     int repetitions_ = 0;
     uint64_t particles_ = 0;
 };
