@@ -31,9 +31,8 @@ tissue::Volume make_volume(glm::ivec3 dims, double spacing,
 
 // Opacity per mm rising linearly over 0..1 up to `top`; colour from dark to white.
 ColourTransferFunction ramp(double top) {
-    return ColourTransferFunction("ramp", "test",
-                                  {{0.0, glm::vec3(0.1f), 0.0}, {1.0, glm::vec3(1.0f), top}}, 1.0,
-                                  0.0, 1.0);
+    return ColourTransferFunction(
+        "ramp", "test", {{0.0, glm::vec3(0.1f), 0.0}, {1.0, glm::vec3(1.0f), top}}, 1.0, 0.0, 1.0);
 }
 
 // Poisson pmf of k for mean mu.
@@ -45,9 +44,8 @@ TEST(PbvrSampling, CellCountsArePoissonWithTheDensityIntegral) {
     // One cell with corner values 0..1 and a non-linear opacity ramp: eq. 14's integral of
     // rho = sigma(s(x)) / (pi r^2) by a 64^3 midpoint rule, against 6000 generated cells.
     const float corners[8] = {0.0f, 1.0f, 0.3f, 0.8f, 0.5f, 0.1f, 0.9f, 0.6f};
-    const auto volume_data = make_volume({2, 2, 2}, 1.0, [&](int i, int j, int k) {
-        return corners[i + 2 * j + 4 * k];
-    });
+    const auto volume_data = make_volume(
+        {2, 2, 2}, 1.0, [&](int i, int j, int k) { return corners[i + 2 * j + 4 * k]; });
     ColourTransferFunction tf = ramp(0.9);
     tf.bind(volume_data);
     const RenderVolume volume(volume_data, tf);
@@ -130,8 +128,8 @@ TEST(PbvrSampling, UniformThinningPositionsFollowTheDensity) {
     std::vector<glm::vec3> samples;
     for (uint32_t c = 0; samples.size() < 40000; ++c) {
         CellRandom random(3, 0, c);
-        sample_cell_uniform(glm::vec3(0.0f), glm::vec3(1.0f), 1.5f * 1.5f * 1.25f, density,
-                            random, [&](const glm::vec3& x, int) { samples.push_back(x); });
+        sample_cell_uniform(glm::vec3(0.0f), glm::vec3(1.0f), 1.5f * 1.5f * 1.25f, density, random,
+                            [&](const glm::vec3& x, int) { samples.push_back(x); });
     }
     expect_positions_follow(samples, rho_3d, 4);
 }
@@ -166,8 +164,8 @@ TEST(PbvrSampling, MetropolisSamplesFollowTheDensity1DAnd3D) {
 // view: each pixel's expected value is 1 - exp(-sigma l) for the ray's path l in it.
 struct SlabScene {
     tissue::Volume data = make_volume({41, 6, 41}, 1.0, [](int, int, int) { return 1.0f; });
-    ColourTransferFunction tf{"white", "test", {{0.0, glm::vec3(1.0f), 0.3}, {1.0, glm::vec3(1.0f), 0.3}},
-                              1.0, 0.0, 1.0};
+    ColourTransferFunction tf{
+        "white", "test", {{0.0, glm::vec3(1.0f), 0.3}, {1.0, glm::vec3(1.0f), 0.3}}, 1.0, 0.0, 1.0};
     OrbitCamera camera;
     RenderSettings settings;
     SlabScene() {
@@ -180,9 +178,9 @@ struct SlabScene {
     }
     double expected(int x, int y) const {
         const double f = camera.focal_px();
-        const glm::dvec3 dir = glm::normalize(camera.forward() +
-                                              (x + 0.5 - 12.0) / f * camera.right() -
-                                              (y + 0.5 - 12.0) / f * camera.up());
+        const glm::dvec3 dir =
+            glm::normalize(camera.forward() + (x + 0.5 - 12.0) / f * camera.right() -
+                           (y + 0.5 - 12.0) / f * camera.up());
         const double path = 5.0 / dir.y;  // between the faces y = 0 and y = 5
         const double sigma = -std::log(1.0 - 0.3);
         return 1.0 - std::exp(-sigma * path);
@@ -215,17 +213,17 @@ TEST(Pbvr, HomogeneousSlabConvergesToTheAnalyticTransmittance) {
     // RMSE falls as 1/sqrt(N): 4x from 16 to 256 repetitions (3x allows for noise).
     EXPECT_LT(rmse256, rmse16 / 3.0);
     EXPECT_NEAR(rmse256, std::sqrt(p * (1 - p) / 256.0), 0.3 * std::sqrt(p * (1 - p) / 256.0));
-    ::testing::Test::RecordProperty("bias_rmse_16_256", std::to_string(bias16) + " " +
-                                                            std::to_string(rmse16) + " " +
-                                                            std::to_string(bias256) + " " +
-                                                            std::to_string(rmse256));
+    ::testing::Test::RecordProperty("bias_rmse_16_256",
+                                    std::to_string(bias16) + " " + std::to_string(rmse16) + " " +
+                                        std::to_string(bias256) + " " + std::to_string(rmse256));
 }
 
 // A smooth blob with shading, the scene of the reference and eq. 13 tests.
 struct BlobScene {
     tissue::Volume data = make_volume({48, 48, 48}, 1.0, [](int i, int j, int k) {
         const double r = glm::length(glm::dvec3(i, j, k) - 23.5) / 20.0;
-        return float(std::clamp(1.0 - r * r + 0.1 * std::sin(i * 0.4) * std::cos(k * 0.3), 0.0, 1.0));
+        return float(
+            std::clamp(1.0 - r * r + 0.1 * std::sin(i * 0.4) * std::cos(k * 0.3), 0.0, 1.0));
     });
     ColourTransferFunction tf{"blob",
                               "test",
@@ -263,9 +261,9 @@ TEST(Pbvr, PsnrAgainstTheRayCasterRisesWithRepetitions) {
     EXPECT_GT(db[1], db[0] + 4.5) << db[0] << " " << db[1];
     EXPECT_GT(db[2], db[1] + 4.5) << db[1] << " " << db[2];
     EXPECT_GT(db[2], 35.0);
-    ::testing::Test::RecordProperty("psnr_8_32_128",
-                                    std::to_string(db[0]) + " " + std::to_string(db[1]) + " " +
-                                        std::to_string(db[2]));
+    ::testing::Test::RecordProperty(
+        "psnr_8_32_128",
+        std::to_string(db[0]) + " " + std::to_string(db[1]) + " " + std::to_string(db[2]));
 }
 
 TEST(Pbvr, RadiusAdaptationMatchesRegenerationAfterAnOpacityEdit) {
@@ -294,11 +292,11 @@ TEST(Pbvr, RadiusAdaptationMatchesRegenerationAfterAnOpacityEdit) {
     // The edit is visible: without adaptation the image is far from the edited reference.
     const double unadapted_db = psnr(unadapted.image(), reference);
     EXPECT_LT(unadapted_db, regenerated_db - 8.0);
-    ::testing::Test::RecordProperty(
-        "psnr_regenerated_adapted_unadapted_between",
-        std::to_string(regenerated_db) + " " + std::to_string(adapted_db) + " " +
-            std::to_string(unadapted_db) + " " +
-            std::to_string(psnr(adapted.image(), regenerated.image())));
+    ::testing::Test::RecordProperty("psnr_regenerated_adapted_unadapted_between",
+                                    std::to_string(regenerated_db) + " " +
+                                        std::to_string(adapted_db) + " " +
+                                        std::to_string(unadapted_db) + " " +
+                                        std::to_string(psnr(adapted.image(), regenerated.image())));
     // Fewer particles were generated for the adapted image (the original density).
     EXPECT_LT(adapted.particles_drawn(), regenerated.particles_drawn());
 }
@@ -319,8 +317,8 @@ TEST(Pbvr, ImagesAreByteIdenticalOnOneAndTwoThreads) {
         };
         const RgbImage a = run(1), b = run(2);
         ASSERT_EQ(a.pixels.size(), b.pixels.size());
-        EXPECT_EQ(std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(glm::vec3)),
-                  0);
+        EXPECT_EQ(
+            std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(glm::vec3)), 0);
     }
 }
 
@@ -343,14 +341,33 @@ TEST(Pbvr, MetropolisConvergesToTheSameImage) {
 TEST(PbvrErrors, BadTransferFunctionsCamerasAndSettingsAreNamed) {
     using test::expect_input_error;
     const auto j = [](const char* text) { return nlohmann::json::parse(text); };
-    expect_input_error([&] { parse_colour_tf(j(R"({"points": [{"value": 0, "colour": [0,0,0], "opacity": 0}]})"), "tf.json"); },
-                       "tf.json", "points");
-    expect_input_error([&] { parse_colour_tf(j(R"({"points": [{"value": 0.5, "colour": [0,0,0], "opacity": 0}, {"value": 0.2, "colour": [0,0,0], "opacity": 0}]})"), "tf.json"); },
-                       "tf.json", "points[1].value");
-    expect_input_error([&] { parse_colour_tf(j(R"({"points": [{"value": 0, "colour": [0,0,0], "opacity": 1.5}, {"value": 1, "colour": [0,0,0], "opacity": 0}]})"), "tf.json"); },
-                       "tf.json", "points[0].opacity");
-    expect_input_error([&] { parse_colour_tf(j(R"({"points": [{"value": 0, "colour": [0,2,0], "opacity": 0}, {"value": 1, "colour": [0,0,0], "opacity": 0}]})"), "tf.json"); },
-                       "tf.json", "points[0].colour");
+    expect_input_error(
+        [&] {
+            parse_colour_tf(j(R"({"points": [{"value": 0, "colour": [0,0,0], "opacity": 0}]})"),
+                            "tf.json");
+        },
+        "tf.json", "points");
+    expect_input_error(
+        [&] {
+            parse_colour_tf(
+                j(R"({"points": [{"value": 0.5, "colour": [0,0,0], "opacity": 0}, {"value": 0.2, "colour": [0,0,0], "opacity": 0}]})"),
+                "tf.json");
+        },
+        "tf.json", "points[1].value");
+    expect_input_error(
+        [&] {
+            parse_colour_tf(
+                j(R"({"points": [{"value": 0, "colour": [0,0,0], "opacity": 1.5}, {"value": 1, "colour": [0,0,0], "opacity": 0}]})"),
+                "tf.json");
+        },
+        "tf.json", "points[0].opacity");
+    expect_input_error(
+        [&] {
+            parse_colour_tf(
+                j(R"({"points": [{"value": 0, "colour": [0,2,0], "opacity": 0}, {"value": 1, "colour": [0,0,0], "opacity": 0}]})"),
+                "tf.json");
+        },
+        "tf.json", "points[0].colour");
     expect_input_error([&] { parse_colour_tf(j(R"({"pionts": []})"), "tf.json"); }, "tf.json",
                        "pionts");
     expect_input_error([] { load_colour_tf("/nonexistent/tf.json"); }, "/nonexistent/tf.json", "",
@@ -373,9 +390,8 @@ TEST(PbvrErrors, BadTransferFunctionsCamerasAndSettingsAreNamed) {
 
 TEST(Pbvr, ATransparentVolumeRendersTheBackground) {
     const BlobScene scene;
-    const ColourTransferFunction clear("clear", "test",
-                                       {{0.0, glm::vec3(1.0f), 0.0}, {1.0, glm::vec3(1.0f), 0.0}},
-                                       1.0, 0.0, 1.0);
+    const ColourTransferFunction clear(
+        "clear", "test", {{0.0, glm::vec3(1.0f), 0.0}, {1.0, glm::vec3(1.0f), 0.0}}, 1.0, 0.0, 1.0);
     const RenderVolume volume(scene.data, clear);
     RenderSettings settings = scene.settings;
     settings.background = {0.1f, 0.2f, 0.3f};

@@ -9,11 +9,11 @@
 namespace sonotrace::imaging::pbvr {
 
 struct OrbitCamera {
-    glm::dvec3 target{0.0};       // mm, world
-    double distance_mm = 500.0;   // eye to target
-    double azimuth_deg = 0.0;     // about +z; 0 looks along +y (from -y)
-    double elevation_deg = 0.0;   // above the xy plane
-    double fov_deg = 30.0;        // vertical field of view
+    glm::dvec3 target{0.0};      // mm, world
+    double distance_mm = 500.0;  // eye to target
+    double azimuth_deg = 0.0;    // about +z; 0 looks along +y (from -y)
+    double elevation_deg = 0.0;  // above the xy plane
+    double fov_deg = 30.0;       // vertical field of view
     int width = 512, height = 512;
 
     // Throws tissue::InputError("camera", field) on a zero or inverted field of view, a
@@ -32,7 +32,7 @@ struct OrbitCamera {
 struct Projection {
     glm::mat3 rotation{1.0f};  // rows: right, down, forward
     glm::vec3 eye{0.0f};
-    float focal = 1.0f;        // pixels of the (sub-)pixel grid
+    float focal = 1.0f;  // pixels of the (sub-)pixel grid
     float centre_x = 0.0f, centre_y = 0.0f;
 
     // `scale` sub-pixels per pixel.

@@ -128,8 +128,8 @@ float ColourTransferFunction::max_extinction(float s0, float s1) const {
         int level = 0;
         while ((2 << level) <= span) ++level;
         const auto& table = range_max_[std::size_t(level)];
-        result = std::max({result, table[std::size_t(first)],
-                           table[std::size_t(last - (1 << level) + 1)]});
+        result = std::max(
+            {result, table[std::size_t(first)], table[std::size_t(last - (1 << level) + 1)]});
     }
     return result;
 }

@@ -21,9 +21,9 @@
 namespace sonotrace::imaging::pbvr {
 
 struct ColourPoint {
-    double value = 0.0;          // normalized intensity 0..1
-    glm::vec3 colour{1.0f};      // linear RGB 0..1
-    double opacity = 0.0;        // per unit length, 0..1 (1 is clamped to 1 - 1e-6)
+    double value = 0.0;      // normalized intensity 0..1
+    glm::vec3 colour{1.0f};  // linear RGB 0..1
+    double opacity = 0.0;    // per unit length, 0..1 (1 is clamped to 1 - 1e-6)
 };
 
 class ColourTransferFunction {

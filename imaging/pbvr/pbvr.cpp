@@ -27,32 +27,9 @@ RenderVolume::RenderVolume(const tissue::Volume& volume, const ColourTransferFun
     spacing_ = glm::vec3(geometry_.spacing);
     inverse_spacing_ = 1.0f / spacing_;
     extent_ = glm::vec3(n - 1) * spacing_;
-    voxels_.resize(volume.size());
     values_.resize(volume.size());
-    tbb::parallel_for(0, n.z, [&](int k) {
-        for (int j = 0; j < n.y; ++j) {
-            for (int i = 0; i < n.x; ++i) {
-                auto s = [&](int a, int b, int c) {
-                    return tf.normalize(volume.at(std::clamp(a, 0, n.x - 1),
-                                                  std::clamp(b, 0, n.y - 1),
-                                                  std::clamp(c, 0, n.z - 1)));
-                };
-                VoxelSample& v = voxels_[volume.linear_index(i, j, k)];
-                v.value = s(i, j, k);
-                // central differences (one-sided at the border), per mm
-                auto d = [&](int lo, int hi, float a, float b, float h) {
-                    return (b - a) / (float(hi - lo) * h);
-                };
-                const int i0 = std::max(i - 1, 0), i1 = std::min(i + 1, n.x - 1);
-                const int j0 = std::max(j - 1, 0), j1 = std::min(j + 1, n.y - 1);
-                const int k0 = std::max(k - 1, 0), k1 = std::min(k + 1, n.z - 1);
-                values_[volume.linear_index(i, j, k)] = v.value;
-                v.gradient = {d(i0, i1, s(i0, j, k), s(i1, j, k), spacing_.x),
-                              d(j0, j1, s(i, j0, k), s(i, j1, k), spacing_.y),
-                              d(k0, k1, s(i, j, k0), s(i, j, k1), spacing_.z)};
-            }
-        }
-    });
+    tbb::parallel_for(std::size_t(0), volume.size(),
+                      [&](std::size_t v) { values_[v] = tf.normalize(volume.voxels()[v]); });
 }
 
 // ---- settings, shading, images -----------------------------------------------------
@@ -169,7 +146,8 @@ uint64_t pack(float depth, const glm::vec3& colour, uint32_t id) {
            byte(colour.y) << 16 | byte(colour.z) << 8 | (id & 0xFFu);
 }
 glm::vec3 unpack_colour(uint64_t entry) {
-    return glm::vec3(float(entry >> 24 & 0xFF), float(entry >> 16 & 0xFF), float(entry >> 8 & 0xFF)) *
+    return glm::vec3(float(entry >> 24 & 0xFF), float(entry >> 16 & 0xFF),
+                     float(entry >> 8 & 0xFF)) *
            (1.0f / 255.0f);
 }
 
@@ -215,20 +193,26 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
         throw InputError("volume", "dims", "at most 65536 voxels per axis");
     const float inverse_area = float(1.0 / (std::numbers::pi * double(radius_) * radius_));
     const float cell_volume = volume.spacing().x * volume.spacing().y * volume.spacing().z;
+    // Eq. 13's radii are unbounded, so its particles are never culled.
+    const bool cull = settings.occlusion_culling && !adapt_radius_;
+    if (cull) build_occlusion_map();
     std::vector<std::vector<Cell>> slabs(std::size_t(n.z));
+    std::vector<std::size_t> culled(std::size_t(n.z), 0);
     tbb::parallel_for(0, n.z, [&](int k) {
         for (int j = 0; j < n.y; ++j) {
             for (int i = 0; i < n.x; ++i) {
                 float lo = 1.0f, hi = 0.0f;
                 for (int c = 0; c < 8; ++c) {
-                    const float s = volume.voxel(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2)).value;
+                    const float s = volume.value(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2));
                     lo = std::min(lo, s), hi = std::max(hi, s);
                 }
                 const float majorant = generation_tf_.max_extinction(lo, hi);
-                if (majorant > 0.0f) {
-                    const uint32_t index = uint32_t((std::size_t(k) * std::size_t(n.y) + std::size_t(j)) *
-                                                        std::size_t(n.x) +
-                                                    std::size_t(i));
+                if (majorant > 0.0f && cull && cell_hidden(i, j, k)) {
+                    culled[std::size_t(k)]++;
+                } else if (majorant > 0.0f) {
+                    const uint32_t index = uint32_t(
+                        (std::size_t(k) * std::size_t(n.y) + std::size_t(j)) * std::size_t(n.x) +
+                        std::size_t(i));
                     const float candidates = majorant * inverse_area * cell_volume;
                     slabs[std::size_t(k)].push_back(
                         {uint16_t(i), uint16_t(j), uint16_t(k), index, majorant, candidates,
@@ -237,87 +221,85 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
             }
         }
     });
-    for (auto& slab : slabs) cells_.insert(cells_.end(), slab.begin(), slab.end());
-    // Eq. 13's radii are unbounded, so its particles are never culled.
-    if (settings.occlusion_culling && !adapt_radius_ && !cells_.empty()) cull_hidden_cells();
+    std::size_t total = 0;
+    for (const auto& slab : slabs) total += slab.size();
+    cells_.reserve(total);
+    for (auto& slab : slabs) {
+        cells_.insert(cells_.end(), slab.begin(), slab.end());
+        slab = {};
+    }
+    for (const std::size_t c : culled) culled_cells_ += c;
+    occluded_beyond_ = {};
     accumulated_.assign(std::size_t(camera.width) * std::size_t(camera.height), glm::dvec3(0.0));
 }
 
-void PbvrRenderer::cull_hidden_cells() {
-    // -- the occlusion depth: how deep each ray of a grid over the image (tile corners,
-    // kTile pixels apart) goes before its optical depth reaches kOpticalDepth
-    constexpr int kTile = 4;
-    constexpr float kOpticalDepth = 7.0f;  // transmittance e^-7 < 1e-3 beyond
-    constexpr float kMargin = 2.0f;        // mm
+// The occlusion map: how deep each ray of a grid over the image (tile corners, kTile
+// pixels apart) goes before its optical depth reaches kOpticalDepth (camera depth, mm;
+// infinity if never).
+void PbvrRenderer::build_occlusion_map() {
     const LocalRays rays(volume_, camera_, 1);
-    const int tiles_x = (camera_.width + kTile - 1) / kTile, tiles_y = (camera_.height + kTile - 1) / kTile;
-    const int grid_x = tiles_x + 1, grid_y = tiles_y + 1;
-    const float step = 0.5f * std::min({volume_.spacing().x, volume_.spacing().y, volume_.spacing().z});
-    std::vector<float> occluded_beyond(std::size_t(grid_x) * std::size_t(grid_y),
-                                       std::numeric_limits<float>::infinity());
+    occlusion_tiles_x_ = (camera_.width + kOcclusionTile - 1) / kOcclusionTile;
+    occlusion_tiles_y_ = (camera_.height + kOcclusionTile - 1) / kOcclusionTile;
+    const int grid_x = occlusion_tiles_x_ + 1, grid_y = occlusion_tiles_y_ + 1;
+    const float step =
+        0.5f * std::min({volume_.spacing().x, volume_.spacing().y, volume_.spacing().z});
+    occluded_beyond_.assign(std::size_t(grid_x) * std::size_t(grid_y),
+                            std::numeric_limits<float>::infinity());
     tbb::parallel_for(0, grid_y, [&](int gy) {
         for (int gx = 0; gx < grid_x; ++gx) {
-            const glm::dvec3 dir = rays.direction(gx * kTile, gy * kTile);
+            const glm::dvec3 dir = rays.direction(gx * kOcclusionTile, gy * kOcclusionTile);
             const auto [t0, t1] = rays.clip(dir);
             float tau = 0.0f;
             for (double t = t0; t < t1; t += step) {
                 const glm::vec3 q(rays.eye + (t + 0.5 * step) * dir);
                 if (settings_.cut_away && settings_.cut_away->contains(q)) continue;
-                tau += generation_tf_.extinction(volume_.sample(q).value) * step;
-                if (tau >= kOpticalDepth) {
-                    occluded_beyond[std::size_t(gy) * std::size_t(grid_x) + std::size_t(gx)] =
+                tau += generation_tf_.extinction(volume_.sample_value(q)) * step;
+                if (tau >= kOcclusionDepth) {
+                    occluded_beyond_[std::size_t(gy) * std::size_t(grid_x) + std::size_t(gx)] =
                         float((t + step) * glm::dot(dir, rays.forward));
                     break;
                 }
             }
         }
     });
-    // -- a cell is hidden if its nearest point lies beyond the occlusion depth of every
-    // grid ray around its projection (with a margin), or off the image
+}
+
+// A cell is hidden if its nearest point lies beyond the occlusion depth of every grid
+// ray around its projection (with a margin), or off the image.
+bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
+    constexpr float kMargin = 2.0f;  // mm
     const glm::vec3 h = volume_.spacing();
     const float bound = 0.5f * glm::length(h) + radius_;
     const float L = float(settings_.subpixel_level);
-    std::vector<uint8_t> keep(cells_.size());
-    tbb::parallel_for(std::size_t(0), cells_.size(), [&](std::size_t c) {
-        const Cell& cell = cells_[c];
-        const glm::vec3 centre = (glm::vec3(float(cell.i), float(cell.j), float(cell.k)) + 0.5f) * h;
-        const glm::vec3 e = to_camera_ * centre + camera_offset_;
-        const float nearest = e.z - bound;
-        if (nearest <= 1e-3f) {
-            keep[c] = 1;
-            return;
-        }
-        const float px = (centre_x_ + focal_ * e.x / e.z) / L, py = (centre_y_ + focal_ * e.y / e.z) / L;
-        const float pr = focal_ * bound / nearest / L;
-        if (px + pr < 0.0f || py + pr < 0.0f || px - pr > float(camera_.width) ||
-            py - pr > float(camera_.height)) {
-            keep[c] = 0;  // off the image
-            return;
-        }
-        const int x0 = std::clamp(int(std::floor((px - pr) / kTile)), 0, tiles_x - 1);
-        const int x1 = std::clamp(int(std::floor((px + pr) / kTile)), 0, tiles_x - 1);
-        const int y0 = std::clamp(int(std::floor((py - pr) / kTile)), 0, tiles_y - 1);
-        const int y1 = std::clamp(int(std::floor((py + pr) / kTile)), 0, tiles_y - 1);
-        float deepest = 0.0f;
-        for (int gy = y0; gy <= y1 + 1; ++gy)
-            for (int gx = x0; gx <= x1 + 1; ++gx)
-                deepest = std::max(deepest, occluded_beyond[std::size_t(gy) * std::size_t(grid_x) +
-                                                            std::size_t(gx)]);
-        keep[c] = nearest <= deepest + kMargin;
-    });
-    std::size_t kept = 0;
-    for (std::size_t c = 0; c < cells_.size(); ++c)
-        if (keep[c]) cells_[kept++] = cells_[c];
-    culled_cells_ = cells_.size() - kept;
-    cells_.resize(kept);
+    const glm::vec3 centre = (glm::vec3(float(i), float(j), float(k)) + 0.5f) * h;
+    const glm::vec3 e = to_camera_ * centre + camera_offset_;
+    const float nearest = e.z - bound;
+    if (nearest <= 1e-3f) return false;
+    const float px = (centre_x_ + focal_ * e.x / e.z) / L,
+                py = (centre_y_ + focal_ * e.y / e.z) / L;
+    const float pr = focal_ * bound / nearest / L;
+    if (px + pr < 0.0f || py + pr < 0.0f || px - pr > float(camera_.width) ||
+        py - pr > float(camera_.height))
+        return true;
+    const int tile = kOcclusionTile;
+    const int x0 = std::clamp(int(std::floor((px - pr) / tile)), 0, occlusion_tiles_x_ - 1);
+    const int x1 = std::clamp(int(std::floor((px + pr) / tile)), 0, occlusion_tiles_x_ - 1);
+    const int y0 = std::clamp(int(std::floor((py - pr) / tile)), 0, occlusion_tiles_y_ - 1);
+    const int y1 = std::clamp(int(std::floor((py + pr) / tile)), 0, occlusion_tiles_y_ - 1);
+    float deepest = 0.0f;
+    for (int gy = y0; gy <= y1 + 1; ++gy)
+        for (int gx = x0; gx <= x1 + 1; ++gx)
+            deepest = std::max(
+                deepest, occluded_beyond_[std::size_t(gy) * std::size_t(occlusion_tiles_x_ + 1) +
+                                          std::size_t(gx)]);
+    return nearest > deepest + kMargin;
 }
 
 void PbvrRenderer::add_repetition() {
     const std::size_t subpixels = std::size_t(sub_width_) * std::size_t(sub_height_);
     if (zbuffer_.size() != subpixels) zbuffer_ = std::vector<std::atomic<uint64_t>>(subpixels);
-    tbb::parallel_for(std::size_t(0), subpixels, [&](std::size_t s) {
-        zbuffer_[s].store(kEmpty, std::memory_order_relaxed);
-    });
+    tbb::parallel_for(std::size_t(0), subpixels,
+                      [&](std::size_t s) { zbuffer_[s].store(kEmpty, std::memory_order_relaxed); });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     const glm::vec3 h = volume_.spacing();
     const glm::vec3 inverse_h = 1.0f / h;
@@ -338,7 +320,8 @@ void PbvrRenderer::add_repetition() {
                 // the value interpolated from the cell's corners (loaded once per cell)
                 float corner[8];
                 for (int v = 0; v < 8; ++v)
-                    corner[v] = volume_.value(cell.i + (v & 1), cell.j + (v >> 1 & 1), cell.k + (v >> 2));
+                    corner[v] =
+                        volume_.value(cell.i + (v & 1), cell.j + (v >> 1 & 1), cell.k + (v >> 2));
                 auto density = [&](const glm::vec3& q) {
                     const glm::vec3 f = (q - origin) * inverse_h;
                     const float x0 = corner[0] + f.x * (corner[1] - corner[0]);
@@ -382,11 +365,13 @@ void PbvrRenderer::add_repetition() {
                         const float half = std::sqrt(std::max(rp * rp - dy * dy, 0.0f));
                         const int xa = std::max(x0, int(std::ceil(px - half - 0.5f)));
                         const int xb = std::min(x1, int(std::floor(px + half - 0.5f)));
-                        std::atomic<uint64_t>* row = &zbuffer_[std::size_t(y) * std::size_t(sub_width_)];
+                        std::atomic<uint64_t>* row =
+                            &zbuffer_[std::size_t(y) * std::size_t(sub_width_)];
                         for (int x = xa; x <= xb; ++x) {
                             uint64_t current = row[x].load(std::memory_order_relaxed);
                             if (uint32_t(current >> 32) < depth_bits) continue;
-                            if (entry == 0) {  // the gradient and shading only for visible particles
+                            if (entry ==
+                                0) {  // the gradient and shading only for visible particles
                                 entry = pack(e.z,
                                              shade(tf_.colour(value), volume_.sample(q).gradient,
                                                    to_eye_, settings_.shading),
@@ -406,10 +391,9 @@ void PbvrRenderer::add_repetition() {
                         cell.candidates <= 100.0f
                             ? poisson_count_inversion(cell.candidates, cell.no_candidate, random)
                             : poisson_count(cell.candidates, random);
-                    thin_candidates(origin, size, cell.majorant * inverse_area, candidates,
-                                    density, random, emit);
-                }
-                else
+                    thin_candidates(origin, size, cell.majorant * inverse_area, candidates, density,
+                                    random, emit);
+                } else
                     sample_cell_metropolis(origin, size, density, random, emit);
             }
         });
@@ -427,7 +411,8 @@ void PbvrRenderer::add_repetition() {
                         zbuffer_[std::size_t(y * L + sy) * std::size_t(sub_width_) +
                                  std::size_t(x * L + sx)]
                             .load(std::memory_order_relaxed);
-                    sum += glm::dvec3(entry == kEmpty ? settings_.background : unpack_colour(entry));
+                    sum +=
+                        glm::dvec3(entry == kEmpty ? settings_.background : unpack_colour(entry));
                 }
             }
             accumulated_[std::size_t(y) * std::size_t(camera_.width) + std::size_t(x)] +=

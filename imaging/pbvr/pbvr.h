@@ -41,7 +41,9 @@ struct VoxelSample {
     glm::vec3 gradient{0.0f};
 };
 
-// The volume as the renderers sample it. Local frame: mm along the index axes,
+// The volume as the renderers sample it: the normalized value per voxel (4 bytes; the
+// gradients are central differences computed where a sample needs them, so the volume
+// costs no more than a float copy). Local frame: mm along the index axes,
 // q = spacing * ijk; world = origin + direction * q.
 class RenderVolume {
   public:
@@ -51,57 +53,67 @@ class RenderVolume {
     glm::ivec3 dims() const { return geometry_.dims; }
     glm::vec3 spacing() const { return spacing_; }
     glm::vec3 extent() const { return extent_; }  // (dims - 1) * spacing
-    // Trilinear at local position q (clamped to the domain).
-    VoxelSample sample(const glm::vec3& q) const;
-    // The normalized value alone (a 4-byte array: generation reads it most).
     float value(int i, int j, int k) const {
         return values_[(std::size_t(k) * std::size_t(geometry_.dims.y) + std::size_t(j)) *
                            std::size_t(geometry_.dims.x) +
                        std::size_t(i)];
     }
-    const VoxelSample& voxel(int i, int j, int k) const {
-        return voxels_[(std::size_t(k) * std::size_t(geometry_.dims.y) + std::size_t(j)) *
-                           std::size_t(geometry_.dims.x) +
-                       std::size_t(i)];
-    }
+    // Central differences at a voxel (one-sided at the border), 1/mm.
+    glm::vec3 gradient(int i, int j, int k) const;
+    // Trilinear at local position q (clamped to the domain): the value, and the value
+    // with the voxels' gradients.
+    float sample_value(const glm::vec3& q) const;
+    VoxelSample sample(const glm::vec3& q) const;
 
   private:
+    // The cell corner (clamped so that i0 + 1 stays inside) and the fractions.
+    void locate(const glm::vec3& q, glm::ivec3* i0, glm::vec3* f) const {
+        for (int a = 0; a < 3; ++a) {
+            const float x =
+                glm::clamp(q[a] * inverse_spacing_[a], 0.0f, float(geometry_.dims[a] - 1));
+            (*i0)[a] = std::min(int(x), geometry_.dims[a] - 2);
+            (*f)[a] = x - float((*i0)[a]);
+        }
+    }
     tissue::VolumeGeometry geometry_;
     glm::vec3 spacing_{1.0f}, inverse_spacing_{1.0f}, extent_{0.0f};
-    std::vector<VoxelSample> voxels_;
     std::vector<float> values_;
 };
 
-// Inline: called once per particle candidate and ray-cast sample.
-[[gnu::always_inline]] inline VoxelSample RenderVolume::sample(const glm::vec3& q) const {
-    const glm::ivec3 n = geometry_.dims;
-    glm::ivec3 i0;
+inline float RenderVolume::sample_value(const glm::vec3& q) const {
+    glm::ivec3 i;
     glm::vec3 f;
-    for (int a = 0; a < 3; ++a) {
-        const float x = glm::clamp(q[a] * inverse_spacing_[a], 0.0f, float(n[a] - 1));
-        i0[a] = std::min(int(x), n[a] - 2);
-        f[a] = x - float(i0[a]);
-    }
-    // Blend the four floats of a record as one vector.
-    typedef float v4 __attribute__((vector_size(16)));
-    static_assert(sizeof(VoxelSample) == sizeof(v4));
-    const std::size_t dy = std::size_t(n.x), dz = std::size_t(n.x) * std::size_t(n.y);
-    const VoxelSample* base = &voxels_[std::size_t(i0.z) * dz + std::size_t(i0.y) * dy +
-                                       std::size_t(i0.x)];
-    auto load = [](const VoxelSample* p) {
-        v4 v;
-        std::memcpy(&v, p, sizeof v);
-        return v;
+    locate(q, &i, &f);
+    auto row = [&](int j, int k) {
+        const float a = value(i.x, j, k), b = value(i.x + 1, j, k);
+        return a + f.x * (b - a);
     };
-    auto plane = [&](const VoxelSample* p) {
-        const v4 lower = load(p) + f.x * (load(p + 1) - load(p));
-        const v4 upper = load(p + dy) + f.x * (load(p + dy + 1) - load(p + dy));
-        return lower + f.y * (upper - lower);
-    };
-    const v4 a = plane(base), b = plane(base + dz);
-    const v4 v = a + f.z * (b - a);
+    const float lower = row(i.y, i.z) + f.y * (row(i.y + 1, i.z) - row(i.y, i.z));
+    const float upper = row(i.y, i.z + 1) + f.y * (row(i.y + 1, i.z + 1) - row(i.y, i.z + 1));
+    return lower + f.z * (upper - lower);
+}
+
+inline glm::vec3 RenderVolume::gradient(int i, int j, int k) const {
+    const glm::ivec3 n = geometry_.dims;
+    const int i0 = std::max(i - 1, 0), i1 = std::min(i + 1, n.x - 1);
+    const int j0 = std::max(j - 1, 0), j1 = std::min(j + 1, n.y - 1);
+    const int k0 = std::max(k - 1, 0), k1 = std::min(k + 1, n.z - 1);
+    return {(value(i1, j, k) - value(i0, j, k)) / (float(i1 - i0) * spacing_.x),
+            (value(i, j1, k) - value(i, j0, k)) / (float(j1 - j0) * spacing_.y),
+            (value(i, j, k1) - value(i, j, k0)) / (float(k1 - k0) * spacing_.z)};
+}
+
+inline VoxelSample RenderVolume::sample(const glm::vec3& q) const {
+    glm::ivec3 i;
+    glm::vec3 f;
+    locate(q, &i, &f);
     VoxelSample out;
-    std::memcpy(static_cast<void*>(&out), &v, sizeof out);
+    for (int c = 0; c < 8; ++c) {
+        const int dx = c & 1, dy = c >> 1 & 1, dz = c >> 2;
+        const float w = (dx ? f.x : 1.0f - f.x) * (dy ? f.y : 1.0f - f.y) * (dz ? f.z : 1.0f - f.z);
+        out.value += w * value(i.x + dx, i.y + dy, i.z + dz);
+        out.gradient += w * gradient(i.x + dx, i.y + dy, i.z + dz);
+    }
     return out;
 }
 
@@ -122,7 +134,7 @@ struct CutAway {
 };
 
 struct RenderSettings {
-    int repetitions = 100;  // ensemble size
+    int repetitions = 100;   // ensemble size
     int subpixel_level = 1;  // sub-pixels per pixel side (L x L rays per pixel)
     uint64_t seed = 1;
     Sampling sampling = Sampling::uniform;
@@ -152,7 +164,9 @@ inline constexpr const char* kSampling =
 struct RgbImage {
     int width = 0, height = 0;
     std::vector<glm::vec3> pixels;  // linear RGB, rows top to bottom
-    glm::vec3& at(int x, int y) { return pixels[std::size_t(y) * std::size_t(width) + std::size_t(x)]; }
+    glm::vec3& at(int x, int y) {
+        return pixels[std::size_t(y) * std::size_t(width) + std::size_t(x)];
+    }
     const glm::vec3& at(int x, int y) const {
         return pixels[std::size_t(y) * std::size_t(width) + std::size_t(x)];
     }
@@ -185,18 +199,21 @@ class PbvrRenderer {
     RgbImage image() const;
 
     float particle_radius_mm() const { return radius_; }
-    uint64_t particles_drawn() const { return particles_; }  // over all repetitions
+    uint64_t particles_drawn() const { return particles_; }       // over all repetitions
     std::size_t occupied_cells() const { return cells_.size(); }  // after culling
     std::size_t culled_cells() const { return culled_cells_; }
 
   private:
-    void cull_hidden_cells();
+    static constexpr int kOcclusionTile = 4;        // pixels between occlusion rays
+    static constexpr float kOcclusionDepth = 7.0f;  // transmittance e^-7 < 1e-3 beyond
+    void build_occlusion_map();
+    bool cell_hidden(int i, int j, int k) const;
     struct Cell {
-        uint16_t i, j, k;       // the cell's corner voxel
-        uint32_t index;         // linear cell index ((dims - 1) grid): its random stream
-        float majorant;         // max sigma over the cell (generation TF), 1/mm
-        float candidates;       // expected candidates: majorant rho * cell volume
-        float no_candidate;     // exp(-candidates) (0 if candidates > 100)
+        uint16_t i, j, k;    // the cell's corner voxel
+        uint32_t index;      // linear cell index ((dims - 1) grid): its random stream
+        float majorant;      // max sigma over the cell (generation TF), 1/mm
+        float candidates;    // expected candidates: majorant rho * cell volume
+        float no_candidate;  // exp(-candidates) (0 if candidates > 100)
     };
     const RenderVolume& volume_;
     const ColourTransferFunction& tf_;
@@ -212,6 +229,8 @@ class PbvrRenderer {
     float radius_ = 0.0f;
     std::vector<Cell> cells_;
     std::size_t culled_cells_ = 0;
+    std::vector<float> occluded_beyond_;  // the occlusion map while cells are listed
+    int occlusion_tiles_x_ = 0, occlusion_tiles_y_ = 0;
     std::vector<glm::dvec3> accumulated_;  // per pixel, sum over repetitions of sub-pixel means
     std::vector<std::atomic<uint64_t>> zbuffer_;  // per sub-pixel: depth | RGB8 | id
     int repetitions_ = 0;

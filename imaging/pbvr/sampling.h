@@ -18,7 +18,6 @@
 
 #include <glm/glm.hpp>
 
-
 namespace sonotrace::imaging::pbvr {
 
 enum class Sampling { uniform, metropolis };
@@ -85,12 +84,10 @@ inline int poisson_count(double mean, CellRandom& random) {
 
 // Thinning of `candidates` uniform candidates in the box (see sample_cell_uniform).
 template <typename Density, typename Emit>
-void thin_candidates(const glm::vec3& origin, const glm::vec3& size, float majorant,
-                     int candidates, const Density& density, CellRandom& random,
-                     const Emit& emit) {
+void thin_candidates(const glm::vec3& origin, const glm::vec3& size, float majorant, int candidates,
+                     const Density& density, CellRandom& random, const Emit& emit) {
     for (int c = 0; c < candidates; ++c) {
-        const glm::vec3 x =
-            origin + size * glm::vec3(random.next(), random.next(), random.next());
+        const glm::vec3 x = origin + size * glm::vec3(random.next(), random.next(), random.next());
         const auto [rho, payload] = density(x);
         if (random.next() * majorant < rho) emit(x, payload);
     }
@@ -110,9 +107,8 @@ void sample_cell_uniform(const glm::vec3& origin, const glm::vec3& size, float m
 
 // Metropolis in the box; `burn_in` proposals before the first particle.
 template <typename Density, typename Emit>
-void sample_cell_metropolis(const glm::vec3& origin, const glm::vec3& size,
-                            const Density& density, CellRandom& random, const Emit& emit,
-                            int burn_in = 4) {
+void sample_cell_metropolis(const glm::vec3& origin, const glm::vec3& size, const Density& density,
+                            CellRandom& random, const Emit& emit, int burn_in = 4) {
     // Integral by the 2x2x2 Gauss-Legendre rule (exact for cubic polynomials per axis).
     constexpr float g = 0.21132487f;  // (1 - 1/sqrt 3) / 2
     double integral = 0.0;

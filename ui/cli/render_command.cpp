@@ -39,8 +39,8 @@ constexpr ParameterDoc kRepetitionsDoc = {"--repetitions", "", pbvr::doc::kRepet
 constexpr ParameterDoc kSubpixelDoc = {"--subpixel", "", pbvr::doc::kSubpixel};
 constexpr ParameterDoc kRadiusDoc = {"--radius-scale", "", pbvr::doc::kRadiusScale};
 constexpr ParameterDoc kSamplingDoc = {"--sampling", "", pbvr::doc::kSampling};
-constexpr ParameterDoc kShadingDoc = {
-    "--shading", "", "none, lambert or blinn-phong (headlight, gradient normals)"};
+constexpr ParameterDoc kShadingDoc = {"--shading", "",
+                                      "none, lambert or blinn-phong (headlight, gradient normals)"};
 constexpr ParameterDoc kBackgroundDoc = {"--background", "0..1", "background colour r,g,b"};
 constexpr ParameterDoc kCutDoc = {
     "--cut-away", "",
@@ -48,8 +48,9 @@ constexpr ParameterDoc kCutDoc = {
     "preset, else none), 'none', 'octant', or x0,y0,z0,x1,y1,z1 in mm of the volume's index "
     "frame (spacing * index)"};
 constexpr ParameterDoc kTimeLimitDoc = {
-    "--time-limit", "s", "stop adding repetitions after this time; 0 = no limit (Ctrl-C also "
-                         "stops and keeps the image so far)"};
+    "--time-limit", "s",
+    "stop adding repetitions after this time; 0 = no limit (Ctrl-C also "
+    "stops and keeps the image so far)"};
 constexpr ParameterDoc kSeedDoc = {
     "--seed", "", "random seed; the same seed gives identical images on any thread count"};
 constexpr ParameterDoc kReferenceDoc = {
@@ -81,8 +82,9 @@ std::vector<double> parse_numbers(const std::string& text, const std::string& op
         }
     }
     if (values.size() != count)
-        throw tissue::InputError(option, "", "needs " + std::to_string(count) +
-                                                 " comma-separated numbers, got '" + text + "'");
+        throw tissue::InputError(
+            option, "",
+            "needs " + std::to_string(count) + " comma-separated numbers, got '" + text + "'");
     return values;
 }
 
@@ -172,10 +174,10 @@ int run_render_command(const RenderOptions& options) {
     camera.width = options.width;
     camera.height = options.height;
     // fit: the box's half diagonal (times 0.8: heads do not fill their box's corners)
-    camera.distance_mm = options.distance_mm > 0.0
-                             ? options.distance_mm
-                             : 0.8 * 0.5 * glm::length(extent) /
-                                   std::sin(0.5 * glm::radians(options.fov_deg));
+    camera.distance_mm =
+        options.distance_mm > 0.0
+            ? options.distance_mm
+            : 0.8 * 0.5 * glm::length(extent) / std::sin(0.5 * glm::radians(options.fov_deg));
     camera.validate();
 
     if (options.cut_away == "octant" || (options.cut_away == "auto" && options.tf == "head")) {
@@ -281,9 +283,8 @@ int run_render_command(const RenderOptions& options) {
             pbvr::raycast(volume, tf, camera, settings, options.reference_step_mm);
         timer.end();
         const double db = pbvr::psnr(image, reference);
-        record["reference"] = {{"file", options.reference},
-                               {"step_mm", options.reference_step_mm},
-                               {"psnr_db", db}};
+        record["reference"] = {
+            {"file", options.reference}, {"step_mm", options.reference_step_mm}, {"psnr_db", db}};
         if (!options.quiet) std::cerr << "sonotrace: PSNR against the reference: " << db << " dB\n";
         imaging::write_png(pbvr::to_picture(reference), transaction.stage(options.reference));
     }

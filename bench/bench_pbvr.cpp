@@ -1,0 +1,115 @@
+// Particle-based volume rendering of the Colin27 head preset at 512 x 512: milliseconds
+// per repetition, time to reach 30 and 35 dB PSNR against the ray-cast reference, peak
+// memory. Prints one JSON record per configuration (a bench command, not Google
+// Benchmark: the quantity is a time-to-quality, measured once per configuration).
+//
+//   build/bench/bench_pbvr [max_repetitions]
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "imaging/pbvr/pbvr.h"
+#include "tissue/volume_io.h"
+
+namespace {
+
+using namespace sonotrace;
+using namespace sonotrace::imaging::pbvr;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+double peak_rss_mb() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    return double(usage.ru_maxrss) / 1024.0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    const int max_repetitions = argc > 1 ? std::atoi(argv[1]) : 48;
+    auto t = Clock::now();
+    const tissue::Volume head =
+        tissue::load_volume({tissue::kDefaultVolumeName, std::nullopt}).volume;
+    ColourTransferFunction tf = load_colour_tf("head");
+    tf.bind(head);
+    const RenderVolume volume(head, tf);
+    const double prepare_s = seconds_since(t);
+
+    // The head preset's view, as `sonotrace render` sets it up.
+    OrbitCamera camera;
+    const tissue::VolumeGeometry& g = head.geometry();
+    const glm::dvec3 extent = glm::dvec3(g.dims - 1) * g.spacing;
+    camera.target = g.index_to_world(glm::dvec3(g.dims - 1) * 0.5);
+    camera.azimuth_deg = 235.0;
+    camera.elevation_deg = 25.0;
+    camera.distance_mm = 0.8 * 0.5 * glm::length(extent) / std::sin(glm::radians(15.0));
+    camera.width = camera.height = 512;
+    CutAway cut;
+    const glm::dvec3 to_eye = glm::inverse(g.linear()) * (camera.eye() - camera.target);
+    for (int a = 0; a < 3; ++a) {
+        const float mid = float(0.5 * extent[a]);
+        cut.low[a] = to_eye[a] > 0.0 ? mid : -1.0f;
+        cut.high[a] = to_eye[a] > 0.0 ? float(extent[a]) + 1.0f : mid;
+    }
+
+    struct Config {
+        int subpixel;
+        double radius_scale;
+    };
+    for (const Config config : {Config{2, 2.0}, Config{1, 1.0}, Config{2, 3.0}}) {
+        RenderSettings settings;
+        settings.subpixel_level = config.subpixel;
+        settings.radius_scale = config.radius_scale;
+        settings.cut_away = cut;
+        t = Clock::now();
+        const RgbImage reference = raycast(volume, tf, camera, settings, 0.25);
+        const double reference_s = seconds_since(t);
+
+        t = Clock::now();
+        PbvrRenderer renderer(volume, tf, camera, settings);
+        const double setup_s = seconds_since(t);
+        double rendering_s = setup_s, to_30 = -1.0, to_35 = -1.0, db = 0.0;
+        std::vector<double> ms;
+        nlohmann::json curve = nlohmann::json::array();
+        for (int r = 1; r <= max_repetitions && to_35 < 0.0; ++r) {
+            t = Clock::now();
+            renderer.add_repetition();
+            const double s = seconds_since(t);
+            ms.push_back(1e3 * s);
+            rendering_s += s;
+            db = psnr(renderer.image(), reference);  // not timed
+            curve.push_back({{"repetitions", r}, {"s", rendering_s}, {"psnr_db", db}});
+            if (to_30 < 0.0 && db >= 30.0) to_30 = rendering_s;
+            if (to_35 < 0.0 && db >= 35.0) to_35 = rendering_s;
+        }
+        std::sort(ms.begin(), ms.end());
+        const nlohmann::json record = {
+            {"image", "512x512"},
+            {"subpixel_level", config.subpixel},
+            {"radius_scale", config.radius_scale},
+            {"particle_radius_mm", renderer.particle_radius_mm()},
+            {"cells_drawn", renderer.occupied_cells()},
+            {"cells_culled", renderer.culled_cells()},
+            {"particles_per_repetition", double(renderer.particles_drawn()) / double(ms.size())},
+            {"volume_prepare_s", prepare_s},
+            {"renderer_setup_s", setup_s},
+            {"ms_per_repetition_median", ms[ms.size() / 2]},
+            {"s_to_30_db", to_30},
+            {"s_to_35_db", to_35},
+            {"final_psnr_db", db},
+            {"reference_raycast_s", reference_s},
+            {"peak_rss_mb", peak_rss_mb()},
+            {"curve", curve},
+        };
+        std::cout << record.dump() << std::endl;
+    }
+    return 0;
+}
