@@ -44,21 +44,9 @@ int main(int argc, char** argv) {
     const double prepare_s = seconds_since(t);
 
     // The head preset's view, as `sonotrace render` sets it up.
-    OrbitCamera camera;
-    const tissue::VolumeGeometry& g = head.geometry();
-    const glm::dvec3 extent = glm::dvec3(g.dims - 1) * g.spacing;
-    camera.target = g.index_to_world(glm::dvec3(g.dims - 1) * 0.5);
-    camera.azimuth_deg = 235.0;
-    camera.elevation_deg = 25.0;
-    camera.distance_mm = 0.8 * 0.5 * glm::length(extent) / std::sin(glm::radians(15.0));
-    camera.width = camera.height = 512;
-    CutAway cut;
-    const glm::dvec3 to_eye = glm::inverse(g.linear()) * (camera.eye() - camera.target);
-    for (int a = 0; a < 3; ++a) {
-        const float mid = float(0.5 * extent[a]);
-        cut.low[a] = to_eye[a] > 0.0 ? mid : -1.0f;
-        cut.high[a] = to_eye[a] > 0.0 ? float(extent[a]) + 1.0f : mid;
-    }
+    const OrbitCamera camera =
+        fit_camera(head.geometry(), kHeadAzimuthDeg, kHeadElevationDeg, 30.0, 512, 512);
+    const CutAway cut = facing_octant(head.geometry(), camera);
 
     struct Config {
         int subpixel;

@@ -175,6 +175,9 @@ struct SlabScene {
         camera.fov_deg = 4.0;  // 21 mm across at the slab: inside its 40 mm
         camera.width = camera.height = 24;
         settings.shading.model = Shading::Model::none;
+        // one sample per pixel and repetition: the statistics below assume it
+        settings.subpixel_level = 1;
+        settings.radius_scale = 1.0;
     }
     double expected(int x, int y) const {
         const double f = camera.focal_px();
@@ -242,6 +245,8 @@ struct BlobScene {
         camera.azimuth_deg = 30.0;
         camera.elevation_deg = 20.0;
         camera.width = camera.height = 96;
+        settings.subpixel_level = 1;  // the PSNR figures in the comments are for these
+        settings.radius_scale = 1.0;
     }
 };
 

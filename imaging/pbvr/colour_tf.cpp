@@ -22,20 +22,20 @@ constexpr double kMaxOpacity = 1.0 - 1e-6;
 // 0.15-0.22, grey matter ~0.5, white matter ~0.68, scalp fat and marrow >= 0.9.
 constexpr const char* kHeadPreset = R"({
   "name": "head",
-  "description": "T1 head MRI: skin and scalp tan and nearly opaque, the skull band ivory, CSF clear, grey matter rose, white matter pale; per 1 mm",
+  "description": "T1 head MRI: skin and scalp tan, the skull band ivory, CSF clear (sulci and ventricles open), grey matter rose, white matter pale; opacity per 1 mm",
   "normalization": {"low_quantile": 0.0, "high_quantile": 0.99},
   "unit_length_mm": 1.0,
   "points": [
     {"value": 0.00, "colour": [0.0, 0.0, 0.0], "opacity": 0.0},
-    {"value": 0.04, "colour": [0.9, 0.88, 0.8], "opacity": 0.0},
-    {"value": 0.07, "colour": [0.95, 0.93, 0.85], "opacity": 0.35},
-    {"value": 0.11, "colour": [0.95, 0.93, 0.85], "opacity": 0.35},
-    {"value": 0.15, "colour": [0.6, 0.7, 0.9], "opacity": 0.0},
-    {"value": 0.30, "colour": [0.7, 0.5, 0.5], "opacity": 0.0},
-    {"value": 0.45, "colour": [0.85, 0.5, 0.5], "opacity": 0.25},
-    {"value": 0.68, "colour": [0.95, 0.88, 0.82], "opacity": 0.35},
-    {"value": 0.80, "colour": [0.92, 0.72, 0.58], "opacity": 0.5},
-    {"value": 1.00, "colour": [0.95, 0.78, 0.62], "opacity": 0.7}
+    {"value": 0.04, "colour": [0.95, 0.93, 0.86], "opacity": 0.0},
+    {"value": 0.07, "colour": [0.96, 0.94, 0.86], "opacity": 0.6},
+    {"value": 0.11, "colour": [0.96, 0.94, 0.86], "opacity": 0.6},
+    {"value": 0.15, "colour": [0.5, 0.6, 0.8], "opacity": 0.0},
+    {"value": 0.30, "colour": [0.7, 0.4, 0.4], "opacity": 0.0},
+    {"value": 0.45, "colour": [0.78, 0.42, 0.42], "opacity": 0.25},
+    {"value": 0.68, "colour": [0.93, 0.85, 0.78], "opacity": 0.4},
+    {"value": 0.80, "colour": [0.86, 0.62, 0.48], "opacity": 0.5},
+    {"value": 1.00, "colour": [0.88, 0.66, 0.52], "opacity": 0.7}
   ]
 })";
 

@@ -32,6 +32,35 @@ RenderVolume::RenderVolume(const tissue::Volume& volume, const ColourTransferFun
                       [&](std::size_t v) { values_[v] = tf.normalize(volume.voxels()[v]); });
 }
 
+// ---- views -------------------------------------------------------------------------
+
+OrbitCamera fit_camera(const tissue::VolumeGeometry& geometry, double azimuth_deg,
+                       double elevation_deg, double fov_deg, int width, int height) {
+    OrbitCamera camera;
+    const glm::dvec3 extent = glm::dvec3(geometry.dims - 1) * geometry.spacing;
+    camera.target = geometry.index_to_world(glm::dvec3(geometry.dims - 1) * 0.5);
+    camera.azimuth_deg = azimuth_deg;
+    camera.elevation_deg = elevation_deg;
+    camera.fov_deg = fov_deg;
+    camera.width = width;
+    camera.height = height;
+    camera.distance_mm =
+        0.8 * 0.5 * glm::length(extent) / std::sin(0.5 * glm::radians(std::max(fov_deg, 0.1)));
+    return camera;
+}
+
+CutAway facing_octant(const tissue::VolumeGeometry& geometry, const OrbitCamera& camera) {
+    const glm::dvec3 extent = glm::dvec3(geometry.dims - 1) * geometry.spacing;
+    const glm::dvec3 to_eye = glm::inverse(geometry.linear()) * (camera.eye() - camera.target);
+    CutAway cut;
+    for (int a = 0; a < 3; ++a) {
+        const float mid = float(0.5 * extent[a]);
+        cut.low[a] = to_eye[a] > 0.0 ? mid : -1.0f;
+        cut.high[a] = to_eye[a] > 0.0 ? float(extent[a]) + 1.0f : mid;
+    }
+    return cut;
+}
+
 // ---- settings, shading, images -----------------------------------------------------
 
 void RenderSettings::validate() const {
@@ -81,9 +110,8 @@ cv::Mat to_picture(const RgbImage& image) {
     for (int y = 0; y < image.height; ++y) {
         for (int x = 0; x < image.width; ++x) {
             const glm::vec3& c = image.at(x, y);
-            auto byte = [](float v) {  // display gamma 2.2 of the linear colour
-                return static_cast<unsigned char>(
-                    std::lround(std::pow(glm::clamp(v, 0.0f, 1.0f), 1.0f / 2.2f) * 255.0f));
+            auto byte = [](float v) {  // colours are display colours (as the TF gives them)
+                return static_cast<unsigned char>(std::lround(glm::clamp(v, 0.0f, 1.0f) * 255.0f));
             };
             picture.at<cv::Vec3b>(y, x) = {byte(c.z), byte(c.y), byte(c.x)};
         }

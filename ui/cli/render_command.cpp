@@ -164,32 +164,14 @@ int run_render_command(const RenderOptions& options) {
     tf.bind(loaded.volume);
     timer.end();
 
-    pbvr::OrbitCamera camera;
     const tissue::VolumeGeometry& g = loaded.volume.geometry();
-    const glm::dvec3 extent = glm::dvec3(g.dims - 1) * g.spacing;
-    camera.target = g.index_to_world(glm::dvec3(g.dims - 1) * 0.5);
-    camera.azimuth_deg = options.azimuth_deg;
-    camera.elevation_deg = options.elevation_deg;
-    camera.fov_deg = options.fov_deg;
-    camera.width = options.width;
-    camera.height = options.height;
-    // fit: the box's half diagonal (times 0.8: heads do not fill their box's corners)
-    camera.distance_mm =
-        options.distance_mm > 0.0
-            ? options.distance_mm
-            : 0.8 * 0.5 * glm::length(extent) / std::sin(0.5 * glm::radians(options.fov_deg));
+    pbvr::OrbitCamera camera = pbvr::fit_camera(g, options.azimuth_deg, options.elevation_deg,
+                                                options.fov_deg, options.width, options.height);
+    if (options.distance_mm > 0.0) camera.distance_mm = options.distance_mm;
     camera.validate();
 
     if (options.cut_away == "octant" || (options.cut_away == "auto" && options.tf == "head")) {
-        // the octant of the box centre that faces the eye, in the index frame
-        const glm::dvec3 to_eye = glm::inverse(g.linear()) * (camera.eye() - camera.target);
-        pbvr::CutAway cut;
-        for (int a = 0; a < 3; ++a) {
-            const float mid = float(0.5 * extent[a]);
-            cut.low[a] = to_eye[a] > 0.0 ? mid : -1.0f;
-            cut.high[a] = to_eye[a] > 0.0 ? float(extent[a]) + 1.0f : mid;
-        }
-        settings.cut_away = cut;
+        settings.cut_away = pbvr::facing_octant(g, camera);
     } else if (options.cut_away != "auto" && options.cut_away != "none") {
         const auto v = parse_numbers(options.cut_away, "--cut-away", 6);
         settings.cut_away = pbvr::CutAway{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5])};

@@ -3,6 +3,7 @@
 // context), with an optional ray-cast reference and its PSNR.
 #include <string>
 
+#include "imaging/pbvr/pbvr.h"
 #include "ui/cli/command_common.h"
 
 namespace sonotrace::ui {
@@ -10,12 +11,14 @@ namespace sonotrace::ui {
 struct RenderOptions {
     std::string volume = "default";
     std::string tf = "head";
-    double azimuth_deg = 235.0, elevation_deg = 25.0, distance_mm = 0.0;  // 0 = fit
+    double azimuth_deg = imaging::pbvr::kHeadAzimuthDeg;
+    double elevation_deg = imaging::pbvr::kHeadElevationDeg;
+    double distance_mm = 0.0;  // 0 = fit
     double fov_deg = 30.0;
     int width = 512, height = 512;
-    int repetitions = 100;
-    int subpixel = 1;
-    double radius_scale = 1.0;
+    int repetitions = imaging::pbvr::RenderSettings{}.repetitions;
+    int subpixel = imaging::pbvr::RenderSettings{}.subpixel_level;
+    double radius_scale = imaging::pbvr::RenderSettings{}.radius_scale;
     std::string sampling = "uniform";
     std::string shading = "blinn-phong";
     std::string background = "0,0,0";
