@@ -1,0 +1,130 @@
+// `sonotrace render` end to end on a small synthetic volume: outputs, the JSON record,
+// determinism across thread counts, and bad input (clear message, non-zero exit, no
+// partial files).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "test_util.h"
+#include "tissue/raw_io.h"
+
+namespace sonotrace {
+namespace {
+
+using test::files_in;
+using test::run;
+using test::ScratchDir;
+using test::slurp;
+
+// A 40^3 sphere of rising intensity in a raw volume.
+std::string write_sphere(const ScratchDir& dir) {
+    tissue::VolumeGeometry g;
+    g.dims = {40, 40, 40};
+    g.spacing = glm::dvec3(1.0);
+    tissue::Volume v(g);
+    for (int k = 0; k < 40; ++k)
+        for (int j = 0; j < 40; ++j)
+            for (int i = 0; i < 40; ++i)
+                v.at(i, j, k) = float(std::max(0.0, 18.0 - glm::length(glm::dvec3(i, j, k) - 19.5)));
+    tissue::write_raw(v, dir / "sphere.raw");
+    return dir / "sphere.json";
+}
+
+TEST(CliRender, WritesTheImageTheReferenceAndTheRecord) {
+    ScratchDir dir;
+    const std::string volume = write_sphere(dir);
+    const auto r = run(dir, "render -q --volume " + volume + " --tf ramp --width 64 --height 48 "
+                            "--repetitions 4 --out " + (dir / "out/v.png") + " --reference " +
+                            (dir / "out/ref.png") + " --json " + (dir / "out/v.json"));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto record = nlohmann::json::parse(slurp(dir / "out/v.json"));
+    EXPECT_EQ(record["repetitions"], 4);
+    EXPECT_EQ(record["camera"]["width"], 64);
+    EXPECT_GT(record["reference"]["psnr_db"].get<double>(), 15.0);
+    EXPECT_GT(record["particles_per_repetition"].get<double>(), 0.0);
+    EXPECT_FALSE(record.contains("cut_away_mm"));  // auto: only with the head preset
+    EXPECT_EQ(files_in(dir / "out").size(), 3u);
+}
+
+TEST(CliRender, SameImageOnOneAndTwoThreads) {
+    ScratchDir dir;
+    const std::string volume = write_sphere(dir);
+    for (const char* threads : {"1", "2"}) {
+        const auto r = run(dir, "render -q --volume " + volume + " --tf ramp --width 64 --height 64 "
+                                "--repetitions 3 --sampling metropolis --threads " +
+                                    std::string(threads) + " --out " + (dir / threads) + ".png");
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+    }
+    EXPECT_EQ(slurp(dir / "1.png"), slurp(dir / "2.png"));
+}
+
+TEST(CliRender, HelpExplainsUnits) {
+    ScratchDir dir;
+    const auto r = run(dir, "render --help");
+    ASSERT_EQ(r.exit_code, 0);
+    for (const char* text : {"--azimuth", "[degrees]", "--distance", "[mm]", "--repetitions",
+                             "--subpixel", "--cut-away", "--time-limit", "[s]"})
+        EXPECT_NE(r.out.find(text), std::string::npos) << text;
+}
+
+TEST(CliRender, ATransparentTransferFunctionWarnsAndWritesTheBackground) {
+    ScratchDir dir;
+    const std::string volume = write_sphere(dir);
+    std::ofstream(dir / "clear.json") << R"({"points": [{"value": 0, "colour": [1,1,1], "opacity": 0},
+        {"value": 1, "colour": [1,1,1], "opacity": 0}]})";
+    const auto r = run(dir, "render --volume " + volume + " --tf " + (dir / "clear.json") +
+                                " --width 16 --height 16 --repetitions 1 --out " + (dir / "c.png"));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("warning: the transfer function makes every voxel transparent"),
+              std::string::npos)
+        << r.err;
+    EXPECT_TRUE(std::filesystem::exists(dir / "c.png"));
+}
+
+TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {
+    ScratchDir dir;
+    const std::string volume = write_sphere(dir);
+    std::ofstream(dir / "unsorted.json") << R"({"points": [{"value": 0.5, "colour": [1,1,1], "opacity": 0},
+        {"value": 0.2, "colour": [1,1,1], "opacity": 0.1}]})";
+    std::ofstream(dir / "broken.json") << R"({"points": [)";
+    struct Case {
+        std::string args, message;
+    };
+    const Case cases[] = {
+        {"--tf " + (dir / "unsorted.json"), "field 'points[1].value'"},
+        {"--tf " + (dir / "broken.json"), "broken.json"},
+        {"--tf nosuchpreset", "presets: head, ramp"},
+        {"--fov 0", "camera: field 'fov'"},
+        {"--fov 200", "camera: field 'fov'"},
+        {"--elevation 90", "camera: field 'elevation'"},
+        {"--repetitions 0", "field 'repetitions'"},
+        {"--width 0", "camera: field 'width'"},
+        {"--subpixel 0", "field 'subpixel_level'"},
+        {"--sampling best", "--sampling"},
+        {"--background 1,2", "--background"},
+        {"--cut-away 1,2,3", "--cut-away"},
+        {"--volume " + (dir / "missing.nii"), "missing.nii"},
+    };
+    for (const Case& c : cases) {
+        std::string args = c.args;  // the case's options, then defaults for the others
+        for (const auto& [option, value] :
+             {std::pair{"--volume", volume}, std::pair{"--tf", std::string("ramp")},
+              std::pair{"--repetitions", std::string("1")}, std::pair{"--width", std::string("16")},
+              std::pair{"--height", std::string("16")}})
+            if (args.find(option) == std::string::npos) args.append(" ").append(option).append(" ").append(value);
+        const auto r = run(dir, "render -q --out " + (dir / "out/x.png") + " " + args);
+        EXPECT_EQ(r.exit_code, 1) << c.args << ": " << r.err;
+        EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << ": " << r.err;
+        EXPECT_TRUE(files_in(dir / "out").empty()) << c.args;
+    }
+    // An unwritable output path fails cleanly too.
+    const auto r = run(dir, "render -q --tf ramp --repetitions 1 --width 16 --height 16 --volume " +
+                                volume + " --out /proc/forbidden/x.png");
+    EXPECT_NE(r.exit_code, 0);
+}
+
+}  // namespace
+}  // namespace sonotrace
