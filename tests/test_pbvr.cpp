@@ -4,9 +4,11 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <bit>
 #include <cmath>
 #include <numbers>
 
+#include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
 #include "test_util.h"
 #include "tissue/error.h"
@@ -341,6 +343,75 @@ TEST(Pbvr, MetropolisConvergesToTheSameImage) {
     const double db = psnr(renderer.image(), reference);
     EXPECT_GT(db, 42.0);
     ::testing::Test::RecordProperty("psnr_metropolis_64", std::to_string(db));
+}
+
+// A linear probe's frame (uniform grey 200) in the plane y = 20 of a 41^3 volume, its
+// face at z = 35 looking down -z; the camera looks along +y at the plane.
+struct OverlayScene {
+    tissue::Volume data = make_volume({41, 41, 41}, 1.0, [](int, int j, int) {
+        return j < 10 ? 1.0f : 0.0f;  // an opaque slab in front of the plane (y < 10)
+    });
+    FrameOverlay overlay;
+    OrbitCamera camera;
+    OverlayScene() {
+        overlay.transducer = probe::find_transducer("linear", "test");
+        overlay.transducer.depth_mm = 20.0;
+        overlay.frame = cv::Mat(100, 200, CV_8UC1, cv::Scalar(200));
+        overlay.origin_mm = {-20.0, 0.0};
+        overlay.pixel_mm = {0.2, 0.2};
+        overlay.position = {20.0, 20.0, 35.0};
+        overlay.axial = {0.0, 0.0, -1.0};
+        overlay.lateral = {1.0, 0.0, 0.0};
+        overlay.elevation = {0.0, 1.0, 0.0};
+        camera.target = {20.0, 20.0, 25.0};
+        camera.distance_mm = 200.0;
+        camera.fov_deg = 20.0;
+        camera.width = camera.height = 64;
+    }
+};
+
+TEST(PbvrOverlay, TheFrameSitsOnItsPlaneAndIsDepthTestedAgainstParticles) {
+    const OverlayScene scene;
+    const std::vector<uint64_t> layer = overlay_layer(scene.overlay, scene.camera, 1);
+    // The image centre looks at (20, 20, 25): 10 mm deep in the sector, on the plane.
+    const uint64_t centre = layer[32 * 64 + 32];
+    ASSERT_NE(centre, kEmptyEntry);
+    EXPECT_NEAR(entry_colour(centre).x, 200.0f / 255.0f, 1e-6f);
+    const float depth = std::bit_cast<float>(uint32_t(centre >> 32));
+    // Camera depth (along the view axis) of a plane facing the camera: the eye is at
+    // y = 20 - 200, the plane at y = 20.
+    EXPECT_NEAR(depth, 200.0f, 1e-3f);
+    // Beyond the sector's depth (z < 15) nothing is drawn: the image's bottom rows.
+    EXPECT_EQ(layer[62 * 64 + 32], kEmptyEntry);
+
+    // Transparent medium: the picture is the overlay. Opaque slab in front: hidden.
+    RenderSettings settings;
+    settings.subpixel_level = 1;
+    for (const bool opaque : {false, true}) {
+        ColourTransferFunction tf("slab", "test",
+                                  {{0.0, glm::vec3(0.0f, 0.0f, 1.0f), 0.0},
+                                   {1.0, glm::vec3(0.0f, 0.0f, 1.0f), opaque ? 0.99 : 0.0}},
+                                  1.0, 0.0, 1.0);
+        tf.bind(scene.data);
+        const RenderVolume volume(scene.data, tf);
+        PbvrRenderer renderer(volume, tf, scene.camera, settings);
+        renderer.set_overlay(overlay_layer(scene.overlay, scene.camera, 1));
+        for (int r = 0; r < 4; ++r) renderer.add_repetition();
+        const glm::vec3 pixel = renderer.image().at(32, 32);
+        if (opaque)
+            EXPECT_GT(pixel.z, 0.9f) << "the slab in front hides the frame";
+        else
+            EXPECT_NEAR(pixel.x, 200.0f / 255.0f, 1e-6f);
+    }
+}
+
+TEST(PbvrOverlay, TheClipPlaneRemovesTheCameraSide) {
+    const OverlayScene scene;
+    const glm::vec4 plane = camera_side_of_plane(scene.overlay, scene.data.geometry(), scene.camera);
+    RenderSettings settings;
+    settings.clip_plane = plane;
+    EXPECT_TRUE(settings.removed({20.0f, 5.0f, 20.0f}));    // between the camera and the plane
+    EXPECT_FALSE(settings.removed({20.0f, 30.0f, 20.0f}));  // behind the plane
 }
 
 TEST(PbvrErrors, BadTransferFunctionsCamerasAndSettingsAreNamed) {

@@ -90,6 +90,18 @@ glm::vec3 shade(const glm::vec3& colour, const glm::vec3& gradient, const glm::v
     return c;
 }
 
+uint64_t zbuffer_entry(float depth, const glm::vec3& colour, uint32_t id) {
+    auto byte = [](float v) { return uint64_t(std::lround(glm::clamp(v, 0.0f, 1.0f) * 255.0f)); };
+    return uint64_t(std::bit_cast<uint32_t>(depth)) << 32 | byte(colour.x) << 24 |
+           byte(colour.y) << 16 | byte(colour.z) << 8 | (id & 0xFFu);
+}
+
+glm::vec3 entry_colour(uint64_t entry) {
+    return glm::vec3(float(entry >> 24 & 0xFF), float(entry >> 16 & 0xFF),
+                     float(entry >> 8 & 0xFF)) *
+           (1.0f / 255.0f);
+}
+
 double psnr(const RgbImage& image, const RgbImage& reference) {
     if (image.width != reference.width || image.height != reference.height)
         throw std::invalid_argument("psnr: image sizes differ");
@@ -162,22 +174,6 @@ struct LocalRays {
 // ---- particle renderer -------------------------------------------------------------
 
 namespace {
-
-// One Z-buffer entry: depth (float bits, which order like the floats for positive
-// values) above the colour (RGB8) and 8 bits of particle id. The minimum over all
-// particles is a total order, so the buffer's content does not depend on the order in
-// which threads write it (ties in depth are broken by colour, then id).
-constexpr uint64_t kEmpty = std::numeric_limits<uint64_t>::max();
-uint64_t pack(float depth, const glm::vec3& colour, uint32_t id) {
-    auto byte = [](float v) { return uint64_t(std::lround(glm::clamp(v, 0.0f, 1.0f) * 255.0f)); };
-    return uint64_t(std::bit_cast<uint32_t>(depth)) << 32 | byte(colour.x) << 24 |
-           byte(colour.y) << 16 | byte(colour.z) << 8 | (id & 0xFFu);
-}
-glm::vec3 unpack_colour(uint64_t entry) {
-    return glm::vec3(float(entry >> 24 & 0xFF), float(entry >> 16 & 0xFF),
-                     float(entry >> 8 & 0xFF)) *
-           (1.0f / 255.0f);
-}
 
 uint32_t particle_id(uint32_t cell, uint32_t k) {
     uint32_t h = cell * 0x9E3779B1u ^ (k + 0x7F4A7C15u) * 0x85EBCA77u;
@@ -280,7 +276,7 @@ void PbvrRenderer::build_occlusion_map() {
             float tau = 0.0f;
             for (double t = t0; t < t1; t += step) {
                 const glm::vec3 q(rays.eye + (t + 0.5 * step) * dir);
-                if (settings_.cut_away && settings_.cut_away->contains(q)) continue;
+                if (settings_.removed(q)) continue;
                 tau += generation_tf_.extinction(volume_.sample_value(q)) * step;
                 if (tau >= kOcclusionDepth) {
                     occluded_beyond_[std::size_t(gy) * std::size_t(grid_x) + std::size_t(gx)] =
@@ -323,17 +319,25 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
     return nearest > deepest + kMargin;
 }
 
+void PbvrRenderer::set_overlay(std::vector<uint64_t> layer) {
+    if (!layer.empty() && layer.size() != std::size_t(sub_width_) * std::size_t(sub_height_))
+        throw std::invalid_argument("overlay layer size differs from the sub-pixel grid");
+    overlay_ = std::move(layer);
+}
+
 void PbvrRenderer::add_repetition() {
     const std::size_t subpixels = std::size_t(sub_width_) * std::size_t(sub_height_);
     if (zbuffer_.size() != subpixels) zbuffer_ = std::vector<std::atomic<uint64_t>>(subpixels);
     tbb::parallel_for(std::size_t(0), subpixels,
-                      [&](std::size_t s) { zbuffer_[s].store(kEmpty, std::memory_order_relaxed); });
+                      [&](std::size_t s) {
+                          zbuffer_[s].store(overlay_.empty() ? kEmptyEntry : overlay_[s],
+                                            std::memory_order_relaxed);
+                      });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     const glm::vec3 h = volume_.spacing();
     const glm::vec3 inverse_h = 1.0f / h;
     const float inverse_area = float(1.0 / (std::numbers::pi * double(radius_) * radius_));
     const uint32_t repetition = uint32_t(repetitions_);
-    const auto& cut = settings_.cut_away;
 
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, cells_.size(), 2048),
@@ -362,7 +366,7 @@ void PbvrRenderer::add_repetition() {
                 };
                 auto emit = [&](const glm::vec3& q, float value) {
                     const uint32_t id = particle_id(cell.index, emitted++);
-                    if (cut && cut->contains(q)) return;
+                    if (settings_.removed(q)) return;
                     float radius = radius_;
                     if (adapt_radius_) {
                         // Eq. 13 keeps the density and changes the radius. As printed the
@@ -400,7 +404,7 @@ void PbvrRenderer::add_repetition() {
                             if (uint32_t(current >> 32) < depth_bits) continue;
                             if (entry ==
                                 0) {  // the gradient and shading only for visible particles
-                                entry = pack(e.z,
+                                entry = zbuffer_entry(e.z,
                                              shade(tf_.colour(value), volume_.sample(q).gradient,
                                                    to_eye_, settings_.shading),
                                              id);
@@ -440,7 +444,7 @@ void PbvrRenderer::add_repetition() {
                                  std::size_t(x * L + sx)]
                             .load(std::memory_order_relaxed);
                     sum +=
-                        glm::dvec3(entry == kEmpty ? settings_.background : unpack_colour(entry));
+                        glm::dvec3(entry == kEmptyEntry ? settings_.background : entry_colour(entry));
                 }
             }
             accumulated_[std::size_t(y) * std::size_t(camera_.width) + std::size_t(x)] +=
@@ -486,7 +490,7 @@ RgbImage raycast(const RenderVolume& volume, const ColourTransferFunction& tf,
                     for (double t = t0; t < t1 && transmittance > 1e-5f; t += step) {
                         const double length = std::min(double(step), t1 - t);
                         const glm::vec3 q(eye + (t + 0.5 * length) * dir);
-                        if (settings.cut_away && settings.cut_away->contains(q)) continue;
+                        if (settings.removed(q)) continue;
                         const VoxelSample s = volume.sample(q);
                         const float sigma = tf.extinction(s.value);
                         if (sigma <= 0.0f) continue;

@@ -156,6 +156,13 @@ struct RenderSettings {
     Shading shading;
     glm::vec3 background{0.0f};
     std::optional<CutAway> cut_away;
+    // A half-space not drawn, in the local frame: points q with dot(xyz, q) + w > 0 (the
+    // side of a scan plane that faces the camera, so the plane's surroundings show).
+    std::optional<glm::vec4> clip_plane;
+    bool removed(const glm::vec3& q) const {
+        return (cut_away && cut_away->contains(q)) ||
+               (clip_plane && glm::dot(glm::vec3(*clip_plane), q) + clip_plane->w > 0.0f);
+    }
     // Skip cells hidden behind an optical depth of 7 (transmittance < 1e-3) along every
     // ray of a grid 4 pixels apart around their projection, and cells off the image.
     bool occlusion_culling = true;
@@ -186,6 +193,14 @@ struct RgbImage {
     }
 };
 
+// A Z-buffer entry: depth (the float's bits, which order like the floats for positive
+// values) above the colour (RGB8) and 8 bits of particle id. The minimum over all
+// particles is a total order, so the buffer's content does not depend on the order in
+// which threads write it (ties in depth are broken by colour, then id).
+inline constexpr uint64_t kEmptyEntry = ~uint64_t(0);
+uint64_t zbuffer_entry(float depth, const glm::vec3& colour, uint32_t id);
+glm::vec3 entry_colour(uint64_t entry);
+
 // PSNR in dB of `image` against `reference` (colours clamped to 0..1, all channels).
 double psnr(const RgbImage& image, const RgbImage& reference);
 // 8-bit BGR picture (for imaging::write_png and overlays).
@@ -206,6 +221,9 @@ class PbvrRenderer {
                  const OrbitCamera& camera, const RenderSettings& settings,
                  const ColourTransferFunction* generation_tf = nullptr);
 
+    // Opaque surfaces drawn with the particles (overlay.h): one Z-buffer entry per
+    // sub-pixel (zbuffer_entry), depth-tested against them in every repetition.
+    void set_overlay(std::vector<uint64_t> layer);
     // Adds one repetition to the ensemble.
     void add_repetition();
     int repetitions_done() const { return repetitions_; }
@@ -247,6 +265,7 @@ class PbvrRenderer {
     int occlusion_tiles_x_ = 0, occlusion_tiles_y_ = 0;
     std::vector<glm::dvec3> accumulated_;  // per pixel, sum over repetitions of sub-pixel means
     std::vector<std::atomic<uint64_t>> zbuffer_;  // per sub-pixel: depth | RGB8 | id
+    std::vector<uint64_t> overlay_;               // its initial content (empty: none)
     int repetitions_ = 0;
     uint64_t particles_ = 0;
 };

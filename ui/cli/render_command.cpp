@@ -7,6 +7,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
 #include "imaging/picture.h"
 #include "sonotrace_version.h"
@@ -53,6 +54,11 @@ constexpr ParameterDoc kTimeLimitDoc = {
     "stops and keeps the image so far)"};
 constexpr ParameterDoc kSeedDoc = {
     "--seed", "", "random seed; the same seed gives identical images on any thread count"};
+constexpr ParameterDoc kFrameDoc = {
+    "--frame", "",
+    "the JSON sidecar of a `sonotrace simulate` frame (same volume): draws the probe, its scan "
+    "sector and the B-mode frame on it, depth-tested against the particles; with --cut-away "
+    "auto the half of the volume on the camera's side of the scan plane is removed"};
 constexpr ParameterDoc kReferenceDoc = {
     "--reference", "",
     "also render the emission-absorption ray-cast reference to this PNG and report the PSNR"};
@@ -114,6 +120,7 @@ CLI::App* add_render_command(CLI::App& app, RenderOptions& options) {
     add_parameter(*cmd, kCutDoc, options.cut_away);
     add_parameter(*cmd, kTimeLimitDoc, options.time_limit_s);
     add_parameter(*cmd, kSeedDoc, options.seed);
+    add_parameter(*cmd, kFrameDoc, options.frame);
     add_parameter(*cmd, kReferenceDoc, options.reference);
     add_parameter(*cmd, kReferenceStepDoc, options.reference_step_mm);
     add_parameter(*cmd, kOutDoc, options.out);
@@ -170,7 +177,16 @@ int run_render_command(const RenderOptions& options) {
     if (options.distance_mm > 0.0) camera.distance_mm = options.distance_mm;
     camera.validate();
 
-    if (options.cut_away == "octant" || (options.cut_away == "auto" && options.tf == "head")) {
+    std::optional<pbvr::FrameOverlay> overlay;
+    if (!options.frame.empty()) {
+        timer.begin("loading frame " + options.frame);
+        overlay = pbvr::load_frame_overlay(options.frame);
+        timer.end();
+    }
+    if (overlay && options.cut_away == "auto") {
+        settings.clip_plane = pbvr::camera_side_of_plane(*overlay, g, camera);
+    } else if (options.cut_away == "octant" ||
+               (options.cut_away == "auto" && options.tf == "head")) {
         settings.cut_away = pbvr::facing_octant(g, camera);
     } else if (options.cut_away != "auto" && options.cut_away != "none") {
         const auto v = parse_numbers(options.cut_away, "--cut-away", 6);
@@ -182,6 +198,7 @@ int run_render_command(const RenderOptions& options) {
     timer.end();
     timer.begin("finding occupied cells");
     pbvr::PbvrRenderer renderer(volume, tf, camera, settings);
+    if (overlay) renderer.set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
     timer.end();
     json warnings = json::array();
     if (renderer.occupied_cells() == 0) {
@@ -251,6 +268,7 @@ int run_render_command(const RenderOptions& options) {
         record["cut_away_mm"] = {settings.cut_away->low.x,  settings.cut_away->low.y,
                                  settings.cut_away->low.z,  settings.cut_away->high.x,
                                  settings.cut_away->high.y, settings.cut_away->high.z};
+    if (overlay) record["frame"] = options.frame;
     if (!repetition_ms.empty()) {
         std::vector<double> sorted = repetition_ms;
         std::sort(sorted.begin(), sorted.end());

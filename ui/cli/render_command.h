@@ -25,6 +25,7 @@ struct RenderOptions {
     std::string cut_away = "auto";
     double time_limit_s = 0.0;
     uint64_t seed = 1;
+    std::string frame;      // simulate sidecar: probe, scan plane and B-mode in the view
     std::string reference;  // also ray-cast the reference to this PNG and report PSNR
     double reference_step_mm = 0.25;
     std::string out = "out/render.png";

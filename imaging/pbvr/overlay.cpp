@@ -1,0 +1,178 @@
+#include "imaging/pbvr/overlay.h"
+
+#include <tbb/parallel_for.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <filesystem>
+#include <limits>
+
+#include "imaging/pbvr/pbvr.h"
+#include "tissue/error.h"
+#include "tissue/json_util.h"
+
+namespace sonotrace::imaging::pbvr {
+
+using tissue::InputError;
+namespace jsonio = tissue::jsonio;
+
+namespace {
+
+glm::dvec3 unit_vector(const nlohmann::json& object, const std::string& key,
+                       const std::string& source, const std::string& where) {
+    const glm::dvec3 v = jsonio::get_vec3(object, key, source, where);
+    if (!(glm::length(v) > 1e-9))
+        throw InputError(source, jsonio::join(where, key), "must be a non-zero vector");
+    return glm::normalize(v);
+}
+
+cv::Mat read_grey_png(const std::string& path) {
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) throw InputError(path, "", "cannot read the frame: " + OIIO::geterror());
+    const OIIO::ImageSpec& spec = in->spec();
+    cv::Mat grey(spec.height, spec.width, CV_8UC1);
+    std::vector<unsigned char> pixels(std::size_t(spec.width) * std::size_t(spec.height) *
+                                      std::size_t(spec.nchannels));
+    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, pixels.data()))
+        throw InputError(path, "", "cannot read the frame: " + in->geterror());
+    for (int y = 0; y < spec.height; ++y)
+        for (int x = 0; x < spec.width; ++x)
+            grey.at<unsigned char>(y, x) =
+                pixels[(std::size_t(y) * std::size_t(spec.width) + std::size_t(x)) *
+                       std::size_t(spec.nchannels)];
+    return grey;
+}
+
+// Intersection of a ray with the probe's box (probe frame: lateral, axial, elevation).
+bool hit_box(const glm::dvec3& origin, const glm::dvec3& dir, const glm::dvec3& low,
+             const glm::dvec3& high, double* t, int* axis) {
+    double t0 = 0.0, t1 = std::numeric_limits<double>::max();
+    int entry_axis = 0;
+    for (int a = 0; a < 3; ++a) {
+        if (std::abs(dir[a]) < 1e-12) {
+            if (origin[a] < low[a] || origin[a] > high[a]) return false;
+            continue;
+        }
+        double ta = (low[a] - origin[a]) / dir[a], tb = (high[a] - origin[a]) / dir[a];
+        if (ta > tb) std::swap(ta, tb);
+        if (ta > t0) t0 = ta, entry_axis = a;
+        t1 = std::min(t1, tb);
+    }
+    if (t0 > t1) return false;
+    *t = t0, *axis = entry_axis;
+    return true;
+}
+
+}  // namespace
+
+FrameOverlay load_frame_overlay(const std::string& sidecar_path) {
+    const nlohmann::json j = jsonio::read_file(sidecar_path);
+    const std::string& src = sidecar_path;
+    FrameOverlay o;
+    for (const char* key : {"pose", "image", "probe"})
+        if (!j.contains(key)) throw InputError(src, key, "is required (a sonotrace simulate sidecar)");
+    const auto& pose = j["pose"];
+    o.position = jsonio::get_vec3(pose, "position_mm", src, "pose");
+    o.axial = unit_vector(pose, "axial", src, "pose");
+    o.lateral = unit_vector(pose, "lateral", src, "pose");
+    o.elevation = unit_vector(pose, "elevation", src, "pose");
+    const auto& image = j["image"];
+    const auto origin = image.at("origin_mm"), spacing = image.at("pixel_spacing_mm");
+    if (!origin.is_array() || origin.size() != 2 || !spacing.is_array() || spacing.size() != 2)
+        throw InputError(src, "image.origin_mm", "origin_mm and pixel_spacing_mm need 2 numbers");
+    o.origin_mm = {origin[0].get<double>(), origin[1].get<double>()};
+    o.pixel_mm = {spacing[0].get<double>(), spacing[1].get<double>()};
+    if (!(o.pixel_mm.x > 0.0 && o.pixel_mm.y > 0.0))
+        throw InputError(src, "image.pixel_spacing_mm", "must be positive");
+    const auto& probe_json = j["probe"];
+    o.transducer = probe::find_transducer(jsonio::get_string(probe_json, "name", src, "probe"), src);
+    // The run's own geometry overrides the preset's.
+    o.transducer.fov_deg = jsonio::get_number(probe_json, "fov_deg", src, "probe", 0.1, 180.0);
+    o.transducer.depth_mm = jsonio::get_number(probe_json, "depth_mm", src, "probe", 1.0, 1000.0);
+    o.transducer.lines = int(jsonio::get_number(probe_json, "lines", src, "probe", 1, 100000));
+    o.transducer.radius_mm = jsonio::get_number(probe_json, "radius_mm", src, "probe", 0.0, 1e4);
+    o.transducer.elements = int(jsonio::get_number(probe_json, "elements", src, "probe", 1, 100000));
+    o.transducer.pitch_mm = jsonio::get_number(probe_json, "pitch_mm", src, "probe", 1e-3, 100.0);
+    std::filesystem::path png(sidecar_path);
+    png.replace_extension(".png");
+    if (!std::filesystem::exists(png))
+        throw InputError(src, "", "the frame " + png.string() + " next to it is missing");
+    o.frame = read_grey_png(png.string());
+    return o;
+}
+
+std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCamera& camera,
+                                    int subpixel_level) {
+    const int L = subpixel_level, width = camera.width * L, height = camera.height * L;
+    std::vector<uint64_t> layer(std::size_t(width) * std::size_t(height), kEmptyEntry);
+    const probe::ScanGeometry scan(overlay.transducer);
+    const glm::dvec3 eye = camera.eye(), forward = camera.forward(), right = camera.right(),
+                     down = -camera.up();
+    const double focal = camera.focal_px() * L;
+    // The probe body: the array's length and a 16 mm grip, 25 mm behind the face.
+    const double half_length = 0.5 * overlay.transducer.array_length_mm() + 2.0;
+    const glm::dvec3 box_low(-half_length, -25.0, -8.0), box_high(half_length, 0.0, 8.0);
+    const glm::dmat3 to_probe =
+        glm::transpose(glm::dmat3(overlay.lateral, overlay.axial, overlay.elevation));
+    const glm::vec3 frame_colour_scale(1.0f / 255.0f);
+    tbb::parallel_for(0, height, [&](int y) {
+        for (int x = 0; x < width; ++x) {
+            const glm::dvec3 dir = glm::normalize(forward + (x + 0.5 - 0.5 * width) / focal * right +
+                                                  (y + 0.5 - 0.5 * height) / focal * down);
+            uint64_t best = kEmptyEntry;
+            // -- the probe model (shaded by the face it is seen through)
+            double t = 0.0;
+            int axis = 0;
+            const glm::dvec3 o = to_probe * (eye - overlay.position), d = to_probe * dir;
+            if (hit_box(o, d, box_low, box_high, &t, &axis)) {
+                const float light = float(0.45 + 0.55 * std::abs(d[axis]));
+                best = std::min(best, zbuffer_entry(float(t * glm::dot(dir, forward)),
+                                                    glm::vec3(0.30f, 0.42f, 0.62f) * light, 0));
+            }
+            // -- the scan plane: the frame inside the sector, its outline in yellow
+            const double facing = glm::dot(dir, overlay.elevation);
+            if (std::abs(facing) > 1e-9) {
+                const double tp = glm::dot(overlay.position - eye, overlay.elevation) / facing;
+                if (tp > 0.0) {
+                    const glm::dvec3 p = eye + tp * dir - overlay.position;
+                    const glm::dvec2 in_plane(glm::dot(p, overlay.lateral), glm::dot(p, overlay.axial));
+                    const glm::dvec2 ld = scan.line_and_depth(in_plane);
+                    const int lines = scan.lines();
+                    if (ld.x >= -0.5 && ld.x <= lines - 0.5 && ld.y >= 0.0 && ld.y <= scan.depth_mm()) {
+                        const double edge_mm = std::min(
+                            {(ld.x + 0.5) * scan.line_spacing_mm(ld.y),
+                             (lines - 0.5 - ld.x) * scan.line_spacing_mm(ld.y),
+                             scan.depth_mm() - ld.y, ld.y});
+                        glm::vec3 colour(1.0f, 0.85f, 0.1f);  // outline
+                        if (edge_mm > 0.8) {
+                            const double c = (in_plane.x - overlay.origin_mm.x) / overlay.pixel_mm.x;
+                            const double r = (in_plane.y - overlay.origin_mm.y) / overlay.pixel_mm.y;
+                            const int ci = std::clamp(int(std::lround(c)), 0, overlay.frame.cols - 1);
+                            const int ri = std::clamp(int(std::lround(r)), 0, overlay.frame.rows - 1);
+                            colour = overlay.frame.empty()
+                                         ? glm::vec3(0.2f)
+                                         : glm::vec3(float(overlay.frame.at<unsigned char>(ri, ci))) *
+                                               frame_colour_scale;
+                        }
+                        best = std::min(best,
+                                        zbuffer_entry(float(tp * glm::dot(dir, forward)), colour, 0));
+                    }
+                }
+            }
+            layer[std::size_t(y) * std::size_t(width) + std::size_t(x)] = best;
+        }
+    });
+    return layer;
+}
+
+glm::vec4 camera_side_of_plane(const FrameOverlay& overlay, const tissue::VolumeGeometry& volume,
+                               const OrbitCamera& camera) {
+    // world: n . (p - position) > 0 on the camera's side; p = origin + D q in the local frame
+    glm::dvec3 n = overlay.elevation;
+    if (glm::dot(n, camera.eye() - overlay.position) < 0.0) n = -n;
+    const glm::dvec3 local_normal = glm::transpose(volume.linear()) * n;
+    const double offset = glm::dot(n, volume.origin - overlay.position);
+    return glm::vec4(glm::vec3(local_normal), float(offset));
+}
+
+}  // namespace sonotrace::imaging::pbvr
