@@ -407,7 +407,8 @@ TEST(PbvrOverlay, TheFrameSitsOnItsPlaneAndIsDepthTestedAgainstParticles) {
 
 TEST(PbvrOverlay, TheClipPlaneRemovesTheCameraSide) {
     const OverlayScene scene;
-    const glm::vec4 plane = camera_side_of_plane(scene.overlay, scene.data.geometry(), scene.camera);
+    const glm::vec4 plane =
+        camera_side_of_plane(scene.overlay, scene.data.geometry(), scene.camera);
     RenderSettings settings;
     settings.clip_plane = plane;
     EXPECT_TRUE(settings.removed({20.0f, 5.0f, 20.0f}));    // between the camera and the plane

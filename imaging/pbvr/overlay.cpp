@@ -70,7 +70,8 @@ FrameOverlay load_frame_overlay(const std::string& sidecar_path) {
     const std::string& src = sidecar_path;
     FrameOverlay o;
     for (const char* key : {"pose", "image", "probe"})
-        if (!j.contains(key)) throw InputError(src, key, "is required (a sonotrace simulate sidecar)");
+        if (!j.contains(key))
+            throw InputError(src, key, "is required (a sonotrace simulate sidecar)");
     const auto& pose = j["pose"];
     o.position = jsonio::get_vec3(pose, "position_mm", src, "pose");
     o.axial = unit_vector(pose, "axial", src, "pose");
@@ -85,13 +86,15 @@ FrameOverlay load_frame_overlay(const std::string& sidecar_path) {
     if (!(o.pixel_mm.x > 0.0 && o.pixel_mm.y > 0.0))
         throw InputError(src, "image.pixel_spacing_mm", "must be positive");
     const auto& probe_json = j["probe"];
-    o.transducer = probe::find_transducer(jsonio::get_string(probe_json, "name", src, "probe"), src);
+    o.transducer =
+        probe::find_transducer(jsonio::get_string(probe_json, "name", src, "probe"), src);
     // The run's own geometry overrides the preset's.
     o.transducer.fov_deg = jsonio::get_number(probe_json, "fov_deg", src, "probe", 0.1, 180.0);
     o.transducer.depth_mm = jsonio::get_number(probe_json, "depth_mm", src, "probe", 1.0, 1000.0);
     o.transducer.lines = int(jsonio::get_number(probe_json, "lines", src, "probe", 1, 100000));
     o.transducer.radius_mm = jsonio::get_number(probe_json, "radius_mm", src, "probe", 0.0, 1e4);
-    o.transducer.elements = int(jsonio::get_number(probe_json, "elements", src, "probe", 1, 100000));
+    o.transducer.elements =
+        int(jsonio::get_number(probe_json, "elements", src, "probe", 1, 100000));
     o.transducer.pitch_mm = jsonio::get_number(probe_json, "pitch_mm", src, "probe", 1e-3, 100.0);
     std::filesystem::path png(sidecar_path);
     png.replace_extension(".png");
@@ -117,8 +120,9 @@ std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCame
     const glm::vec3 frame_colour_scale(1.0f / 255.0f);
     tbb::parallel_for(0, height, [&](int y) {
         for (int x = 0; x < width; ++x) {
-            const glm::dvec3 dir = glm::normalize(forward + (x + 0.5 - 0.5 * width) / focal * right +
-                                                  (y + 0.5 - 0.5 * height) / focal * down);
+            const glm::dvec3 dir =
+                glm::normalize(forward + (x + 0.5 - 0.5 * width) / focal * right +
+                               (y + 0.5 - 0.5 * height) / focal * down);
             uint64_t best = kEmptyEntry;
             // -- the probe model (shaded by the face it is seen through)
             double t = 0.0;
@@ -135,27 +139,34 @@ std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCame
                 const double tp = glm::dot(overlay.position - eye, overlay.elevation) / facing;
                 if (tp > 0.0) {
                     const glm::dvec3 p = eye + tp * dir - overlay.position;
-                    const glm::dvec2 in_plane(glm::dot(p, overlay.lateral), glm::dot(p, overlay.axial));
+                    const glm::dvec2 in_plane(glm::dot(p, overlay.lateral),
+                                              glm::dot(p, overlay.axial));
                     const glm::dvec2 ld = scan.line_and_depth(in_plane);
                     const int lines = scan.lines();
-                    if (ld.x >= -0.5 && ld.x <= lines - 0.5 && ld.y >= 0.0 && ld.y <= scan.depth_mm()) {
-                        const double edge_mm = std::min(
-                            {(ld.x + 0.5) * scan.line_spacing_mm(ld.y),
-                             (lines - 0.5 - ld.x) * scan.line_spacing_mm(ld.y),
-                             scan.depth_mm() - ld.y, ld.y});
+                    if (ld.x >= -0.5 && ld.x <= lines - 0.5 && ld.y >= 0.0 &&
+                        ld.y <= scan.depth_mm()) {
+                        const double edge_mm =
+                            std::min({(ld.x + 0.5) * scan.line_spacing_mm(ld.y),
+                                      (lines - 0.5 - ld.x) * scan.line_spacing_mm(ld.y),
+                                      scan.depth_mm() - ld.y, ld.y});
                         glm::vec3 colour(1.0f, 0.85f, 0.1f);  // outline
                         if (edge_mm > 0.8) {
-                            const double c = (in_plane.x - overlay.origin_mm.x) / overlay.pixel_mm.x;
-                            const double r = (in_plane.y - overlay.origin_mm.y) / overlay.pixel_mm.y;
-                            const int ci = std::clamp(int(std::lround(c)), 0, overlay.frame.cols - 1);
-                            const int ri = std::clamp(int(std::lround(r)), 0, overlay.frame.rows - 1);
-                            colour = overlay.frame.empty()
-                                         ? glm::vec3(0.2f)
-                                         : glm::vec3(float(overlay.frame.at<unsigned char>(ri, ci))) *
-                                               frame_colour_scale;
+                            const double c =
+                                (in_plane.x - overlay.origin_mm.x) / overlay.pixel_mm.x;
+                            const double r =
+                                (in_plane.y - overlay.origin_mm.y) / overlay.pixel_mm.y;
+                            const int ci =
+                                std::clamp(int(std::lround(c)), 0, overlay.frame.cols - 1);
+                            const int ri =
+                                std::clamp(int(std::lround(r)), 0, overlay.frame.rows - 1);
+                            colour =
+                                overlay.frame.empty()
+                                    ? glm::vec3(0.2f)
+                                    : glm::vec3(float(overlay.frame.at<unsigned char>(ri, ci))) *
+                                          frame_colour_scale;
                         }
-                        best = std::min(best,
-                                        zbuffer_entry(float(tp * glm::dot(dir, forward)), colour, 0));
+                        best = std::min(
+                            best, zbuffer_entry(float(tp * glm::dot(dir, forward)), colour, 0));
                     }
                 }
             }

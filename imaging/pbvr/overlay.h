@@ -17,10 +17,10 @@
 namespace sonotrace::imaging::pbvr {
 
 struct FrameOverlay {
-    cv::Mat frame;                  // 8-bit grey B-mode, scan-converted; empty: none
-    glm::dvec2 origin_mm{0.0};      // in-plane position of pixel (0, 0): lateral, depth
-    glm::dvec2 pixel_mm{1.0};       // pixel spacing: lateral, depth
-    glm::dvec3 position{0.0};       // the probe pose in world mm (ScanGeometry's origin)
+    cv::Mat frame;              // 8-bit grey B-mode, scan-converted; empty: none
+    glm::dvec2 origin_mm{0.0};  // in-plane position of pixel (0, 0): lateral, depth
+    glm::dvec2 pixel_mm{1.0};   // pixel spacing: lateral, depth
+    glm::dvec3 position{0.0};   // the probe pose in world mm (ScanGeometry's origin)
     glm::dvec3 axial{0.0, 0.0, 1.0}, lateral{1.0, 0.0, 0.0}, elevation{0.0, 1.0, 0.0};
     probe::Transducer transducer;  // its sector
 };
