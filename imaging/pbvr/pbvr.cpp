@@ -1,5 +1,7 @@
 #include "imaging/pbvr/pbvr.h"
 
+#include "imaging/pbvr/preintegration.h"
+
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -257,6 +259,147 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
     accumulated_.assign(std::size_t(camera.width) * std::size_t(camera.height), glm::dvec3(0.0));
 }
 
+struct PbvrRenderer::MeshLayer {
+    const TetMesh* mesh;
+    const ColourTransferFunction* tf;
+    PreIntegration pre;
+    DepthSampling depth;
+    std::vector<float> values;  // normalized by tf
+};
+
+namespace {
+// What a renderer of meshes alone renders as its regular volume: nothing.
+const RenderVolume& empty_volume() {
+    static const ColourTransferFunction clear(
+        "clear", "internal", {{0.0, glm::vec3(0.0f), 0.0}, {1.0, glm::vec3(0.0f), 0.0}}, 1.0, 0.0,
+        1.0);
+    static const RenderVolume volume(tissue::Volume(tissue::VolumeGeometry{{2, 2, 2}}), clear);
+    return volume;
+}
+const ColourTransferFunction& clear_tf() {
+    static const ColourTransferFunction clear(
+        "clear", "internal", {{0.0, glm::vec3(0.0f), 0.0}, {1.0, glm::vec3(0.0f), 0.0}}, 1.0, 0.0,
+        1.0);
+    return clear;
+}
+}  // namespace
+
+std::string to_string(DepthSampling depth) {
+    switch (depth) {
+        case DepthSampling::cdf:
+            return "cdf";
+        case DepthSampling::entry:
+            return "entry";
+        case DepthSampling::middle:
+            return "middle";
+        case DepthSampling::exit:
+            return "exit";
+        case DepthSampling::random:
+            return "random";
+    }
+    return "?";
+}
+
+PbvrRenderer::PbvrRenderer(const OrbitCamera& camera, const RenderSettings& settings)
+    : PbvrRenderer(empty_volume(), clear_tf(), camera, settings) {}
+
+PbvrRenderer::~PbvrRenderer() = default;
+
+void PbvrRenderer::add_mesh(const TetMesh& mesh, const ColourTransferFunction& tf,
+                            DepthSampling depth) {
+    auto layer = std::make_unique<MeshLayer>(MeshLayer{&mesh, &tf, PreIntegration(tf), depth, {}});
+    layer->values.resize(mesh.values.size());
+    for (std::size_t p = 0; p < mesh.values.size(); ++p)
+        layer->values[p] = tf.normalize(mesh.values[p]);
+    meshes_.push_back(std::move(layer));
+}
+
+void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
+    const TetMesh& mesh = *layer.mesh;
+    const Projection p = Projection::of(camera_, settings_.subpixel_level);
+    const glm::dvec3 eye = camera_.eye(), forward = camera_.forward(), right = camera_.right(),
+                     down = -camera_.up();
+    const double focal = p.focal;
+    const uint64_t stream_seed = settings_.seed ^ (0x632BE59BD9B4E019ull * (index + 1));
+    const uint32_t repetition = uint32_t(repetitions_);
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, mesh.tets.size(), 1024),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                const auto& tet = mesh.tets[t];
+                std::array<glm::dvec3, 4> corners;
+                glm::dvec2 low(1e300), high(-1e300);
+                bool visible = true;
+                // -- project the corners: the footprint's bounding box in sub-pixels
+                for (int v = 0; v < 4; ++v) {
+                    corners[std::size_t(v)] = mesh.points[tet[std::size_t(v)]];
+                    const glm::vec3 e = p.to_camera(glm::vec3(corners[std::size_t(v)]));
+                    if (e.z <= 1e-3f) visible = false;
+                    const glm::dvec2 q(p.centre_x + p.focal * e.x / e.z,
+                                       p.centre_y + p.focal * e.y / e.z);
+                    low = glm::min(low, q), high = glm::max(high, q);
+                }
+                if (!visible) continue;  // tetrahedra reaching behind the eye are not drawn
+                const int x0 = std::max(0, int(std::ceil(low.x - 0.5))),
+                          x1 = std::min(sub_width_ - 1, int(std::floor(high.x - 0.5)));
+                const int y0 = std::max(0, int(std::ceil(low.y - 0.5))),
+                          y1 = std::min(sub_height_ - 1, int(std::floor(high.y - 0.5)));
+                if (x0 > x1 || y0 > y1) continue;
+                const glm::dvec4 s(layer.values[tet[0]], layer.values[tet[1]], layer.values[tet[2]],
+                                   layer.values[tet[3]]);
+                CellRandom random(stream_seed, repetition, uint32_t(t));
+                for (int y = y0; y <= y1; ++y) {
+                    for (int x = x0; x <= x1; ++x) {
+                        // -- the fragment: the ray's entry and exit through the tetrahedron
+                        const glm::dvec3 dir =
+                            glm::normalize(forward + (x + 0.5 - p.centre_x) / focal * right +
+                                           (y + 0.5 - p.centre_y) / focal * down);
+                        const auto crossing = cross_tetrahedron(corners, eye, dir);
+                        if (!crossing) continue;
+                        const double s_front = glm::dot(crossing->entry_weights, s);
+                        const double s_back = glm::dot(crossing->exit_weights, s);
+                        const double length = crossing->t_exit - crossing->t_entry;
+                        // -- a particle with the pre-integrated opacity (eq. 18)
+                        const double r = random.next();
+                        const double alpha = layer.pre.opacity(s_front, s_back, length);
+                        if (!(r < alpha)) continue;
+                        double w = 0.5;
+                        switch (layer.depth) {
+                            case DepthSampling::cdf:
+                                w = layer.pre.inverse(r, s_front, s_back, length);
+                                break;
+                            case DepthSampling::entry:
+                                w = 0.0;
+                                break;
+                            case DepthSampling::middle:
+                                w = 0.5;
+                                break;
+                            case DepthSampling::exit:
+                                w = 1.0;
+                                break;
+                            case DepthSampling::random:
+                                w = random.next();
+                                break;
+                        }
+                        // -- its depth (eq. 26) and colour
+                        const double along = glm::dot(dir, forward);
+                        const double depth =
+                            ((1.0 - w) * crossing->t_entry + w * crossing->t_exit) * along;
+                        const glm::vec3 colour =
+                            layer.tf->colour(float((1.0 - w) * s_front + w * s_back));
+                        const uint64_t entry = zbuffer_entry(float(depth), colour, uint32_t(t));
+                        std::atomic<uint64_t>& cell =
+                            zbuffer_[std::size_t(y) * std::size_t(sub_width_) + std::size_t(x)];
+                        uint64_t current = cell.load(std::memory_order_relaxed);
+                        while (entry < current && !cell.compare_exchange_weak(
+                                                      current, entry, std::memory_order_relaxed)) {
+                        }
+                    }
+                }
+            }
+        });
+}
+
 // The occlusion map: how deep each ray of a grid over the image (tile corners, kTile
 // pixels apart) goes before its optical depth reaches kOpticalDepth (camera depth, mm;
 // infinity if never).
@@ -328,11 +471,9 @@ void PbvrRenderer::set_overlay(std::vector<uint64_t> layer) {
 void PbvrRenderer::add_repetition() {
     const std::size_t subpixels = std::size_t(sub_width_) * std::size_t(sub_height_);
     if (zbuffer_.size() != subpixels) zbuffer_ = std::vector<std::atomic<uint64_t>>(subpixels);
-    tbb::parallel_for(std::size_t(0), subpixels,
-                      [&](std::size_t s) {
-                          zbuffer_[s].store(overlay_.empty() ? kEmptyEntry : overlay_[s],
-                                            std::memory_order_relaxed);
-                      });
+    tbb::parallel_for(std::size_t(0), subpixels, [&](std::size_t s) {
+        zbuffer_[s].store(overlay_.empty() ? kEmptyEntry : overlay_[s], std::memory_order_relaxed);
+    });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
     const glm::vec3 h = volume_.spacing();
     const glm::vec3 inverse_h = 1.0f / h;
@@ -404,10 +545,11 @@ void PbvrRenderer::add_repetition() {
                             if (uint32_t(current >> 32) < depth_bits) continue;
                             if (entry ==
                                 0) {  // the gradient and shading only for visible particles
-                                entry = zbuffer_entry(e.z,
-                                             shade(tf_.colour(value), volume_.sample(q).gradient,
-                                                   to_eye_, settings_.shading),
-                                             id);
+                                entry = zbuffer_entry(
+                                    e.z,
+                                    shade(tf_.colour(value), volume_.sample(q).gradient, to_eye_,
+                                          settings_.shading),
+                                    id);
                             }
                             while (entry < current &&
                                    !row[x].compare_exchange_weak(current, entry,
@@ -430,6 +572,8 @@ void PbvrRenderer::add_repetition() {
             }
         });
 
+    for (std::size_t m = 0; m < meshes_.size(); ++m) rasterize_mesh(*meshes_[m], m);
+
     // -- average the sub-pixels into the ensemble
     for (const uint64_t c : counts) particles_ += c;
     const int L = settings_.subpixel_level;
@@ -443,8 +587,8 @@ void PbvrRenderer::add_repetition() {
                         zbuffer_[std::size_t(y * L + sy) * std::size_t(sub_width_) +
                                  std::size_t(x * L + sx)]
                             .load(std::memory_order_relaxed);
-                    sum +=
-                        glm::dvec3(entry == kEmptyEntry ? settings_.background : entry_colour(entry));
+                    sum += glm::dvec3(entry == kEmptyEntry ? settings_.background
+                                                           : entry_colour(entry));
                 }
             }
             accumulated_[std::size_t(y) * std::size_t(camera_.width) + std::size_t(x)] +=
@@ -464,6 +608,79 @@ RgbImage PbvrRenderer::image() const {
 }
 
 // ---- reference ray caster ----------------------------------------------------------
+
+RgbImage raycast_meshes(
+    const std::vector<std::pair<const TetMesh*, const ColourTransferFunction*>>& meshes,
+    const OrbitCamera& camera, const RenderSettings& settings, double step_mm) {
+    camera.validate();
+    settings.validate();
+    tissue::require_in_range("raycast", "step", step_mm, 1e-4, 100.0, "mm");
+    const int L = settings.subpixel_level;
+    const glm::dvec3 eye = camera.eye(), forward = camera.forward(), right = camera.right(),
+                     down = -camera.up();
+    const double focal = camera.focal_px() * L;
+    struct Segment {
+        double t0, t1, s0, s1;
+        const ColourTransferFunction* tf;
+    };
+    RgbImage out{camera.width, camera.height, {}};
+    out.pixels.assign(std::size_t(camera.width) * std::size_t(camera.height), glm::vec3(0.0f));
+    tbb::parallel_for(0, camera.height, [&](int y) {
+        std::vector<Segment> segments;
+        for (int x = 0; x < camera.width; ++x) {
+            glm::dvec3 pixel(0.0);
+            for (int sy = 0; sy < L; ++sy) {
+                for (int sx = 0; sx < L; ++sx) {
+                    const glm::dvec3 dir = glm::normalize(
+                        forward + (x * L + sx + 0.5 - 0.5 * camera.width * L) / focal * right +
+                        (y * L + sy + 0.5 - 0.5 * camera.height * L) / focal * down);
+                    // -- every tetrahedron the ray crosses, with its values at both ends
+                    segments.clear();
+                    double first = 1e300, last = -1e300;
+                    for (const auto& [mesh, tf] : meshes) {
+                        for (const auto& tet : mesh->tets) {
+                            std::array<glm::dvec3, 4> c;
+                            glm::dvec4 s;
+                            for (int v = 0; v < 4; ++v) {
+                                c[std::size_t(v)] = mesh->points[tet[std::size_t(v)]];
+                                s[v] = tf->normalize(mesh->values[tet[std::size_t(v)]]);
+                            }
+                            const auto crossing = cross_tetrahedron(c, eye, dir);
+                            if (!crossing) continue;
+                            segments.push_back({crossing->t_entry, crossing->t_exit,
+                                                glm::dot(crossing->entry_weights, s),
+                                                glm::dot(crossing->exit_weights, s), tf});
+                            first = std::min(first, crossing->t_entry);
+                            last = std::max(last, crossing->t_exit);
+                        }
+                    }
+                    glm::dvec3 colour(0.0);
+                    double transmittance = 1.0;
+                    // -- front to back: extinctions add, colours mix by extinction
+                    for (double t = first; t < last && transmittance > 1e-6; t += step_mm) {
+                        const double length = std::min(step_mm, last - t), mid = t + 0.5 * length;
+                        double sigma = 0.0;
+                        glm::dvec3 emitted(0.0);
+                        for (const Segment& g : segments) {
+                            if (mid < g.t0 || mid > g.t1) continue;
+                            const double v = g.s0 + (g.s1 - g.s0) * (mid - g.t0) / (g.t1 - g.t0);
+                            const double e = g.tf->extinction(float(v));
+                            sigma += e;
+                            emitted += e * glm::dvec3(g.tf->colour(float(v)));
+                        }
+                        if (sigma <= 0.0) continue;
+                        const double alpha = 1.0 - std::exp(-sigma * length);
+                        colour += transmittance * alpha * emitted / sigma;
+                        transmittance *= 1.0 - alpha;
+                    }
+                    pixel += colour + transmittance * glm::dvec3(settings.background);
+                }
+            }
+            out.at(x, y) = glm::vec3(pixel / double(L * L));
+        }
+    });
+    return out;
+}
 
 RgbImage raycast(const RenderVolume& volume, const ColourTransferFunction& tf,
                  const OrbitCamera& camera, const RenderSettings& settings, double step_mm) {

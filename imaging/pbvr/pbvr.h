@@ -21,7 +21,9 @@
 #include <atomic>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -30,6 +32,7 @@
 #include "imaging/pbvr/camera.h"
 #include "imaging/pbvr/colour_tf.h"
 #include "imaging/pbvr/sampling.h"
+#include "imaging/pbvr/tetra.h"
 #include "tissue/volume.h"
 
 namespace sonotrace::imaging::pbvr {
@@ -212,6 +215,12 @@ cv::Mat to_picture(const RgbImage& image);
 glm::vec3 shade(const glm::vec3& colour, const glm::vec3& gradient, const glm::vec3& to_eye,
                 const Shading& shading);
 
+// Where a particle of a tetrahedron's fragment sits between the fragment's entry and
+// exit (Sakamoto & Koyamada, sec. 4): drawn from the opacity CDF (eqs. 24-26, the
+// default), or at the entry, middle or exit point, or uniformly (the paper's comparison).
+enum class DepthSampling { cdf, entry, middle, exit, random };
+std::string to_string(DepthSampling depth);
+
 class PbvrRenderer {
   public:
     // `tf` gives colours and opacity. With `generation_tf`, particles are generated from
@@ -220,6 +229,17 @@ class PbvrRenderer {
     PbvrRenderer(const RenderVolume& volume, const ColourTransferFunction& tf,
                  const OrbitCamera& camera, const RenderSettings& settings,
                  const ColourTransferFunction* generation_tf = nullptr);
+
+    // A renderer of tetrahedral meshes alone (add_mesh), without a regular volume.
+    PbvrRenderer(const OrbitCamera& camera, const RenderSettings& settings);
+    ~PbvrRenderer();
+
+    // Adds a tetrahedral mesh (world coordinates) to every repetition: image-space PBVR,
+    // one fragment per sub-pixel and tetrahedron, an opaque particle with probability
+    // the pre-integrated opacity (eq. 18), at the depth `depth` picks, coloured by `tf`
+    // (bound to the mesh's values) at its scalar; the same Z-buffer as the particles, so
+    // overlapping volumes fuse. The mesh and tf must outlive the renderer.
+    void add_mesh(const TetMesh& mesh, const ColourTransferFunction& tf, DepthSampling depth);
 
     // Opaque surfaces drawn with the particles (overlay.h): one Z-buffer entry per
     // sub-pixel (zbuffer_entry), depth-tested against them in every repetition.
@@ -266,9 +286,19 @@ class PbvrRenderer {
     std::vector<glm::dvec3> accumulated_;  // per pixel, sum over repetitions of sub-pixel means
     std::vector<std::atomic<uint64_t>> zbuffer_;  // per sub-pixel: depth | RGB8 | id
     std::vector<uint64_t> overlay_;               // its initial content (empty: none)
+    struct MeshLayer;
+    std::vector<std::unique_ptr<MeshLayer>> meshes_;
+    void rasterize_mesh(const MeshLayer& layer, std::size_t index);
     int repetitions_ = 0;
     uint64_t particles_ = 0;
 };
+
+// The reference for fused meshes: along each sub-pixel ray the extinctions of all meshes
+// add and their colours mix by extinction (emission-absorption of the union), midpoint
+// samples every `step_mm` (brute force over the tetrahedra: for tests and small meshes).
+RgbImage raycast_meshes(
+    const std::vector<std::pair<const TetMesh*, const ColourTransferFunction*>>& meshes,
+    const OrbitCamera& camera, const RenderSettings& settings, double step_mm);
 
 // Emission-absorption ray casting through the same transfer function and shading, one
 // ray per sub-pixel centre, midpoint samples every `step_mm`, stopped when the

@@ -1,0 +1,259 @@
+#include "imaging/pbvr/tetra.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "tissue/error.h"
+
+namespace sonotrace::imaging::pbvr {
+
+using tissue::InputError;
+
+namespace {
+
+// The 6 tetrahedra of a cell around its diagonal 0-7 (corner c = x + 2y + 4z): every
+// face is split along the diagonal through its lowest and highest corners, the same on
+// both sides of a face, so the split conforms across cells.
+constexpr std::array<std::array<int, 4>, 6> kCellTets = {
+    {{0, 1, 3, 7}, {0, 3, 2, 7}, {0, 2, 6, 7}, {0, 6, 4, 7}, {0, 4, 5, 7}, {0, 5, 1, 7}}};
+// VTK hexahedron point order -> corner c = x + 2y + 4z.
+constexpr std::array<int, 8> kVtkHexToCorner = {0, 1, 3, 2, 4, 5, 7, 6};
+
+// Reads whitespace-separated tokens, and raw big-endian values for BINARY files.
+class VtkStream {
+  public:
+    VtkStream(const std::string& path) : path_(path), in_(path, std::ios::binary) {
+        if (!in_) throw InputError(path, "", "cannot open the file");
+    }
+    std::string line() {
+        std::string l;
+        if (!std::getline(in_, l)) throw InputError(path_, "", "ends early");
+        if (!l.empty() && l.back() == '\r') l.pop_back();
+        return l;
+    }
+    std::string word(const std::string& section) {
+        std::string w;
+        if (!(in_ >> w)) throw InputError(path_, section, "ends early");
+        return w;
+    }
+    template <typename T>
+    T number(const std::string& section, const std::string& type) {
+        if (!binary_) {
+            double v;
+            if (!(in_ >> v)) throw InputError(path_, section, "expected a number");
+            return T(v);
+        }
+        if (!skipped_newline_) {  // binary data starts after the header line's newline
+            in_.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+            skipped_newline_ = true;
+        }
+        auto read = [&](auto value) {
+            unsigned char bytes[sizeof value];
+            if (!in_.read(reinterpret_cast<char*>(bytes), sizeof value))
+                throw InputError(path_, section, "binary data ends early");
+            if constexpr (std::endian::native == std::endian::little)
+                std::reverse(bytes, bytes + sizeof value);
+            std::memcpy(&value, bytes, sizeof value);
+            return T(value);
+        };
+        if (type == "float") return read(float{});
+        if (type == "double") return read(double{});
+        if (type == "int" || type == "vtkIdType") return read(int32_t{});
+        if (type == "long" || type == "vtktypeint64") return read(int64_t{});
+        if (type == "unsigned_char") return read(uint8_t{});
+        if (type == "short") return read(int16_t{});
+        if (type == "unsigned_short") return read(uint16_t{});
+        throw InputError(path_, section, "unsupported binary type '" + type + "'");
+    }
+    void set_binary(bool binary) { binary_ = binary; }
+    void section_done() { skipped_newline_ = false; }
+
+  private:
+    std::string path_;
+    std::ifstream in_;
+    bool binary_ = false, skipped_newline_ = false;
+};
+
+}  // namespace
+
+void TetMesh::validate(const std::string& source) const {
+    if (values.size() != points.size())
+        throw InputError(source, "POINT_DATA", "needs one scalar per point");
+    for (std::size_t p = 0; p < points.size(); ++p) {
+        if (!std::isfinite(values[p]) || !std::isfinite(points[p].x) ||
+            !std::isfinite(points[p].y) || !std::isfinite(points[p].z))
+            throw InputError(source, "POINTS", "point " + std::to_string(p) + " is not finite");
+    }
+    for (std::size_t t = 0; t < tets.size(); ++t)
+        for (uint32_t i : tets[t])
+            if (i >= points.size())
+                throw InputError(source, "CELLS",
+                                 "cell " + std::to_string(t) + " refers to a missing point");
+}
+
+tissue::Volume TetMesh::values_as_volume() const {
+    tissue::VolumeGeometry g;
+    g.dims = {int(std::max<std::size_t>(values.size(), 1)), 1, 1};
+    return tissue::Volume(g, values.empty() ? std::vector<float>{0.0f} : values);
+}
+
+TetMesh read_vtk_unstructured(const std::string& path) {
+    VtkStream in(path);
+    if (in.line().rfind("# vtk DataFile", 0) != 0)
+        throw InputError(path, "header", "not a VTK legacy file ('# vtk DataFile ...')");
+    in.line();  // title
+    const std::string format = in.line();
+    if (format.rfind("BINARY", 0) == 0)
+        in.set_binary(true);
+    else if (format.rfind("ASCII", 0) != 0)
+        throw InputError(path, "format", "must be ASCII or BINARY");
+    TetMesh mesh;
+    std::vector<std::vector<int64_t>> cells;
+    std::vector<int> types;
+    bool have_scalars = false;
+    std::string keyword;
+    while (true) {
+        std::string w;
+        try {
+            w = in.word("");
+        } catch (const InputError&) {
+            break;  // end of file
+        }
+        if (w == "DATASET") {
+            if (in.word("DATASET") != "UNSTRUCTURED_GRID")
+                throw InputError(path, "DATASET", "only UNSTRUCTURED_GRID is supported");
+        } else if (w == "POINTS") {
+            const auto n = std::stoll(in.word("POINTS"));
+            const std::string type = in.word("POINTS");
+            mesh.points.resize(std::size_t(n));
+            for (auto& p : mesh.points)
+                for (int a = 0; a < 3; ++a) p[a] = in.number<double>("POINTS", type);
+            in.section_done();
+        } else if (w == "CELLS") {
+            const auto n = std::stoll(in.word("CELLS"));
+            in.word("CELLS");  // total size
+            if (mesh.points.empty()) throw InputError(path, "CELLS", "comes before POINTS");
+            cells.resize(std::size_t(n));
+            for (auto& c : cells) {
+                const auto count = in.number<int64_t>("CELLS", "int");
+                if (count < 1 || count > 64) throw InputError(path, "CELLS", "bad point count");
+                c.resize(std::size_t(count));
+                for (auto& i : c) i = in.number<int64_t>("CELLS", "int");
+            }
+            in.section_done();
+        } else if (w == "CELL_TYPES") {
+            const auto n = std::stoll(in.word("CELL_TYPES"));
+            types.resize(std::size_t(n));
+            for (int& t : types) t = in.number<int>("CELL_TYPES", "int");
+            in.section_done();
+        } else if (w == "SCALARS" && !have_scalars) {
+            in.word("SCALARS");  // name
+            const std::string type = in.word("SCALARS");
+            std::string next = in.word("SCALARS");
+            if (next != "LOOKUP_TABLE") next = in.word("SCALARS");  // component count given
+            in.word("SCALARS");                                     // table name
+            mesh.values.resize(mesh.points.size());
+            for (float& v : mesh.values) v = in.number<float>("SCALARS", type);
+            in.section_done();
+            have_scalars = true;
+        }
+    }
+    if (cells.size() != types.size())
+        throw InputError(path, "CELL_TYPES", "needs one type per cell");
+    if (!have_scalars) throw InputError(path, "POINT_DATA", "needs a SCALARS array");
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+        const auto& v = cells[c];
+        for (const int64_t i : v)
+            if (i < 0 || std::size_t(i) >= mesh.points.size())
+                throw InputError(path, "CELLS",
+                                 "cell " + std::to_string(c) + " refers to a missing point");
+        if (types[c] == 10 && v.size() == 4) {
+            mesh.tets.push_back({uint32_t(v[0]), uint32_t(v[1]), uint32_t(v[2]), uint32_t(v[3])});
+        } else if (types[c] == 12 && v.size() == 8) {
+            std::array<uint32_t, 8> corner{};
+            for (int k = 0; k < 8; ++k)
+                corner[std::size_t(kVtkHexToCorner[std::size_t(k)])] = uint32_t(v[std::size_t(k)]);
+            for (const auto& t : kCellTets)
+                mesh.tets.push_back({corner[std::size_t(t[0])], corner[std::size_t(t[1])],
+                                     corner[std::size_t(t[2])], corner[std::size_t(t[3])]});
+        } else {
+            throw InputError(path, "CELL_TYPES",
+                             "cell " + std::to_string(c) + " has type " + std::to_string(types[c]) +
+                                 " (only 10 tetrahedron and 12 hexahedron are supported)");
+        }
+    }
+    mesh.validate(path);
+    return mesh;
+}
+
+TetMesh tetrahedralize(const tissue::Volume& volume, glm::ivec3 low,
+                       std::optional<glm::ivec3> high) {
+    const glm::ivec3 n = volume.dims();
+    const glm::ivec3 hi = glm::clamp(high.value_or(n - 1), glm::ivec3(0), n - 1);
+    low = glm::clamp(low, glm::ivec3(0), n - 1);
+    if (glm::any(glm::lessThanEqual(hi, low)))
+        throw InputError("tetrahedralize", "box", "needs at least one cell per axis");
+    TetMesh mesh;
+    const glm::ivec3 size = hi - low + 1;
+    auto point_index = [&](int i, int j, int k) {
+        return uint32_t((std::size_t(k - low.z) * std::size_t(size.y) + std::size_t(j - low.y)) *
+                            std::size_t(size.x) +
+                        std::size_t(i - low.x));
+    };
+    for (int k = low.z; k <= hi.z; ++k)
+        for (int j = low.y; j <= hi.y; ++j)
+            for (int i = low.x; i <= hi.x; ++i) {
+                mesh.points.push_back(volume.geometry().index_to_world(glm::dvec3(i, j, k)));
+                mesh.values.push_back(volume.at(i, j, k));
+            }
+    for (int k = low.z; k < hi.z; ++k)
+        for (int j = low.y; j < hi.y; ++j)
+            for (int i = low.x; i < hi.x; ++i)
+                for (const auto& t : kCellTets) {
+                    std::array<uint32_t, 4> tet{};
+                    for (int v = 0; v < 4; ++v) {
+                        const int c = t[std::size_t(v)];
+                        tet[std::size_t(v)] =
+                            point_index(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2));
+                    }
+                    mesh.tets.push_back(tet);
+                }
+    return mesh;
+}
+
+std::optional<TetCrossing> cross_tetrahedron(const std::array<glm::dvec3, 4>& corners,
+                                             const glm::dvec3& origin, const glm::dvec3& dir) {
+    const glm::dmat3 m(corners[1] - corners[0], corners[2] - corners[0], corners[3] - corners[0]);
+    const double det = glm::determinant(m);
+    if (std::abs(det) < 1e-12) return std::nullopt;
+    const glm::dmat3 inverse = glm::inverse(m);
+    // barycentric weights along the ray: lambda_i(t) = a_i + b_i t
+    const glm::dvec3 a3 = inverse * (origin - corners[0]), b3 = inverse * dir;
+    const glm::dvec4 a(1.0 - a3.x - a3.y - a3.z, a3.x, a3.y, a3.z);
+    const glm::dvec4 b(-b3.x - b3.y - b3.z, b3.x, b3.y, b3.z);
+    double t0 = 0.0, t1 = std::numeric_limits<double>::max();
+    for (int i = 0; i < 4; ++i) {
+        if (std::abs(b[i]) < 1e-15) {
+            if (a[i] < 0.0) return std::nullopt;
+            continue;
+        }
+        const double t = -a[i] / b[i];
+        if (b[i] > 0.0)
+            t0 = std::max(t0, t);
+        else
+            t1 = std::min(t1, t);
+    }
+    if (!(t1 > t0)) return std::nullopt;
+    TetCrossing c;
+    c.t_entry = t0, c.t_exit = t1;
+    c.entry_weights = glm::max(a + b * t0, glm::dvec4(0.0));
+    c.exit_weights = glm::max(a + b * t1, glm::dvec4(0.0));
+    return c;
+}
+
+}  // namespace sonotrace::imaging::pbvr

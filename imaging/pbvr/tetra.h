@@ -1,0 +1,55 @@
+#pragma once
+// Irregular volumes for image-space PBVR (Sakamoto & Koyamada, sec. 3.4 and 4):
+// tetrahedral meshes, their VTK legacy input, the tetrahedralisation of regular grids,
+// and the fragments a camera ray cuts out of a tetrahedron.
+//
+// A fragment is what the projected-tetrahedra split hands to stochastic rasterization:
+// for one sub-pixel, the ray's entry and exit through the tetrahedron, with the scalar
+// (linear inside a tetrahedron) and the camera depth at both. Here each sub-pixel in the
+// projected footprint clips its ray against the four face planes, which yields exactly
+// the front and back values the PT triangles would interpolate, without the triangle
+// classification.
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "tissue/volume.h"
+
+namespace sonotrace::imaging::pbvr {
+
+struct TetMesh {
+    std::vector<glm::dvec3> points;             // world mm
+    std::vector<float> values;                  // per point, raw (the TF normalizes)
+    std::vector<std::array<uint32_t, 4>> tets;  // point indices
+
+    // Throws tissue::InputError(source, ...) on indices out of range or non-finite data.
+    void validate(const std::string& source) const;
+    // The values as a volume-like sample set for ColourTransferFunction::bind.
+    tissue::Volume values_as_volume() const;
+};
+
+// VTK legacy unstructured grid (ASCII or binary): POINTS, CELLS and CELL_TYPES (10
+// tetrahedron, 12 hexahedron: split into 6 tetrahedra; other types are an error), and
+// the first POINT_DATA SCALARS array. Throws InputError naming the file and section.
+TetMesh read_vtk_unstructured(const std::string& path);
+
+// Every cell of a regular volume (or of the index box [low, high]) as 6 tetrahedra
+// around the cell's main diagonal (conforming across cells), in world coordinates.
+TetMesh tetrahedralize(const tissue::Volume& volume, glm::ivec3 low = glm::ivec3(0),
+                       std::optional<glm::ivec3> high = std::nullopt);
+
+// A ray's passage through a tetrahedron: parameters along the ray (entry < exit) and
+// the barycentric weights of the entry and exit points.
+struct TetCrossing {
+    double t_entry = 0.0, t_exit = 0.0;
+    glm::dvec4 entry_weights{0.0}, exit_weights{0.0};
+};
+// Clips the ray origin + t dir (t >= 0) against the tetrahedron's four faces.
+std::optional<TetCrossing> cross_tetrahedron(const std::array<glm::dvec3, 4>& corners,
+                                             const glm::dvec3& origin, const glm::dvec3& dir);
+
+}  // namespace sonotrace::imaging::pbvr
