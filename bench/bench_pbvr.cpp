@@ -4,11 +4,13 @@
 // Benchmark: the quantity is a time-to-quality, measured once per configuration).
 //
 //   build/bench/bench_pbvr [max_repetitions]
+//   build/bench/bench_pbvr tetra      # image-space PBVR of tetrahedra: tetrahedra per second
 #include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
 #include <iostream>
+#include <string>
 
 #include <nlohmann/json.hpp>
 
@@ -33,7 +35,46 @@ double peak_rss_mb() {
 
 }  // namespace
 
+// Image-space PBVR throughput: a Colin27 brick split into tetrahedra, at 512 x 512.
+void bench_tetrahedra(const tissue::Volume& head, int side) {
+    const glm::ivec3 low = head.dims() / 2 - side / 2;
+    const TetMesh mesh = tetrahedralize(head, low, low + side);
+    ColourTransferFunction tf = load_colour_tf("head");
+    tf.bind(head);
+    tissue::VolumeGeometry box = head.geometry();
+    box.origin = head.geometry().index_to_world(glm::dvec3(low));
+    box.dims = glm::ivec3(side + 1);
+    const OrbitCamera camera = fit_camera(box, kHeadAzimuthDeg, kHeadElevationDeg, 30.0, 512, 512);
+    for (const DepthSampling depth : {DepthSampling::cdf, DepthSampling::middle}) {
+        RenderSettings settings;
+        PbvrRenderer renderer(camera, settings);
+        renderer.add_mesh(mesh, tf, depth);
+        std::vector<double> ms;
+        for (int r = 0; r < 5; ++r) {
+            const auto t = Clock::now();
+            renderer.add_repetition();
+            ms.push_back(1e3 * seconds_since(t));
+        }
+        std::sort(ms.begin(), ms.end());
+        std::cout << nlohmann::json{{"tetrahedra", mesh.tets.size()},
+                                    {"brick_voxels", side},
+                                    {"image", "512x512, 2x2 sub-pixels"},
+                                    {"depth_sampling", to_string(depth)},
+                                    {"ms_per_repetition_median", ms[2]},
+                                    {"tetrahedra_per_s", double(mesh.tets.size()) / (1e-3 * ms[2])},
+                                    {"peak_rss_mb", peak_rss_mb()}}
+                         .dump()
+                  << std::endl;
+    }
+}
+
 int main(int argc, char** argv) {
+    if (argc > 1 && std::string(argv[1]) == "tetra") {
+        const tissue::Volume head =
+            tissue::load_volume({tissue::kDefaultVolumeName, std::nullopt}).volume;
+        for (int side : {24, 48}) bench_tetrahedra(head, side);
+        return 0;
+    }
     const int max_repetitions = argc > 1 ? std::atoi(argv[1]) : 48;
     auto t = Clock::now();
     const tissue::Volume head =

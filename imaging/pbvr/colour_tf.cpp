@@ -50,11 +50,27 @@ constexpr const char* kRampPreset = R"({
   ]
 })";
 
+// B-mode grey values (0..255 from a frame's sector mesh): echoes glow amber to white,
+// dark tissue stays clear, so the sector shows inside the head without hiding it.
+constexpr const char* kBmodePreset = R"({
+  "name": "bmode",
+  "description": "B-mode grey 0..255: clear below 35 %, amber to white and increasingly opaque above",
+  "normalization": {"low_quantile": 0.0, "high_quantile": 1.0},
+  "unit_length_mm": 1.0,
+  "points": [
+    {"value": 0.00, "colour": [0.2, 0.1, 0.0], "opacity": 0.0},
+    {"value": 0.35, "colour": [0.6, 0.35, 0.05], "opacity": 0.0},
+    {"value": 0.60, "colour": [1.0, 0.7, 0.2], "opacity": 0.35},
+    {"value": 1.00, "colour": [1.0, 1.0, 0.85], "opacity": 0.9}
+  ]
+})";
+
 struct Preset {
     const char* name;
     const char* json;
 };
-constexpr Preset kPresets[] = {{"head", kHeadPreset}, {"ramp", kRampPreset}};
+constexpr Preset kPresets[] = {
+    {"head", kHeadPreset}, {"ramp", kRampPreset}, {"bmode", kBmodePreset}};
 
 }  // namespace
 

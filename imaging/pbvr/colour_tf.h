@@ -78,8 +78,9 @@ class ColourTransferFunction {
     float sigma_max_ = 0.0f;
 };
 
-// Presets compiled in: "head" (Colin27-tuned T1 MRI: scalp, skull band, brain) and
-// "ramp" (grey, opacity rising linearly; for tests and unknown volumes).
+// Presets compiled in: "head" (Colin27-tuned T1 MRI: scalp, skull band, brain), "ramp"
+// (grey, opacity rising linearly; for tests and unknown volumes) and "bmode" (a frame's
+// grey values, for its sector mesh).
 std::vector<std::string> colour_tf_presets();
 // A preset name or a JSON file; throws InputError naming the file and field.
 ColourTransferFunction load_colour_tf(const std::string& spec);

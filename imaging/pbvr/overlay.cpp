@@ -143,12 +143,13 @@ std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCame
                                               glm::dot(p, overlay.axial));
                     const glm::dvec2 ld = scan.line_and_depth(in_plane);
                     const int lines = scan.lines();
-                    if (ld.x >= -0.5 && ld.x <= lines - 0.5 && ld.y >= 0.0 &&
-                        ld.y <= scan.depth_mm()) {
-                        const double edge_mm =
-                            std::min({(ld.x + 0.5) * scan.line_spacing_mm(ld.y),
-                                      (lines - 0.5 - ld.x) * scan.line_spacing_mm(ld.y),
-                                      scan.depth_mm() - ld.y, ld.y});
+                    const bool inside = ld.x >= -0.5 && ld.x <= lines - 0.5 && ld.y >= 0.0 &&
+                                        ld.y <= scan.depth_mm();
+                    const double edge_mm =
+                        std::min({(ld.x + 0.5) * scan.line_spacing_mm(ld.y),
+                                  (lines - 0.5 - ld.x) * scan.line_spacing_mm(ld.y),
+                                  scan.depth_mm() - ld.y, ld.y});
+                    if (inside && (edge_mm <= 0.8 || overlay.draw_frame)) {
                         glm::vec3 colour(1.0f, 0.85f, 0.1f);  // outline
                         if (edge_mm > 0.8) {
                             const double c =
@@ -174,6 +175,50 @@ std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCame
         }
     });
     return layer;
+}
+
+TetMesh sector_mesh(const FrameOverlay& overlay, int line_step, double depth_step_mm) {
+    const probe::ScanGeometry scan(overlay.transducer);
+    std::vector<double> line_positions, depths;
+    for (double l = -0.5; l < scan.lines() - 0.5; l += line_step) line_positions.push_back(l);
+    line_positions.push_back(scan.lines() - 0.5);
+    for (double d = 0.0; d < scan.depth_mm(); d += depth_step_mm) depths.push_back(d);
+    depths.push_back(scan.depth_mm());
+    const double half_thickness = 0.5 * overlay.transducer.slice_thickness_mm;
+    const std::size_t nl = line_positions.size(), nd = depths.size();
+    TetMesh mesh;
+    for (int e = 0; e < 2; ++e)
+        for (std::size_t d = 0; d < nd; ++d)
+            for (std::size_t l = 0; l < nl; ++l) {
+                const glm::dvec2 p = scan.point(line_positions[l], depths[d]);
+                mesh.points.push_back(
+                    overlay.position + p.x * overlay.lateral + p.y * overlay.axial +
+                    (e == 0 ? -half_thickness : half_thickness) * overlay.elevation);
+                float value = 0.0f;
+                if (!overlay.frame.empty()) {
+                    const int c = std::clamp(
+                        int(std::lround((p.x - overlay.origin_mm.x) / overlay.pixel_mm.x)), 0,
+                        overlay.frame.cols - 1);
+                    const int r = std::clamp(
+                        int(std::lround((p.y - overlay.origin_mm.y) / overlay.pixel_mm.y)), 0,
+                        overlay.frame.rows - 1);
+                    value = float(overlay.frame.at<unsigned char>(r, c));
+                }
+                mesh.values.push_back(value);
+            }
+    auto index = [&](std::size_t l, std::size_t d, int e) {
+        return uint32_t((std::size_t(e) * nd + d) * nl + l);
+    };
+    for (std::size_t d = 0; d + 1 < nd; ++d)
+        for (std::size_t l = 0; l + 1 < nl; ++l) {
+            std::array<uint32_t, 8> corner{};
+            for (int c = 0; c < 8; ++c)
+                corner[std::size_t(c)] = index(l + (c & 1), d + (c >> 1 & 1), c >> 2);
+            for (const auto& t : kCellTetrahedra)
+                mesh.tets.push_back({corner[std::size_t(t[0])], corner[std::size_t(t[1])],
+                                     corner[std::size_t(t[2])], corner[std::size_t(t[3])]});
+        }
+    return mesh;
 }
 
 glm::vec4 camera_side_of_plane(const FrameOverlay& overlay, const tissue::VolumeGeometry& volume,

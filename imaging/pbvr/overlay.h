@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 
 #include "imaging/pbvr/camera.h"
+#include "imaging/pbvr/tetra.h"
 #include "probe/transducer.h"
 #include "tissue/volume.h"
 
@@ -23,6 +24,7 @@ struct FrameOverlay {
     glm::dvec3 position{0.0};   // the probe pose in world mm (ScanGeometry's origin)
     glm::dvec3 axial{0.0, 0.0, 1.0}, lateral{1.0, 0.0, 0.0}, elevation{0.0, 1.0, 0.0};
     probe::Transducer transducer;  // its sector
+    bool draw_frame = true;        // false: the sector's outline only (a sector mesh shows it)
 };
 
 // From the JSON sidecar `sonotrace simulate` writes next to a frame (the PNG of the same
@@ -32,6 +34,11 @@ FrameOverlay load_frame_overlay(const std::string& sidecar_path);
 // Z-buffer entries (zbuffer_entry) of the overlay for every sub-pixel of the camera.
 std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCamera& camera,
                                     int subpixel_level);
+
+// The frame's sector as an irregular volume: a grid over scan lines (every
+// `line_step`-th), depth (`depth_step_mm`) and elevation (the slice thickness), split
+// into tetrahedra, carrying the frame's grey values (0..255) at the points.
+TetMesh sector_mesh(const FrameOverlay& overlay, int line_step = 2, double depth_step_mm = 1.0);
 
 // The half-space on the camera's side of the scan plane, in a volume's local frame (for
 // RenderSettings::clip_plane): removing it shows what lies around the plane.

@@ -345,6 +345,10 @@ void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
                 const int y0 = std::max(0, int(std::ceil(low.y - 0.5))),
                           y1 = std::min(sub_height_ - 1, int(std::floor(high.y - 0.5)));
                 if (x0 > x1 || y0 > y1) continue;
+                const glm::dmat3 edges(corners[1] - corners[0], corners[2] - corners[0],
+                                       corners[3] - corners[0]);
+                if (std::abs(glm::determinant(edges)) < 1e-12) continue;  // flat: no volume
+                const glm::dmat3 inverse_edges = glm::inverse(edges);
                 const glm::dvec4 s(layer.values[tet[0]], layer.values[tet[1]], layer.values[tet[2]],
                                    layer.values[tet[3]]);
                 CellRandom random(stream_seed, repetition, uint32_t(t));
@@ -354,7 +358,8 @@ void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
                         const glm::dvec3 dir =
                             glm::normalize(forward + (x + 0.5 - p.centre_x) / focal * right +
                                            (y + 0.5 - p.centre_y) / focal * down);
-                        const auto crossing = cross_tetrahedron(corners, eye, dir);
+                        const auto crossing =
+                            cross_tetrahedron(corners[0], inverse_edges, eye, dir);
                         if (!crossing) continue;
                         const double s_front = glm::dot(crossing->entry_weights, s);
                         const double s_back = glm::dot(crossing->exit_weights, s);

@@ -16,11 +16,6 @@ using tissue::InputError;
 
 namespace {
 
-// The 6 tetrahedra of a cell around its diagonal 0-7 (corner c = x + 2y + 4z): every
-// face is split along the diagonal through its lowest and highest corners, the same on
-// both sides of a face, so the split conforms across cells.
-constexpr std::array<std::array<int, 4>, 6> kCellTets = {
-    {{0, 1, 3, 7}, {0, 3, 2, 7}, {0, 2, 6, 7}, {0, 6, 4, 7}, {0, 4, 5, 7}, {0, 5, 1, 7}}};
 // VTK hexahedron point order -> corner c = x + 2y + 4z.
 constexpr std::array<int, 8> kVtkHexToCorner = {0, 1, 3, 2, 4, 5, 7, 6};
 
@@ -178,7 +173,7 @@ TetMesh read_vtk_unstructured(const std::string& path) {
             std::array<uint32_t, 8> corner{};
             for (int k = 0; k < 8; ++k)
                 corner[std::size_t(kVtkHexToCorner[std::size_t(k)])] = uint32_t(v[std::size_t(k)]);
-            for (const auto& t : kCellTets)
+            for (const auto& t : kCellTetrahedra)
                 mesh.tets.push_back({corner[std::size_t(t[0])], corner[std::size_t(t[1])],
                                      corner[std::size_t(t[2])], corner[std::size_t(t[3])]});
         } else {
@@ -214,7 +209,7 @@ TetMesh tetrahedralize(const tissue::Volume& volume, glm::ivec3 low,
     for (int k = low.z; k < hi.z; ++k)
         for (int j = low.y; j < hi.y; ++j)
             for (int i = low.x; i < hi.x; ++i)
-                for (const auto& t : kCellTets) {
+                for (const auto& t : kCellTetrahedra) {
                     std::array<uint32_t, 4> tet{};
                     for (int v = 0; v < 4; ++v) {
                         const int c = t[std::size_t(v)];
@@ -229,11 +224,15 @@ TetMesh tetrahedralize(const tissue::Volume& volume, glm::ivec3 low,
 std::optional<TetCrossing> cross_tetrahedron(const std::array<glm::dvec3, 4>& corners,
                                              const glm::dvec3& origin, const glm::dvec3& dir) {
     const glm::dmat3 m(corners[1] - corners[0], corners[2] - corners[0], corners[3] - corners[0]);
-    const double det = glm::determinant(m);
-    if (std::abs(det) < 1e-12) return std::nullopt;
-    const glm::dmat3 inverse = glm::inverse(m);
+    if (std::abs(glm::determinant(m)) < 1e-12) return std::nullopt;
+    return cross_tetrahedron(corners[0], glm::inverse(m), origin, dir);
+}
+
+std::optional<TetCrossing> cross_tetrahedron(const glm::dvec3& corner0,
+                                             const glm::dmat3& inverse_edges,
+                                             const glm::dvec3& origin, const glm::dvec3& dir) {
     // barycentric weights along the ray: lambda_i(t) = a_i + b_i t
-    const glm::dvec3 a3 = inverse * (origin - corners[0]), b3 = inverse * dir;
+    const glm::dvec3 a3 = inverse_edges * (origin - corner0), b3 = inverse_edges * dir;
     const glm::dvec4 a(1.0 - a3.x - a3.y - a3.z, a3.x, a3.y, a3.z);
     const glm::dvec4 b(-b3.x - b3.y - b3.z, b3.x, b3.y, b3.z);
     double t0 = 0.0, t1 = std::numeric_limits<double>::max();

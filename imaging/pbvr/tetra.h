@@ -21,6 +21,12 @@
 
 namespace sonotrace::imaging::pbvr {
 
+// The 6 tetrahedra of a hexahedral cell around its diagonal 0-7 (corner c = x + 2y + 4z):
+// every face is split along the diagonal through its lowest and highest corners, the
+// same on both sides of a face, so the split conforms across cells.
+inline constexpr std::array<std::array<int, 4>, 6> kCellTetrahedra = {
+    {{0, 1, 3, 7}, {0, 3, 2, 7}, {0, 2, 6, 7}, {0, 6, 4, 7}, {0, 4, 5, 7}, {0, 5, 1, 7}}};
+
 struct TetMesh {
     std::vector<glm::dvec3> points;             // world mm
     std::vector<float> values;                  // per point, raw (the TF normalizes)
@@ -50,6 +56,11 @@ struct TetCrossing {
 };
 // Clips the ray origin + t dir (t >= 0) against the tetrahedron's four faces.
 std::optional<TetCrossing> cross_tetrahedron(const std::array<glm::dvec3, 4>& corners,
+                                             const glm::dvec3& origin, const glm::dvec3& dir);
+// The same with the tetrahedron given by its first corner and the inverse of its edge
+// matrix (v1 - v0, v2 - v0, v3 - v0), for many rays through one tetrahedron.
+std::optional<TetCrossing> cross_tetrahedron(const glm::dvec3& corner0,
+                                             const glm::dmat3& inverse_edges,
                                              const glm::dvec3& origin, const glm::dvec3& dir);
 
 }  // namespace sonotrace::imaging::pbvr

@@ -23,11 +23,26 @@ using nlohmann::json;
 namespace pbvr = imaging::pbvr;
 
 constexpr ParameterDoc kVolumeDoc = {
-    "--volume", "", "the volume: 'default' (Colin27 T1 head), a NIfTI file or a raw sidecar"};
+    "--volume", "",
+    "a volume (repeat for several, fused in one image): 'default' (Colin27 T1 head), a NIfTI "
+    "file or raw sidecar (the first regular volume is rendered by particles, later ones are "
+    "split into tetrahedra), or a VTK legacy unstructured grid (.vtk: tetrahedra, "
+    "hexahedra)"};
 constexpr ParameterDoc kTfDoc = {
     "--tf", "",
-    "colour/opacity transfer function: a preset (head, ramp) or a JSON file with \"points\": "
-    "[{\"value\": 0..1, \"colour\": [r,g,b], \"opacity\": 0..1 per unit_length_mm}]"};
+    "colour/opacity transfer function per --volume, in the same order: a preset (head, ramp, "
+    "bmode) or a JSON file with \"points\": [{\"value\": 0..1, \"colour\": [r,g,b], "
+    "\"opacity\": 0..1 per unit_length_mm}]"};
+constexpr ParameterDoc kDepthDoc = {
+    "--depth-sampling", "",
+    "where a tetrahedron fragment's particle sits: cdf (drawn from the opacity CDF, exact), "
+    "entry, middle, exit or random (the paper's comparison modes)"};
+constexpr ParameterDoc kSectorDoc = {
+    "--sector", "",
+    "with --frame: also render the frame's sector (lines x depth x slice thickness) as a "
+    "tetrahedral volume carrying the B-mode values, fused with the head"};
+constexpr ParameterDoc kSectorTfDoc = {"--sector-tf", "",
+                                       "transfer function of the --sector mesh (0..255 grey)"};
 constexpr ParameterDoc kAzimuthDoc = {"--azimuth", "degrees",
                                       "camera turn about the up axis (+z); 0 looks along +y"};
 constexpr ParameterDoc kElevationDoc = {"--elevation", "degrees", "camera height angle"};
@@ -103,8 +118,9 @@ CLI::App* add_render_command(CLI::App& app, RenderOptions& options) {
         "opaque particles generated from the transfer function's opacity, projected with a "
         "Z-buffer and averaged over repetitions. Writes a PNG (and with --reference the "
         "ray-cast reference and the PSNR).");
-    add_parameter(*cmd, kVolumeDoc, options.volume);
-    add_parameter(*cmd, kTfDoc, options.tf);
+    add_parameter(*cmd, kVolumeDoc, options.volumes);
+    add_parameter(*cmd, kTfDoc, options.tfs);
+    add_parameter(*cmd, kDepthDoc, options.depth_sampling);
     add_parameter(*cmd, kAzimuthDoc, options.azimuth_deg);
     add_parameter(*cmd, kElevationDoc, options.elevation_deg);
     add_parameter(*cmd, kDistanceDoc, options.distance_mm);
@@ -121,6 +137,8 @@ CLI::App* add_render_command(CLI::App& app, RenderOptions& options) {
     add_parameter(*cmd, kTimeLimitDoc, options.time_limit_s);
     add_parameter(*cmd, kSeedDoc, options.seed);
     add_parameter(*cmd, kFrameDoc, options.frame);
+    cmd->add_flag(kSectorDoc.flag, options.sector, kSectorDoc.description);
+    add_parameter(*cmd, kSectorTfDoc, options.sector_tf);
     add_parameter(*cmd, kReferenceDoc, options.reference);
     add_parameter(*cmd, kReferenceStepDoc, options.reference_step_mm);
     add_parameter(*cmd, kOutDoc, options.out);
@@ -162,16 +180,76 @@ int run_render_command(const RenderOptions& options) {
     if (out_path.extension() != ".png")
         throw tissue::InputError("--out", "", "must name a .png file, got '" + options.out + "'");
 
-    timer.begin("loading transfer function " + options.tf);
-    pbvr::ColourTransferFunction tf = pbvr::load_colour_tf(options.tf);
-    timer.end();
-    timer.begin("loading volume " + options.volume);
-    const tissue::LoadedVolume loaded = tissue::load_volume({options.volume, std::nullopt});
-    loaded.volume.require_finite(loaded.path);
-    tf.bind(loaded.volume);
-    timer.end();
+    pbvr::DepthSampling depth_sampling = pbvr::DepthSampling::cdf;
+    {
+        bool known = false;
+        for (const auto d :
+             {pbvr::DepthSampling::cdf, pbvr::DepthSampling::entry, pbvr::DepthSampling::middle,
+              pbvr::DepthSampling::exit, pbvr::DepthSampling::random})
+            if (options.depth_sampling == pbvr::to_string(d)) depth_sampling = d, known = true;
+        if (!known)
+            throw tissue::InputError("--depth-sampling", "",
+                                     "must be cdf, entry, middle, exit or random");
+    }
+    if (options.volumes.empty()) throw tissue::InputError("--volume", "", "needs a volume");
+    if (options.tfs.size() != options.volumes.size())
+        throw tissue::InputError("--tf", "",
+                                 "give one transfer function per --volume (" +
+                                     std::to_string(options.volumes.size()) + " volumes, " +
+                                     std::to_string(options.tfs.size()) + " transfer functions)");
 
-    const tissue::VolumeGeometry& g = loaded.volume.geometry();
+    // ---- the inputs: one regular volume for particles, meshes for the rest ----
+    std::optional<tissue::LoadedVolume> loaded;
+    std::optional<pbvr::ColourTransferFunction> tf;
+    std::string tf_name;
+    std::vector<std::unique_ptr<pbvr::TetMesh>> meshes;
+    std::vector<std::unique_ptr<pbvr::ColourTransferFunction>> mesh_tfs;
+    json inputs = json::array();
+    for (std::size_t v = 0; v < options.volumes.size(); ++v) {
+        const std::string& spec = options.volumes[v];
+        timer.begin("loading " + spec);
+        auto volume_tf = pbvr::load_colour_tf(options.tfs[v]);
+        const bool is_mesh = std::filesystem::path(spec).extension() == ".vtk";
+        if (!is_mesh && !loaded) {
+            loaded = tissue::load_volume({spec, std::nullopt});
+            loaded->volume.require_finite(loaded->path);
+            volume_tf.bind(loaded->volume);
+            tf = volume_tf;
+            tf_name = options.tfs[v];
+            inputs.push_back({{"volume", loaded->path},
+                              {"rendered_as", "particles (O-PBVR)"},
+                              {"transfer_function", volume_tf.describe()}});
+        } else {
+            auto mesh = std::make_unique<pbvr::TetMesh>();
+            if (is_mesh) {
+                *mesh = pbvr::read_vtk_unstructured(spec);
+            } else {
+                const auto other = tissue::load_volume({spec, std::nullopt});
+                other.volume.require_finite(other.path);
+                *mesh = pbvr::tetrahedralize(other.volume);
+            }
+            volume_tf.bind(mesh->values_as_volume());
+            inputs.push_back({{"volume", spec},
+                              {"rendered_as", "tetrahedra (I-PBVR)"},
+                              {"tetrahedra", mesh->tets.size()},
+                              {"transfer_function", volume_tf.describe()}});
+            meshes.push_back(std::move(mesh));
+            mesh_tfs.push_back(std::make_unique<pbvr::ColourTransferFunction>(volume_tf));
+        }
+        timer.end();
+    }
+    // The view fits the regular volume, else the meshes' bounding box.
+    tissue::VolumeGeometry g;
+    if (loaded) {
+        g = loaded->volume.geometry();
+    } else {
+        glm::dvec3 low(1e300), high(-1e300);
+        for (const auto& m : meshes)
+            for (const auto& p : m->points) low = glm::min(low, p), high = glm::max(high, p);
+        g.dims = {11, 11, 11};
+        g.origin = low;
+        g.spacing = glm::max((high - low) / 10.0, glm::dvec3(1e-6));
+    }
     pbvr::OrbitCamera camera = pbvr::fit_camera(g, options.azimuth_deg, options.elevation_deg,
                                                 options.fov_deg, options.width, options.height);
     if (options.distance_mm > 0.0) camera.distance_mm = options.distance_mm;
@@ -183,25 +261,51 @@ int run_render_command(const RenderOptions& options) {
         overlay = pbvr::load_frame_overlay(options.frame);
         timer.end();
     }
+    if (options.sector && !overlay)
+        throw tissue::InputError("--sector", "", "needs --frame (the frame whose sector to mesh)");
+    if (overlay && options.sector) {
+        overlay->draw_frame = false;  // the sector mesh shows the frame's values
+        timer.begin("meshing the frame's sector");
+        auto mesh = std::make_unique<pbvr::TetMesh>(pbvr::sector_mesh(*overlay));
+        auto sector_tf = pbvr::load_colour_tf(options.sector_tf);
+        sector_tf.bind(mesh->values_as_volume());
+        inputs.push_back({{"volume", options.frame + " (sector)"},
+                          {"rendered_as", "tetrahedra (I-PBVR)"},
+                          {"tetrahedra", mesh->tets.size()},
+                          {"transfer_function", sector_tf.describe()}});
+        meshes.push_back(std::move(mesh));
+        mesh_tfs.push_back(std::make_unique<pbvr::ColourTransferFunction>(sector_tf));
+        timer.end();
+    }
     if (overlay && options.cut_away == "auto") {
         settings.clip_plane = pbvr::camera_side_of_plane(*overlay, g, camera);
-    } else if (options.cut_away == "octant" ||
-               (options.cut_away == "auto" && options.tf == "head")) {
+    } else if (options.cut_away == "octant" || (options.cut_away == "auto" && tf_name == "head")) {
         settings.cut_away = pbvr::facing_octant(g, camera);
     } else if (options.cut_away != "auto" && options.cut_away != "none") {
         const auto v = parse_numbers(options.cut_away, "--cut-away", 6);
         settings.cut_away = pbvr::CutAway{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5])};
     }
 
-    timer.begin("preparing volume (normalized values, gradients)");
-    const pbvr::RenderVolume volume(loaded.volume, tf);
-    timer.end();
+    if (!options.reference.empty() && loaded && !meshes.empty())
+        throw tissue::InputError("--reference", "",
+                                 "the reference of a regular volume fused with meshes is not "
+                                 "implemented; render them separately");
+    std::optional<pbvr::RenderVolume> volume;
+    if (loaded) {
+        timer.begin("preparing volume (normalized values)");
+        volume.emplace(loaded->volume, *tf);
+        timer.end();
+    }
     timer.begin("finding occupied cells");
-    pbvr::PbvrRenderer renderer(volume, tf, camera, settings);
-    if (overlay) renderer.set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
+    auto renderer = volume ? std::make_unique<pbvr::PbvrRenderer>(*volume, *tf, camera, settings)
+                           : std::make_unique<pbvr::PbvrRenderer>(camera, settings);
+    for (std::size_t m = 0; m < meshes.size(); ++m)
+        renderer->add_mesh(*meshes[m], *mesh_tfs[m], depth_sampling);
+    if (overlay)
+        renderer->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
     timer.end();
     json warnings = json::array();
-    if (renderer.occupied_cells() == 0) {
+    if (volume && renderer->occupied_cells() == 0) {
         const std::string warning =
             "the transfer function makes every voxel transparent: the image is the background";
         warnings.push_back(warning);
@@ -217,7 +321,7 @@ int run_render_command(const RenderOptions& options) {
     std::string stopped_by = "repetitions";
     for (int r = 0; r < settings.repetitions; ++r) {
         const auto t0 = std::chrono::steady_clock::now();
-        renderer.add_repetition();
+        renderer->add_repetition();
         const auto t1 = std::chrono::steady_clock::now();
         repetition_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
         bar.update(std::size_t(r + 1), std::size_t(settings.repetitions));
@@ -235,12 +339,12 @@ int run_render_command(const RenderOptions& options) {
     std::signal(SIGINT, previous_handler);
     const double render_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    const pbvr::RgbImage image = renderer.image();
+    const pbvr::RgbImage image = renderer->image();
 
     json record = {
         {"version", SONOTRACE_VERSION},
-        {"volume", loaded.path},
-        {"transfer_function", tf.describe()},
+        {"inputs", inputs},
+        {"depth_sampling", options.depth_sampling},
         {"camera",
          {{"target_mm", {camera.target.x, camera.target.y, camera.target.z}},
           {"distance_mm", camera.distance_mm},
@@ -253,13 +357,13 @@ int run_render_command(const RenderOptions& options) {
         {"sampling", options.sampling},
         {"shading", options.shading},
         {"subpixel_level", settings.subpixel_level},
-        {"particle_radius_mm", renderer.particle_radius_mm()},
-        {"occupied_cells", renderer.occupied_cells()},
-        {"repetitions", renderer.repetitions_done()},
+        {"particle_radius_mm", renderer->particle_radius_mm()},
+        {"occupied_cells", renderer->occupied_cells()},
+        {"repetitions", renderer->repetitions_done()},
         {"stopped_by", stopped_by},
         {"particles_per_repetition",
-         renderer.repetitions_done() > 0
-             ? double(renderer.particles_drawn()) / renderer.repetitions_done()
+         renderer->repetitions_done() > 0
+             ? double(renderer->particles_drawn()) / renderer->repetitions_done()
              : 0.0},
         {"render_s", render_s},
         {"warnings", warnings},
@@ -279,8 +383,12 @@ int run_render_command(const RenderOptions& options) {
     imaging::write_png(pbvr::to_picture(image), transaction.stage(options.out));
     if (!options.reference.empty()) {
         timer.begin("ray-casting the reference");
+        std::vector<std::pair<const pbvr::TetMesh*, const pbvr::ColourTransferFunction*>> fused;
+        for (std::size_t m = 0; m < meshes.size(); ++m)
+            fused.push_back({meshes[m].get(), mesh_tfs[m].get()});
         const pbvr::RgbImage reference =
-            pbvr::raycast(volume, tf, camera, settings, options.reference_step_mm);
+            volume ? pbvr::raycast(*volume, *tf, camera, settings, options.reference_step_mm)
+                   : pbvr::raycast_meshes(fused, camera, settings, options.reference_step_mm);
         timer.end();
         const double db = pbvr::psnr(image, reference);
         record["reference"] = {

@@ -2,6 +2,7 @@
 // `sonotrace render`: particle-based volume rendering of a volume (the 3D tissue
 // context), with an optional ray-cast reference and its PSNR.
 #include <string>
+#include <vector>
 
 #include "imaging/pbvr/pbvr.h"
 #include "ui/cli/command_common.h"
@@ -9,8 +10,11 @@
 namespace sonotrace::ui {
 
 struct RenderOptions {
-    std::string volume = "default";
-    std::string tf = "head";
+    // Volumes and their transfer functions, by position: regular volumes (the first is
+    // rendered by particles, others become tetrahedral meshes) and .vtk meshes.
+    std::vector<std::string> volumes{"default"};
+    std::vector<std::string> tfs{"head"};
+    std::string depth_sampling = "cdf";
     double azimuth_deg = imaging::pbvr::kHeadAzimuthDeg;
     double elevation_deg = imaging::pbvr::kHeadElevationDeg;
     double distance_mm = 0.0;  // 0 = fit
@@ -25,7 +29,9 @@ struct RenderOptions {
     std::string cut_away = "auto";
     double time_limit_s = 0.0;
     uint64_t seed = 1;
-    std::string frame;      // simulate sidecar: probe, scan plane and B-mode in the view
+    std::string frame;    // simulate sidecar: probe, scan plane and B-mode in the view
+    bool sector = false;  // also the frame's sector as a mesh (fused rendering)
+    std::string sector_tf = "bmode";
     std::string reference;  // also ray-cast the reference to this PNG and report PSNR
     double reference_step_mm = 0.25;
     std::string out = "out/render.png";
