@@ -28,7 +28,8 @@ std::string write_sphere(const ScratchDir& dir) {
     for (int k = 0; k < 40; ++k)
         for (int j = 0; j < 40; ++j)
             for (int i = 0; i < 40; ++i)
-                v.at(i, j, k) = float(std::max(0.0, 18.0 - glm::length(glm::dvec3(i, j, k) - 19.5)));
+                v.at(i, j, k) =
+                    float(std::max(0.0, 18.0 - glm::length(glm::dvec3(i, j, k) - 19.5)));
     tissue::write_raw(v, dir / "sphere.raw");
     return dir / "sphere.json";
 }
@@ -36,9 +37,11 @@ std::string write_sphere(const ScratchDir& dir) {
 TEST(CliRender, WritesTheImageTheReferenceAndTheRecord) {
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
-    const auto r = run(dir, "render -q --volume " + volume + " --tf ramp --width 64 --height 48 "
-                            "--repetitions 4 --out " + (dir / "out/v.png") + " --reference " +
-                            (dir / "out/ref.png") + " --json " + (dir / "out/v.json"));
+    const auto r = run(dir, "render -q --volume " + volume +
+                                " --tf ramp --width 64 --height 48 "
+                                "--repetitions 4 --out " +
+                                (dir / "out/v.png") + " --reference " + (dir / "out/ref.png") +
+                                " --json " + (dir / "out/v.json"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const auto record = nlohmann::json::parse(slurp(dir / "out/v.json"));
     EXPECT_EQ(record["repetitions"], 4);
@@ -53,12 +56,33 @@ TEST(CliRender, SameImageOnOneAndTwoThreads) {
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
     for (const char* threads : {"1", "2"}) {
-        const auto r = run(dir, "render -q --volume " + volume + " --tf ramp --width 64 --height 64 "
-                                "--repetitions 3 --sampling metropolis --threads " +
+        const auto r = run(dir, "render -q --volume " + volume +
+                                    " --tf ramp --width 64 --height 64 "
+                                    "--repetitions 3 --sampling metropolis --threads " +
                                     std::string(threads) + " --out " + (dir / threads) + ".png");
         ASSERT_EQ(r.exit_code, 0) << r.err;
     }
     EXPECT_EQ(slurp(dir / "1.png"), slurp(dir / "2.png"));
+}
+
+TEST(CliRender, FusesTetrahedralMeshesWithEachDepthMode) {
+    ScratchDir dir;
+    const std::string phantoms = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/pbvr/";
+    const std::string inputs = "--volume " + phantoms + "red_tetrahedron.vtk --tf " + phantoms +
+                               "red.json --volume " + phantoms + "blue_tetrahedron.vtk --tf " +
+                               phantoms + "blue.json --width 32 --height 32 --repetitions 20";
+    const auto r = run(dir, "render -q " + inputs + " --out " + (dir / "f.png") + " --reference " +
+                                (dir / "ref.png") + " --json " + (dir / "f.json"));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto record = nlohmann::json::parse(slurp(dir / "f.json"));
+    EXPECT_EQ(record["inputs"].size(), 2u);
+    EXPECT_EQ(record["inputs"][0]["rendered_as"], "tetrahedra (I-PBVR)");
+    EXPECT_GT(record["reference"]["psnr_db"].get<double>(), 20.0);
+    for (const char* mode : {"entry", "middle", "exit", "random"}) {
+        const auto m = run(dir, "render -q " + inputs + " --depth-sampling " + mode + " --out " +
+                                    (dir / mode) + ".png");
+        EXPECT_EQ(m.exit_code, 0) << mode << ": " << m.err;
+    }
 }
 
 TEST(CliRender, HelpExplainsUnits) {
@@ -73,7 +97,8 @@ TEST(CliRender, HelpExplainsUnits) {
 TEST(CliRender, ATransparentTransferFunctionWarnsAndWritesTheBackground) {
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
-    std::ofstream(dir / "clear.json") << R"({"points": [{"value": 0, "colour": [1,1,1], "opacity": 0},
+    std::ofstream(dir / "clear.json")
+        << R"({"points": [{"value": 0, "colour": [1,1,1], "opacity": 0},
         {"value": 1, "colour": [1,1,1], "opacity": 0}]})";
     const auto r = run(dir, "render --volume " + volume + " --tf " + (dir / "clear.json") +
                                 " --width 16 --height 16 --repetitions 1 --out " + (dir / "c.png"));
@@ -87,7 +112,8 @@ TEST(CliRender, ATransparentTransferFunctionWarnsAndWritesTheBackground) {
 TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
-    std::ofstream(dir / "unsorted.json") << R"({"points": [{"value": 0.5, "colour": [1,1,1], "opacity": 0},
+    std::ofstream(dir / "unsorted.json")
+        << R"({"points": [{"value": 0.5, "colour": [1,1,1], "opacity": 0},
         {"value": 0.2, "colour": [1,1,1], "opacity": 0.1}]})";
     std::ofstream(dir / "broken.json") << R"({"points": [)";
     struct Case {
@@ -107,6 +133,11 @@ TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {
         {"--background 1,2", "--background"},
         {"--cut-away 1,2,3", "--cut-away"},
         {"--volume " + (dir / "missing.nii"), "missing.nii"},
+        {"--volume " + volume + " --volume " + volume + " --tf ramp",
+         "one transfer function per --volume"},
+        {"--depth-sampling deepest", "--depth-sampling"},
+        {"--sector", "needs --frame"},
+        {"--frame " + (dir / "nosuch.json"), "nosuch.json"},
     };
     for (const Case& c : cases) {
         std::string args = c.args;  // the case's options, then defaults for the others
@@ -114,7 +145,8 @@ TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {
              {std::pair{"--volume", volume}, std::pair{"--tf", std::string("ramp")},
               std::pair{"--repetitions", std::string("1")}, std::pair{"--width", std::string("16")},
               std::pair{"--height", std::string("16")}})
-            if (args.find(option) == std::string::npos) args.append(" ").append(option).append(" ").append(value);
+            if (args.find(option) == std::string::npos)
+                args.append(" ").append(option).append(" ").append(value);
         const auto r = run(dir, "render -q --out " + (dir / "out/x.png") + " " + args);
         EXPECT_EQ(r.exit_code, 1) << c.args << ": " << r.err;
         EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << ": " << r.err;
