@@ -94,4 +94,10 @@ std::optional<std::string> parse_spacing(const std::string& text, double out[3])
     return std::nullopt;
 }
 
+void add_run_options(CLI::App& command, std::string& json_path, int& threads, bool& quiet) {
+    add_parameter(command, kJsonRecordDoc, json_path);
+    add_parameter(command, kThreadsDoc, threads)->check(CLI::Range(0, 1024));
+    command.add_flag("-q,--quiet", quiet, "no progress on stderr");
+}
+
 }  // namespace sonotrace::ui

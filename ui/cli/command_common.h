@@ -29,6 +29,16 @@ CLI::Option* add_parameter(CLI::App& app, const ParameterDoc& doc, T& variable) 
     return app.add_option(doc.flag, variable, help)->capture_default_str();
 }
 
+// Documented once for every command.
+inline constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
+inline constexpr ParameterDoc kJsonRecordDoc = {
+    "--json", "",
+    "also write the run record (parameters, outputs, timings) to this file; '-' prints it on "
+    "stdout"};
+
+// The options most commands end with: --json FILE, --threads N, -q/--quiet.
+void add_run_options(CLI::App& command, std::string& json_path, int& threads, bool& quiet);
+
 // Times named stages and prints "sonotrace: <stage> ... 0.42 s" lines to stderr.
 class StageTimer {
   public:

@@ -80,9 +80,6 @@ constexpr ParameterDoc kReferenceDoc = {
 constexpr ParameterDoc kReferenceStepDoc = {"--reference-step", "mm",
                                             "sample spacing of the reference ray caster"};
 constexpr ParameterDoc kOutDoc = {"--out", "", "output PNG"};
-constexpr ParameterDoc kJsonDoc = {
-    "--json", "", "also write the run record to this file; '-' prints it on stdout"};
-constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
 std::atomic<bool> g_interrupted{false};
 extern "C" void on_interrupt(int) {
@@ -142,9 +139,7 @@ CLI::App* add_render_command(CLI::App& app, RenderOptions& options) {
     add_parameter(*cmd, kReferenceDoc, options.reference);
     add_parameter(*cmd, kReferenceStepDoc, options.reference_step_mm);
     add_parameter(*cmd, kOutDoc, options.out);
-    add_parameter(*cmd, kJsonDoc, options.json_path);
-    add_parameter(*cmd, kThreadsDoc, options.threads)->check(CLI::Range(0, 1024));
-    cmd->add_flag("-q,--quiet", options.quiet, "no progress on stderr");
+    add_run_options(*cmd, options.json_path, options.threads, options.quiet);
     return cmd;
 }
 

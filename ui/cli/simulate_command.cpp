@@ -88,7 +88,6 @@ constexpr ParameterDoc kSceneDoc = {
     "JSON file of option values, keys = option names without dashes (\"probe\": \"linear\", "
     "\"gain\": 40, \"formats\": [\"png8\", \"exr\"]); options given on the command line win; "
     "unknown keys are errors"};
-constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
 std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::Transducer& t) {
     if (text == "none") return {};

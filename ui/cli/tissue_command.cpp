@@ -31,10 +31,6 @@ using nlohmann::json;
 using tissue::Property;
 
 constexpr ParameterDoc kOutDoc = {"--out", "", "output directory"};
-constexpr ParameterDoc kJsonDoc = {"--json", "",
-                                   "also write the run record (parameters, outputs, timings) to "
-                                   "this file; '-' prints it on stdout"};
-constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
 struct FieldOutput {
     std::string key;
@@ -86,14 +82,12 @@ CLI::App* add_tissue_command(CLI::App& app, TissueOptions& options) {
         "with a JSON sidecar (tissue.json).");
     add_slice_options(*cmd, options.slice, true);
     add_parameter(*cmd, kOutDoc, options.out_dir);
-    add_parameter(*cmd, kJsonDoc, options.json_path);
-    add_parameter(*cmd, kThreadsDoc, options.threads)->check(CLI::Range(0, 1024));
+    add_run_options(*cmd, options.json_path, options.threads, options.quiet);
     cmd->add_flag("--nifti", options.write_nifti,
                   "also write every field as float NIfTI (.nii.gz) with the grid's geometry");
     cmd->add_flag("--list-tissues", options.list_tissues,
                   "print the acoustic properties (units, ranges) and the tissue table (literature "
                   "values) as Markdown and exit");
-    cmd->add_flag("-q,--quiet", options.quiet, "no progress lines on stderr");
     return cmd;
 }
 

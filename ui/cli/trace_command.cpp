@@ -73,9 +73,6 @@ constexpr ParameterDoc kPathsDoc = {
 constexpr ParameterDoc kEchoesDoc = {"--echoes", "",
                                      "also write every echo event as CSV to this file"};
 constexpr ParameterDoc kOutDoc = {"--out", "", "output directory"};
-constexpr ParameterDoc kJsonDoc = {
-    "--json", "", "also write the run record to this file; '-' prints it on stdout"};
-constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
 // The --disable switches.
 void apply_disable(const std::string& disable, simulator::TraceSettings& s) {
@@ -243,9 +240,7 @@ CLI::App* add_trace_command(CLI::App& app, TraceOptions& options) {
     add_parameter(*cmd, kPathsDoc, options.paths);
     add_parameter(*cmd, kEchoesDoc, options.echoes_csv);
     add_parameter(*cmd, kOutDoc, options.out_dir);
-    add_parameter(*cmd, kJsonDoc, options.json_path);
-    add_parameter(*cmd, kThreadsDoc, options.threads)->check(CLI::Range(0, 1024));
-    cmd->add_flag("-q,--quiet", options.quiet, "no progress on stderr");
+    add_run_options(*cmd, options.json_path, options.threads, options.quiet);
     return cmd;
 }
 

@@ -28,7 +28,6 @@ constexpr ParameterDoc kSeedDoc = {
     "--seed", "",
     "random seed of the simulated frames; the expectations do not depend on it, so other seeds "
     "show the Monte Carlo spread of each measurement"};
-constexpr ParameterDoc kThreadsDoc = {"--threads", "", "worker threads; 0 = all cores"};
 
 std::string format(double v) {
     char buffer[32];
