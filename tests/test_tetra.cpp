@@ -273,5 +273,45 @@ TEST(Tetra, CdfDepthHasTheLowestErrorOnOverlappingMeshes) {
     compare_depth_modes(a, b, camera_on({2.2, 1.9, 1.8}, 16.0), "overlapping_meshes");
 }
 
+TEST(Tetra, ARegularVolumeAndAMeshFuseAsTheReferenceDoes) {
+    // A shaded blob (particles) with a tetrahedralized slab crossing it (fragments), one
+    // Z-buffer; against raycast_fused, which adds the extinctions along each ray.
+    tissue::VolumeGeometry g;
+    g.dims = {24, 24, 24};
+    tissue::Volume blob(g);
+    for (int k = 0; k < 24; ++k)
+        for (int j = 0; j < 24; ++j)
+            for (int i = 0; i < 24; ++i)
+                blob.at(i, j, k) =
+                    float(std::max(0.0, 1.0 - glm::length(glm::dvec3(i, j, k) - 11.5) / 10.0));
+    ColourTransferFunction blob_tf = colour_map({0.6f, 0.3f, 0.3f}, {1.0f, 0.9f, 0.8f}, 0.3);
+    blob_tf.bind(blob);
+    const RenderVolume volume(blob, blob_tf);
+    tissue::VolumeGeometry sg;
+    sg.dims = {7, 7, 2};
+    sg.spacing = {4.0, 4.0, 2.0};
+    sg.origin = {0.0, 0.0, 10.5};
+    tissue::Volume slab(sg);
+    for (std::size_t v = 0; v < slab.size(); ++v) slab.voxels()[v] = float(v % 7) / 6.0f;
+    const TetMesh mesh = tetrahedralize(slab);
+    ColourTransferFunction slab_tf = colour_map({0.0f, 0.2f, 0.5f}, {0.2f, 0.8f, 1.0f}, 0.6);
+    slab_tf.bind(mesh.values_as_volume());
+    OrbitCamera camera = camera_on({11.5, 11.5, 11.5}, 90.0);
+    RenderSettings settings;
+    settings.subpixel_level = 1;
+    settings.radius_scale = 1.0;
+    const RgbImage reference =
+        raycast_fused(&volume, &blob_tf, {{&mesh, &slab_tf}}, camera, settings, 0.02);
+    PbvrRenderer renderer(volume, blob_tf, camera, settings);
+    renderer.add_mesh(mesh, slab_tf, DepthSampling::cdf);
+    for (int r = 0; r < 300; ++r) renderer.add_repetition();
+    // 300 repetitions of 48 x 48 pixels: noise ~0.3 / sqrt(300) = 0.017 per pixel where
+    // the slab and the blob compete, far less elsewhere; measured 42.9 dB. 39 dB (RMSE
+    // 0.011) fails if either volume is missing from the Z-buffer or their order is wrong.
+    const double db = psnr(renderer.image(), reference);
+    ::testing::Test::RecordProperty("psnr_fused", std::to_string(db));
+    EXPECT_GT(db, 39.0);
+}
+
 }  // namespace
 }  // namespace sonotrace::imaging::pbvr

@@ -293,9 +293,16 @@ class PbvrRenderer {
     uint64_t particles_ = 0;
 };
 
-// The reference for fused meshes: along each sub-pixel ray the extinctions of all meshes
-// add and their colours mix by extinction (emission-absorption of the union), midpoint
-// samples every `step_mm` (brute force over the tetrahedra: for tests and small meshes).
+// The reference for fused volumes: along each sub-pixel ray the extinctions of the
+// regular volume (with the renderer's shading, cut-away and clip plane) and of every mesh
+// add, and their colours mix by extinction (emission-absorption of the union); midpoint
+// samples every `step_mm`, stopped when the transmittance falls below 1e-5. Tetrahedra
+// are found through 16 x 16 sub-pixel tiles of their projections.
+RgbImage raycast_fused(
+    const RenderVolume* volume, const ColourTransferFunction* volume_tf,
+    const std::vector<std::pair<const TetMesh*, const ColourTransferFunction*>>& meshes,
+    const OrbitCamera& camera, const RenderSettings& settings, double step_mm);
+// Meshes alone.
 RgbImage raycast_meshes(
     const std::vector<std::pair<const TetMesh*, const ColourTransferFunction*>>& meshes,
     const OrbitCamera& camera, const RenderSettings& settings, double step_mm);

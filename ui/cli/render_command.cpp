@@ -281,10 +281,6 @@ int run_render_command(const RenderOptions& options) {
         settings.cut_away = pbvr::CutAway{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5])};
     }
 
-    if (!options.reference.empty() && loaded && !meshes.empty())
-        throw tissue::InputError("--reference", "",
-                                 "the reference of a regular volume fused with meshes is not "
-                                 "implemented; render them separately");
     std::optional<pbvr::RenderVolume> volume;
     if (loaded) {
         timer.begin("preparing volume (normalized values)");
@@ -382,8 +378,8 @@ int run_render_command(const RenderOptions& options) {
         for (std::size_t m = 0; m < meshes.size(); ++m)
             fused.push_back({meshes[m].get(), mesh_tfs[m].get()});
         const pbvr::RgbImage reference =
-            volume ? pbvr::raycast(*volume, *tf, camera, settings, options.reference_step_mm)
-                   : pbvr::raycast_meshes(fused, camera, settings, options.reference_step_mm);
+            pbvr::raycast_fused(volume ? &*volume : nullptr, volume ? &*tf : nullptr, fused, camera,
+                                settings, options.reference_step_mm);
         timer.end();
         const double db = pbvr::psnr(image, reference);
         record["reference"] = {
