@@ -2,6 +2,7 @@
 // split, the VTK reader, convergence to the ray integral for one tetrahedron and one
 // hexahedral cell, and the paper's figure 3 comparison of the five depth modes.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <bit>
 #include <cmath>
@@ -271,6 +272,28 @@ TEST(Tetra, CdfDepthHasTheLowestErrorOnOverlappingMeshes) {
     };
     const TetMesh a = blob({0.0, 0.0, 0.0}, 0.0), b = blob({1.5, 0.9, 0.6}, 1.3);
     compare_depth_modes(a, b, camera_on({2.2, 1.9, 1.8}, 16.0), "overlapping_meshes");
+}
+
+TEST(Tetra, FusedImagesAreByteIdenticalOnOneAndTwoThreads) {
+    tissue::VolumeGeometry g;
+    g.dims = {5, 5, 5};
+    g.spacing = glm::dvec3(0.6);
+    tissue::Volume v(g);
+    for (std::size_t i = 0; i < v.size(); ++i) v.voxels()[i] = float((i * 37) % 11) / 10.0f;
+    const TetMesh mesh = tetrahedralize(v);
+    ColourTransferFunction tf = colour_map({0.2f, 0.2f, 0.8f}, {1.0f, 0.8f, 0.2f}, 0.8);
+    tf.bind(mesh.values_as_volume());
+    for (const DepthSampling d : {DepthSampling::cdf, DepthSampling::random}) {
+        auto run = [&](int threads) {
+            tbb::global_control c(tbb::global_control::max_allowed_parallelism,
+                                  std::size_t(threads));
+            return render({{&mesh, &tf}}, camera_on({1.2, 1.2, 1.2}, 8.0), d, 5);
+        };
+        const RgbImage a = run(1), b = run(2);
+        EXPECT_EQ(
+            std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(glm::vec3)), 0)
+            << to_string(d);
+    }
 }
 
 TEST(Tetra, ARegularVolumeAndAMeshFuseAsTheReferenceDoes) {
