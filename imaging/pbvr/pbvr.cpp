@@ -314,84 +314,131 @@ void PbvrRenderer::add_mesh(const TetMesh& mesh, const ColourTransferFunction& t
     meshes_.push_back(std::move(layer));
 }
 
+// Image-space PBVR of one mesh (sec. 3.4). Each tetrahedron is projected and its
+// footprint split by which face the ray enters and which it leaves through: the regions
+// of constant (front, back) face pair are the projected-tetrahedra triangles. Both faces
+// are rasterized with perspective-correct interpolation of the scalar and the depth (the
+// scalar is linear on each face in 3D, so this is exact), which gives every sub-pixel's
+// fragment: s_f, s_b, D_f, D_b and the length l of the ray inside.
 void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
     const TetMesh& mesh = *layer.mesh;
     const Projection p = Projection::of(camera_, settings_.subpixel_level);
-    const glm::dvec3 eye = camera_.eye(), forward = camera_.forward(), right = camera_.right(),
-                     down = -camera_.up();
-    const double focal = p.focal;
     const uint64_t stream_seed = settings_.seed ^ (0x632BE59BD9B4E019ull * (index + 1));
     const uint32_t repetition = uint32_t(repetitions_);
+    constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+    // Per sub-pixel of a footprint: the nearest and farthest face points met.
+    struct FaceHits {
+        float near_depth, near_value, far_depth, far_value;
+        int count;
+    };
+    tbb::enumerable_thread_specific<std::vector<FaceHits>> scratch;
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, mesh.tets.size(), 1024),
         [&](const tbb::blocked_range<std::size_t>& range) {
+            std::vector<FaceHits>& hits = scratch.local();
             for (std::size_t t = range.begin(); t != range.end(); ++t) {
                 const auto& tet = mesh.tets[t];
-                std::array<glm::dvec3, 4> corners;
+                // -- project the corners: screen position, 1/depth, value
+                glm::dvec2 q[4];
+                double inverse_depth[4], value[4];
                 glm::dvec2 low(1e300), high(-1e300);
                 bool visible = true;
-                // -- project the corners: the footprint's bounding box in sub-pixels
                 for (int v = 0; v < 4; ++v) {
-                    corners[std::size_t(v)] = mesh.points[tet[std::size_t(v)]];
-                    const glm::vec3 e = p.to_camera(glm::vec3(corners[std::size_t(v)]));
-                    if (e.z <= 1e-3f) visible = false;
-                    const glm::dvec2 q(p.centre_x + p.focal * e.x / e.z,
-                                       p.centre_y + p.focal * e.y / e.z);
-                    low = glm::min(low, q), high = glm::max(high, q);
+                    const glm::dvec3 e = glm::dmat3(p.rotation) *
+                                         (mesh.points[tet[std::size_t(v)]] - glm::dvec3(p.eye));
+                    if (e.z <= 1e-3) visible = false;
+                    inverse_depth[v] = 1.0 / e.z;
+                    q[v] = {p.centre_x + p.focal * e.x / e.z, p.centre_y + p.focal * e.y / e.z};
+                    value[v] = layer.values[tet[std::size_t(v)]];
+                    low = glm::min(low, q[v]), high = glm::max(high, q[v]);
                 }
                 if (!visible) continue;  // tetrahedra reaching behind the eye are not drawn
-                const int x0 = std::max(0, int(std::ceil(low.x - 0.5))),
-                          x1 = std::min(sub_width_ - 1, int(std::floor(high.x - 0.5)));
-                const int y0 = std::max(0, int(std::ceil(low.y - 0.5))),
-                          y1 = std::min(sub_height_ - 1, int(std::floor(high.y - 0.5)));
+                const int x0 = std::max(0, int(std::ceil(low.x - 0.5)));
+                const int x1 = std::min(sub_width_ - 1, int(std::floor(high.x - 0.5)));
+                const int y0 = std::max(0, int(std::ceil(low.y - 0.5)));
+                const int y1 = std::min(sub_height_ - 1, int(std::floor(high.y - 0.5)));
                 if (x0 > x1 || y0 > y1) continue;
-                const glm::dmat3 edges(corners[1] - corners[0], corners[2] - corners[0],
-                                       corners[3] - corners[0]);
-                if (std::abs(glm::determinant(edges)) < 1e-12) continue;  // flat: no volume
-                const glm::dmat3 inverse_edges = glm::inverse(edges);
-                const glm::dvec4 s(layer.values[tet[0]], layer.values[tet[1]], layer.values[tet[2]],
-                                   layer.values[tet[3]]);
+                const int w = x1 - x0 + 1, h = y1 - y0 + 1;
+                hits.assign(std::size_t(w) * std::size_t(h), FaceHits{0, 0, 0, 0, 0});
+                // -- the four faces, each over its own bounding box
+                for (const auto& face : kFaces) {
+                    const glm::dvec2 a = q[face[0]], b = q[face[1]], c = q[face[2]];
+                    const double area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+                    if (std::abs(area) < 1e-12) continue;  // seen edge-on
+                    const int fx0 = std::max(x0, int(std::ceil(std::min({a.x, b.x, c.x}) - 0.5)));
+                    const int fx1 = std::min(x1, int(std::floor(std::max({a.x, b.x, c.x}) - 0.5)));
+                    const int fy0 = std::max(y0, int(std::ceil(std::min({a.y, b.y, c.y}) - 0.5)));
+                    const int fy1 = std::min(y1, int(std::floor(std::max({a.y, b.y, c.y}) - 0.5)));
+                    for (int y = fy0; y <= fy1; ++y) {
+                        for (int x = fx0; x <= fx1; ++x) {
+                            const glm::dvec2 m(x + 0.5, y + 0.5);
+                            // screen barycentrics by edge functions
+                            const double ba =
+                                ((b.x - m.x) * (c.y - m.y) - (b.y - m.y) * (c.x - m.x)) / area;
+                            const double bb =
+                                ((c.x - m.x) * (a.y - m.y) - (c.y - m.y) * (a.x - m.x)) / area;
+                            const double bc = 1.0 - ba - bb;
+                            if (ba < 0.0 || bb < 0.0 || bc < 0.0) continue;
+                            // perspective-correct: weights by 1/depth
+                            const double ua = ba * inverse_depth[face[0]],
+                                         ub = bb * inverse_depth[face[1]],
+                                         uc = bc * inverse_depth[face[2]];
+                            const double sum = ua + ub + uc;
+                            const float depth = float(1.0 / sum);
+                            const float v = float(
+                                (ua * value[face[0]] + ub * value[face[1]] + uc * value[face[2]]) /
+                                sum);
+                            FaceHits& hit =
+                                hits[std::size_t(y - y0) * std::size_t(w) + std::size_t(x - x0)];
+                            if (hit.count == 0) {
+                                hit = {depth, v, depth, v, 1};
+                            } else {
+                                if (depth < hit.near_depth)
+                                    hit.near_depth = depth, hit.near_value = v;
+                                if (depth > hit.far_depth) hit.far_depth = depth, hit.far_value = v;
+                                hit.count++;
+                            }
+                        }
+                    }
+                }
                 CellRandom random(stream_seed, repetition, uint32_t(t));
                 for (int y = y0; y <= y1; ++y) {
                     for (int x = x0; x <= x1; ++x) {
-                        // -- the fragment: the ray's entry and exit through the tetrahedron
-                        const glm::dvec3 dir =
-                            glm::normalize(forward + (x + 0.5 - p.centre_x) / focal * right +
-                                           (y + 0.5 - p.centre_y) / focal * down);
-                        const auto crossing =
-                            cross_tetrahedron(corners[0], inverse_edges, eye, dir);
-                        if (!crossing) continue;
-                        const double s_front = glm::dot(crossing->entry_weights, s);
-                        const double s_back = glm::dot(crossing->exit_weights, s);
-                        const double length = crossing->t_exit - crossing->t_entry;
+                        const FaceHits& hit =
+                            hits[std::size_t(y - y0) * std::size_t(w) + std::size_t(x - x0)];
+                        if (hit.count < 2 || !(hit.far_depth > hit.near_depth)) continue;
+                        // -- the fragment: length along the ray from the depths
+                        const double dx = (x + 0.5 - p.centre_x) / p.focal,
+                                     dy = (y + 0.5 - p.centre_y) / p.focal;
+                        const double length = double(hit.far_depth - hit.near_depth) *
+                                              std::sqrt(1.0 + dx * dx + dy * dy);
+                        const double s_front = hit.near_value, s_back = hit.far_value;
                         // -- a particle with the pre-integrated opacity (eq. 18)
                         const double r = random.next();
                         const double alpha = layer.pre.opacity(s_front, s_back, length);
                         if (!(r < alpha)) continue;
-                        double w = 0.5;
+                        double wd = 0.5;
                         switch (layer.depth) {
                             case DepthSampling::cdf:
-                                w = layer.pre.inverse(r, s_front, s_back, length);
+                                wd = layer.pre.inverse(r, s_front, s_back, length);
                                 break;
                             case DepthSampling::entry:
-                                w = 0.0;
+                                wd = 0.0;
                                 break;
                             case DepthSampling::middle:
-                                w = 0.5;
+                                wd = 0.5;
                                 break;
                             case DepthSampling::exit:
-                                w = 1.0;
+                                wd = 1.0;
                                 break;
                             case DepthSampling::random:
-                                w = random.next();
+                                wd = random.next();
                                 break;
                         }
                         // -- its depth (eq. 26) and colour
-                        const double along = glm::dot(dir, forward);
-                        const double depth =
-                            ((1.0 - w) * crossing->t_entry + w * crossing->t_exit) * along;
+                        const double depth = (1.0 - wd) * hit.near_depth + wd * hit.far_depth;
                         const glm::vec3 colour =
-                            layer.tf->colour(float((1.0 - w) * s_front + w * s_back));
+                            layer.tf->colour(float((1.0 - wd) * s_front + wd * s_back));
                         const uint64_t entry = zbuffer_entry(float(depth), colour, uint32_t(t));
                         std::atomic<uint64_t>& cell =
                             zbuffer_[std::size_t(y) * std::size_t(sub_width_) + std::size_t(x)];

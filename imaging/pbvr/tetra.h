@@ -5,10 +5,8 @@
 //
 // A fragment is what the projected-tetrahedra split hands to stochastic rasterization:
 // for one sub-pixel, the ray's entry and exit through the tetrahedron, with the scalar
-// (linear inside a tetrahedron) and the camera depth at both. Here each sub-pixel in the
-// projected footprint clips its ray against the four face planes, which yields exactly
-// the front and back values the PT triangles would interpolate, without the triangle
-// classification.
+// (linear inside a tetrahedron) and the camera depth at both (PbvrRenderer rasterizes
+// the projected faces; cross_tetrahedron clips one ray, for the reference).
 #include <array>
 #include <cstdint>
 #include <optional>
