@@ -21,6 +21,26 @@ PreIntegration::PreIntegration(const ColourTransferFunction& tf)
         table_[std::size_t(e)] =
             table_[std::size_t(e - 1)] +
             0.5 * step_ * (sigma_[std::size_t(e - 1)] + sigma_[std::size_t(e)]);
+    inverse_table_.resize(std::size_t(entries_));
+    const double total = table_.back();
+    inverse_scale_ = total > 0.0 ? (entries_ - 1) / total : 0.0;
+    for (int k = 0; k < entries_; ++k) {
+        const double y = total * k / (entries_ - 1);
+        inverse_table_[std::size_t(k)] =
+            int32_t(std::lower_bound(table_.begin(), table_.end(), y) - table_.begin());
+    }
+}
+
+// Entries before inverse_table_[k] have T < y_k <= y, entries from inverse_table_[k + 1]
+// on have T >= y_(k+1) > y: both T^-1 searches end between them.
+std::pair<std::ptrdiff_t, std::ptrdiff_t> PreIntegration::bracket(double y) const {
+    if (!(inverse_scale_ > 0.0)) return {0, entries_ - 1};
+    const double x = std::clamp(y * inverse_scale_, 0.0, double(entries_ - 1));
+    const auto k = std::size_t(x);
+    const std::ptrdiff_t first = std::max<std::ptrdiff_t>(inverse_table_[k] - 1, 0);
+    const std::ptrdiff_t last =
+        k + 1 < inverse_table_.size() ? std::ptrdiff_t(inverse_table_[k + 1]) : entries_ - 1;
+    return {first, std::min<std::ptrdiff_t>(last + 1, entries_ - 1)};
 }
 
 double PreIntegration::integral(double s) const {
@@ -41,14 +61,18 @@ double PreIntegration::segment_value(int e, double y) const {
 }
 
 double PreIntegration::inverse_rising(double y) const {
-    const auto k = std::lower_bound(table_.begin(), table_.end(), y) - table_.begin();
+    const auto [first, last] = bracket(y);
+    const auto k =
+        std::lower_bound(table_.begin() + first, table_.begin() + last + 1, y) - table_.begin();
     if (k == 0) return 0.0;
     if (k >= entries_) return 1.0;
     return segment_value(int(k) - 1, y);
 }
 
 double PreIntegration::inverse_falling(double y) const {
-    const auto k = std::upper_bound(table_.begin(), table_.end(), y) - table_.begin() - 1;
+    const auto [first, last] = bracket(y);
+    const auto k =
+        std::upper_bound(table_.begin() + first, table_.begin() + last + 1, y) - table_.begin() - 1;
     if (k < 0) return 0.0;
     if (k >= entries_ - 1) return 1.0;
     return segment_value(int(k), y);

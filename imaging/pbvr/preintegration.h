@@ -10,6 +10,9 @@
 // w of the segment, alpha(w) (eqs. 21-22), is the CDF of the depth of the first particle.
 // Inverting it (eqs. 24-25) places a particle at w = alpha^-1(R), R uniform in
 // [0, alpha(s_f, s_b, l)).
+#include <cstddef>
+#include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "imaging/pbvr/colour_tf.h"
@@ -42,6 +45,13 @@ class PreIntegration {
     double step_;                // table spacing in s
     std::vector<double> sigma_;  // at the entries, 1/mm
     std::vector<double> table_;  // T at the entries
+    // T^-1 precomputed (eq. 19's inverse): for y_k = k T(1) / (K - 1), the first table
+    // entry whose T reaches y_k. A search for T^-1(y) then runs between the entries of two
+    // neighbouring y_k, and stays exact within the piecewise-quadratic T.
+    std::vector<int32_t> inverse_table_;
+    double inverse_scale_ = 0.0;  // (K - 1) / T(1)
+    // The table entries [first, last] between which T^-1(y) lies.
+    std::pair<std::ptrdiff_t, std::ptrdiff_t> bracket(double y) const;
 };
 
 }  // namespace sonotrace::imaging::pbvr
