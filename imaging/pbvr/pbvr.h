@@ -166,7 +166,7 @@ struct RenderSettings {
         return (cut_away && cut_away->contains(q)) ||
                (clip_plane && glm::dot(glm::vec3(*clip_plane), q) + clip_plane->w > 0.0f);
     }
-    // Skip cells hidden behind an optical depth of 7 (transmittance < 1e-3) along every
+    // Skip cells hidden behind an optical depth of 5 (transmittance < 0.7 %) along every
     // ray of a grid 4 pixels apart around their projection, and cells off the image.
     bool occlusion_culling = true;
 
@@ -257,7 +257,7 @@ class PbvrRenderer {
 
   private:
     static constexpr int kOcclusionTile = 4;        // pixels between occlusion rays
-    static constexpr float kOcclusionDepth = 7.0f;  // transmittance e^-7 < 1e-3 beyond
+    static constexpr float kOcclusionDepth = 5.0f;  // transmittance e^-5 < 0.7 % beyond
     void build_occlusion_map();
     bool cell_hidden(int i, int j, int k) const;
     struct Cell {
