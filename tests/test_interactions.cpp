@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "simulator/interactions.h"
-#include "test_util.h"
 #include "simulator/rng.h"
+#include "test_util.h"
 
 namespace sonotrace::simulator {
 namespace {
