@@ -15,9 +15,10 @@
 // memory is the volume plus a few image-sized buffers; the ensemble average over
 // repetitions converges to the integral.
 //
-// Determinism: random numbers come from Philox keyed by (seed, repetition, cell); the
-// Z-buffer orders by (depth, particle key), a total order, and thread-local buffers merge
-// by the same order, so images are byte-identical on any thread count.
+// Determinism: random numbers come from counter-based streams keyed by (seed,
+// repetition, cell or tetrahedron); the one Z-buffer keeps the minimum of packed (depth,
+// colour, id) entries, a total order, whatever order the threads write in, so images are
+// byte-identical on any thread count.
 #include <atomic>
 #include <cstdint>
 #include <cstring>
@@ -38,7 +39,7 @@
 namespace sonotrace::imaging::pbvr {
 
 // The scalar (normalized by the transfer function's window) and its gradient (1/mm, in
-// the volume's local frame) at a voxel, interleaved so one trilinear fetch reads both.
+// the volume's local frame) at a point.
 struct VoxelSample {
     float value = 0.0f;
     glm::vec3 gradient{0.0f};

@@ -24,9 +24,10 @@ enum class Sampling { uniform, metropolis };
 
 // Uniform numbers for one cell of one repetition: a SplitMix64 sequence (Steele et al.
 // 2014; passes BigCrush) started from a hash of (seed, repetition, cell), two 24-bit
-// floats per step. Counter-based like the tracer's Philox, so a cell's numbers never
-// depend on the thread that draws them, at a fifth of Philox's cost (this generator
-// runs ~4 times per particle).
+// floats per step. Like the tracer's Philox, a cell's numbers are a function of (seed,
+// repetition, cell, draw) and never of the thread that draws them; each step costs two
+// multiplications instead of Philox's ten rounds (this generator runs ~4 times per
+// particle).
 class CellRandom {
   public:
     CellRandom(uint64_t seed, uint32_t repetition, uint32_t cell)
