@@ -186,6 +186,16 @@ int run_render_command(const RenderOptions& options) {
             throw tissue::InputError("--depth-sampling", "",
                                      "must be cdf, entry, middle, exit or random");
     }
+    {  // the camera's own parameters, before anything is loaded (the distance may be "fit")
+        pbvr::OrbitCamera check;
+        check.azimuth_deg = options.azimuth_deg, check.elevation_deg = options.elevation_deg;
+        check.fov_deg = options.fov_deg, check.width = options.width, check.height = options.height;
+        check.distance_mm = options.distance_mm > 0.0 ? options.distance_mm : 1.0;
+        tissue::require_in_range("--distance", "", options.distance_mm, 0.0, 1e6, "mm");
+        check.validate();
+    }
+    if (options.sector && options.frame.empty())
+        throw tissue::InputError("--sector", "", "needs --frame (the frame whose sector to mesh)");
     if (options.volumes.empty()) throw tissue::InputError("--volume", "", "needs a volume");
     if (options.tfs.size() != options.volumes.size())
         throw tissue::InputError("--tf", "",
@@ -256,8 +266,6 @@ int run_render_command(const RenderOptions& options) {
         overlay = pbvr::load_frame_overlay(options.frame);
         timer.end();
     }
-    if (options.sector && !overlay)
-        throw tissue::InputError("--sector", "", "needs --frame (the frame whose sector to mesh)");
     if (overlay && options.sector) {
         overlay->draw_frame = false;  // the sector mesh shows the frame's values
         timer.begin("meshing the frame's sector");
