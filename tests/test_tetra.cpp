@@ -59,6 +59,12 @@ TEST(Tetra, RegularGridSplitConformsAndInterpolatesLinearFields) {
         total += tet_volume(mesh, t);
     }
     EXPECT_NEAR(total, 1.5 * 2.0 * 4.0, 1e-9);  // the box, covered once
+    // A sub-box, and a refusal for volumes that would not fit in memory.
+    EXPECT_EQ(tetrahedralize(v, {1, 0, 0}, glm::ivec3(2, 1, 1)).tets.size(), 6u);
+    tissue::VolumeGeometry big;
+    big.dims = {200, 200, 200};
+    test::expect_input_error([&] { tetrahedralize(tissue::Volume(big)); }, "tetrahedralize", "box",
+                             "use a sub-volume");
     // Barycentric interpolation inside a tetrahedron reproduces the linear field.
     std::mt19937 rng(2);
     std::uniform_real_distribution<double> u(0.0, 1.0);

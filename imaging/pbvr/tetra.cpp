@@ -193,8 +193,15 @@ TetMesh tetrahedralize(const tissue::Volume& volume, glm::ivec3 low,
     low = glm::clamp(low, glm::ivec3(0), n - 1);
     if (glm::any(glm::lessThanEqual(hi, low)))
         throw InputError("tetrahedralize", "box", "needs at least one cell per axis");
-    TetMesh mesh;
     const glm::ivec3 size = hi - low + 1;
+    // 6 tetrahedra (16 bytes each) and a point (28 bytes) per voxel: 20 M tetrahedra is
+    // ~500 MB, more than a rendering context should take.
+    const double tetrahedra = 6.0 * double(size.x - 1) * double(size.y - 1) * double(size.z - 1);
+    if (tetrahedra > 20e6)
+        throw InputError("tetrahedralize", "box",
+                         "would make " + std::to_string(std::llround(tetrahedra / 1e6)) +
+                             " M tetrahedra (at most 20 M): use a sub-volume");
+    TetMesh mesh;
     auto point_index = [&](int i, int j, int k) {
         return uint32_t((std::size_t(k - low.z) * std::size_t(size.y) + std::size_t(j - low.y)) *
                             std::size_t(size.x) +
