@@ -465,6 +465,29 @@ TEST(PbvrErrors, BadTransferFunctionsCamerasAndSettingsAreNamed) {
     expect_input_error([&] { settings.validate(); }, "render settings", "repetitions");
 }
 
+TEST(Pbvr, StoredGradientsMatchCentralDifferences) {
+    // Three 8-bit mantissas and a shared exponent: each component within 1/127 of the
+    // largest one (half a unit of the last place, twice for the exponent's rounding).
+    const BlobScene scene;
+    const RenderVolume volume(scene.data, scene.tf);
+    double worst = 0.0;
+    for (int k = 0; k < 48; k += 3)
+        for (int j = 0; j < 48; j += 2)
+            for (int i = 0; i < 48; ++i) {
+                const glm::vec3 exact = volume.gradient(i, j, k),
+                                stored = volume.stored_gradient(i, j, k);
+                const float largest =
+                    std::max({std::abs(exact.x), std::abs(exact.y), std::abs(exact.z)});
+                if (largest == 0.0f) {
+                    EXPECT_EQ(stored, glm::vec3(0.0f));
+                    continue;
+                }
+                for (int a = 0; a < 3; ++a)
+                    worst = std::max(worst, double(std::abs(stored[a] - exact[a]) / largest));
+            }
+    EXPECT_LT(worst, 1.0 / 127.0);
+}
+
 TEST(Pbvr, ATransparentVolumeRendersTheBackground) {
     const BlobScene scene;
     const ColourTransferFunction clear(

@@ -32,6 +32,24 @@ RenderVolume::RenderVolume(const tissue::Volume& volume, const ColourTransferFun
     values_.resize(volume.size());
     tbb::parallel_for(std::size_t(0), volume.size(),
                       [&](std::size_t v) { values_[v] = tf.normalize(volume.voxels()[v]); });
+    gradients_.resize(volume.size());
+    tbb::parallel_for(0, n.z, [&](int k) {
+        for (int j = 0; j < n.y; ++j)
+            for (int i = 0; i < n.x; ++i) {
+                const glm::vec3 g = gradient(i, j, k);
+                const float largest = std::max({std::abs(g.x), std::abs(g.y), std::abs(g.z)});
+                int exponent = 0;
+                if (largest > 0.0f) std::frexp(largest / 127.0f, &exponent);  // |g| / 2^e <= 127
+                exponent = std::clamp(exponent, -127, 127);
+                const glm::vec3 m = glm::round(g * std::ldexp(1.0f, -exponent));
+                auto byte = [](float v) {
+                    return uint32_t(uint8_t(int8_t(std::clamp(v, -127.0f, 127.0f))));
+                };
+                gradients_[volume.linear_index(i, j, k)] =
+                    byte(m.x) | byte(m.y) << 8 | byte(m.z) << 16 |
+                    uint32_t(uint8_t(int8_t(exponent))) << 24;
+            }
+    });
 }
 
 // ---- views -------------------------------------------------------------------------
