@@ -1,6 +1,7 @@
 #include "imaging/pbvr/camera.h"
 
 #include <cmath>
+#include <limits>
 
 #include "tissue/error.h"
 
@@ -39,6 +40,24 @@ glm::dvec3 OrbitCamera::up() const {
 
 double OrbitCamera::focal_px() const {
     return 0.5 * height / std::tan(0.5 * glm::radians(fov_deg));
+}
+
+std::optional<BoxCrossing> cross_box(const glm::dvec3& origin, const glm::dvec3& dir,
+                                     const glm::dvec3& low, const glm::dvec3& high) {
+    BoxCrossing c;
+    c.t_exit = std::numeric_limits<double>::max();
+    for (int a = 0; a < 3; ++a) {
+        if (std::abs(dir[a]) < 1e-12) {  // parallel to the slab: inside it or never
+            if (origin[a] < low[a] || origin[a] > high[a]) return std::nullopt;
+            continue;
+        }
+        double ta = (low[a] - origin[a]) / dir[a], tb = (high[a] - origin[a]) / dir[a];
+        if (ta > tb) std::swap(ta, tb);
+        if (ta > c.t_entry) c.t_entry = ta, c.entry_axis = a;
+        c.t_exit = std::min(c.t_exit, tb);
+    }
+    if (!(c.t_exit > c.t_entry)) return std::nullopt;
+    return c;
 }
 
 Projection Projection::of(const OrbitCamera& camera, int scale) {

@@ -2,6 +2,7 @@
 // A perspective orbit camera (GLM): it looks at `target` from `distance` mm, turned by
 // azimuth about the world up axis (+z) and raised by elevation. Image rows run
 // downwards. Shared by the particle renderer, the reference ray caster and overlays.
+#include <optional>
 #include <string>
 
 #include <glm/glm.hpp>
@@ -26,6 +27,15 @@ struct OrbitCamera {
     // Focal length in pixels (vertical).
     double focal_px() const;
 };
+
+// Where the ray origin + t dir (t >= 0) crosses the box [low, high] (slab method): the
+// entry and exit parameters and the axis of the entry face; nullopt if it misses.
+struct BoxCrossing {
+    double t_entry = 0.0, t_exit = 0.0;
+    int entry_axis = -1;  // -1: the origin is inside
+};
+std::optional<BoxCrossing> cross_box(const glm::dvec3& origin, const glm::dvec3& dir,
+                                     const glm::dvec3& low, const glm::dvec3& high);
 
 // A camera transform in single precision for the hot loops: world -> camera space
 // (x right, y down, z along the view) and the pixel projection.

@@ -43,26 +43,6 @@ cv::Mat read_grey_png(const std::string& path) {
     return grey;
 }
 
-// Intersection of a ray with the probe's box (probe frame: lateral, axial, elevation).
-bool hit_box(const glm::dvec3& origin, const glm::dvec3& dir, const glm::dvec3& low,
-             const glm::dvec3& high, double* t, int* axis) {
-    double t0 = 0.0, t1 = std::numeric_limits<double>::max();
-    int entry_axis = 0;
-    for (int a = 0; a < 3; ++a) {
-        if (std::abs(dir[a]) < 1e-12) {
-            if (origin[a] < low[a] || origin[a] > high[a]) return false;
-            continue;
-        }
-        double ta = (low[a] - origin[a]) / dir[a], tb = (high[a] - origin[a]) / dir[a];
-        if (ta > tb) std::swap(ta, tb);
-        if (ta > t0) t0 = ta, entry_axis = a;
-        t1 = std::min(t1, tb);
-    }
-    if (t0 > t1) return false;
-    *t = t0, *axis = entry_axis;
-    return true;
-}
-
 }  // namespace
 
 FrameOverlay load_frame_overlay(const std::string& sidecar_path) {
@@ -125,12 +105,10 @@ std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCame
                                (y + 0.5 - 0.5 * height) / focal * down);
             uint64_t best = kEmptyEntry;
             // -- the probe model (shaded by the face it is seen through)
-            double t = 0.0;
-            int axis = 0;
             const glm::dvec3 o = to_probe * (eye - overlay.position), d = to_probe * dir;
-            if (hit_box(o, d, box_low, box_high, &t, &axis)) {
-                const float light = float(0.45 + 0.55 * std::abs(d[axis]));
-                best = std::min(best, zbuffer_entry(float(t * glm::dot(dir, forward)),
+            if (const auto hit = cross_box(o, d, box_low, box_high); hit && hit->entry_axis >= 0) {
+                const float light = float(0.45 + 0.55 * std::abs(d[hit->entry_axis]));
+                best = std::min(best, zbuffer_entry(float(hit->t_entry * glm::dot(dir, forward)),
                                                     glm::vec3(0.30f, 0.42f, 0.62f) * light, 0));
             }
             // -- the scan plane: the frame inside the sector, its outline in yellow

@@ -175,17 +175,8 @@ struct LocalRays {
     }
     // The ray's parameter range inside the volume box (t0 >= t1: misses it).
     std::pair<double, double> clip(const glm::dvec3& dir) const {
-        double t0 = 0.0, t1 = std::numeric_limits<double>::max();
-        for (int a = 0; a < 3; ++a) {
-            if (std::abs(dir[a]) < 1e-12) {
-                if (eye[a] < 0.0 || eye[a] > extent[a]) t1 = -1.0;
-                continue;
-            }
-            double ta = (0.0 - eye[a]) / dir[a], tb = (extent[a] - eye[a]) / dir[a];
-            if (ta > tb) std::swap(ta, tb);
-            t0 = std::max(t0, ta), t1 = std::min(t1, tb);
-        }
-        return {t0, t1};
+        const auto c = cross_box(eye, dir, glm::dvec3(0.0), extent);
+        return c ? std::pair{c->t_entry, c->t_exit} : std::pair{0.0, -1.0};
     }
 };
 
@@ -287,18 +278,15 @@ struct PbvrRenderer::MeshLayer {
 
 namespace {
 // What a renderer of meshes alone renders as its regular volume: nothing.
-const RenderVolume& empty_volume() {
-    static const ColourTransferFunction clear(
-        "clear", "internal", {{0.0, glm::vec3(0.0f), 0.0}, {1.0, glm::vec3(0.0f), 0.0}}, 1.0, 0.0,
-        1.0);
-    static const RenderVolume volume(tissue::Volume(tissue::VolumeGeometry{{2, 2, 2}}), clear);
-    return volume;
-}
 const ColourTransferFunction& clear_tf() {
     static const ColourTransferFunction clear(
         "clear", "internal", {{0.0, glm::vec3(0.0f), 0.0}, {1.0, glm::vec3(0.0f), 0.0}}, 1.0, 0.0,
         1.0);
     return clear;
+}
+const RenderVolume& empty_volume() {
+    static const RenderVolume volume(tissue::Volume(tissue::VolumeGeometry{{2, 2, 2}}), clear_tf());
+    return volume;
 }
 }  // namespace
 
@@ -758,17 +746,8 @@ RgbImage raycast_fused(
                     glm::dvec3 dir_local(0.0);
                     if (volume) {
                         dir_local = to_local * dir;
-                        box1 = std::numeric_limits<double>::max();
-                        for (int a = 0; a < 3; ++a) {
-                            if (std::abs(dir_local[a]) < 1e-12) {
-                                if (eye_local[a] < 0.0 || eye_local[a] > extent[a]) box1 = -1.0;
-                                continue;
-                            }
-                            double ta = -eye_local[a] / dir_local[a],
-                                   tb = (extent[a] - eye_local[a]) / dir_local[a];
-                            if (ta > tb) std::swap(ta, tb);
-                            box0 = std::max(box0, ta), box1 = std::min(box1, tb);
-                        }
+                        if (const auto c = cross_box(eye_local, dir_local, glm::dvec3(0.0), extent))
+                            box0 = c->t_entry, box1 = c->t_exit;
                         if (box1 > box0) first = box0, last = box1;
                     }
                     // -- the tetrahedra the ray crosses, with their values at both ends

@@ -71,12 +71,10 @@ void write_json(const nlohmann::json& record, const std::string& path) {
     if (!out) throw tissue::InputError(path, "", "cannot write JSON");
 }
 
-std::optional<std::string> parse_spacing(const std::string& text, double out[3]) {
+std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out) {
+    out->clear();
     std::istringstream in(text);
-    std::string part;
-    int count = 0;
-    while (std::getline(in, part, ',')) {
-        if (count == 3) return "at most three values";
+    for (std::string part; std::getline(in, part, ',');) {
         std::size_t used = 0;
         double v = 0.0;
         try {
@@ -84,13 +82,38 @@ std::optional<std::string> parse_spacing(const std::string& text, double out[3])
         } catch (const std::exception&) {
             return "'" + part + "' is not a number";
         }
-        if (used != part.size() || !std::isfinite(v) || v <= 0.0) {
-            return "'" + part + "' is not a positive number of mm";
-        }
-        out[count++] = v;
+        if (used != part.size() || !std::isfinite(v)) return "'" + part + "' is not a number";
+        out->push_back(v);
     }
-    if (count < 2) return "give at least two values (mm per pixel along x and y)";
-    if (count == 2) out[2] = 1.0;
+    return std::nullopt;
+}
+
+std::vector<double> parse_numbers(const std::string& text, const std::string& option,
+                                  std::size_t count) {
+    std::vector<double> values;
+    if (const auto error = parse_number_list(text, &values))
+        throw tissue::InputError(option, "", *error);
+    if (values.size() != count)
+        throw tissue::InputError(
+            option, "",
+            "needs " + std::to_string(count) + " comma-separated numbers, got '" + text + "'");
+    return values;
+}
+
+std::optional<std::string> parse_spacing(const std::string& text, double out[3]) {
+    std::vector<double> values;
+    if (const auto error = parse_number_list(text, &values)) return error;
+    if (values.size() > 3) return "at most three values";
+    if (values.size() < 2) return "give at least two values (mm per pixel along x and y)";
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        if (!(values[i] > 0.0)) {
+            std::ostringstream shown;
+            shown << values[i];
+            return "'" + shown.str() + "' is not a positive number of mm";
+        }
+        out[i] = values[i];
+    }
+    if (values.size() == 2) out[2] = 1.0;
     return std::nullopt;
 }
 

@@ -7,6 +7,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <tbb/global_control.h>
 #include <CLI/CLI.hpp>
@@ -78,7 +79,12 @@ std::unique_ptr<tbb::global_control> limit_threads(int threads);
 // stdout when path is "-".
 void write_json(const nlohmann::json& record, const std::string& path);
 
-// Comma-separated numbers ("0.5,0.5" or "1,1,2") for options like --spacing.
+// Comma-separated finite numbers ("0.5,0.5" or "1,1,2"); the error text if one is not.
+std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out);
+// Exactly `count` of them for `option`; throws tissue::InputError naming the option.
+std::vector<double> parse_numbers(const std::string& text, const std::string& option,
+                                  std::size_t count);
+// Two or three positive spacings in mm (the third defaults to 1) for options like --spacing.
 std::optional<std::string> parse_spacing(const std::string& text, double out[3]);
 
 }  // namespace sonotrace::ui

@@ -86,26 +86,6 @@ extern "C" void on_interrupt(int) {
     g_interrupted = true;
 }
 
-std::vector<double> parse_numbers(const std::string& text, const std::string& option,
-                                  std::size_t count) {
-    std::vector<double> values;
-    std::stringstream list(text);
-    for (std::string item; std::getline(list, item, ',');) {
-        try {
-            std::size_t used = 0;
-            values.push_back(std::stod(item, &used));
-            if (used != item.size()) throw std::invalid_argument(item);
-        } catch (const std::exception&) {
-            throw tissue::InputError(option, "", "'" + item + "' is not a number");
-        }
-    }
-    if (values.size() != count)
-        throw tissue::InputError(
-            option, "",
-            "needs " + std::to_string(count) + " comma-separated numbers, got '" + text + "'");
-    return values;
-}
-
 }  // namespace
 
 CLI::App* add_render_command(CLI::App& app, RenderOptions& options) {
