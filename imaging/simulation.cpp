@@ -144,6 +144,7 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     frame.ledger = traced.ledger;
     frame.stats = traced.stats;
     frame.absorbed = std::move(traced.absorbed);
+    frame.paths = std::move(traced.paths);
 
     // Which reflections form the image depends on the receive model.
     std::vector<simulator::EchoEvent<2>> echoes;

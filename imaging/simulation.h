@@ -80,6 +80,7 @@ struct Frame {
     simulator::TraceStats stats;
     // Energy deposition map on the grid of the plane, up to the close of the echo window.
     tissue::Volume absorbed;
+    std::vector<simulator::Path<2>> paths;  // SimulationSettings::trace.record_paths per line
     nlohmann::json timings = nlohmann::json::object();  // seconds per stage
 };
 

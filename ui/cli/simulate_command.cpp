@@ -44,22 +44,6 @@ constexpr ParameterDoc kProbeDoc = {
     "--probe", "",
     "transducer preset: linear (7.6 MHz, like the L11-5v), convex (3.5 MHz, like the C5-2v), "
     "phased (2.7 MHz, like the P4-2v); empty = the view's probe"};
-constexpr ParameterDoc kQualityDoc = {
-    "--quality", "",
-    "interactive (0.5 mm map, 8 particles per line, whole-texel steps, speckle sub-lines 1.5 "
-    "beam sigmas apart), standard (0.25 mm, 32, half-texel steps, 1 sigma), high (0.125 mm, "
-    "128, half-texel steps, 1 sigma)"};
-constexpr ParameterDoc kReceiveDoc = {
-    "--receive", "",
-    "echo model: 'monostatic' (each reflection echoes at twice its time, two-way loss) or "
-    "'capture' (only particles that reach the probe face; the face reflects part back)"};
-constexpr ParameterDoc kGainDoc = {"--gain", "dB", "overall receive gain before log compression"};
-constexpr ParameterDoc kRangeDoc = {"--dynamic-range", "dB",
-                                    "range of echo levels mapped from black to white"};
-constexpr ParameterDoc kTgcDoc = {
-    "--tgc", "mm:dB",
-    "time-gain compensation: 'auto' (2 x 0.6 dB/(cm MHz) x f x depth, brain attenuation), "
-    "'none', or a curve 'DEPTH:GAIN,DEPTH:GAIN,...' (linear in between)"};
 constexpr ParameterDoc kPixelDoc = {"--pixel", "mm", "pixel size of the scan-converted image"};
 constexpr ParameterDoc kStepDoc = {
     "--step", "texels",

@@ -8,6 +8,24 @@
 
 namespace sonotrace::ui {
 
+// Imaging parameters, documented once (the GUI reuses them as tooltips).
+inline constexpr ParameterDoc kQualityDoc = {
+    "--quality", "",
+    "interactive (0.5 mm map, 8 particles per line, whole-texel steps, speckle sub-lines 1.5 "
+    "beam sigmas apart), standard (0.25 mm, 32, half-texel steps, 1 sigma), high (0.125 mm, "
+    "128, half-texel steps, 1 sigma)"};
+inline constexpr ParameterDoc kReceiveDoc = {
+    "--receive", "",
+    "echo model: 'monostatic' (each reflection echoes at twice its time, two-way loss) or "
+    "'capture' (only particles that reach the probe face; the face reflects part back)"};
+inline constexpr ParameterDoc kGainDoc = {"--gain", "dB", "overall receive gain before log compression"};
+inline constexpr ParameterDoc kRangeDoc = {"--dynamic-range", "dB",
+                                    "range of echo levels mapped from black to white"};
+inline constexpr ParameterDoc kTgcDoc = {
+    "--tgc", "mm:dB",
+    "time-gain compensation: 'auto' (2 x 0.6 dB/(cm MHz) x f x depth, brain attenuation), "
+    "'none', or a curve 'DEPTH:GAIN,DEPTH:GAIN,...' (linear in between)"};
+
 struct SimulateOptions {
     std::string view = "craniotomy";  // craniotomy | temporal | custom (needs --pose)
     SliceOptions volume;

@@ -1,0 +1,140 @@
+#include "ui/gui/controls.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "simulator/trace_settings.h"
+#include "ui/cli/simulate_command.h"
+
+namespace sonotrace::gui {
+
+namespace {
+
+std::string transducer_help(const char* key) {
+    for (const auto& doc : probe::transducer_parameter_docs())
+        if (std::string(doc.key) == key) return doc.description;
+    return {};
+}
+
+bool has(const Scene& scene, const char* tissue) {
+    return std::find(scene.tissues.begin(), scene.tissues.end(), tissue) != scene.tissues.end();
+}
+
+}  // namespace
+
+const std::vector<SliderSpec>& slider_specs() {
+    static const std::vector<SliderSpec> specs = {
+        {Control::depth, "depth", "mm", 20.0, 160.0, transducer_help("depth")},
+        {Control::focus, "focus", "mm", 5.0, 160.0, transducer_help("focus")},
+        {Control::lines, "scan lines", "", 16.0, 256.0, transducer_help("lines")},
+        {Control::fov, "field of view", "degrees", 10.0, 120.0, transducer_help("fov")},
+        {Control::frequency, "frequency", "MHz", 1.0, 12.0, transducer_help("frequency")},
+        {Control::gain, "gain", "dB", -20.0, 80.0, ui::kGainDoc.description},
+        {Control::dynamic_range, "dynamic range", "dB", 20.0, 100.0, ui::kRangeDoc.description},
+        {Control::tgc, "TGC", "dB", -30.0, 30.0,
+         "time-gain compensation at this depth, added to the automatic curve (2 x 0.6 "
+         "dB/(cm MHz) x f x depth, brain attenuation)"},
+    };
+    return specs;
+}
+
+const SliderSpec& slider(Control control) {
+    for (const SliderSpec& s : slider_specs())
+        if (s.control == control) return s;
+    throw std::logic_error("no slider for this control");
+}
+
+std::string switch_help(Control control) {
+    switch (control) {
+        case Control::refraction:
+            return "Snell's law at speed-of-sound gradients; off: beams go straight";
+        case Control::specular_reflection:
+            return "mirror reflection at interfaces with the impedance reflection coefficient";
+        case Control::diffuse_reflection:
+            return "rough interfaces reflect into a cos^c lobe (c from the tissue's roughness)";
+        case Control::scattering:
+            return simulator::doc::kScatteringRate;
+        case Control::attenuation:
+            return "absorption alpha f along the path (dB/(cm MHz) of each tissue)";
+        case Control::multiple_bounces:
+            return std::string(simulator::doc::kMaxBounces) + "; off: one reflection per particle";
+        case Control::face_reflection:
+            return "the probe face reflects part of the returning energy back into the tissue "
+                   "(capture receive model): reverberation between face and reflectors";
+        case Control::receive:
+            return ui::kReceiveDoc.description;
+        default:
+            return {};
+    }
+}
+
+std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
+    std::vector<Artifact> out;
+    const PhysicsSwitches& s = p.physics;
+    if (s.scattering)
+        out.push_back({"speckle",
+                       "Echoes of sub-resolution scatterers fixed in the tissue interfere: a "
+                       "granular texture that moves with the tissue, not with the probe.",
+                       Control::scattering, "switch scattering off: tissue turns black"});
+    if (s.attenuation)
+        out.push_back({"depth attenuation and TGC",
+                       "Intensity falls by alpha f per cm each way, so deep echoes are weaker; "
+                       "the TGC adds gain with depth to even the image out.",
+                       Control::tgc, "lower the deep TGC sliders: the bottom darkens"});
+    if (has(scene, "cortical_bone"))
+        out.push_back({"acoustic shadowing",
+                       "Bone reflects about a third of the energy at its surface and absorbs "
+                       "ten times more than soft tissue: little reaches what lies behind it.",
+                       Control::attenuation,
+                       "switch attenuation off: the shadow behind the bone fills in"});
+    if (has(scene, "cortical_bone") || has(scene, "fat"))
+        out.push_back({"refraction displacement",
+                       "Beams bend where the speed of sound changes obliquely (skull 2800 m/s, fat "
+                       "1450 m/s), but the image assumes straight lines: structures shift.",
+                       Control::refraction, "switch refraction off: they move back"});
+    if (has(scene, "fat"))
+        out.push_back({"speed-of-sound displacement",
+                       "Depth is time x 1540 m/s / 2; under slow fat (1450 m/s) echoes arrive "
+                       "late and appear deeper.",
+                       Control::none, "compare the frame with the tissue slice"});
+    if (has(scene, "water") || has(scene, "csf") || has(scene, "blood")) {
+        out.push_back({"dark fluid, bright walls",
+                       "Fluid has no scatterers (anechoic); its walls reflect specularly where "
+                       "the beam meets them near normal incidence.",
+                       Control::specular_reflection,
+                       "switch specular reflection off: the walls fade"});
+        out.push_back({"posterior enhancement",
+                       "Fluid absorbs almost nothing, so tissue behind it receives more energy "
+                       "than tissue at the same depth beside it (the TGC assumes tissue).",
+                       Control::attenuation, "switch attenuation off: the enhancement vanishes"});
+    }
+    if (has(scene, "air") || has(scene, "cortical_bone"))
+        out.push_back({"mirror images",
+                       "A strong reflector (air R = 1, bone) sends the beam sideways; echoes "
+                       "from what it meets return along the same path and are drawn behind "
+                       "the reflector.",
+                       Control::multiple_bounces,
+                       "switch multiple bounces off: the mirrored copy disappears"});
+    if (p.receive == imaging::ReceiveModel::capture && s.face_reflection)
+        out.push_back({"reverberation",
+                       "The probe face reflects part of each strong echo back into the tissue: "
+                       "copies of the reflector repeat at multiples of its depth.",
+                       Control::face_reflection, "switch face reflection off: the copies go"});
+    else
+        out.push_back({"reverberation (off)",
+                       "Repeated echoes between the probe face and a strong reflector need the "
+                       "capture receive model with face reflection.",
+                       Control::receive, "set receive to capture"});
+    if (has(scene, "cortical_bone") && s.diffuse_reflection)
+        out.push_back({"rough bone echoes from every angle",
+                       "Rough interfaces reflect into a broad lobe, so bone echoes even where "
+                       "the beam meets it obliquely.",
+                       Control::diffuse_reflection, "switch diffuse reflection off"});
+    out.push_back({"sedimentation",
+                   "Energy deposits where the particles end: on the far side of strong "
+                   "interfaces and at depth (the energy map).",
+                   Control::attenuation, "watch the energy map while toggling attenuation"});
+    return out;
+}
+
+}  // namespace sonotrace::gui

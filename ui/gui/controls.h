@@ -1,0 +1,61 @@
+#pragma once
+// The GUI's controls: each slider's range and unit, with the help text documented once
+// elsewhere (transducer_parameter_docs, the simulate command's docs, the tracer's docs)
+// and reused as its tooltip; and the explain panel's artifacts, each tied to the control
+// that makes it vanish and return.
+#include <string>
+#include <vector>
+
+#include "ui/gui/scanner.h"
+
+namespace sonotrace::gui {
+
+// Which control an artifact depends on (highlighted in the control panel).
+enum class Control {
+    none,
+    refraction,
+    specular_reflection,
+    diffuse_reflection,
+    scattering,
+    attenuation,
+    multiple_bounces,
+    face_reflection,
+    receive,
+    tgc,
+    gain,
+    dynamic_range,
+    frequency,
+    focus,
+    depth,
+    lines,
+    fov,
+};
+
+struct SliderSpec {
+    Control control;
+    const char* label;
+    const char* unit;
+    double min, max;
+    std::string help;  // from the parameter's one documentation
+};
+
+// Every numeric slider of the panel, with its range. The extremes are valid settings
+// for every probe preset (tests check it); the focus slider's maximum is the depth.
+const std::vector<SliderSpec>& slider_specs();
+const SliderSpec& slider(Control control);
+
+// Help text of a physics switch (the tracer's parameter documentation where there is one).
+std::string switch_help(Control control);
+
+struct Artifact {
+    std::string name;
+    std::string why;  // the physics, in a sentence or two
+    Control control;  // what to toggle or move to see it vanish and return
+    std::string how;  // what to do with that control
+};
+
+// The artifacts the scene shown should exhibit with these parameters, from the tissues
+// present and the physics switched on.
+std::vector<Artifact> explain(const Scene& scene, const ScanParameters& parameters);
+
+}  // namespace sonotrace::gui

@@ -1,0 +1,758 @@
+#include "ui/gui/gui_app.h"
+
+#include <GL/gl.h>
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <imgui_stdlib.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <opencv2/imgproc.hpp>
+
+#include "imaging/picture.h"
+#include "sonotrace_version.h"
+#include "tissue/atomic_output.h"
+#include "tissue/error.h"
+#include "ui/cli/volume_slice.h"
+
+namespace sonotrace::gui {
+
+namespace {
+
+constexpr ImGuiWindowFlags kPanelFlags = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
+                                         ImGuiWindowFlags_NoCollapse |
+                                         ImGuiWindowFlags_NoSavedSettings;
+constexpr ImGuiWindowFlags kViewFlags =
+    kPanelFlags | ImGuiWindowFlags_NoScrollbar | ImGuiWindowFlags_NoScrollWithMouse;
+const ImU32 kProbeColour = IM_COL32(90, 200, 255, 255);
+const ImU32 kHighlight = IM_COL32(255, 190, 40, 255);
+
+void begin_panel(const char* title, float x, float y, float w, float h, ImGuiWindowFlags flags) {
+    ImGui::SetNextWindowPos(ImVec2(x, y));
+    ImGui::SetNextWindowSize(ImVec2(w, h));
+    ImGui::Begin(title, nullptr, flags);
+}
+
+void section(const char* title) {
+    ImGui::Spacing();
+    ImGui::Separator();
+    ImGui::TextDisabled("%s", title);
+}
+
+void tooltip(const std::string& text) {
+    if (!text.empty() && ImGui::IsItemHovered()) {
+        ImGui::BeginTooltip();
+        ImGui::PushTextWrapPos(ImGui::GetFontSize() * 28.0f);
+        ImGui::TextUnformatted(text.c_str());
+        ImGui::PopTextWrapPos();
+        ImGui::EndTooltip();
+    }
+}
+
+// The largest rectangle of the picture's aspect that fits the window's content region.
+struct Fit {
+    ImVec2 origin;
+    float scale = 1.0f;  // screen pixels per picture pixel
+};
+Fit fit_image(int width, int height) {
+    const ImVec2 avail = ImGui::GetContentRegionAvail();
+    const ImVec2 cursor = ImGui::GetCursorScreenPos();
+    Fit f;
+    f.scale = std::max(1e-3f, std::min(avail.x / float(width), avail.y / float(height)));
+    f.origin = ImVec2(cursor.x + 0.5f * (avail.x - f.scale * width), cursor.y);
+    return f;
+}
+
+// Points of a scan sector's outline in the probe plane (mm): the first line, the far
+// arc, the last line, the face.
+std::vector<glm::dvec2> sector_outline(const probe::Transducer& t) {
+    const probe::ScanGeometry scan(t);
+    std::vector<glm::dvec2> out;
+    const double last = scan.lines() - 1;
+    const int arc = 24;
+    for (int k = 0; k <= arc; ++k) out.push_back(scan.point(last * k / arc, scan.depth_mm()));
+    for (int k = arc; k >= 0; --k) out.push_back(scan.point(last * k / arc, 0.0));
+    return out;
+}
+
+const char* quality_label(imaging::Quality q) {
+    switch (q) {
+        case imaging::Quality::interactive:
+            return "interactive (8 particles/line, 0.5 mm map)";
+        case imaging::Quality::standard:
+            return "standard (32 particles/line, 0.25 mm map)";
+        case imaging::Quality::high:
+            return "high (128 particles/line, 0.125 mm map)";
+    }
+    return "?";
+}
+
+cv::Mat energy_picture(const tissue::Volume& absorbed) {
+    const glm::ivec3 n = absorbed.geometry().dims;
+    float peak = 0.0f;
+    for (float v : absorbed.voxels()) peak = std::max(peak, v);
+    cv::Mat grey(n.y, n.x, CV_8U, cv::Scalar(0));
+    if (peak > 0.0f) {
+        // 40 dB of deposited energy, log scale.
+        for (int j = 0; j < n.y; ++j)
+            for (int i = 0; i < n.x; ++i) {
+                const float v = absorbed.at(i, j, 0) / peak;
+                const float db = v > 0.0f ? 10.0f * std::log10(v) : -100.0f;
+                grey.at<uint8_t>(j, i) = uint8_t(std::clamp((db + 40.0f) / 40.0f, 0.0f, 1.0f) * 255);
+            }
+    }
+    cv::Mat bgr, rgb;
+    cv::applyColorMap(grey, bgr, cv::COLORMAP_INFERNO);
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    return rgb;
+}
+
+nlohmann::json transducer_record(const probe::Transducer& t) {
+    return {{"name", t.name},         {"type", probe::to_string(t.type)},
+            {"elements", t.elements}, {"pitch_mm", t.pitch_mm},
+            {"radius_mm", t.radius_mm}, {"fov_deg", t.fov_deg},
+            {"frequency_mhz", t.frequency_mhz}, {"bandwidth", t.bandwidth},
+            {"focus_mm", t.focus_mm}, {"f_number", t.f_number},
+            {"depth_mm", t.depth_mm}, {"lines", t.lines},
+            {"face_reflectivity", t.face_reflectivity}};
+}
+
+}  // namespace
+
+// ---- textures ----
+
+Texture::~Texture() {
+    if (id_) glDeleteTextures(1, &id_);
+}
+
+void Texture::upload(const cv::Mat& picture) {
+    cv::Mat rgba;
+    if (picture.channels() == 1)
+        cv::cvtColor(picture, rgba, cv::COLOR_GRAY2RGBA);
+    else
+        cv::cvtColor(picture, rgba, cv::COLOR_RGB2RGBA);
+    if (!id_) glGenTextures(1, &id_);
+    glBindTexture(GL_TEXTURE_2D, id_);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA, rgba.cols, rgba.rows, 0, GL_RGBA, GL_UNSIGNED_BYTE,
+                 rgba.data);
+    width_ = rgba.cols;
+    height_ = rgba.rows;
+}
+
+// ---- the application ----
+
+App::App(const AppOptions& options)
+    : options_(options), catalogue_(scene_catalogue(SONOTRACE_PHANTOM_DIR)) {
+    if (options.quality == "interactive")
+        parameters_.quality = imaging::Quality::interactive;
+    else if (options.quality == "standard")
+        parameters_.quality = imaging::Quality::standard;
+    else if (options.quality == "high")
+        parameters_.quality = imaging::Quality::high;
+    else
+        throw tissue::InputError("--quality", options.quality,
+                                 "must be interactive, standard or high");
+    if (!options.probe.empty()) probe::find_transducer(options.probe, "--probe");  // validates
+    parameters_.gain_db = 36.0;  // as `sonotrace simulate`
+    view_.enabled = options.context;
+    // The first scene loads synchronously: without it there is nothing to show.
+    apply_scene(load_scene(options.scene, SONOTRACE_PHANTOM_DIR));
+    if (options.slide_mm != 0.0) move_probe(options.slide_mm, 0.0, 0.0, 0.0);
+}
+
+App::~App() {
+    if (recording_) recording_->release();
+}
+
+void App::apply_scene(std::shared_ptr<const Scene> scene) {
+    scene_ = std::move(scene);
+    const std::string preset = !options_.probe.empty() && probe_preset_.empty()
+                                   ? options_.probe
+                                   : scene_->probe_preset;
+    probe_preset_ = preset;
+    parameters_.transducer = probe::find_transducer(preset, "probe");
+    pose_ = scene_->start.pose;
+    frame_.reset();
+    context_.reset();
+    dirty_ = true;
+}
+
+void App::start_loading(const std::string& spec) {
+    if (loading_.valid()) return;
+    loading_name_ = spec;
+    message_ = "loading " + spec + " ...";
+    loading_ = std::async(std::launch::async,
+                          [spec] { return load_scene(spec, SONOTRACE_PHANTOM_DIR); });
+}
+
+void App::move_probe(double lateral_mm, double elevation_mm, double rotate_deg, double tilt_deg) {
+    probe::Pose p = pose_;
+    p.position += lateral_mm * p.lateral() + elevation_mm * p.elevation();
+    if (rotate_deg != 0.0) p = p.rotated(rotate_deg);
+    if (tilt_deg != 0.0) p = p.tilted(tilt_deg);
+    pose_ = clamp_to_scene(*scene_, scene_->settle(p));
+    dirty_ = true;
+}
+
+void App::request() {
+    ScanRequest r;
+    r.scene = scene_;
+    r.pose = pose_;
+    r.parameters = parameters_;
+    r.context = view_;
+    r.paths_per_line = 1;
+    r.refine = true;
+    scanner_.submit(std::move(r));
+    dirty_ = false;
+}
+
+void App::poll() {
+    if (loading_.valid() &&
+        loading_.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+        try {
+            apply_scene(loading_.get());
+            message_ = "scene " + scene_->title;
+            error_.clear();
+        } catch (const std::exception& e) {
+            // The previous scene stays.
+            error_ = std::string("could not load the scene: ") + e.what();
+            message_.clear();
+            loading_ = {};
+        }
+    }
+    if (auto e = scanner_.take_error()) error_ = *e;
+    if (auto f = scanner_.take_frame()) {
+        frame_ = std::move(f);
+        slice_texture_.upload(frame_->slice);
+        cv::Mat grey;
+        frame_->frame.image.image.convertTo(grey, CV_8U, 255.0);
+        bmode_texture_.upload(grey);
+        energy_texture_.upload(energy_picture(frame_->frame.absorbed));
+        ++frames_shown_;
+        last_seconds_ = frame_->seconds;
+        if (recording_) {
+            cv::Mat bgr, sized;
+            cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+            cv::resize(bgr, sized, recording_size_);
+            recording_->write(sized);
+            ++recorded_frames_;
+        }
+        if (error_.rfind("could not load", 0) != 0) error_.clear();
+    }
+    if (auto c = scanner_.take_context()) {
+        context_ = std::move(c);
+        context_texture_.upload(context_->rgb);
+        context_repetitions_ = context_->repetitions;
+    }
+}
+
+void App::handle_keys() {
+    const ImGuiIO& io = ImGui::GetIO();
+    if (io.WantCaptureKeyboard) return;
+    const double step = io.KeyShift ? 5.0 : 1.0, angle = io.KeyShift ? 10.0 : 2.0;
+    if (ImGui::IsKeyPressed(GLFW_KEY_LEFT)) move_probe(-step, 0, 0, 0);
+    if (ImGui::IsKeyPressed(GLFW_KEY_RIGHT)) move_probe(step, 0, 0, 0);
+    if (ImGui::IsKeyPressed(GLFW_KEY_UP)) move_probe(0, step, 0, 0);
+    if (ImGui::IsKeyPressed(GLFW_KEY_DOWN)) move_probe(0, -step, 0, 0);
+    if (ImGui::IsKeyPressed(GLFW_KEY_Q)) move_probe(0, 0, -angle, 0);
+    if (ImGui::IsKeyPressed(GLFW_KEY_E)) move_probe(0, 0, angle, 0);
+    if (ImGui::IsKeyPressed(GLFW_KEY_W)) move_probe(0, 0, 0, angle);
+    if (ImGui::IsKeyPressed(GLFW_KEY_S) && !io.KeyCtrl) move_probe(0, 0, 0, -angle);
+    if (ImGui::IsKeyPressed(GLFW_KEY_SPACE, false)) frozen_ = !frozen_;
+    if (ImGui::IsKeyPressed(GLFW_KEY_S, false) && io.KeyCtrl) save_frame();
+    if (ImGui::IsKeyPressed(GLFW_KEY_R, false)) toggle_recording();
+}
+
+void App::draw(int window_width, int window_height) {
+    poll();
+    handle_keys();
+    if (options_.animate && scene_) {
+        // Slide +-15 mm along the surface, about 4 s per sweep at 60 UI frames/s.
+        const double previous = 15.0 * std::sin(animate_phase_);
+        animate_phase_ += 2.0 * M_PI / 240.0;
+        move_probe(15.0 * std::sin(animate_phase_) - previous, 0, 0, 0);
+    }
+    if (dirty_ && !frozen_ && scene_) request();
+
+    const float W = float(window_width), H = float(window_height);
+    const float left = std::min(380.0f, 0.3f * W), status = 28.0f;
+    const float controls_h = 0.66f * (H - status);
+    draw_controls(0, 0, left, controls_h);
+    draw_explain(0, controls_h, left, H - status - controls_h);
+    const float vw = 0.5f * (W - left), vh = 0.5f * (H - status);
+    draw_slice(left, 0, vw, vh);
+    draw_bmode(left + vw, 0, vw, vh);
+    draw_context(left, vh, vw, vh);
+    draw_energy(left + vw, vh, vw, vh);
+    draw_status(0, H - status, W, status);
+}
+
+bool App::highlight_begin(Control control) {
+    if (control != highlighted_ || control == Control::none) return false;
+    ImGui::PushStyleColor(ImGuiCol_FrameBg, IM_COL32(150, 100, 10, 255));
+    ImGui::PushStyleColor(ImGuiCol_Text, kHighlight);
+    return true;
+}
+
+void App::highlight_end(bool pushed) {
+    if (pushed) ImGui::PopStyleColor(2);
+}
+
+void App::draw_controls(float x, float y, float w, float h) {
+    begin_panel("Scanner", x, y, w, h, kPanelFlags);
+    bool changed = false;
+    // -- scene
+    if (ImGui::BeginCombo("scene", scene_ ? scene_->title.c_str() : "")) {
+        for (const SceneEntry& e : catalogue_)
+            if (ImGui::Selectable(e.title.c_str(), scene_ && scene_->name == e.name))
+                start_loading(e.name);
+        ImGui::EndCombo();
+    }
+    tooltip(scene_ ? scene_->description : "");
+    ImGui::InputText("##open", &open_path_);
+    tooltip("a volume (NIfTI .nii/.nii.gz, raw .json header, image stack) or a phantom .json");
+    ImGui::SameLine();
+    if (ImGui::Button("open file") && !open_path_.empty()) start_loading(open_path_);
+    if (loading_.valid()) ImGui::TextDisabled("loading %s ...", loading_name_.c_str());
+
+    // -- probe
+    section("probe");
+    if (ImGui::BeginCombo("preset", probe_preset_.c_str())) {
+        for (const probe::Transducer& t : probe::transducer_presets()) {
+            if (ImGui::Selectable(t.name.c_str(), t.name == probe_preset_)) {
+                probe_preset_ = t.name;
+                parameters_.transducer = t;
+                changed = true;
+            }
+            tooltip(t.description);
+        }
+        ImGui::EndCombo();
+    }
+    probe::Transducer& t = parameters_.transducer;
+    auto slider_double = [&](Control c, double* value, double lo, double hi, const char* format) {
+        const SliderSpec& spec = slider(c);
+        const bool pushed = highlight_begin(c);
+        const std::string label = std::string(spec.label) +
+                                  (spec.unit[0] ? std::string(" (") + spec.unit + ")" : "");
+        const bool moved =
+            ImGui::SliderScalar(label.c_str(), ImGuiDataType_Double, value, &lo, &hi, format);
+        highlight_end(pushed);
+        tooltip(spec.help);
+        *value = std::clamp(*value, lo, hi);  // typed-in values too
+        changed |= moved;
+    };
+    const SliderSpec& depth = slider(Control::depth);
+    slider_double(Control::depth, &t.depth_mm, depth.min, depth.max, "%.0f");
+    const SliderSpec& focus = slider(Control::focus);
+    slider_double(Control::focus, &t.focus_mm, focus.min, std::min(focus.max, t.depth_mm), "%.0f");
+    const SliderSpec& frequency = slider(Control::frequency);
+    slider_double(Control::frequency, &t.frequency_mhz, frequency.min, frequency.max, "%.1f");
+    {
+        const SliderSpec& lines = slider(Control::lines);
+        double value = t.lines;
+        slider_double(Control::lines, &value, lines.min, lines.max, "%.0f");
+        t.lines = int(std::lround(value));
+    }
+    if (t.is_fan()) {
+        const SliderSpec& fov = slider(Control::fov);
+        slider_double(Control::fov, &t.fov_deg, fov.min, fov.max, "%.0f");
+    }
+
+    // -- image
+    section("image");
+    const SliderSpec& gain = slider(Control::gain);
+    slider_double(Control::gain, &parameters_.gain_db, gain.min, gain.max, "%.0f");
+    const SliderSpec& range = slider(Control::dynamic_range);
+    slider_double(Control::dynamic_range, &parameters_.dynamic_range_db, range.min, range.max,
+                  "%.0f");
+    {
+        const SliderSpec& tgc = slider(Control::tgc);
+        const bool pushed = highlight_begin(Control::tgc);
+        ImGui::TextUnformatted("TGC (dB), shallow to deep");
+        highlight_end(pushed);
+        tooltip(tgc.help);
+        for (int k = 0; k < kTgcSliders; ++k) {
+            if (k) ImGui::SameLine();
+            float v = float(parameters_.tgc_db[std::size_t(k)]);
+            ImGui::PushID(k);
+            const bool p2 = highlight_begin(Control::tgc);
+            if (ImGui::VSliderFloat("##tgc", ImVec2(22, 70), &v, float(tgc.min), float(tgc.max),
+                                    "")) {
+                parameters_.tgc_db[std::size_t(k)] = std::clamp(double(v), tgc.min, tgc.max);
+                changed = true;
+            }
+            highlight_end(p2);
+            if (ImGui::IsItemHovered())
+                ImGui::SetTooltip("%.0f mm: %+.0f dB", t.depth_mm * (k + 0.5) / kTgcSliders, v);
+            ImGui::PopID();
+        }
+        ImGui::SameLine();
+        if (ImGui::Button("reset##tgc")) {
+            parameters_.tgc_db.fill(0.0);
+            changed = true;
+        }
+    }
+    {
+        int q = int(parameters_.quality);
+        const char* names[] = {quality_label(imaging::Quality::interactive),
+                               quality_label(imaging::Quality::standard),
+                               quality_label(imaging::Quality::high)};
+        if (ImGui::Combo("quality", &q, names, 3)) {
+            parameters_.quality = imaging::Quality(q);
+            changed = true;
+        }
+        tooltip("particles per scan line and map resolution while the probe moves; a still "
+                "probe refines up to high by itself");
+    }
+
+    // -- physics
+    section("physics");
+    {
+        int receive = int(parameters_.receive);
+        const bool pushed = highlight_begin(Control::receive);
+        const char* receive_names[] = {"monostatic", "capture (probe face)"};
+        if (ImGui::Combo("receive", &receive, receive_names, 2)) {
+            parameters_.receive = imaging::ReceiveModel(receive);
+            changed = true;
+        }
+        highlight_end(pushed);
+        tooltip(switch_help(Control::receive));
+    }
+    PhysicsSwitches& s = parameters_.physics;
+    auto toggle = [&](Control c, const char* label, bool* value) {
+        const bool pushed = highlight_begin(c);
+        changed |= ImGui::Checkbox(label, value);
+        highlight_end(pushed);
+        tooltip(switch_help(c));
+    };
+    if (ImGui::BeginTable("switches", 2)) {
+        ImGui::TableNextColumn();
+        toggle(Control::refraction, "refraction", &s.refraction);
+        ImGui::TableNextColumn();
+        toggle(Control::specular_reflection, "specular reflection", &s.specular_reflection);
+        ImGui::TableNextColumn();
+        toggle(Control::diffuse_reflection, "diffuse reflection", &s.diffuse_reflection);
+        ImGui::TableNextColumn();
+        toggle(Control::scattering, "scattering", &s.scattering);
+        ImGui::TableNextColumn();
+        toggle(Control::attenuation, "attenuation", &s.attenuation);
+        ImGui::TableNextColumn();
+        toggle(Control::multiple_bounces, "multiple bounces", &s.multiple_bounces);
+        ImGui::TableNextColumn();
+        ImGui::BeginDisabled(parameters_.receive != imaging::ReceiveModel::capture);
+        toggle(Control::face_reflection, "face reflection", &s.face_reflection);
+        ImGui::EndDisabled();
+        ImGui::EndTable();
+    }
+
+    // -- probe motion and output
+    section("probe pose");
+    if (ImGui::Button("<")) move_probe(-2, 0, 0, 0);
+    ImGui::SameLine();
+    if (ImGui::Button(">")) move_probe(2, 0, 0, 0);
+    ImGui::SameLine();
+    if (ImGui::Button("rotate -")) move_probe(0, 0, -5, 0);
+    ImGui::SameLine();
+    if (ImGui::Button("rotate +")) move_probe(0, 0, 5, 0);
+    ImGui::SameLine();
+    if (ImGui::Button("tilt -")) move_probe(0, 0, 0, -5);
+    ImGui::SameLine();
+    if (ImGui::Button("tilt +")) move_probe(0, 0, 0, 5);
+    if (ImGui::Button("reset pose")) {
+        pose_ = scene_->start.pose;
+        changed = true;
+    }
+    ImGui::SameLine();
+    ImGui::Checkbox("freeze", &frozen_);
+    tooltip("stop scanning (space); the last frame stays");
+    ImGui::SameLine();
+    if (ImGui::Button("save frame")) save_frame();
+    tooltip("PNG + JSON sidecar in " + options_.out_dir + " (Ctrl+S)");
+    ImGui::SameLine();
+    if (ImGui::Button(recording_ ? "stop clip" : "record clip")) toggle_recording();
+    tooltip("MJPEG AVI of the B-mode frames in " + options_.out_dir + " (R)");
+    if (ImGui::Checkbox("3D context view", &view_.enabled)) changed = true;
+    ImGui::TextDisabled("keys: arrows slide, Q/E rotate, W/S tilt, shift = larger steps");
+    ImGui::TextDisabled("mouse: drag the slice to slide, wheel rotates (shift: tilts);");
+    ImGui::TextDisabled("drag the 3D view to orbit, wheel zooms");
+    if (changed) dirty_ = true;
+    ImGui::End();
+}
+
+void App::draw_explain(float x, float y, float w, float h) {
+    begin_panel("Explain: what you see and why", x, y, w, h, kPanelFlags);
+    if (scene_) {
+        ImGui::PushTextWrapPos(0.0f);
+        ImGui::TextDisabled("%s", scene_->description.c_str());
+        Control hovered = Control::none;
+        for (const Artifact& a : explain(*scene_, parameters_)) {
+            ImGui::Bullet();
+            ImGui::SameLine();
+            const bool selected = highlighted_ == a.control && a.control != Control::none;
+            ImGui::PushStyleColor(ImGuiCol_Text, selected ? kHighlight : IM_COL32_WHITE);
+            ImGui::TextUnformatted(a.name.c_str());
+            ImGui::PopStyleColor();
+            if (ImGui::IsItemHovered()) hovered = a.control;
+            if (ImGui::IsItemClicked()) highlighted_ = selected ? Control::none : a.control;
+            ImGui::Indent();
+            ImGui::TextUnformatted(a.why.c_str());
+            ImGui::TextDisabled("try: %s", a.how.c_str());
+            if (ImGui::IsItemHovered()) hovered = a.control;
+            ImGui::Unindent();
+        }
+        // Hovering an artifact highlights its control; clicking keeps it highlighted.
+        if (hovered != Control::none) highlighted_ = hovered;
+        ImGui::PopTextWrapPos();
+    }
+    ImGui::End();
+}
+
+void App::draw_slice(float x, float y, float w, float h) {
+    begin_panel("Tissue under the probe (beams of a few scan lines)", x, y, w, h, kViewFlags);
+    if (frame_ && !slice_texture_.empty()) {
+        const Fit fit = fit_image(slice_texture_.width(), slice_texture_.height());
+        ImGui::SetCursorScreenPos(fit.origin);
+        const ImVec2 size(fit.scale * slice_texture_.width(), fit.scale * slice_texture_.height());
+        ImGui::Image(slice_texture_.imgui_id(), size);
+        slice_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
+        ImDrawList* draw = ImGui::GetWindowDrawList();
+        const double texel = frame_->grid.geometry.spacing.x;
+        auto to_screen = [&](glm::dvec2 map) {
+            return ImVec2(fit.origin.x + float(map.x / texel) * fit.scale,
+                          fit.origin.y + float(map.y / texel) * fit.scale);
+        };
+        // Beams: the paths of every (lines/8)-th line, brighter while they carry energy.
+        const int lines = frame_->settings.transducer.lines;
+        const int every = std::max(1, lines / 8);
+        std::vector<ImVec2> points;
+        for (const auto& path : frame_->frame.paths) {
+            if (int(path.line) % every != every / 2 || path.vertices.size() < 2) continue;
+            const float e0 = std::max(path.vertices.front().energy, 1e-30f);
+            for (std::size_t k = 1; k < path.vertices.size(); ++k) {
+                const auto& a = path.vertices[k - 1];
+                const auto& b = path.vertices[k];
+                const float alpha = std::clamp(std::sqrt(b.energy / e0), 0.15f, 1.0f);
+                draw->AddLine(to_screen(glm::dvec2(a.position)), to_screen(glm::dvec2(b.position)),
+                              IM_COL32(255, 220, 60, int(255 * alpha)), 1.5f);
+            }
+        }
+        // The sector and the probe body above the face.
+        points.clear();
+        for (const glm::dvec2& p : sector_outline(frame_->settings.transducer))
+            points.push_back(to_screen(p + frame_->grid.to_map));
+        draw->AddPolyline(points.data(), int(points.size()), IM_COL32(90, 200, 255, 160),
+                          ImDrawFlags_Closed, 1.0f);
+        const double half = 0.5 * frame_->settings.transducer.array_length_mm();
+        const glm::dvec2 face = frame_->grid.to_map;
+        draw->AddRectFilled(to_screen(face + glm::dvec2(-half, -frame_->grid.top_margin_mm)),
+                            to_screen(face + glm::dvec2(half, 0.0)), IM_COL32(60, 70, 80, 230));
+        draw->AddRect(to_screen(face + glm::dvec2(-half, -frame_->grid.top_margin_mm)),
+                      to_screen(face + glm::dvec2(half, 0.0)), kProbeColour, 0.0f, 0, 2.0f);
+        // Drag to slide the probe along the surface; the wheel rotates (shift: tilts).
+        ImGui::SetCursorScreenPos(fit.origin);
+        ImGui::InvisibleButton("slice_drag", size);
+        const ImGuiIO& io = ImGui::GetIO();
+        if (ImGui::IsItemActive() && io.MouseDelta.x != 0.0f)
+            move_probe(-io.MouseDelta.x / fit.scale * texel, 0, 0, 0);
+        if (ImGui::IsItemHovered() && io.MouseWheel != 0.0f)
+            move_probe(0, 0, io.KeyShift ? 0.0 : 3.0 * io.MouseWheel,
+                       io.KeyShift ? 3.0 * io.MouseWheel : 0.0);
+    } else {
+        ImGui::TextDisabled("scanning ...");
+    }
+    ImGui::End();
+}
+
+void App::draw_bmode(float x, float y, float w, float h) {
+    begin_panel("B-mode", x, y, w, h, kViewFlags);
+    if (frame_ && !bmode_texture_.empty()) {
+        ImGui::Text("%s  %.0f ms", imaging::to_string(frame_->quality).c_str(),
+                    1e3 * frame_->seconds);
+        const Fit fit = fit_image(bmode_texture_.width(), bmode_texture_.height());
+        ImGui::SetCursorScreenPos(fit.origin);
+        const ImVec2 size(fit.scale * bmode_texture_.width(), fit.scale * bmode_texture_.height());
+        ImGui::Image(bmode_texture_.imgui_id(), size);
+        bmode_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
+        // Depth scale every 10 mm.
+        ImDrawList* draw = ImGui::GetWindowDrawList();
+        const imaging::ScanConverted& image = frame_->frame.image;
+        for (int d = 0; d <= int(frame_->settings.transducer.depth_mm); d += 10) {
+            const float yy = fit.origin.y + float((d - image.origin.y) / image.pixel_mm) * fit.scale;
+            if (yy < fit.origin.y || yy > fit.origin.y + size.y) continue;
+            draw->AddLine(ImVec2(fit.origin.x, yy), ImVec2(fit.origin.x + 6, yy),
+                          IM_COL32(200, 200, 200, 255));
+            if (d % 20 == 0)
+                draw->AddText(ImVec2(fit.origin.x + 8, yy - 7), IM_COL32(200, 200, 200, 255),
+                              (std::to_string(d) + " mm").c_str());
+        }
+    } else {
+        ImGui::TextDisabled("scanning ...");
+    }
+    ImGui::End();
+}
+
+void App::draw_context(float x, float y, float w, float h) {
+    begin_panel("3D context (particle-based volume rendering)", x, y, w, h, kViewFlags);
+    if (!view_.enabled) {
+        ImGui::TextDisabled("off (probe pose panel)");
+    } else if (context_ && !context_texture_.empty()) {
+        ImGui::Text("%d repetitions", context_->repetitions);
+        const Fit fit = fit_image(context_texture_.width(), context_texture_.height());
+        ImGui::SetCursorScreenPos(fit.origin);
+        const ImVec2 size(fit.scale * context_texture_.width(),
+                          fit.scale * context_texture_.height());
+        ImGui::Image(context_texture_.imgui_id(), size);
+        context_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
+        // The live probe sector, projected with the image's camera (drawn at once, before
+        // the renderer catches up).
+        const imaging::pbvr::OrbitCamera& cam = context_->camera;
+        const glm::dvec3 eye = cam.eye(), fwd = cam.forward(), right = cam.right(), up = cam.up();
+        const double focal = cam.focal_px();
+        std::vector<ImVec2> points;
+        for (const glm::dvec2& p : sector_outline(parameters_.transducer)) {
+            const glm::dvec3 world = pose_.position + p.x * pose_.lateral() + p.y * pose_.axial();
+            const glm::dvec3 v = world - eye;
+            const double z = glm::dot(v, fwd);
+            if (z <= 1e-3) continue;
+            const double px = glm::dot(v, right) / z * focal + 0.5 * cam.width;
+            const double py = -glm::dot(v, up) / z * focal + 0.5 * cam.height;
+            points.push_back(ImVec2(fit.origin.x + float(px) * fit.scale,
+                                    fit.origin.y + float(py) * fit.scale));
+        }
+        ImGui::GetWindowDrawList()->AddPolyline(points.data(), int(points.size()), kProbeColour,
+                                                ImDrawFlags_Closed, 1.5f);
+        ImGui::SetCursorScreenPos(fit.origin);
+        ImGui::InvisibleButton("orbit", size);
+        const ImGuiIO& io = ImGui::GetIO();
+        if (ImGui::IsItemActive() && (io.MouseDelta.x != 0.0f || io.MouseDelta.y != 0.0f)) {
+            view_.azimuth_deg -= 0.4 * io.MouseDelta.x;
+            view_.elevation_deg = std::clamp(view_.elevation_deg + 0.4 * io.MouseDelta.y, -85.0, 85.0);
+            dirty_ = true;
+        }
+        if (ImGui::IsItemHovered() && io.MouseWheel != 0.0f) {
+            view_.zoom = std::clamp(view_.zoom * std::pow(1.1, double(io.MouseWheel)), 0.5, 4.0);
+            dirty_ = true;
+        }
+    } else {
+        ImGui::TextDisabled("rendering ...");
+    }
+    ImGui::End();
+}
+
+void App::draw_energy(float x, float y, float w, float h) {
+    begin_panel("Energy deposition (sedimentation), 40 dB", x, y, w, h, kViewFlags);
+    if (frame_ && !energy_texture_.empty()) {
+        const Fit fit = fit_image(energy_texture_.width(), energy_texture_.height());
+        ImGui::SetCursorScreenPos(fit.origin);
+        const ImVec2 size(fit.scale * energy_texture_.width(), fit.scale * energy_texture_.height());
+        ImGui::Image(energy_texture_.imgui_id(), size);
+        energy_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
+    }
+    ImGui::End();
+}
+
+void App::draw_status(float x, float y, float w, float h) {
+    begin_panel("##status", x, y, w, h, kViewFlags | ImGuiWindowFlags_NoTitleBar);
+    const ImGuiIO& io = ImGui::GetIO();
+    ImGui::Text("UI %.0f frames/s", io.Framerate);
+    ImGui::SameLine(150);
+    if (frame_) {
+        ImGui::Text("frame %llu: %s, %.0f ms, %.1f M particle-steps", (unsigned long long)frames_shown_,
+                    imaging::to_string(frame_->quality).c_str(), 1e3 * frame_->seconds,
+                    1e-6 * double(frame_->frame.stats.steps));
+        ImGui::SameLine();
+    }
+    if (frozen_) {
+        ImGui::TextColored(ImVec4(0.4f, 0.8f, 1.0f, 1.0f), "FROZEN");
+        ImGui::SameLine();
+    }
+    if (recording_) {
+        ImGui::TextColored(ImVec4(1.0f, 0.3f, 0.3f, 1.0f), "REC %d frames", recorded_frames_);
+        ImGui::SameLine();
+    }
+    if (!error_.empty())
+        ImGui::TextColored(ImVec4(1.0f, 0.35f, 0.3f, 1.0f), "%s", error_.c_str());
+    else if (!message_.empty())
+        ImGui::TextDisabled("%s", message_.c_str());
+    ImGui::End();
+}
+
+void App::save_frame() {
+    if (!frame_) return;
+    try {
+        const std::filesystem::path dir(options_.out_dir);
+        int n = 0;
+        while (std::filesystem::exists(dir / ("frame_" + std::to_string(n) + ".png"))) ++n;
+        const std::string stem = (dir / ("frame_" + std::to_string(n))).string();
+        tissue::OutputTransaction transaction;
+        cv::Mat grey;
+        frame_->frame.image.image.convertTo(grey, CV_8U, 255.0);
+        imaging::write_png(grey, transaction.stage(stem + ".png"));
+        const imaging::ScanConverted& image = frame_->frame.image;
+        const nlohmann::json record = {
+            {"command", "sonotrace-gui"},
+            {"version", SONOTRACE_VERSION},
+            {"seed", frame_->settings.seed},
+            {"scene", scene_->name},
+            {"probe", transducer_record(frame_->settings.transducer)},
+            {"pose", ui::pose_json(frame_->pose)},
+            {"quality", imaging::to_string(frame_->quality)},
+            {"image",
+             {{"width", image.image.cols},
+              {"height", image.image.rows},
+              {"pixel_spacing_mm", {image.pixel_mm, image.pixel_mm}},
+              {"origin_mm", {image.origin.x, image.origin.y}},
+              {"gain_db", frame_->settings.imaging.gain_db},
+              {"dynamic_range_db", frame_->settings.imaging.dynamic_range_db}}},
+            {"physics",
+             {{"refraction", parameters_.physics.refraction},
+              {"specular_reflection", parameters_.physics.specular_reflection},
+              {"diffuse_reflection", parameters_.physics.diffuse_reflection},
+              {"scattering", parameters_.physics.scattering},
+              {"attenuation", parameters_.physics.attenuation},
+              {"multiple_bounces", parameters_.physics.multiple_bounces},
+              {"receive", imaging::to_string(frame_->settings.receive)}}},
+            {"timings_s", frame_->frame.timings}};
+        ui::write_json(record, transaction.stage(stem + ".json"));
+        transaction.commit();
+        message_ = "saved " + stem + ".png and .json";
+    } catch (const std::exception& e) {
+        error_ = std::string("could not save the frame: ") + e.what();
+    }
+}
+
+void App::toggle_recording() {
+    if (recording_) {
+        recording_->release();
+        recording_.reset();
+        message_ = "wrote " + recording_path_ + " (" + std::to_string(recorded_frames_) + " frames)";
+        return;
+    }
+    if (!frame_) return;
+    std::error_code error;
+    std::filesystem::create_directories(options_.out_dir, error);
+    int n = 0;
+    while (std::filesystem::exists(std::filesystem::path(options_.out_dir) /
+                                   ("clip_" + std::to_string(n) + ".avi")))
+        ++n;
+    recording_path_ =
+        (std::filesystem::path(options_.out_dir) / ("clip_" + std::to_string(n) + ".avi")).string();
+    recording_size_ = cv::Size(frame_->frame.image.image.cols & ~1, frame_->frame.image.image.rows & ~1);
+    recording_.emplace(recording_path_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0,
+                       recording_size_, true);
+    if (!recording_->isOpened()) {
+        recording_.reset();
+        error_ = "cannot write " + recording_path_;
+        return;
+    }
+    recorded_frames_ = 0;
+    message_ = "recording " + recording_path_;
+}
+
+}  // namespace sonotrace::gui

@@ -1,0 +1,124 @@
+#pragma once
+// The demo GUI's panels (Dear ImGui): controls and explain panel on the left, four views
+// on the right (tissue slice with the probe and live particle beams, B-mode, 3D context
+// by PBVR, energy deposition), a status bar. The scanner (scanner.h) works on its own
+// thread; this class only submits requests and shows what comes back.
+#include <cstdint>
+#include <future>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <opencv2/videoio.hpp>
+
+#include "ui/gui/controls.h"
+#include "ui/gui/scanner.h"
+
+namespace sonotrace::gui {
+
+struct AppOptions {
+    std::string scene = "head-craniotomy";
+    std::string probe;    // preset; empty = the scene's
+    std::string quality = "interactive";
+    double slide_mm = 0.0;  // start this far along the surface (lateral)
+    std::string out_dir = "out/gui";
+    bool animate = false;  // slide the probe back and forth by itself (benchmarks, demos)
+    bool context = true;
+};
+
+// A GL texture holding an RGB(A) picture.
+class Texture {
+  public:
+    Texture() = default;
+    ~Texture();
+    Texture(const Texture&) = delete;
+    Texture& operator=(const Texture&) = delete;
+    void upload(const cv::Mat& picture);  // CV_8UC3 RGB or CV_8UC1 grey
+    bool empty() const { return id_ == 0; }
+    void* imgui_id() const { return reinterpret_cast<void*>(uintptr_t(id_)); }
+    int width() const { return width_; }
+    int height() const { return height_; }
+
+  private:
+    unsigned id_ = 0;
+    int width_ = 0, height_ = 0;
+};
+
+// Screen rectangles of the views (pixels, top-left origin), for screenshots and tests.
+struct Rect {
+    float x = 0, y = 0, w = 0, h = 0;
+};
+
+class App {
+  public:
+    explicit App(const AppOptions& options);
+    ~App();
+
+    // One UI frame: collect results, draw every panel (between ImGui::NewFrame and Render).
+    void draw(int window_width, int window_height);
+
+    uint64_t frames_shown() const { return frames_shown_; }  // B-mode frames displayed
+    int context_repetitions() const { return context_repetitions_; }
+    bool scene_ready() const { return scene_ != nullptr; }
+    bool loading() const { return loading_.valid(); }
+    const std::string& last_error() const { return error_; }
+    Rect bmode_rect() const { return bmode_rect_; }
+    Rect slice_rect() const { return slice_rect_; }
+    Rect context_rect() const { return context_rect_; }
+    Rect energy_rect() const { return energy_rect_; }
+    double last_simulation_seconds() const { return last_seconds_; }
+
+  private:
+    void poll();
+    void request();
+    void move_probe(double lateral_mm, double elevation_mm, double rotate_deg, double tilt_deg);
+    void start_loading(const std::string& spec);
+    void apply_scene(std::shared_ptr<const Scene> scene);
+    void save_frame();
+    void toggle_recording();
+    void handle_keys();
+
+    void draw_controls(float x, float y, float w, float h);
+    void draw_explain(float x, float y, float w, float h);
+    void draw_slice(float x, float y, float w, float h);
+    void draw_bmode(float x, float y, float w, float h);
+    void draw_context(float x, float y, float w, float h);
+    void draw_energy(float x, float y, float w, float h);
+    void draw_status(float x, float y, float w, float h);
+    bool highlight_begin(Control control);
+    void highlight_end(bool pushed);
+
+    AppOptions options_;
+    Scanner scanner_;
+    std::shared_ptr<const Scene> scene_;
+    std::future<std::shared_ptr<const Scene>> loading_;
+    std::string loading_name_;
+    std::vector<SceneEntry> catalogue_;
+    std::string open_path_;
+
+    ScanParameters parameters_;
+    std::string probe_preset_;
+    probe::Pose pose_;
+    ContextView view_;
+    bool frozen_ = false;
+    bool dirty_ = true;  // parameters or pose changed since the last request
+    Control highlighted_ = Control::none;
+    double animate_phase_ = 0.0;
+
+    std::optional<ScanFrame> frame_;  // what the views show
+    std::optional<ContextImage> context_;
+    Texture slice_texture_, bmode_texture_, context_texture_, energy_texture_;
+    uint64_t frames_shown_ = 0;
+    int context_repetitions_ = 0;
+    double last_seconds_ = 0.0;
+
+    std::optional<cv::VideoWriter> recording_;
+    std::string recording_path_;
+    cv::Size recording_size_;
+    int recorded_frames_ = 0;
+
+    std::string error_, message_;
+    Rect slice_rect_, bmode_rect_, context_rect_, energy_rect_;
+};
+
+}  // namespace sonotrace::gui

@@ -1,0 +1,260 @@
+#include "ui/gui/scanner.h"
+
+#include <chrono>
+#include <opencv2/imgproc.hpp>
+
+#include "imaging/pbvr/overlay.h"
+#include "imaging/pbvr/pbvr.h"
+#include "tissue/error.h"
+
+namespace sonotrace::gui {
+
+namespace {
+
+using clock_type = std::chrono::steady_clock;
+double seconds_since(clock_type::time_point start) {
+    return std::chrono::duration<double>(clock_type::now() - start).count();
+}
+
+// Thrown from the tracer's per-line progress callback to abandon a frame.
+struct Cancelled {};
+
+// The tissues of a plane grid as an atlas picture (RGB), shaded a little by impedance so
+// that interfaces inside one tissue class still show.
+cv::Mat slice_picture(const tissue::Volume& labels, const tissue::PropertyMaps& maps) {
+    const glm::ivec3 n = labels.geometry().dims;
+    cv::Mat label_image(n.y, n.x, CV_8U);
+    for (int j = 0; j < n.y; ++j)
+        for (int i = 0; i < n.x; ++i)
+            label_image.at<uint8_t>(j, i) = uint8_t(std::clamp(labels.at(i, j, 0), 0.0f, 255.0f));
+    cv::Mat bgr = imaging::label_picture(label_image);
+    const auto& rho = maps[tissue::Property::density];
+    const auto& c = maps[tissue::Property::speed_of_sound];
+    for (int j = 0; j < n.y; ++j) {
+        for (int i = 0; i < n.x; ++i) {
+            // Impedance 0.4 (air) .. 7.8 MRayl (bone) -> 0.55 .. 1 brightness.
+            const float z = rho.at(i, j, 0) * c.at(i, j, 0) * 1e-6f;
+            const float shade = 0.55f + 0.45f * std::clamp((z - 1.3f) / 1.0f, 0.0f, 1.0f);
+            cv::Vec3b& p = bgr.at<cv::Vec3b>(j, i);
+            for (int k = 0; k < 3; ++k) p[k] = uint8_t(float(p[k]) * shade);
+        }
+    }
+    cv::Mat rgb;
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    return rgb;
+}
+
+}  // namespace
+
+imaging::SimulationSettings ScanParameters::settings(const Scene& scene) const {
+    imaging::SimulationSettings s;
+    s.transducer = transducer;
+    s.quality = quality;
+    s.receive = receive;
+    s.seed = seed;
+    s.imaging.gain_db = gain_db;
+    s.imaging.dynamic_range_db = dynamic_range_db;
+    // TGC: the automatic curve for brain (2 x 0.6 dB/(cm MHz)) plus the sliders.
+    const double slope = 2.0 * 0.6 * transducer.frequency_mhz / 10.0;  // dB/mm
+    for (int k = 0; k < kTgcSliders; ++k) {
+        const double depth = transducer.depth_mm * (k + 0.5) / kTgcSliders;
+        s.imaging.tgc.push_back({depth, slope * depth + tgc_db[std::size_t(k)]});
+    }
+    s.imaging.pixel_mm = std::max(0.1, transducer.depth_mm / 400.0);
+    simulator::TraceSettings& t = s.trace;
+    t.refraction = physics.refraction;
+    t.specular_reflection = physics.specular_reflection;
+    t.diffuse_reflection = physics.diffuse_reflection;
+    t.scattering = physics.scattering;
+    t.absorption = physics.attenuation;
+    t.max_bounces = physics.multiple_bounces ? 64 : 1;
+    t.interface_reach_mm = scene.interface_reach_mm;
+    if (!physics.face_reflection) s.transducer.face_reflectivity = 0.0;
+    s.validate("gui settings");
+    return s;
+}
+
+imaging::pbvr::OrbitCamera context_camera(const Scene& scene, const ContextView& view) {
+    imaging::pbvr::OrbitCamera camera =
+        imaging::pbvr::fit_camera(scene.context->geometry(), view.azimuth_deg, view.elevation_deg,
+                                  30.0, view.width, view.height);
+    camera.distance_mm /= std::clamp(view.zoom, 0.25, 8.0);
+    return camera;
+}
+
+std::optional<ScanFrame> simulate_request(const ScanRequest& request, imaging::Quality quality,
+                                          const std::function<bool()>& cancelled) {
+    const auto start = clock_type::now();
+    const Scene& scene = *request.scene;
+    ScanFrame out;
+    ScanParameters parameters = request.parameters;
+    parameters.quality = quality;
+    out.settings = parameters.settings(scene);
+    out.settings.trace.record_paths = request.paths_per_line;
+    out.quality = quality;
+    out.pose = clamp_to_scene(scene, request.pose);
+    imaging::ScenePlacement placement = scene.start;
+    placement.pose = out.pose;
+
+    const imaging::QualityLevel level = imaging::quality_level(quality);
+    out.grid = imaging::plane_grid(out.settings.transducer, out.pose, level.map_pixel_mm);
+    tissue::Volume labels;
+    tissue::PropertyMaps maps = scene.mapper(out.grid.geometry, &labels);
+    imaging::prepare_plane(maps, out.grid, placement, 5.0, &labels);
+    out.slice = slice_picture(labels, maps);
+    const auto map = tissue::AcousticMap<2>::build(maps);
+    try {
+        out.frame = imaging::simulate_frame(map, out.grid, out.pose, out.settings,
+                                            [&](std::size_t, std::size_t) {
+                                                if (cancelled && cancelled()) throw Cancelled{};
+                                            });
+    } catch (const Cancelled&) {
+        return std::nullopt;
+    }
+    out.seconds = seconds_since(start);
+    return out;
+}
+
+// The worker's context renderer, rebuilt when the scene changes.
+struct Scanner::ContextCache {
+    const Scene* scene = nullptr;
+    std::unique_ptr<imaging::pbvr::RenderVolume> volume;
+};
+
+Scanner::Scanner() : cache_(std::make_unique<ContextCache>()), thread_([this] { run(); }) {}
+
+Scanner::~Scanner() {
+    {
+        std::lock_guard lock(mutex_);
+        stop_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+}
+
+uint64_t Scanner::submit(ScanRequest request) {
+    std::lock_guard lock(mutex_);
+    pending_ = std::move(request);
+    pending_id_ = ++next_id_;
+    wake_.notify_all();
+    return pending_id_;
+}
+
+std::optional<ScanFrame> Scanner::take_frame() {
+    std::lock_guard lock(mutex_);
+    return std::exchange(frame_, std::nullopt);
+}
+
+std::optional<ContextImage> Scanner::take_context() {
+    std::lock_guard lock(mutex_);
+    return std::exchange(context_, std::nullopt);
+}
+
+std::optional<std::string> Scanner::take_error() {
+    std::lock_guard lock(mutex_);
+    return std::exchange(error_, std::nullopt);
+}
+
+bool Scanner::busy() const {
+    std::lock_guard lock(mutex_);
+    return working_ || pending_.has_value();
+}
+
+uint64_t Scanner::frames_done() const {
+    std::lock_guard lock(mutex_);
+    return frames_done_;
+}
+
+void Scanner::run() {
+    for (;;) {
+        ScanRequest request;
+        uint64_t id = 0;
+        {
+            std::unique_lock lock(mutex_);
+            wake_.wait(lock, [&] { return stop_ || pending_.has_value(); });
+            if (stop_) return;
+            request = std::move(*pending_);
+            pending_.reset();
+            id = pending_id_;
+            working_ = true;
+        }
+        try {
+            work(request, id);
+        } catch (const std::exception& e) {
+            std::lock_guard lock(mutex_);
+            error_ = e.what();
+        }
+        std::lock_guard lock(mutex_);
+        working_ = false;
+    }
+}
+
+void Scanner::work(const ScanRequest& request, uint64_t id) {
+    auto superseded = [this] {
+        std::lock_guard lock(mutex_);
+        return stop_ || pending_.has_value();
+    };
+    // The requested quality first; then, while the probe is still, finer frames with
+    // the 3D context's repetitions in between (its image shows the frame).
+    const int context_repetitions[] = {2, 8, 24};  // per quality
+    std::unique_ptr<imaging::pbvr::PbvrRenderer> renderer;
+    const auto context_start = clock_type::now();
+    const int requested = int(request.parameters.quality);
+    for (int stage = requested; stage <= int(imaging::Quality::high); ++stage) {
+        if (stage > requested && !request.refine) break;
+        {
+            std::optional<ScanFrame> frame =
+                simulate_request(request, imaging::Quality(stage), superseded);
+            if (!frame) return;
+            frame->request = id;
+            // A frame at the requested quality or finer replaces the context's overlay.
+            if (request.context.enabled && request.scene->context) {
+                if (cache_->scene != request.scene.get()) {
+                    cache_->volume.reset();
+                    cache_->volume = std::make_unique<imaging::pbvr::RenderVolume>(
+                        *request.scene->context, request.scene->context_tf);
+                    cache_->scene = request.scene.get();
+                }
+                const imaging::pbvr::OrbitCamera camera =
+                    context_camera(*request.scene, request.context);
+                imaging::pbvr::FrameOverlay overlay;
+                frame->frame.image.image.convertTo(overlay.frame, CV_8U, 255.0);
+                overlay.origin_mm = frame->frame.image.origin;
+                overlay.pixel_mm = glm::dvec2(frame->frame.image.pixel_mm);
+                overlay.position = frame->pose.position;
+                overlay.axial = frame->pose.axial();
+                overlay.lateral = frame->pose.lateral();
+                overlay.elevation = frame->pose.elevation();
+                overlay.transducer = frame->settings.transducer;
+                imaging::pbvr::RenderSettings settings;
+                settings.subpixel_level = 1;
+                settings.seed = request.parameters.seed;
+                settings.clip_plane = imaging::pbvr::camera_side_of_plane(
+                    overlay, request.scene->context->geometry(), camera);
+                renderer = std::make_unique<imaging::pbvr::PbvrRenderer>(
+                    *cache_->volume, request.scene->context_tf, camera, settings);
+                renderer->set_overlay(
+                    imaging::pbvr::overlay_layer(overlay, camera, settings.subpixel_level));
+            }
+            std::lock_guard lock(mutex_);
+            frame_ = std::move(frame);
+            ++frames_done_;
+        }
+        if (!renderer) continue;
+        while (renderer->repetitions_done() < context_repetitions[stage]) {
+            if (superseded()) return;
+            renderer->add_repetition();
+            ContextImage image;
+            image.request = id;
+            cv::cvtColor(imaging::pbvr::to_picture(renderer->image()), image.rgb,
+                         cv::COLOR_BGR2RGB);
+            image.repetitions = renderer->repetitions_done();
+            image.camera = context_camera(*request.scene, request.context);
+            image.seconds = seconds_since(context_start);
+            std::lock_guard lock(mutex_);
+            context_ = std::move(image);
+        }
+    }
+}
+
+}  // namespace sonotrace::gui

@@ -1,0 +1,135 @@
+#pragma once
+// The live scanner behind the demo GUI: a worker thread that turns the latest request
+// (scene, probe pose, settings) into a B-mode frame, then, while the probe stays still,
+// refines it (interactive -> standard -> high quality) and renders the 3D context by
+// PBVR between the stages. A new request cancels the work in progress at the next scan
+// line, so the image follows the probe at once; the UI thread only polls for results
+// and never waits. No OpenGL here: the tests drive it directly.
+#include <array>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include <opencv2/core.hpp>
+
+#include "imaging/pbvr/camera.h"
+#include "imaging/simulation.h"
+#include "ui/gui/scene.h"
+
+namespace sonotrace::gui {
+
+// The switches a student flips to make an artifact vanish and return.
+struct PhysicsSwitches {
+    bool refraction = true;
+    bool specular_reflection = true;
+    bool diffuse_reflection = true;
+    bool scattering = true;
+    bool attenuation = true;
+    bool multiple_bounces = true;  // off: a particle ends at its first reflection
+    bool face_reflection = true;   // capture receive model: the face reflects part back
+};
+
+inline constexpr int kTgcSliders = 8;  // evenly spaced over the imaging depth
+
+// Everything the control panel sets. One validated conversion to the simulator's
+// settings (settings()); ranges for the sliders live in controls.h.
+struct ScanParameters {
+    probe::Transducer transducer = probe::find_transducer("convex", "gui");
+    imaging::Quality quality = imaging::Quality::interactive;
+    imaging::ReceiveModel receive = imaging::ReceiveModel::monostatic;
+    double gain_db = 0.0;
+    double dynamic_range_db = 60.0;
+    std::array<double, kTgcSliders> tgc_db{};  // added to the automatic TGC (0.6 dB/(cm MHz))
+    PhysicsSwitches physics;
+    uint64_t seed = 1;
+
+    // Throws tissue::InputError naming the field when out of range.
+    imaging::SimulationSettings settings(const Scene& scene) const;
+};
+
+// The 3D context view's camera: an orbit about the volume, zoom as a distance factor.
+struct ContextView {
+    bool enabled = true;
+    double azimuth_deg = 235.0, elevation_deg = 18.0, zoom = 1.0;
+    int width = 320, height = 320;
+    bool operator==(const ContextView&) const = default;
+};
+
+struct ScanRequest {
+    std::shared_ptr<const Scene> scene;
+    probe::Pose pose;
+    ScanParameters parameters;
+    ContextView context;
+    int paths_per_line = 1;  // particle paths kept for drawing
+    bool refine = true;      // finer qualities while nothing new arrives
+};
+
+struct ScanFrame {
+    uint64_t request = 0;  // ScanRequest number (Scanner::submit's return)
+    imaging::Quality quality = imaging::Quality::interactive;
+    probe::Pose pose;
+    imaging::SimulationSettings settings;
+    imaging::PlaneGrid grid;
+    imaging::Frame frame;  // B-mode, energy map, paths, statistics, timings
+    cv::Mat slice;         // CV_8UC3 RGB on the plane grid: the tissues under the probe
+    double seconds = 0.0;  // wall time to simulate it
+};
+
+struct ContextImage {
+    uint64_t request = 0;
+    cv::Mat rgb;  // CV_8UC3
+    int repetitions = 0;
+    imaging::pbvr::OrbitCamera camera;
+    double seconds = 0.0;
+};
+
+// The camera of a context view of a scene (the orbit fitted to its volume).
+imaging::pbvr::OrbitCamera context_camera(const Scene& scene, const ContextView& view);
+
+class Scanner {
+  public:
+    Scanner();
+    ~Scanner();
+    Scanner(const Scanner&) = delete;
+    Scanner& operator=(const Scanner&) = delete;
+
+    // Replaces any pending request and cancels the work in progress. Returns its number.
+    uint64_t submit(ScanRequest request);
+    // The newest finished frame / context image not taken yet.
+    std::optional<ScanFrame> take_frame();
+    std::optional<ContextImage> take_context();
+    // The last error (bad parameters, a failed frame), with the request it belongs to.
+    std::optional<std::string> take_error();
+    // True while a request is being worked on or refined.
+    bool busy() const;
+    uint64_t frames_done() const;
+
+  private:
+    void run();
+    void work(const ScanRequest& request, uint64_t id);
+
+    mutable std::mutex mutex_;
+    std::condition_variable wake_;
+    std::optional<ScanRequest> pending_;
+    uint64_t next_id_ = 0, pending_id_ = 0;
+    std::optional<ScanFrame> frame_;
+    std::optional<ContextImage> context_;
+    std::optional<std::string> error_;
+    bool working_ = false, stop_ = false;
+    uint64_t frames_done_ = 0;
+    struct ContextCache;
+    std::unique_ptr<ContextCache> cache_;  // worker only
+    std::thread thread_;
+};
+
+// Simulates one frame of a request at a quality, synchronously (the worker's core).
+// `cancelled` is polled once per scan line; when it returns true the frame is abandoned
+// (returns nullopt).
+std::optional<ScanFrame> simulate_request(const ScanRequest& request, imaging::Quality quality,
+                                          const std::function<bool()>& cancelled = {});
+
+}  // namespace sonotrace::gui
