@@ -23,6 +23,9 @@ packages=(
   libopencv-core-dev libopencv-imgproc-dev libopencv-videoio-dev
   libglm-dev libcli11-dev nlohmann-json3-dev libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  # the teaching GUI (Dear ImGui ships its GLFW/OpenGL3 backends as sources), and Xvfb
+  # with Mesa to run it headless in the tests
+  libimgui-dev libglfw3-dev libgl-dev xvfb xauth libgl1-mesa-dri fonts-dejavu-core
   # the embedded default volume: Colin27 T1 head MRI
   mricron-data
 )

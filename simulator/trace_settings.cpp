@@ -43,6 +43,7 @@ void TraceSettings::validate(const std::string& source) const {
     in_range(max_time_s, 0.0, 1.0, "max-time");
     in_range(max_bounces, 0, 1000000, "max-bounces");
     in_range(record_paths, 0, 1000000, "record-paths");
+    in_range(record_paths_line_stride, 1, 1000000, "record-paths-line-stride");
     if (probe_face_2d) in_range(probe_face_2d->reflectivity, 0.0, 1.0, "probe-face.reflectivity");
     if (probe_face_3d) in_range(probe_face_3d->reflectivity, 0.0, 1.0, "probe-face.reflectivity");
     if (echo_profile) {

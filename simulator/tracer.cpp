@@ -224,7 +224,8 @@ class LineTracer {
         b.random[k] = RandomStream{ParticleRng(settings_.seed, s.line, index)};
         b.scatter_target[k] = -std::log(std::max(b.random[k].next(), 1e-12f));
         b.path[k] = -1;
-        if (int(index) < settings_.record_paths) {
+        if (int(index) < settings_.record_paths &&
+            s.line % uint32_t(settings_.record_paths_line_stride) == 0) {
             b.path[k] = int(out_->paths.size());
             out_->paths.push_back({s.line, index, {{s.position, s.energy}}});
         }

@@ -1,6 +1,7 @@
 #include "ui/gui/controls.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "simulator/trace_settings.h"
@@ -16,8 +17,33 @@ std::string transducer_help(const char* key) {
     return {};
 }
 
-bool has(const Scene& scene, const char* tissue) {
-    return std::find(scene.tissues.begin(), scene.tissues.end(), tissue) != scene.tissues.end();
+// What the materials of a scene can do to a beam.
+struct Features {
+    bool shadowing = false;  // strong attenuation or a strong reflector (bone, calcification)
+    bool fluid = false;      // anechoic and nearly lossless (cysts, CSF, vessels)
+    bool air = false;        // total reflection
+    bool speed_contrast = false;
+    bool rough_reflector = false;
+};
+
+Features features_of(const Scene& scene) {
+    using tissue::Property;
+    Features f;
+    double slowest = 1e9, fastest = 0.0;
+    for (const tissue::AcousticProperties& m : scene.materials) {
+        const double z = m.impedance_mrayl();
+        if (z < 0.1) {
+            f.air = true;
+            continue;
+        }
+        f.shadowing |= m[Property::attenuation] >= 3.0 || z >= 3.5;
+        f.fluid |= m[Property::backscatter] <= 0.05f && m[Property::attenuation] <= 0.2f;
+        f.rough_reflector |= z >= 3.5 && m[Property::roughness] >= 0.3f;
+        slowest = std::min(slowest, double(m[Property::speed_of_sound]));
+        fastest = std::max(fastest, double(m[Property::speed_of_sound]));
+    }
+    f.speed_contrast = fastest - slowest > 50.0;
+    return f;
 }
 
 }  // namespace
@@ -42,6 +68,14 @@ const SliderSpec& slider(Control control) {
     for (const SliderSpec& s : slider_specs())
         if (s.control == control) return s;
     throw std::logic_error("no slider for this control");
+}
+
+double slider_max(Control control, const probe::Transducer& t) {
+    const double max = slider(control).max;
+    if (control == Control::focus) return std::min(max, t.depth_mm);
+    if (control == Control::fov && t.type == probe::TransducerType::convex && t.radius_mm > 0.0)
+        return std::min(max, std::floor(t.elements * t.pitch_mm / t.radius_mm * 180.0 / M_PI));
+    return max;
 }
 
 std::string switch_help(Control control) {
@@ -71,6 +105,7 @@ std::string switch_help(Control control) {
 std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
     std::vector<Artifact> out;
     const PhysicsSwitches& s = p.physics;
+    const Features f = features_of(scene);
     if (s.scattering)
         out.push_back({"speckle",
                        "Echoes of sub-resolution scatterers fixed in the tissue interfere: a "
@@ -81,23 +116,24 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
                        "Intensity falls by alpha f per cm each way, so deep echoes are weaker; "
                        "the TGC adds gain with depth to even the image out.",
                        Control::tgc, "lower the deep TGC sliders: the bottom darkens"});
-    if (has(scene, "cortical_bone"))
+    if (f.shadowing)
         out.push_back({"acoustic shadowing",
-                       "Bone reflects about a third of the energy at its surface and absorbs "
-                       "ten times more than soft tissue: little reaches what lies behind it.",
+                       "Bone and calcifications reflect a large share of the energy at their "
+                       "surface and absorb far more than soft tissue: little reaches what lies "
+                       "behind them.",
                        Control::attenuation,
-                       "switch attenuation off: the shadow behind the bone fills in"});
-    if (has(scene, "cortical_bone") || has(scene, "fat"))
+                       "switch attenuation off: the shadow fills in"});
+    if (f.speed_contrast)
         out.push_back({"refraction displacement",
                        "Beams bend where the speed of sound changes obliquely (skull 2800 m/s, fat "
                        "1450 m/s), but the image assumes straight lines: structures shift.",
                        Control::refraction, "switch refraction off: they move back"});
-    if (has(scene, "fat"))
+    if (f.speed_contrast)
         out.push_back({"speed-of-sound displacement",
-                       "Depth is time x 1540 m/s / 2; under slow fat (1450 m/s) echoes arrive "
-                       "late and appear deeper.",
+                       "Depth is time x 1540 m/s / 2: under slower tissue (fat 1450 m/s) echoes "
+                       "arrive late and appear deeper, under faster tissue shallower.",
                        Control::none, "compare the frame with the tissue slice"});
-    if (has(scene, "water") || has(scene, "csf") || has(scene, "blood")) {
+    if (f.fluid) {
         out.push_back({"dark fluid, bright walls",
                        "Fluid has no scatterers (anechoic); its walls reflect specularly where "
                        "the beam meets them near normal incidence.",
@@ -108,7 +144,7 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
                        "than tissue at the same depth beside it (the TGC assumes tissue).",
                        Control::attenuation, "switch attenuation off: the enhancement vanishes"});
     }
-    if (has(scene, "air") || has(scene, "cortical_bone"))
+    if (f.air || f.shadowing)
         out.push_back({"mirror images",
                        "A strong reflector (air R = 1, bone) sends the beam sideways; echoes "
                        "from what it meets return along the same path and are drawn behind "
@@ -125,7 +161,7 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
                        "Repeated echoes between the probe face and a strong reflector need the "
                        "capture receive model with face reflection.",
                        Control::receive, "set receive to capture"});
-    if (has(scene, "cortical_bone") && s.diffuse_reflection)
+    if (f.rough_reflector && s.diffuse_reflection)
         out.push_back({"rough bone echoes from every angle",
                        "Rough interfaces reflect into a broad lobe, so bone echoes even where "
                        "the beam meets it obliquely.",

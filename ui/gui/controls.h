@@ -40,9 +40,12 @@ struct SliderSpec {
 };
 
 // Every numeric slider of the panel, with its range. The extremes are valid settings
-// for every probe preset (tests check it); the focus slider's maximum is the depth.
+// for every probe preset (tests check it), within slider_max.
 const std::vector<SliderSpec>& slider_specs();
 const SliderSpec& slider(Control control);
+// The slider's maximum for this probe: the focus at most the depth, a convex array's
+// field of view at most its arc (elements x pitch / radius).
+double slider_max(Control control, const probe::Transducer& t);
 
 // Help text of a physics switch (the tracer's parameter documentation where there is one).
 std::string switch_help(Control control);

@@ -206,7 +206,9 @@ void App::request() {
     r.pose = pose_;
     r.parameters = parameters_;
     r.context = view_;
-    r.paths_per_line = 1;
+    // Every particle of 8 lines across the sector: their beams are drawn.
+    r.paths_per_line = 100000;
+    r.path_line_stride = std::max(1, parameters_.transducer.lines / 8);
     r.refine = true;
     scanner_.submit(std::move(r));
     dirty_ = false;
@@ -278,11 +280,16 @@ void App::draw(int window_width, int window_height) {
         animate_phase_ += 2.0 * M_PI / 240.0;
         move_probe(15.0 * std::sin(animate_phase_) - previous, 0, 0, 0);
     }
+    if (!options_.open_later.empty() && !opened_later_ && frames_shown_ > 0) {
+        opened_later_ = true;
+        open_path_ = options_.open_later;
+        start_loading(open_path_);
+    }
     if (dirty_ && !frozen_ && scene_) request();
 
     const float W = float(window_width), H = float(window_height);
     const float left = std::min(380.0f, 0.3f * W), status = 28.0f;
-    const float controls_h = 0.66f * (H - status);
+    const float controls_h = 0.74f * (H - status);
     draw_controls(0, 0, left, controls_h);
     draw_explain(0, controls_h, left, H - status - controls_h);
     const float vw = 0.5f * (W - left), vh = 0.5f * (H - status);
@@ -306,6 +313,7 @@ void App::highlight_end(bool pushed) {
 
 void App::draw_controls(float x, float y, float w, float h) {
     begin_panel("Scanner", x, y, w, h, kPanelFlags);
+    ImGui::PushItemWidth(0.55f * w);
     bool changed = false;
     // -- scene
     if (ImGui::BeginCombo("scene", scene_ ? scene_->title.c_str() : "")) {
@@ -350,7 +358,7 @@ void App::draw_controls(float x, float y, float w, float h) {
     const SliderSpec& depth = slider(Control::depth);
     slider_double(Control::depth, &t.depth_mm, depth.min, depth.max, "%.0f");
     const SliderSpec& focus = slider(Control::focus);
-    slider_double(Control::focus, &t.focus_mm, focus.min, std::min(focus.max, t.depth_mm), "%.0f");
+    slider_double(Control::focus, &t.focus_mm, focus.min, slider_max(Control::focus, t), "%.0f");
     const SliderSpec& frequency = slider(Control::frequency);
     slider_double(Control::frequency, &t.frequency_mhz, frequency.min, frequency.max, "%.1f");
     {
@@ -361,7 +369,7 @@ void App::draw_controls(float x, float y, float w, float h) {
     }
     if (t.is_fan()) {
         const SliderSpec& fov = slider(Control::fov);
-        slider_double(Control::fov, &t.fov_deg, fov.min, fov.max, "%.0f");
+        slider_double(Control::fov, &t.fov_deg, fov.min, slider_max(Control::fov, t), "%.0f");
     }
 
     // -- image
@@ -482,6 +490,7 @@ void App::draw_controls(float x, float y, float w, float h) {
     ImGui::TextDisabled("mouse: drag the slice to slide, wheel rotates (shift: tilts);");
     ImGui::TextDisabled("drag the 3D view to orbit, wheel zooms");
     if (changed) dirty_ = true;
+    ImGui::PopItemWidth();
     ImGui::End();
 }
 
@@ -527,19 +536,17 @@ void App::draw_slice(float x, float y, float w, float h) {
             return ImVec2(fit.origin.x + float(map.x / texel) * fit.scale,
                           fit.origin.y + float(map.y / texel) * fit.scale);
         };
-        // Beams: the paths of every (lines/8)-th line, brighter while they carry energy.
-        const int lines = frame_->settings.transducer.lines;
-        const int every = std::max(1, lines / 8);
+        // Beams: the particles of a few lines, brighter while they carry energy.
         std::vector<ImVec2> points;
         for (const auto& path : frame_->frame.paths) {
-            if (int(path.line) % every != every / 2 || path.vertices.size() < 2) continue;
+            if (path.vertices.size() < 2) continue;
             const float e0 = std::max(path.vertices.front().energy, 1e-30f);
             for (std::size_t k = 1; k < path.vertices.size(); ++k) {
                 const auto& a = path.vertices[k - 1];
                 const auto& b = path.vertices[k];
                 const float alpha = std::clamp(std::sqrt(b.energy / e0), 0.15f, 1.0f);
                 draw->AddLine(to_screen(glm::dvec2(a.position)), to_screen(glm::dvec2(b.position)),
-                              IM_COL32(255, 220, 60, int(255 * alpha)), 1.5f);
+                              IM_COL32(255, 220, 60, int(160 * alpha)), 1.0f);
             }
         }
         // The sector and the probe body above the face.

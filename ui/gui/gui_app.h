@@ -24,6 +24,7 @@ struct AppOptions {
     std::string out_dir = "out/gui";
     bool animate = false;  // slide the probe back and forth by itself (benchmarks, demos)
     bool context = true;
+    std::string open_later;  // opened like the "open file" field once a frame is shown
 };
 
 // A GL texture holding an RGB(A) picture.
@@ -60,7 +61,10 @@ class App {
     uint64_t frames_shown() const { return frames_shown_; }  // B-mode frames displayed
     int context_repetitions() const { return context_repetitions_; }
     bool scene_ready() const { return scene_ != nullptr; }
-    bool loading() const { return loading_.valid(); }
+    // True while a scene loads, or until --open's file has been tried.
+    bool loading() const {
+        return loading_.valid() || (!options_.open_later.empty() && !opened_later_);
+    }
     const std::string& last_error() const { return error_; }
     Rect bmode_rect() const { return bmode_rect_; }
     Rect slice_rect() const { return slice_rect_; }
@@ -104,6 +108,7 @@ class App {
     bool dirty_ = true;  // parameters or pose changed since the last request
     Control highlighted_ = Control::none;
     double animate_phase_ = 0.0;
+    bool opened_later_ = false;
 
     std::optional<ScanFrame> frame_;  // what the views show
     std::optional<ContextImage> context_;

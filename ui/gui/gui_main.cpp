@@ -139,7 +139,7 @@ int run(const Options& o) {
             last = now;
             const double elapsed = std::chrono::duration<double>(now - start).count();
             const bool enough_frames =
-                app.frames_shown() >= uint64_t(o.frames) &&
+                app.frames_shown() >= uint64_t(o.frames) && !app.loading() &&
                 (!o.app.context || app.context_repetitions() > 0 || !app.last_error().empty());
             const bool done_screenshot = !o.screenshot.empty() && enough_frames;
             const bool done_benchmark = o.screenshot.empty() && o.ui_frames > 0 &&
@@ -226,6 +226,9 @@ int main(int argc, char** argv) {
     cli.add_flag("--animate", o.app.animate,
                  "slide the probe back and forth by itself (+-15 mm; demos and benchmarks)");
     cli.add_flag("!--no-context", o.app.context, "no 3D context view (saves CPU)");
+    cli.add_option("--open", o.app.open_later,
+                   "once the first frame is shown, open this volume or phantom file as the "
+                   "'open file' field does (a file that fails to load leaves the scene as it was)");
     cli.add_option("--screenshot", o.screenshot,
                    "headless: save the window as PNG (and the view rectangles as .json) once "
                    "--frames B-mode frames have been shown, then exit");

@@ -91,6 +91,7 @@ std::optional<ScanFrame> simulate_request(const ScanRequest& request, imaging::Q
     parameters.quality = quality;
     out.settings = parameters.settings(scene);
     out.settings.trace.record_paths = request.paths_per_line;
+    out.settings.trace.record_paths_line_stride = request.path_line_stride;
     out.quality = quality;
     out.pose = clamp_to_scene(scene, request.pose);
     imaging::ScenePlacement placement = scene.start;
@@ -203,8 +204,11 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
     for (int stage = requested; stage <= int(imaging::Quality::high); ++stage) {
         if (stage > requested && !request.refine) break;
         {
+            // The requested quality always completes (a dragged probe still gets frames);
+            // refinements give way to the next request.
             std::optional<ScanFrame> frame =
-                simulate_request(request, imaging::Quality(stage), superseded);
+                simulate_request(request, imaging::Quality(stage),
+                                 stage == requested ? std::function<bool()>() : superseded);
             if (!frame) return;
             frame->request = id;
             // A frame at the requested quality or finer replaces the context's overlay.

@@ -64,7 +64,8 @@ struct ScanRequest {
     probe::Pose pose;
     ScanParameters parameters;
     ContextView context;
-    int paths_per_line = 1;  // particle paths kept for drawing
+    int paths_per_line = 0;    // particle paths kept for drawing ...
+    int path_line_stride = 1;  // ... on the lines whose id is a multiple of this
     bool refine = true;      // finer qualities while nothing new arrives
 };
 

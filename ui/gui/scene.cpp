@@ -20,11 +20,12 @@ bool ends_with(const std::string& s, const std::string& tail) {
     return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
 }
 
-// The tissues a transfer function can produce, by name.
-std::vector<std::string> tissue_names_of_labels(const std::set<int>& labels) {
-    std::vector<std::string> out;
+// The table's properties of the tissue labels present.
+std::vector<tissue::AcousticProperties> materials_of_labels(const std::set<int>& labels) {
+    std::vector<tissue::AcousticProperties> out;
+    const auto table = tissue::tissue_table();
     for (int l : labels)
-        if (l > 0) out.push_back(tissue::tissue_label_name(l));
+        if (l >= 1 && l <= int(table.size())) out.push_back(table[std::size_t(l) - 1].properties);
     return out;
 }
 
@@ -89,7 +90,7 @@ std::shared_ptr<Scene> volume_scene(const std::string& spec, const std::string& 
     std::set<int> labels;
     const tissue::Volume sampled = tissue::tissue_labels(volume, tf);
     for (std::size_t n = 0; n < sampled.size(); n += 7) labels.insert(int(sampled.voxels()[n]));
-    scene->tissues = tissue_names_of_labels(labels);
+    scene->materials = materials_of_labels(labels);
     auto context = std::make_shared<tissue::Volume>(volume);
     scene->context_tf.bind(*context);
     scene->context = std::move(context);
@@ -113,9 +114,8 @@ std::shared_ptr<Scene> phantom_scene(const std::string& path) {
     };
     // A phantom's top face is flat: a moved probe stays at its depth.
     scene->settle = [](const probe::Pose& pose) { return pose; };
-    std::set<int> labels{phantom->background_label};
-    for (const phantoms::Shape& s : phantom->shapes) labels.insert(s.label);
-    scene->tissues = tissue_names_of_labels(labels);
+    scene->materials.push_back(phantom->background);
+    for (const phantoms::Shape& s : phantom->shapes) scene->materials.push_back(s.properties);
     // The 3D context: acoustic impedance on a 1 mm grid (at most 160 samples a side).
     const double h = std::max({1.0, phantom->size.x / 160.0, phantom->size.y / 160.0,
                                phantom->size.z / 160.0});

@@ -36,8 +36,9 @@ struct Scene {
     // The 3D context: a volume and its colour transfer function (bound to it).
     std::shared_ptr<const tissue::Volume> context;
     imaging::pbvr::ColourTransferFunction context_tf;
-    // Tissue labels present (tissue_table() names), for the explain panel.
-    std::vector<std::string> tissues;
+    // The distinct materials present (tissues of the table or a phantom's explicit
+    // properties), for the explain panel.
+    std::vector<tissue::AcousticProperties> materials;
 };
 
 // "head-craniotomy", "head-temporal", "phantom:NAME" (NAME.json in phantom_dir), or a

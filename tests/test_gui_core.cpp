@@ -1,0 +1,267 @@
+// The live scanner behind sonotrace-gui, without a display: scenes and their errors,
+// the worker's latest-wins requests, what moving the probe and the physics switches do
+// to the frame, the control extremes, and the explain panel.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <thread>
+
+#include "phantoms/phantom.h"
+#include "tissue/error.h"
+#include "ui/gui/controls.h"
+#include "ui/gui/scanner.h"
+
+namespace sonotrace::gui {
+namespace {
+
+const std::string kPhantoms = SONOTRACE_SOURCE_DIR "/phantoms";
+
+std::shared_ptr<const Scene> cyst_scene() {
+    static const auto scene = load_scene("phantom:cyst_and_stone", kPhantoms);
+    return scene;
+}
+
+ScanRequest request_for(std::shared_ptr<const Scene> scene) {
+    ScanRequest r;
+    r.scene = scene;
+    r.pose = scene->start.pose;
+    r.parameters.transducer = probe::find_transducer(scene->probe_preset, "test");
+    r.parameters.gain_db = 36.0;
+    r.context.enabled = false;
+    r.refine = false;
+    return r;
+}
+
+ScanFrame simulate(const ScanRequest& r) {
+    auto frame = simulate_request(r, r.parameters.quality);
+    EXPECT_TRUE(frame.has_value());
+    return std::move(*frame);
+}
+
+// Mean of the frame's pixels inside the scanned region, over depths [d0, d1) mm.
+double mean_inside(const ScanFrame& f, double d0 = 0.0, double d1 = 1e9) {
+    const imaging::ScanConverted& img = f.frame.image;
+    double sum = 0.0;
+    int n = 0;
+    for (int r = 0; r < img.image.rows; ++r) {
+        const double depth = img.origin.y + r * img.pixel_mm;
+        if (depth < d0 || depth >= d1) continue;
+        for (int c = 0; c < img.image.cols; ++c)
+            if (img.inside.at<uint8_t>(r, c)) sum += img.image.at<float>(r, c), ++n;
+    }
+    return n ? sum / n : 0.0;
+}
+
+// Lateral centroid (mm, probe plane) of the dark pixels (< 0.1) in a window.
+double dark_centroid_x(const ScanFrame& f, double x0, double x1, double d0, double d1) {
+    const imaging::ScanConverted& img = f.frame.image;
+    double sum = 0.0;
+    int n = 0;
+    for (int r = 0; r < img.image.rows; ++r) {
+        const double depth = img.origin.y + r * img.pixel_mm;
+        if (depth < d0 || depth > d1) continue;
+        for (int c = 0; c < img.image.cols; ++c) {
+            const double x = img.origin.x + c * img.pixel_mm;
+            if (x < x0 || x > x1 || !img.inside.at<uint8_t>(r, c)) continue;
+            if (img.image.at<float>(r, c) < 0.1f) sum += x, ++n;
+        }
+    }
+    EXPECT_GT(n, 100) << "no dark region in the window";
+    return n ? sum / n : 0.0;
+}
+
+TEST(GuiScene, CatalogueListsHeadViewsAndEveryPhantom) {
+    const auto entries = scene_catalogue(kPhantoms);
+    int phantoms = 0;
+    for (const auto& e : std::filesystem::directory_iterator(kPhantoms))
+        phantoms += e.path().extension() == ".json";
+    ASSERT_EQ(entries.size(), std::size_t(2 + phantoms));
+    EXPECT_EQ(entries[0].name, "head-craniotomy");
+    EXPECT_EQ(entries[1].name, "head-temporal");
+    // Every phantom of the catalogue loads as a scene.
+    for (std::size_t i = 2; i < entries.size(); ++i)
+        EXPECT_NO_THROW(load_scene(entries[i].name, kPhantoms)) << entries[i].name;
+}
+
+TEST(GuiScene, BadFilesAreErrorsNamingTheFile) {
+    const auto dir = std::filesystem::temp_directory_path() / "sonotrace_gui_scene";
+    std::filesystem::create_directories(dir);
+    const std::string corrupt = (dir / "corrupt.nii").string();
+    std::ofstream(corrupt) << "this is not a NIfTI file";
+    const std::string bad_json = (dir / "bad.json").string();
+    std::ofstream(bad_json) << "{\"shapes\": [ {\"type\": \"sphere\" ";
+    for (const std::string& spec :
+         {std::string("/nonexistent/head.nii.gz"), corrupt, bad_json,
+          std::string("phantom:no_such_phantom")}) {
+        try {
+            load_scene(spec, kPhantoms);
+            ADD_FAILURE() << spec << " loaded";
+        } catch (const tissue::InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(spec), std::string::npos) << e.what();
+        }
+    }
+}
+
+TEST(GuiScanner, SameRequestGivesIdenticalFrames) {
+    const ScanRequest r = request_for(cyst_scene());
+    const ScanFrame a = simulate(r), b = simulate(r);
+    ASSERT_EQ(a.frame.image.image.size(), b.frame.image.image.size());
+    EXPECT_EQ(cv::norm(a.frame.image.image, b.frame.image.image, cv::NORM_INF), 0.0);
+}
+
+TEST(GuiScanner, SlidingTheProbeMovesTheCystTheOtherWay) {
+    // The cyst (a water sphere) lies at a fixed world x; the probe slides by +6 mm, so in
+    // the image it moves by -6 mm. Expected position from the phantom's geometry.
+    const auto scene = cyst_scene();
+    const phantoms::Phantom phantom = phantoms::load_phantom(kPhantoms + "/cyst_and_stone.json");
+    const glm::dvec3 cyst = phantom.shapes[0].a;
+    ScanRequest r = request_for(scene);
+    for (double slide : {0.0, 6.0}) {
+        r.pose.position = scene->start.pose.position + slide * scene->start.pose.lateral();
+        const ScanFrame f = simulate(r);
+        const double expected = cyst.x - r.pose.position.x;
+        const double x = dark_centroid_x(f, expected - 7.0, expected + 7.0, cyst.y - 4.0,
+                                         cyst.y + 4.0);
+        EXPECT_NEAR(x, expected, 0.75) << "slide " << slide;
+    }
+}
+
+TEST(GuiScanner, PhysicsSwitchesChangeWhatTheyShould) {
+    ScanRequest r = request_for(cyst_scene());
+    const ScanFrame on = simulate(r);
+    // Without scattering the liver has no speckle: only the interfaces echo.
+    r.parameters.physics.scattering = false;
+    const ScanFrame no_scatter = simulate(r);
+    EXPECT_LT(mean_inside(no_scatter), 0.3 * mean_inside(on));
+    // Without attenuation the deep tissue gets brighter (the TGC still compensates).
+    r.parameters.physics.scattering = true;
+    r.parameters.physics.attenuation = false;
+    const ScanFrame lossless = simulate(r);
+    EXPECT_GT(mean_inside(lossless, 30.0, 40.0), mean_inside(on, 30.0, 40.0) + 0.05);
+}
+
+TEST(GuiScanner, LatestRequestWinsAndErrorsAreReported) {
+    const auto scene = cyst_scene();
+    Scanner scanner;
+    ScanRequest a = request_for(scene), b = request_for(scene);
+    b.pose.position += 4.0 * b.pose.lateral();
+    scanner.submit(a);
+    const uint64_t id_b = scanner.submit(b);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    std::optional<ScanFrame> last;
+    while (std::chrono::steady_clock::now() < deadline) {
+        if (auto f = scanner.take_frame()) last = std::move(f);
+        if (!scanner.busy() && last && last->request == id_b) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    ASSERT_TRUE(last.has_value());
+    EXPECT_EQ(last->request, id_b);
+    EXPECT_NEAR(glm::distance(last->pose.position, b.pose.position), 0.0, 1e-9);
+
+    // An impossible setting comes back as an error naming it; the scanner keeps going.
+    ScanRequest bad = request_for(scene);
+    bad.parameters.transducer.focus_mm = 1e9;
+    scanner.submit(bad);
+    std::optional<std::string> error;
+    while (!error && std::chrono::steady_clock::now() < deadline) {
+        error = scanner.take_error();
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    ASSERT_TRUE(error.has_value());
+    EXPECT_NE(error->find("focus"), std::string::npos) << *error;
+    scanner.submit(a);
+    while (scanner.busy() && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    EXPECT_TRUE(scanner.take_frame().has_value());
+}
+
+TEST(GuiScanner, RefinementAndContextFollowAStillProbe) {
+    Scanner scanner;
+    ScanRequest r = request_for(cyst_scene());
+    r.refine = true;
+    r.context.enabled = true;
+    r.context.width = r.context.height = 96;
+    scanner.submit(r);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    std::vector<imaging::Quality> qualities;
+    int repetitions = 0;
+    while (std::chrono::steady_clock::now() < deadline && (scanner.busy() || qualities.empty())) {
+        if (auto f = scanner.take_frame()) qualities.push_back(f->quality);
+        if (auto c = scanner.take_context()) repetitions = c->repetitions;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    if (auto f = scanner.take_frame()) qualities.push_back(f->quality);
+    if (auto c = scanner.take_context()) repetitions = c->repetitions;
+    ASSERT_FALSE(qualities.empty());
+    EXPECT_EQ(qualities.back(), imaging::Quality::high);
+    EXPECT_EQ(repetitions, 24);  // the high stage's context repetitions
+}
+
+TEST(GuiControls, EverySliderExtremeGivesAFrame) {
+    // For every preset, each slider at its minimum and maximum (slider_max, as the panel
+    // clamps it) is a valid setting; on the phantom each gives a finite frame.
+    const auto scene = cyst_scene();
+    for (const probe::Transducer& preset : probe::transducer_presets()) {
+        for (const SliderSpec& spec : slider_specs()) {
+            for (double value : {spec.min, slider_max(spec.control, preset)}) {
+                ScanRequest r = request_for(scene);
+                r.parameters.transducer = preset;
+                probe::Transducer& t = r.parameters.transducer;
+                switch (spec.control) {
+                    case Control::depth: t.depth_mm = value; break;
+                    case Control::focus: t.focus_mm = value; break;
+                    case Control::frequency: t.frequency_mhz = value; break;
+                    case Control::lines: t.lines = int(value); break;
+                    case Control::fov: t.fov_deg = value; break;
+                    case Control::gain: r.parameters.gain_db = value; break;
+                    case Control::dynamic_range: r.parameters.dynamic_range_db = value; break;
+                    case Control::tgc: r.parameters.tgc_db.fill(value); break;
+                    default: FAIL() << spec.label;
+                }
+                // The panel keeps every slider within its (probe-dependent) maximum.
+                t.focus_mm = std::min(t.focus_mm, slider_max(Control::focus, t));
+                t.fov_deg = std::min(t.fov_deg, slider_max(Control::fov, t));
+                SCOPED_TRACE(preset.name + " " + spec.label + " = " + std::to_string(value));
+                ASSERT_NO_THROW(r.parameters.settings(*scene));
+                if (preset.name != scene->probe_preset) continue;  // frames: the scene's probe
+                const ScanFrame f = simulate(r);
+                ASSERT_FALSE(f.frame.image.image.empty());
+                EXPECT_TRUE(cv::checkRange(f.frame.image.image, true, nullptr, 0.0, 1.0 + 1e-6));
+            }
+        }
+    }
+}
+
+TEST(GuiExplain, ArtifactsFollowTheMaterialsAndSwitches) {
+    auto names = [](const std::vector<Artifact>& list) {
+        std::set<std::string> out;
+        for (const auto& a : list) out.insert(a.name);
+        return out;
+    };
+    ScanParameters p;
+    const auto cyst = names(explain(*cyst_scene(), p));
+    EXPECT_TRUE(cyst.count("posterior enhancement"));  // the water cyst
+    EXPECT_TRUE(cyst.count("acoustic shadowing"));     // the calcified plaque
+    EXPECT_TRUE(cyst.count("speckle"));
+    const auto mirror = names(explain(*load_scene("phantom:mirror", kPhantoms), p));
+    EXPECT_TRUE(mirror.count("mirror images"));
+    const auto layer = names(explain(*load_scene("phantom:speed_layer", kPhantoms), p));
+    EXPECT_TRUE(layer.count("speed-of-sound displacement"));
+    EXPECT_FALSE(layer.count("posterior enhancement"));  // no fluid there
+    p.physics.scattering = false;
+    EXPECT_FALSE(names(explain(*cyst_scene(), p)).count("speckle"));
+    p.receive = imaging::ReceiveModel::capture;
+    EXPECT_TRUE(names(explain(*cyst_scene(), p)).count("reverberation"));
+    // Every artifact names a control, with help text to show.
+    for (const Artifact& a : explain(*cyst_scene(), p)) {
+        if (a.control != Control::none && a.control != Control::tgc) {
+            EXPECT_FALSE(switch_help(a.control).empty()) << a.name;
+        }
+    }
+}
+
+}  // namespace
+}  // namespace sonotrace::gui
