@@ -11,12 +11,14 @@ using tissue::Property;
 std::optional<RayHit> march_until(
     const tissue::Volume& volume, const tissue::TransferFunction& tf, const glm::dvec3& start,
     const glm::dvec3& direction, double max_mm, double step_mm,
-    const std::function<bool(const tissue::AcousticProperties&)>& accept) {
+    const std::function<bool(const tissue::AcousticProperties&)>& accept,
+    std::optional<float> outside) {
     const glm::dvec3 dir = glm::normalize(direction);
-    const float outside = volume.value_range().first;
+    const float background = outside ? *outside : volume.value_range().first;
     for (double t = 0.0; t <= max_mm; t += step_mm) {
         const glm::dvec3 p = start + t * dir;
-        const float value = volume.sample_trilinear(volume.geometry().world_to_index(p), outside);
+        const float value =
+            volume.sample_trilinear(volume.geometry().world_to_index(p), background);
         if (accept(tf.evaluate(value))) return RayHit{p, t};
     }
     return std::nullopt;
@@ -24,16 +26,19 @@ std::optional<RayHit> march_until(
 
 std::optional<RayHit> skin_surface(const tissue::Volume& volume, const tissue::TransferFunction& tf,
                                    const glm::dvec3& start, const glm::dvec3& direction,
-                                   double max_mm, double relative_change) {
-    const float outside = volume.value_range().first;
+                                   double max_mm, double relative_change,
+                                   std::optional<float> outside) {
+    if (!outside) outside = volume.value_range().first;
     const double z0 =
-        tf.evaluate(volume.sample_trilinear(volume.geometry().world_to_index(start), outside))
+        tf.evaluate(volume.sample_trilinear(volume.geometry().world_to_index(start), *outside))
             .impedance_mrayl();
-    return march_until(volume, tf, start, direction, max_mm, 0.1,
-                       [&](const tissue::AcousticProperties& p) {
-                           const double z = p.impedance_mrayl();
-                           return std::abs(z - z0) > relative_change * std::max(z, z0);
-                       });
+    return march_until(
+        volume, tf, start, direction, max_mm, 0.1,
+        [&](const tissue::AcousticProperties& p) {
+            const double z = p.impedance_mrayl();
+            return std::abs(z - z0) > relative_change * std::max(z, z0);
+        },
+        outside);
 }
 
 std::optional<RayHit> beneath_bone(const tissue::Volume& volume, const tissue::TransferFunction& tf,
@@ -74,15 +79,15 @@ std::optional<RayHit> beneath_bone(const tissue::Volume& volume, const tissue::T
 std::optional<RayHit> after_gap(const tissue::Volume& volume, const tissue::TransferFunction& tf,
                                 const glm::dvec3& start, const glm::dvec3& direction, double max_mm,
                                 const RayTest& gap, double gap_mm, const RayTest& run,
-                                double run_mm) {
+                                double run_mm, std::optional<float> outside) {
     const glm::dvec3 dir = glm::normalize(direction);
-    const float outside = volume.value_range().first;
+    if (!outside) outside = volume.value_range().first;
     constexpr double kStep = 0.1;
     double gap_start = -1.0, run_start = -1.0;
     bool gap_done = false;
     for (double t = 0.0; t <= max_mm; t += kStep) {
         const glm::dvec3 p = start + t * dir;
-        const float value = volume.sample_trilinear(volume.geometry().world_to_index(p), outside);
+        const float value = volume.sample_trilinear(volume.geometry().world_to_index(p), *outside);
         const tissue::AcousticProperties props = tf.evaluate(value);
         const int label = tf.tissue_label(value);
         if (gap_done && run(props, label)) {

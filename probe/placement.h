@@ -20,16 +20,20 @@ struct RayHit {
 
 // The first point along start + t * direction (t in [0, max_mm], steps of step_mm)
 // where `accept` holds for the acoustic properties there. `tf` must be bound to `volume`.
+// Every function here takes the value assumed outside the volume as `outside`; without
+// it, the volume's minimum (a scan of every voxel: pass it when placing often).
 std::optional<RayHit> march_until(
     const tissue::Volume& volume, const tissue::TransferFunction& tf, const glm::dvec3& start,
     const glm::dvec3& direction, double max_mm, double step_mm,
-    const std::function<bool(const tissue::AcousticProperties&)>& accept);
+    const std::function<bool(const tissue::AcousticProperties&)>& accept,
+    std::optional<float> outside = std::nullopt);
 
 // The skin: the first point whose impedance differs from the starting medium's by more
 // than `relative_change` (0.5 = 50 %); from air that is the first tissue.
 std::optional<RayHit> skin_surface(const tissue::Volume& volume, const tissue::TransferFunction& tf,
                                    const glm::dvec3& start, const glm::dvec3& direction,
-                                   double max_mm, double relative_change = 0.5);
+                                   double max_mm, double relative_change = 0.5,
+                                   std::optional<float> outside = std::nullopt);
 
 // Speed of sound above which a sample counts as bone (m/s).
 inline constexpr float kBoneSpeed = 2000.0f;
@@ -51,7 +55,7 @@ using RayTest = std::function<bool(const tissue::AcousticProperties&, int label)
 std::optional<RayHit> after_gap(const tissue::Volume& volume, const tissue::TransferFunction& tf,
                                 const glm::dvec3& start, const glm::dvec3& direction, double max_mm,
                                 const RayTest& gap, double gap_mm, const RayTest& run,
-                                double run_mm);
+                                double run_mm, std::optional<float> outside = std::nullopt);
 
 // A virtual craniotomy on a probe-aligned grid (tissue/resample.h axes: i lateral,
 // j depth, k elevation): within `radius_mm` of the beam axis and shallower than

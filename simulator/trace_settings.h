@@ -107,7 +107,7 @@ struct TraceSettings {
     // step interpolates (for tests and benchmarks that compare the two).
     bool uniform_runs = true;
 
-    int record_paths = 0;  // particles per line whose paths are kept as polylines
+    int record_paths = 0;              // particles per line whose paths are kept as polylines
     int record_paths_line_stride = 1;  // ... of the lines whose id is a multiple of this
     bool record_scatter_echoes = true;
 

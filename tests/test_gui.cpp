@@ -22,9 +22,10 @@ const fs::path kDir = fs::temp_directory_path() / "sonotrace_test_gui";
 int run_gui(const std::string& arguments, const std::string& log) {
     fs::create_directories(kDir);
     // Leak checking off for the child: Mesa and X keep allocations until exit.
-    const std::string command = "ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 "
-                                "1280x800x24' " SONOTRACE_GUI_BINARY " --size 1280x800 " +
-                                arguments + " > " + (kDir / log).string() + " 2>&1";
+    const std::string command =
+        "ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 "
+        "1280x800x24' " SONOTRACE_GUI_BINARY " --size 1280x800 " +
+        arguments + " > " + (kDir / log).string() + " 2>&1";
     const int status = std::system(command.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
@@ -51,7 +52,8 @@ Screenshot load(const std::string& name) {
     Screenshot s;
     const fs::path png = kDir / (name + ".png");
     // Luminance 0..255 (tissue::read_image reduces colour to Rec. 709 luminance).
-    const sonotrace::tissue::Volume v = sonotrace::tissue::read_image(png.string(), glm::dvec3(1.0));
+    const sonotrace::tissue::Volume v =
+        sonotrace::tissue::read_image(png.string(), glm::dvec3(1.0));
     const glm::ivec3 n = v.geometry().dims;
     s.grey = cv::Mat(n.y, n.x, CV_32F);
     for (int y = 0; y < n.y; ++y)
@@ -70,8 +72,7 @@ TEST(Gui, ScreenshotsShowEveryViewAndTheBmodeFollowsTheProbe) {
     const std::string scene = "--scene phantom:cyst_and_stone --frames 1 ";
     ASSERT_EQ(run_gui(scene + "--screenshot " + (kDir / "pose_a.png").string(), "a.log"), 0)
         << read_text(kDir / "a.log");
-    ASSERT_EQ(run_gui(scene + "--slide 8 --screenshot " + (kDir / "pose_b.png").string(),
-                      "b.log"),
+    ASSERT_EQ(run_gui(scene + "--slide 8 --screenshot " + (kDir / "pose_b.png").string(), "b.log"),
               0)
         << read_text(kDir / "b.log");
     const Screenshot a = load("pose_a"), b = load("pose_b");
@@ -102,16 +103,15 @@ TEST(Gui, AFileThatFailsToLoadKeepsTheSceneAndShowsTheError) {
 }
 
 TEST(Gui, BadOptionsFailWithAMessage) {
-    EXPECT_NE(run_gui("--scene /nonexistent/volume.nii --screenshot " +
-                          (kDir / "never.png").string(),
-                      "missing.log"),
-              0);
+    EXPECT_NE(
+        run_gui("--scene /nonexistent/volume.nii --screenshot " + (kDir / "never.png").string(),
+                "missing.log"),
+        0);
     EXPECT_NE(read_text(kDir / "missing.log").find("/nonexistent/volume.nii"), std::string::npos);
     EXPECT_FALSE(fs::exists(kDir / "never.png"));
     EXPECT_NE(run_gui("--quality ultra", "quality.log"), 0);
     EXPECT_NE(read_text(kDir / "quality.log").find("--quality"), std::string::npos);
-    EXPECT_NE(run_gui("--frames 0 --screenshot " + (kDir / "never.png").string(), "frames.log"),
-              0);
+    EXPECT_NE(run_gui("--frames 0 --screenshot " + (kDir / "never.png").string(), "frames.log"), 0);
     EXPECT_NE(read_text(kDir / "frames.log").find("--frames"), std::string::npos);
 }
 

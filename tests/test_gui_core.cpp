@@ -93,14 +93,33 @@ TEST(GuiScene, BadFilesAreErrorsNamingTheFile) {
     std::ofstream(corrupt) << "this is not a NIfTI file";
     const std::string bad_json = (dir / "bad.json").string();
     std::ofstream(bad_json) << "{\"shapes\": [ {\"type\": \"sphere\" ";
-    for (const std::string& spec :
-         {std::string("/nonexistent/head.nii.gz"), corrupt, bad_json,
-          std::string("phantom:no_such_phantom")}) {
+    for (const std::string& spec : {std::string("/nonexistent/head.nii.gz"), corrupt, bad_json,
+                                    std::string("phantom:no_such_phantom")}) {
         try {
             load_scene(spec, kPhantoms);
             ADD_FAILURE() << spec << " loaded";
         } catch (const tissue::InputError& e) {
             EXPECT_NE(std::string(e.what()).find(spec), std::string::npos) << e.what();
+        }
+    }
+}
+
+TEST(GuiScene, AProbeDraggedOverTheHeadStaysOnItsSurface) {
+    // Slid 10 mm along the array, the probe is laid back on the curved surface (cortex
+    // under the craniotomy, skin at the temple): settling again does not move it, and it
+    // moved about 10 mm.
+    for (const char* name : {"head-craniotomy", "head-temporal"}) {
+        const auto scene = load_scene(name, kPhantoms);
+        const probe::Pose start = scene->start.pose;
+        EXPECT_LT(glm::distance(scene->settle(start).position, start.position), 0.2) << name;
+        for (double slide : {-10.0, 10.0}) {
+            probe::Pose moved = start;
+            moved.position += slide * start.lateral();
+            const probe::Pose settled = scene->settle(moved);
+            EXPECT_LT(glm::distance(scene->settle(settled).position, settled.position), 0.2)
+                << name << " " << slide;
+            EXPECT_NEAR(glm::distance(settled.position, start.position), 10.0, 3.0)
+                << name << " " << slide;
         }
     }
 }
@@ -123,8 +142,8 @@ TEST(GuiScanner, SlidingTheProbeMovesTheCystTheOtherWay) {
         r.pose.position = scene->start.pose.position + slide * scene->start.pose.lateral();
         const ScanFrame f = simulate(r);
         const double expected = cyst.x - r.pose.position.x;
-        const double x = dark_centroid_x(f, expected - 7.0, expected + 7.0, cyst.y - 4.0,
-                                         cyst.y + 4.0);
+        const double x =
+            dark_centroid_x(f, expected - 7.0, expected + 7.0, cyst.y - 4.0, cyst.y + 4.0);
         EXPECT_NEAR(x, expected, 0.75) << "slide " << slide;
     }
 }
@@ -211,15 +230,32 @@ TEST(GuiControls, EverySliderExtremeGivesAFrame) {
                 r.parameters.transducer = preset;
                 probe::Transducer& t = r.parameters.transducer;
                 switch (spec.control) {
-                    case Control::depth: t.depth_mm = value; break;
-                    case Control::focus: t.focus_mm = value; break;
-                    case Control::frequency: t.frequency_mhz = value; break;
-                    case Control::lines: t.lines = int(value); break;
-                    case Control::fov: t.fov_deg = value; break;
-                    case Control::gain: r.parameters.gain_db = value; break;
-                    case Control::dynamic_range: r.parameters.dynamic_range_db = value; break;
-                    case Control::tgc: r.parameters.tgc_db.fill(value); break;
-                    default: FAIL() << spec.label;
+                    case Control::depth:
+                        t.depth_mm = value;
+                        break;
+                    case Control::focus:
+                        t.focus_mm = value;
+                        break;
+                    case Control::frequency:
+                        t.frequency_mhz = value;
+                        break;
+                    case Control::lines:
+                        t.lines = int(value);
+                        break;
+                    case Control::fov:
+                        t.fov_deg = value;
+                        break;
+                    case Control::gain:
+                        r.parameters.gain_db = value;
+                        break;
+                    case Control::dynamic_range:
+                        r.parameters.dynamic_range_db = value;
+                        break;
+                    case Control::tgc:
+                        r.parameters.tgc_db.fill(value);
+                        break;
+                    default:
+                        FAIL() << spec.label;
                 }
                 // The panel keeps every slider within its (probe-dependent) maximum.
                 t.focus_mm = std::min(t.focus_mm, slider_max(Control::focus, t));

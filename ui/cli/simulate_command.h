@@ -18,9 +18,10 @@ inline constexpr ParameterDoc kReceiveDoc = {
     "--receive", "",
     "echo model: 'monostatic' (each reflection echoes at twice its time, two-way loss) or "
     "'capture' (only particles that reach the probe face; the face reflects part back)"};
-inline constexpr ParameterDoc kGainDoc = {"--gain", "dB", "overall receive gain before log compression"};
+inline constexpr ParameterDoc kGainDoc = {"--gain", "dB",
+                                          "overall receive gain before log compression"};
 inline constexpr ParameterDoc kRangeDoc = {"--dynamic-range", "dB",
-                                    "range of echo levels mapped from black to white"};
+                                           "range of echo levels mapped from black to white"};
 inline constexpr ParameterDoc kTgcDoc = {
     "--tgc", "mm:dB",
     "time-gain compensation: 'auto' (2 x 0.6 dB/(cm MHz) x f x depth, brain attenuation), "

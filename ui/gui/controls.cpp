@@ -121,8 +121,7 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
                        "Bone and calcifications reflect a large share of the energy at their "
                        "surface and absorb far more than soft tissue: little reaches what lies "
                        "behind them.",
-                       Control::attenuation,
-                       "switch attenuation off: the shadow fills in"});
+                       Control::attenuation, "switch attenuation off: the shadow fills in"});
     if (f.speed_contrast)
         out.push_back({"refraction displacement",
                        "Beams bend where the speed of sound changes obliquely (skull 2800 m/s, fat "

@@ -99,7 +99,8 @@ cv::Mat energy_picture(const tissue::Volume& absorbed) {
             for (int i = 0; i < n.x; ++i) {
                 const float v = absorbed.at(i, j, 0) / peak;
                 const float db = v > 0.0f ? 10.0f * std::log10(v) : -100.0f;
-                grey.at<uint8_t>(j, i) = uint8_t(std::clamp((db + 40.0f) / 40.0f, 0.0f, 1.0f) * 255);
+                grey.at<uint8_t>(j, i) =
+                    uint8_t(std::clamp((db + 40.0f) / 40.0f, 0.0f, 1.0f) * 255);
             }
     }
     cv::Mat bgr, rgb;
@@ -109,12 +110,18 @@ cv::Mat energy_picture(const tissue::Volume& absorbed) {
 }
 
 nlohmann::json transducer_record(const probe::Transducer& t) {
-    return {{"name", t.name},         {"type", probe::to_string(t.type)},
-            {"elements", t.elements}, {"pitch_mm", t.pitch_mm},
-            {"radius_mm", t.radius_mm}, {"fov_deg", t.fov_deg},
-            {"frequency_mhz", t.frequency_mhz}, {"bandwidth", t.bandwidth},
-            {"focus_mm", t.focus_mm}, {"f_number", t.f_number},
-            {"depth_mm", t.depth_mm}, {"lines", t.lines},
+    return {{"name", t.name},
+            {"type", probe::to_string(t.type)},
+            {"elements", t.elements},
+            {"pitch_mm", t.pitch_mm},
+            {"radius_mm", t.radius_mm},
+            {"fov_deg", t.fov_deg},
+            {"frequency_mhz", t.frequency_mhz},
+            {"bandwidth", t.bandwidth},
+            {"focus_mm", t.focus_mm},
+            {"f_number", t.f_number},
+            {"depth_mm", t.depth_mm},
+            {"lines", t.lines},
             {"face_reflectivity", t.face_reflectivity}};
 }
 
@@ -172,9 +179,8 @@ App::~App() {
 
 void App::apply_scene(std::shared_ptr<const Scene> scene) {
     scene_ = std::move(scene);
-    const std::string preset = !options_.probe.empty() && probe_preset_.empty()
-                                   ? options_.probe
-                                   : scene_->probe_preset;
+    const std::string preset =
+        !options_.probe.empty() && probe_preset_.empty() ? options_.probe : scene_->probe_preset;
     probe_preset_ = preset;
     parameters_.transducer = probe::find_transducer(preset, "probe");
     pose_ = scene_->start.pose;
@@ -187,8 +193,8 @@ void App::start_loading(const std::string& spec) {
     if (loading_.valid()) return;
     loading_name_ = spec;
     message_ = "loading " + spec + " ...";
-    loading_ = std::async(std::launch::async,
-                          [spec] { return load_scene(spec, SONOTRACE_PHANTOM_DIR); });
+    loading_ =
+        std::async(std::launch::async, [spec] { return load_scene(spec, SONOTRACE_PHANTOM_DIR); });
 }
 
 void App::move_probe(double lateral_mm, double elevation_mm, double rotate_deg, double tilt_deg) {
@@ -346,8 +352,8 @@ void App::draw_controls(float x, float y, float w, float h) {
     auto slider_double = [&](Control c, double* value, double lo, double hi, const char* format) {
         const SliderSpec& spec = slider(c);
         const bool pushed = highlight_begin(c);
-        const std::string label = std::string(spec.label) +
-                                  (spec.unit[0] ? std::string(" (") + spec.unit + ")" : "");
+        const std::string label =
+            std::string(spec.label) + (spec.unit[0] ? std::string(" (") + spec.unit + ")" : "");
         const bool moved =
             ImGui::SliderScalar(label.c_str(), ImGuiDataType_Double, value, &lo, &hi, format);
         highlight_end(pushed);
@@ -415,8 +421,9 @@ void App::draw_controls(float x, float y, float w, float h) {
             parameters_.quality = imaging::Quality(q);
             changed = true;
         }
-        tooltip("particles per scan line and map resolution while the probe moves; a still "
-                "probe refines up to high by itself");
+        tooltip(
+            "particles per scan line and map resolution while the probe moves; a still "
+            "probe refines up to high by itself");
     }
 
     // -- physics
@@ -538,12 +545,16 @@ void App::draw_slice(float x, float y, float w, float h) {
         };
         // Beams: the particles of a few lines, brighter while they carry energy.
         std::vector<ImVec2> points;
+        // At most 8 particles a line and 100 segments a path: cheap to draw at any quality.
+        const int per_line = imaging::quality_level(frame_->quality).particles_per_line;
+        const uint32_t every = uint32_t(std::max(1, per_line / 8));
         for (const auto& path : frame_->frame.paths) {
-            if (path.vertices.size() < 2) continue;
+            if (path.vertices.size() < 2 || path.particle % every != 0) continue;
             const float e0 = std::max(path.vertices.front().energy, 1e-30f);
-            for (std::size_t k = 1; k < path.vertices.size(); ++k) {
-                const auto& a = path.vertices[k - 1];
-                const auto& b = path.vertices[k];
+            const std::size_t n = path.vertices.size(), stride = (n + 99) / 100;
+            for (std::size_t k = stride; k < n + stride - 1; k += stride) {
+                const auto& a = path.vertices[k - stride];
+                const auto& b = path.vertices[std::min(k, n - 1)];
                 const float alpha = std::clamp(std::sqrt(b.energy / e0), 0.15f, 1.0f);
                 draw->AddLine(to_screen(glm::dvec2(a.position)), to_screen(glm::dvec2(b.position)),
                               IM_COL32(255, 220, 60, int(160 * alpha)), 1.0f);
@@ -590,7 +601,8 @@ void App::draw_bmode(float x, float y, float w, float h) {
         ImDrawList* draw = ImGui::GetWindowDrawList();
         const imaging::ScanConverted& image = frame_->frame.image;
         for (int d = 0; d <= int(frame_->settings.transducer.depth_mm); d += 10) {
-            const float yy = fit.origin.y + float((d - image.origin.y) / image.pixel_mm) * fit.scale;
+            const float yy =
+                fit.origin.y + float((d - image.origin.y) / image.pixel_mm) * fit.scale;
             if (yy < fit.origin.y || yy > fit.origin.y + size.y) continue;
             draw->AddLine(ImVec2(fit.origin.x, yy), ImVec2(fit.origin.x + 6, yy),
                           IM_COL32(200, 200, 200, 255));
@@ -629,8 +641,8 @@ void App::draw_context(float x, float y, float w, float h) {
             if (z <= 1e-3) continue;
             const double px = glm::dot(v, right) / z * focal + 0.5 * cam.width;
             const double py = -glm::dot(v, up) / z * focal + 0.5 * cam.height;
-            points.push_back(ImVec2(fit.origin.x + float(px) * fit.scale,
-                                    fit.origin.y + float(py) * fit.scale));
+            points.push_back(
+                ImVec2(fit.origin.x + float(px) * fit.scale, fit.origin.y + float(py) * fit.scale));
         }
         ImGui::GetWindowDrawList()->AddPolyline(points.data(), int(points.size()), kProbeColour,
                                                 ImDrawFlags_Closed, 1.5f);
@@ -639,7 +651,8 @@ void App::draw_context(float x, float y, float w, float h) {
         const ImGuiIO& io = ImGui::GetIO();
         if (ImGui::IsItemActive() && (io.MouseDelta.x != 0.0f || io.MouseDelta.y != 0.0f)) {
             view_.azimuth_deg -= 0.4 * io.MouseDelta.x;
-            view_.elevation_deg = std::clamp(view_.elevation_deg + 0.4 * io.MouseDelta.y, -85.0, 85.0);
+            view_.elevation_deg =
+                std::clamp(view_.elevation_deg + 0.4 * io.MouseDelta.y, -85.0, 85.0);
             dirty_ = true;
         }
         if (ImGui::IsItemHovered() && io.MouseWheel != 0.0f) {
@@ -657,7 +670,8 @@ void App::draw_energy(float x, float y, float w, float h) {
     if (frame_ && !energy_texture_.empty()) {
         const Fit fit = fit_image(energy_texture_.width(), energy_texture_.height());
         ImGui::SetCursorScreenPos(fit.origin);
-        const ImVec2 size(fit.scale * energy_texture_.width(), fit.scale * energy_texture_.height());
+        const ImVec2 size(fit.scale * energy_texture_.width(),
+                          fit.scale * energy_texture_.height());
         ImGui::Image(energy_texture_.imgui_id(), size);
         energy_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
     }
@@ -670,9 +684,9 @@ void App::draw_status(float x, float y, float w, float h) {
     ImGui::Text("UI %.0f frames/s", io.Framerate);
     ImGui::SameLine(150);
     if (frame_) {
-        ImGui::Text("frame %llu: %s, %.0f ms, %.1f M particle-steps", (unsigned long long)frames_shown_,
-                    imaging::to_string(frame_->quality).c_str(), 1e3 * frame_->seconds,
-                    1e-6 * double(frame_->frame.stats.steps));
+        ImGui::Text("frame %llu: %s, %.0f ms, %.1f M particle-steps",
+                    (unsigned long long)frames_shown_, imaging::to_string(frame_->quality).c_str(),
+                    1e3 * frame_->seconds, 1e-6 * double(frame_->frame.stats.steps));
         ImGui::SameLine();
     }
     if (frozen_) {
@@ -738,7 +752,8 @@ void App::toggle_recording() {
     if (recording_) {
         recording_->release();
         recording_.reset();
-        message_ = "wrote " + recording_path_ + " (" + std::to_string(recorded_frames_) + " frames)";
+        message_ =
+            "wrote " + recording_path_ + " (" + std::to_string(recorded_frames_) + " frames)";
         return;
     }
     if (!frame_) return;
@@ -750,7 +765,8 @@ void App::toggle_recording() {
         ++n;
     recording_path_ =
         (std::filesystem::path(options_.out_dir) / ("clip_" + std::to_string(n) + ".avi")).string();
-    recording_size_ = cv::Size(frame_->frame.image.image.cols & ~1, frame_->frame.image.image.rows & ~1);
+    recording_size_ =
+        cv::Size(frame_->frame.image.image.cols & ~1, frame_->frame.image.image.rows & ~1);
     recording_.emplace(recording_path_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0,
                        recording_size_, true);
     if (!recording_->isOpened()) {

@@ -18,7 +18,7 @@ namespace sonotrace::gui {
 
 struct AppOptions {
     std::string scene = "head-craniotomy";
-    std::string probe;    // preset; empty = the scene's
+    std::string probe;  // preset; empty = the scene's
     std::string quality = "interactive";
     double slide_mm = 0.0;  // start this far along the surface (lateral)
     std::string out_dir = "out/gui";

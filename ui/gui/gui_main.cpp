@@ -14,6 +14,7 @@
 #include <iostream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -36,9 +37,14 @@ struct Options {
     double time_limit_s = 300.0;
     std::string json_path;
     int ui_frames = 0;  // with --json and no --screenshot: run this many UI frames
+    // The UI redraws at most this often: llvmpipe (Mesa on the CPU) draws the window on
+    // the cores the scanner needs, so a UI faster than the eye only slows the frames.
+    double max_fps = 30.0;
 };
 
-nlohmann::json rect_json(const gui::Rect& r) { return {r.x, r.y, r.w, r.h}; }
+nlohmann::json rect_json(const gui::Rect& r) {
+    return {r.x, r.y, r.w, r.h};
+}
 
 // The window's pixels (bottom-up in GL) as a top-down BGR picture.
 cv::Mat read_window(int width, int height) {
@@ -110,7 +116,9 @@ int run(const Options& o) {
         bool measuring = false;
         int ui_frames = 0;
         auto last = clock::now();
+        const auto frame_budget = std::chrono::duration<double>(1.0 / o.max_fps);
         while (!glfwWindowShouldClose(window)) {
+            const auto frame_start = clock::now();
             glfwPollEvents();
             ImGui_ImplOpenGL3_NewFrame();
             ImGui_ImplGlfw_NewFrame();
@@ -142,8 +150,8 @@ int run(const Options& o) {
                 app.frames_shown() >= uint64_t(o.frames) && !app.loading() &&
                 (!o.app.context || app.context_repetitions() > 0 || !app.last_error().empty());
             const bool done_screenshot = !o.screenshot.empty() && enough_frames;
-            const bool done_benchmark = o.screenshot.empty() && o.ui_frames > 0 &&
-                                        ui_frames >= o.ui_frames;
+            const bool done_benchmark =
+                o.screenshot.empty() && o.ui_frames > 0 && ui_frames >= o.ui_frames;
             if (done_screenshot) {
                 tissue::OutputTransaction transaction;
                 imaging::write_png(read_window(fw, fh), transaction.stage(o.screenshot));
@@ -183,12 +191,14 @@ int run(const Options& o) {
             }
             if (headless && elapsed > o.time_limit_s) {
                 std::cerr << "sonotrace-gui: --time-limit of " << o.time_limit_s
-                          << " s reached before " << o.frames << " frames ("
-                          << app.frames_shown() << " shown; " << app.last_error() << ")\n";
+                          << " s reached before " << o.frames << " frames (" << app.frames_shown()
+                          << " shown; " << app.last_error() << ")\n";
                 status = 1;
                 break;
             }
             glfwSwapBuffers(window);
+            std::this_thread::sleep_until(
+                frame_start + std::chrono::duration_cast<clock::duration>(frame_budget));
         }
     }
     ImGui_ImplOpenGL3_Shutdown();
@@ -214,7 +224,8 @@ int main(int argc, char** argv) {
     cli.add_option("--scene", o.app.scene,
                    "scene to open: " + scene_list + ", or a volume / phantom file")
         ->capture_default_str();
-    cli.add_option("--probe", o.app.probe, "probe preset (linear, convex, phased); empty = the scene's");
+    cli.add_option("--probe", o.app.probe,
+                   "probe preset (linear, convex, phased); empty = the scene's");
     cli.add_option("--quality", o.app.quality,
                    "quality while the probe moves: interactive, standard or high")
         ->capture_default_str();
@@ -241,9 +252,12 @@ int main(int argc, char** argv) {
                    "('-' = stdout) when the run ends");
     cli.add_option("--ui-frames", o.ui_frames,
                    "with --json and no --screenshot: exit after this many UI frames (benchmark)");
-    cli.add_option("--time-limit", o.time_limit_s,
-                   "headless runs fail after this many seconds [s]")
+    cli.add_option("--time-limit", o.time_limit_s, "headless runs fail after this many seconds [s]")
         ->capture_default_str();
+    cli.add_option("--max-fps", o.max_fps,
+                   "the UI redraws at most this often, leaving the cores to the scanner [1/s]")
+        ->capture_default_str()
+        ->check(CLI::Range(1.0, 1000.0));
     std::string size = "1600x960";
     cli.add_option("--size", size, "window size WIDTHxHEIGHT [pixels]")->capture_default_str();
     try {

@@ -118,7 +118,7 @@ std::optional<ScanFrame> simulate_request(const ScanRequest& request, imaging::Q
 
 // The worker's context renderer, rebuilt when the scene changes.
 struct Scanner::ContextCache {
-    const Scene* scene = nullptr;
+    std::shared_ptr<const Scene> scene;  // held: a new scene never reuses a stale volume
     std::unique_ptr<imaging::pbvr::RenderVolume> volume;
 };
 
@@ -199,6 +199,7 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
     // the 3D context's repetitions in between (its image shows the frame).
     const int context_repetitions[] = {2, 8, 24};  // per quality
     std::unique_ptr<imaging::pbvr::PbvrRenderer> renderer;
+    std::optional<imaging::pbvr::FrameOverlay> overlay;
     const auto context_start = clock_type::now();
     const int requested = int(request.parameters.quality);
     for (int stage = requested; stage <= int(imaging::Quality::high); ++stage) {
@@ -211,42 +212,46 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
                                  stage == requested ? std::function<bool()>() : superseded);
             if (!frame) return;
             frame->request = id;
-            // A frame at the requested quality or finer replaces the context's overlay.
+            // The context shows this frame; its renderer is built when its turn comes.
             if (request.context.enabled && request.scene->context) {
-                if (cache_->scene != request.scene.get()) {
-                    cache_->volume.reset();
-                    cache_->volume = std::make_unique<imaging::pbvr::RenderVolume>(
-                        *request.scene->context, request.scene->context_tf);
-                    cache_->scene = request.scene.get();
-                }
-                const imaging::pbvr::OrbitCamera camera =
-                    context_camera(*request.scene, request.context);
-                imaging::pbvr::FrameOverlay overlay;
-                frame->frame.image.image.convertTo(overlay.frame, CV_8U, 255.0);
-                overlay.origin_mm = frame->frame.image.origin;
-                overlay.pixel_mm = glm::dvec2(frame->frame.image.pixel_mm);
-                overlay.position = frame->pose.position;
-                overlay.axial = frame->pose.axial();
-                overlay.lateral = frame->pose.lateral();
-                overlay.elevation = frame->pose.elevation();
-                overlay.transducer = frame->settings.transducer;
-                imaging::pbvr::RenderSettings settings;
-                settings.subpixel_level = 1;
-                settings.seed = request.parameters.seed;
-                settings.clip_plane = imaging::pbvr::camera_side_of_plane(
-                    overlay, request.scene->context->geometry(), camera);
-                renderer = std::make_unique<imaging::pbvr::PbvrRenderer>(
-                    *cache_->volume, request.scene->context_tf, camera, settings);
-                renderer->set_overlay(
-                    imaging::pbvr::overlay_layer(overlay, camera, settings.subpixel_level));
+                overlay = imaging::pbvr::FrameOverlay{};
+                frame->frame.image.image.convertTo(overlay->frame, CV_8U, 255.0);
+                overlay->origin_mm = frame->frame.image.origin;
+                overlay->pixel_mm = glm::dvec2(frame->frame.image.pixel_mm);
+                overlay->position = frame->pose.position;
+                overlay->axial = frame->pose.axial();
+                overlay->lateral = frame->pose.lateral();
+                overlay->elevation = frame->pose.elevation();
+                overlay->transducer = frame->settings.transducer;
+                renderer.reset();
             }
             std::lock_guard lock(mutex_);
             frame_ = std::move(frame);
             ++frames_done_;
         }
-        if (!renderer) continue;
-        while (renderer->repetitions_done() < context_repetitions[stage]) {
+        if (!overlay) continue;
+        while (!renderer || renderer->repetitions_done() < context_repetitions[stage]) {
             if (superseded()) return;
+            if (!renderer) {
+                if (cache_->scene != request.scene) {
+                    cache_->volume.reset();
+                    cache_->volume = std::make_unique<imaging::pbvr::RenderVolume>(
+                        *request.scene->context, request.scene->context_tf);
+                    cache_->scene = request.scene;
+                }
+                const imaging::pbvr::OrbitCamera camera =
+                    context_camera(*request.scene, request.context);
+                imaging::pbvr::RenderSettings settings;
+                settings.subpixel_level = 1;
+                settings.seed = request.parameters.seed;
+                settings.clip_plane = imaging::pbvr::camera_side_of_plane(
+                    *overlay, request.scene->context->geometry(), camera);
+                renderer = std::make_unique<imaging::pbvr::PbvrRenderer>(
+                    *cache_->volume, request.scene->context_tf, camera, settings);
+                renderer->set_overlay(
+                    imaging::pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
+                continue;  // a new request may have come meanwhile
+            }
             renderer->add_repetition();
             ContextImage image;
             image.request = id;

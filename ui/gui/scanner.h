@@ -66,7 +66,7 @@ struct ScanRequest {
     ContextView context;
     int paths_per_line = 0;    // particle paths kept for drawing ...
     int path_line_stride = 1;  // ... on the lines whose id is a multiple of this
-    bool refine = true;      // finer qualities while nothing new arrives
+    bool refine = true;        // finer qualities while nothing new arrives
 };
 
 struct ScanFrame {

@@ -73,17 +73,22 @@ std::shared_ptr<Scene> volume_scene(const std::string& spec, const std::string& 
         const tissue::TransferFunction& f = *source->tf;
         const glm::dvec3 beam = pose.axial();
         const glm::dvec3 outside = pose.position - 60.0 * beam;
-        std::optional<probe::RayHit> hit = probe::skin_surface(v, f, outside, beam, 100.0);
+        const float background = source->outside;  // no scan of the volume per move
+        std::optional<probe::RayHit> hit =
+            probe::skin_surface(v, f, outside, beam, 100.0, 0.5, background);
         if (hit && cortex) {
-            const int brain = tissue::tissue_label_of("brain"), csf = tissue::tissue_label_of("csf"),
+            const int brain = tissue::tissue_label_of("brain"),
+                      csf = tissue::tissue_label_of("csf"),
                       bone = tissue::tissue_label_of("cortical_bone");
             hit = probe::after_gap(
                 v, f, hit->point + beam, beam, 60.0,
                 [&](const tissue::AcousticProperties&, int l) { return l == csf || l == bone; },
-                2.0, [&](const tissue::AcousticProperties&, int l) { return l == brain; }, 3.0);
+                2.0, [&](const tissue::AcousticProperties&, int l) { return l == brain; }, 3.0,
+                background);
         }
         probe::Pose out = pose;
-        if (hit) out.position = hit->point - (cortex ? 0.5 : 0.0) * beam;
+        // As craniotomy_scene: the face 0.5 mm into the cortex, in full contact.
+        if (hit) out.position = hit->point + (cortex ? 0.5 : 0.0) * beam;
         return out;
     };
     // The tissues present: labels of every 7th voxel.
@@ -117,8 +122,8 @@ std::shared_ptr<Scene> phantom_scene(const std::string& path) {
     scene->materials.push_back(phantom->background);
     for (const phantoms::Shape& s : phantom->shapes) scene->materials.push_back(s.properties);
     // The 3D context: acoustic impedance on a 1 mm grid (at most 160 samples a side).
-    const double h = std::max({1.0, phantom->size.x / 160.0, phantom->size.y / 160.0,
-                               phantom->size.z / 160.0});
+    const double h =
+        std::max({1.0, phantom->size.x / 160.0, phantom->size.y / 160.0, phantom->size.z / 160.0});
     tissue::VolumeGeometry grid;
     grid.dims = glm::max(glm::ivec3(phantom->size / h) + 1, glm::ivec3(2));
     grid.spacing = glm::dvec3(h);
@@ -158,14 +163,14 @@ std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::stri
     if (spec.rfind("phantom:", 0) == 0) {
         const std::string name = spec.substr(8);
         const std::string path = phantom_dir + "/" + name + ".json";
-        if (name.empty() || name.find('/') != std::string::npos ||
-            !std::filesystem::exists(path))
+        if (name.empty() || name.find('/') != std::string::npos || !std::filesystem::exists(path))
             throw tissue::InputError(spec, "", "no phantom of that name in " + phantom_dir);
         return phantom_scene(path);
     }
     if (!std::filesystem::exists(spec))
-        throw tissue::InputError(spec, "", "no such file (scenes: head-craniotomy, head-temporal, "
-                                           "phantom:NAME, or a volume or phantom file)");
+        throw tissue::InputError(spec, "",
+                                 "no such file (scenes: head-craniotomy, head-temporal, "
+                                 "phantom:NAME, or a volume or phantom file)");
     if (ends_with(spec, ".json")) {
         // A phantom, unless it is a raw volume's header (which names its data file).
         std::ifstream in(spec);
