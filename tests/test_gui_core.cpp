@@ -162,6 +162,35 @@ TEST(GuiScanner, PhysicsSwitchesChangeWhatTheyShould) {
     EXPECT_GT(mean_inside(lossless, 30.0, 40.0), mean_inside(on, 30.0, 40.0) + 0.05);
 }
 
+TEST(GuiScanner, MirrorImageNeedsMultipleBounces) {
+    // Beyond the mirror phantom's air interface (y = 32 + tan(20 deg) (x - 20) mm, no
+    // scatterers) the frame shows the liver seen by the reflected beams. A particle
+    // retired at its first reflection sees nothing there.
+    const auto scene = load_scene("phantom:mirror", kPhantoms);
+    ScanRequest r = request_for(scene);
+    auto beyond_interface = [&](const ScanFrame& f) {
+        const imaging::ScanConverted& img = f.frame.image;
+        double sum = 0.0;
+        int n = 0;
+        for (int row = 0; row < img.image.rows; ++row) {
+            for (int c = 0; c < img.image.cols; ++c) {
+                const double x = img.origin.x + c * img.pixel_mm;
+                const double depth = img.origin.y + row * img.pixel_mm;
+                const double interface = 32.0 + std::tan(glm::radians(20.0)) * x;
+                if (depth < interface + 3.0 || depth > interface + 7.0) continue;
+                if (img.inside.at<uint8_t>(row, c)) sum += img.image.at<float>(row, c), ++n;
+            }
+        }
+        EXPECT_GT(n, 1000);
+        return sum / std::max(n, 1);
+    };
+    const double mirrored = beyond_interface(simulate(r));
+    r.parameters.physics.multiple_bounces = false;
+    const double single = beyond_interface(simulate(r));
+    EXPECT_GT(mirrored, 0.3);
+    EXPECT_LT(single, 0.3 * mirrored);
+}
+
 TEST(GuiScanner, LatestRequestWinsAndErrorsAreReported) {
     const auto scene = cyst_scene();
     Scanner scanner;
