@@ -150,9 +150,13 @@ class LineTracer {
         if (profile_enabled_) inverse_profile_bin_ = 1.0 / settings.echo_profile->bin_s;
         threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
         follow_reflections_above_ = float(settings.follow_reflections_above);
+        // At least 4 texels: central differences and interpolation spread even a one-texel
+        // step over 3 texels of gradient, so from anywhere inside it the plateau can lie 3
+        // texels off. A shorter reach on a coarse map (interactive frames: 0.5 mm texels,
+        // phantoms' 1 mm reach) took sharp interfaces for graded ones: no reflections.
         plateau_steps_ =
             settings.interface_reach_mm > 0.0
-                ? std::max(1, int(std::ceil(settings.interface_reach_mm / (0.5 * texel_mm_))))
+                ? std::max(8, int(std::ceil(settings.interface_reach_mm / (0.5 * texel_mm_))))
                 : 16;
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
         for (int a = 0; a < Dim; ++a) inverse_spacing_[a] = 1.0f / map.spacing()[a];

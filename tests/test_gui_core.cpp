@@ -162,33 +162,59 @@ TEST(GuiScanner, PhysicsSwitchesChangeWhatTheyShould) {
     EXPECT_GT(mean_inside(lossless, 30.0, 40.0), mean_inside(on, 30.0, 40.0) + 0.05);
 }
 
-TEST(GuiScanner, MirrorImageNeedsMultipleBounces) {
-    // Beyond the mirror phantom's air interface (y = 32 + tan(20 deg) (x - 20) mm, no
-    // scatterers) the frame shows the liver seen by the reflected beams. A particle
-    // retired at its first reflection sees nothing there.
+// Mean of the frame inside the scanned region between two depths below a line
+// depth = a + b x (mm).
+double mean_below(const ScanFrame& f, double a, double b, double from_mm, double to_mm) {
+    const imaging::ScanConverted& img = f.frame.image;
+    double sum = 0.0;
+    int n = 0;
+    for (int row = 0; row < img.image.rows; ++row) {
+        for (int c = 0; c < img.image.cols; ++c) {
+            const double x = img.origin.x + c * img.pixel_mm;
+            const double below = img.origin.y + row * img.pixel_mm - (a + b * x);
+            if (below < from_mm || below > to_mm) continue;
+            if (img.inside.at<uint8_t>(row, c)) sum += img.image.at<float>(row, c), ++n;
+        }
+    }
+    EXPECT_GT(n, 1000);
+    return sum / std::max(n, 1);
+}
+
+TEST(GuiScanner, MirrorImageNeedsAReflectedBeam) {
+    // Beyond the mirror phantom's air interface (y = 32 + tan(20 deg) x mm under the
+    // probe; air has no scatterers) the frame shows the liver seen by the reflected
+    // beams: it goes when particles end at their first reflection, and when they do
+    // not reflect at all.
     const auto scene = load_scene("phantom:mirror", kPhantoms);
     ScanRequest r = request_for(scene);
-    auto beyond_interface = [&](const ScanFrame& f) {
-        const imaging::ScanConverted& img = f.frame.image;
-        double sum = 0.0;
-        int n = 0;
-        for (int row = 0; row < img.image.rows; ++row) {
-            for (int c = 0; c < img.image.cols; ++c) {
-                const double x = img.origin.x + c * img.pixel_mm;
-                const double depth = img.origin.y + row * img.pixel_mm;
-                const double interface = 32.0 + std::tan(glm::radians(20.0)) * x;
-                if (depth < interface + 3.0 || depth > interface + 7.0) continue;
-                if (img.inside.at<uint8_t>(row, c)) sum += img.image.at<float>(row, c), ++n;
-            }
-        }
-        EXPECT_GT(n, 1000);
-        return sum / std::max(n, 1);
-    };
-    const double mirrored = beyond_interface(simulate(r));
+    const double slope = std::tan(glm::radians(20.0));
+    const double mirrored = mean_below(simulate(r), 32.0, slope, 3.0, 7.0);
     r.parameters.physics.multiple_bounces = false;
-    const double single = beyond_interface(simulate(r));
+    const double direct_only = mean_below(simulate(r), 32.0, slope, 3.0, 7.0);
+    r.parameters.physics.multiple_bounces = true;
+    r.parameters.physics.specular_reflection = false;
+    const double none = mean_below(simulate(r), 32.0, slope, 3.0, 7.0);
     EXPECT_GT(mirrored, 0.3);
-    EXPECT_LT(single, 0.3 * mirrored);
+    EXPECT_LT(direct_only, 0.3 * mirrored);
+    EXPECT_LT(none, 0.3 * mirrored);
+}
+
+TEST(GuiScanner, ReverberationNeedsMultipleBounces) {
+    // Two 1 mm plates at 10 and 15 mm depth in water (no scatterers): their echoes, then
+    // reverberations between them from 19 mm on, which take two reflections or more.
+    const auto scene = load_scene("phantom:parallel_plates", kPhantoms);
+    ScanRequest r = request_for(scene);
+    r.parameters.quality = imaging::Quality::standard;
+    // The first reverberation lies at 20 mm (16 + 4: the gap once more); its contrast
+    // against the echo-free water at 21.5-23 mm.
+    auto contrast = [&](const ScanFrame& f) {
+        return mean_below(f, 19.6, 0.0, 0.0, 0.8) - mean_below(f, 21.5, 0.0, 0.0, 1.5);
+    };
+    const double reverberating = contrast(simulate(r));
+    r.parameters.physics.multiple_bounces = false;
+    const double direct_only = contrast(simulate(r));
+    EXPECT_GT(reverberating, 0.15);
+    EXPECT_LT(direct_only, 0.3 * reverberating) << reverberating;
 }
 
 TEST(GuiScanner, LatestRequestWinsAndErrorsAreReported) {

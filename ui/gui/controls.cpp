@@ -91,7 +91,8 @@ std::string switch_help(Control control) {
         case Control::attenuation:
             return "absorption alpha f along the path (dB/(cm MHz) of each tissue)";
         case Control::multiple_bounces:
-            return std::string(simulator::doc::kMaxBounces) + "; off: one reflection per particle";
+            return "off: a particle ends at its first reflection (whose echo still counts): "
+                   "no mirror images, no reverberation, only direct echoes";
         case Control::face_reflection:
             return "the probe face reflects part of the returning energy back into the tissue "
                    "(capture receive model): reverberation between face and reflectors";
@@ -143,13 +144,18 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
                        "than tissue at the same depth beside it (the TGC assumes tissue).",
                        Control::attenuation, "switch attenuation off: the enhancement vanishes"});
     }
-    if (f.air || f.shadowing)
+    if (f.air || f.shadowing) {
         out.push_back({"mirror images",
                        "A strong reflector (air R = 1, bone) sends the beam sideways; echoes "
                        "from what it meets return along the same path and are drawn behind "
                        "the reflector.",
-                       Control::multiple_bounces,
-                       "switch multiple bounces off: the mirrored copy disappears"});
+                       Control::specular_reflection,
+                       "switch specular reflection off: the mirrored copy disappears"});
+        out.push_back({"reverberation between reflectors",
+                       "Between two strong reflectors part of the echo bounces back and forth: "
+                       "copies repeat at multiples of their spacing, fading.",
+                       Control::multiple_bounces, "switch multiple bounces off: they go"});
+    }
     if (p.receive == imaging::ReceiveModel::capture && s.face_reflection)
         out.push_back({"reverberation",
                        "The probe face reflects part of each strong echo back into the tissue: "

@@ -67,7 +67,7 @@ imaging::SimulationSettings ScanParameters::settings(const Scene& scene) const {
     t.diffuse_reflection = physics.diffuse_reflection;
     t.scattering = physics.scattering;
     t.absorption = physics.attenuation;
-    t.max_bounces = physics.multiple_bounces ? 64 : 1;
+    t.max_bounces = physics.multiple_bounces ? 64 : 0;  // 0: retired at the first reflection
     t.interface_reach_mm = scene.interface_reach_mm;
     if (!physics.face_reflection) s.transducer.face_reflectivity = 0.0;
     s.validate("gui settings");

@@ -29,7 +29,7 @@ struct PhysicsSwitches {
     bool diffuse_reflection = true;
     bool scattering = true;
     bool attenuation = true;
-    bool multiple_bounces = true;  // off: a particle ends at its first reflection
+    bool multiple_bounces = true;  // off: a particle ends at its first reflection (echo kept)
     bool face_reflection = true;   // capture receive model: the face reflects part back
 };
 
