@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/core.hpp>
+#include <opencv2/videoio.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -85,6 +86,34 @@ TEST(Gui, ScreenshotsShowEveryViewAndTheBmodeFollowsTheProbe) {
     const cv::Mat pa = a.region("bmode"), pb = b.region("bmode");
     ASSERT_EQ(pa.size(), pb.size());
     EXPECT_GT(cv::mean(cv::abs(pa - pb))[0], 10.0);
+}
+
+TEST(Gui, SavesFramesWithSidecarsAndRecordsClips) {
+    const fs::path out = kDir / "saved";
+    fs::remove_all(out);
+    ASSERT_EQ(run_gui("--scene phantom:cyst_and_stone --frames 3 --no-context --save --record "
+                      "--out " +
+                          out.string() + " --screenshot " + (kDir / "saved.png").string(),
+                      "saved.log"),
+              0)
+        << read_text(kDir / "saved.log");
+    // The frame and its sidecar: probe, pose, pixel spacing, seed, version.
+    const sonotrace::tissue::Volume frame =
+        sonotrace::tissue::read_image((out / "frame_0.png").string(), glm::dvec3(1.0));
+    const auto sidecar = nlohmann::json::parse(read_text(out / "frame_0.json"));
+    EXPECT_EQ(sidecar.at("image").at("width").get<int>(), frame.geometry().dims.x);
+    EXPECT_EQ(sidecar.at("image").at("height").get<int>(), frame.geometry().dims.y);
+    EXPECT_GT(sidecar.at("image").at("pixel_spacing_mm")[0].get<double>(), 0.0);
+    EXPECT_EQ(sidecar.at("probe").at("name").get<std::string>(), "linear");
+    EXPECT_EQ(sidecar.at("quality").get<std::string>(), "high");  // refined while still
+    for (const char* key : {"pose", "seed", "version", "physics", "timings_s"})
+        EXPECT_TRUE(sidecar.contains(key)) << key;
+    // The clip holds the frames shown after the first (standard and high).
+    cv::VideoCapture clip((out / "clip_0.avi").string());
+    ASSERT_TRUE(clip.isOpened());
+    int frames = 0;
+    for (cv::Mat image; clip.read(image);) ++frames;
+    EXPECT_EQ(frames, 2);
 }
 
 TEST(Gui, AFileThatFailsToLoadKeepsTheSceneAndShowsTheError) {

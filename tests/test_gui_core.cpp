@@ -326,6 +326,27 @@ TEST(GuiControls, EverySliderExtremeGivesAFrame) {
     }
 }
 
+TEST(GuiControls, EveryCombinationOfPhysicsSwitchesGivesAFrame) {
+    // All 2^7 settings of the switches, in both receive models: a valid, finite frame
+    // each (all off is a black one), at the coarsest map to keep it quick.
+    const auto scene = cyst_scene();
+    for (int mask = 0; mask < 128; ++mask) {
+        ScanRequest r = request_for(scene);
+        PhysicsSwitches& s = r.parameters.physics;
+        bool* switches[] = {&s.refraction,     &s.specular_reflection, &s.diffuse_reflection,
+                            &s.scattering,     &s.attenuation,         &s.multiple_bounces,
+                            &s.face_reflection};
+        for (int b = 0; b < 7; ++b) *switches[b] = (mask >> b) & 1;
+        r.parameters.receive =
+            mask % 3 == 0 ? imaging::ReceiveModel::capture : imaging::ReceiveModel::monostatic;
+        r.parameters.transducer.lines = 32;
+        SCOPED_TRACE(mask);
+        const ScanFrame f = simulate(r);
+        EXPECT_TRUE(cv::checkRange(f.frame.image.image, true, nullptr, 0.0, 1.0 + 1e-6));
+        EXPECT_LT(std::abs(f.frame.ledger.relative_error()), 1e-6);
+    }
+}
+
 TEST(GuiExplain, ArtifactsFollowTheMaterialsAndSwitches) {
     auto names = [](const std::vector<Artifact>& list) {
         std::set<std::string> out;

@@ -58,6 +58,12 @@ class App {
     // One UI frame: collect results, draw every panel (between ImGui::NewFrame and Render).
     void draw(int window_width, int window_height);
 
+    // Saves the frame shown (PNG + JSON sidecar) in the output directory.
+    void save_frame();
+    // Starts or stops recording the B-mode frames into an MJPEG AVI there.
+    void toggle_recording();
+    bool recording() const { return recording_.has_value(); }
+
     uint64_t frames_shown() const { return frames_shown_; }  // B-mode frames displayed
     int context_repetitions() const { return context_repetitions_; }
     bool scene_ready() const { return scene_ != nullptr; }
@@ -78,8 +84,6 @@ class App {
     void move_probe(double lateral_mm, double elevation_mm, double rotate_deg, double tilt_deg);
     void start_loading(const std::string& spec);
     void apply_scene(std::shared_ptr<const Scene> scene);
-    void save_frame();
-    void toggle_recording();
     void handle_keys();
 
     void draw_controls(float x, float y, float w, float h);

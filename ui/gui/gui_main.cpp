@@ -40,6 +40,8 @@ struct Options {
     // The UI redraws at most this often: llvmpipe (Mesa on the CPU) draws the window on
     // the cores the scanner needs, so a UI faster than the eye only slows the frames.
     double max_fps = 30.0;
+    bool save = false;    // headless: save the last frame as the button does
+    bool record = false;  // headless: record a clip from the first frame to the last
 };
 
 nlohmann::json rect_json(const gui::Rect& r) {
@@ -132,6 +134,7 @@ int run(const Options& o) {
             glClear(GL_COLOR_BUFFER_BIT);
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 
+            if (o.record && !app.recording() && app.frames_shown() == 1) app.toggle_recording();
             const auto now = clock::now();
             // UI frame times once the first B-mode frame is up (loading excluded).
             if (app.frames_shown() > 0) {
@@ -153,6 +156,8 @@ int run(const Options& o) {
             const bool done_benchmark =
                 o.screenshot.empty() && o.ui_frames > 0 && ui_frames >= o.ui_frames;
             if (done_screenshot) {
+                if (o.save) app.save_frame();
+                if (app.recording()) app.toggle_recording();
                 tissue::OutputTransaction transaction;
                 imaging::write_png(read_window(fw, fh), transaction.stage(o.screenshot));
                 const nlohmann::json layout = {{"width", fw},
@@ -240,6 +245,12 @@ int main(int argc, char** argv) {
     cli.add_option("--open", o.app.open_later,
                    "once the first frame is shown, open this volume or phantom file as the "
                    "'open file' field does (a file that fails to load leaves the scene as it was)");
+    cli.add_flag("--save", o.save,
+                 "with --screenshot: save the last frame as the 'save frame' button does "
+                 "(PNG + JSON sidecar in --out)");
+    cli.add_flag("--record", o.record,
+                 "with --screenshot: record the frames shown into a clip as the 'record clip' "
+                 "button does (MJPEG AVI in --out)");
     cli.add_option("--screenshot", o.screenshot,
                    "headless: save the window as PNG (and the view rectangles as .json) once "
                    "--frames B-mode frames have been shown, then exit");
