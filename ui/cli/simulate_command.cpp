@@ -126,25 +126,6 @@ probe::Transducer make_transducer(const SimulateOptions& o, const std::string& p
     return t;
 }
 
-json transducer_json(const probe::Transducer& t) {
-    return {{"name", t.name},
-            {"description", t.description},
-            {"type", probe::to_string(t.type)},
-            {"elements", t.elements},
-            {"pitch_mm", t.pitch_mm},
-            {"radius_mm", t.radius_mm},
-            {"fov_deg", t.fov_deg},
-            {"frequency_mhz", t.frequency_mhz},
-            {"bandwidth", t.bandwidth},
-            {"focus_mm", t.focus_mm},
-            {"f_number", t.f_number},
-            {"elevation_focus_mm", t.elevation_focus_mm},
-            {"slice_thickness_mm", t.slice_thickness_mm},
-            {"depth_mm", t.depth_mm},
-            {"lines", t.lines},
-            {"face_reflectivity", t.face_reflectivity}};
-}
-
 template <typename E>
 E parse_enum(const std::string& text, const char* flag,
              const std::vector<std::pair<std::string, E>>& choices) {
@@ -165,6 +146,25 @@ void write_frame(const cv::Mat& image, const std::string& path, int bits) {
 }
 
 }  // namespace
+
+nlohmann::json transducer_json(const probe::Transducer& t) {
+    return {{"name", t.name},
+            {"description", t.description},
+            {"type", probe::to_string(t.type)},
+            {"elements", t.elements},
+            {"pitch_mm", t.pitch_mm},
+            {"radius_mm", t.radius_mm},
+            {"fov_deg", t.fov_deg},
+            {"frequency_mhz", t.frequency_mhz},
+            {"bandwidth", t.bandwidth},
+            {"focus_mm", t.focus_mm},
+            {"f_number", t.f_number},
+            {"elevation_focus_mm", t.elevation_focus_mm},
+            {"slice_thickness_mm", t.slice_thickness_mm},
+            {"depth_mm", t.depth_mm},
+            {"lines", t.lines},
+            {"face_reflectivity", t.face_reflectivity}};
+}
 
 CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     CLI::App* cmd = app.add_subcommand(

@@ -3,6 +3,7 @@
 #include <optional>
 #include <string>
 
+#include "probe/transducer.h"
 #include "ui/cli/command_common.h"
 #include "ui/cli/volume_slice.h"
 
@@ -26,6 +27,9 @@ inline constexpr ParameterDoc kTgcDoc = {
     "--tgc", "mm:dB",
     "time-gain compensation: 'auto' (2 x 0.6 dB/(cm MHz) x f x depth, brain attenuation), "
     "'none', or a curve 'DEPTH:GAIN,DEPTH:GAIN,...' (linear in between)"};
+
+// A transducer's parameters as in the sidecars (JSON keys with units).
+nlohmann::json transducer_json(const probe::Transducer& t);
 
 struct SimulateOptions {
     std::string view = "craniotomy";  // craniotomy | temporal | custom (needs --pose)

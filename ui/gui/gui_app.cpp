@@ -14,6 +14,7 @@
 #include "sonotrace_version.h"
 #include "tissue/atomic_output.h"
 #include "tissue/error.h"
+#include "ui/cli/simulate_command.h"
 #include "ui/cli/volume_slice.h"
 
 namespace sonotrace::gui {
@@ -50,19 +51,11 @@ void tooltip(const std::string& text) {
     }
 }
 
-// The largest rectangle of the picture's aspect that fits the window's content region.
+// Where a picture went on the screen.
 struct Fit {
-    ImVec2 origin;
+    ImVec2 origin, size;
     float scale = 1.0f;  // screen pixels per picture pixel
 };
-Fit fit_image(int width, int height) {
-    const ImVec2 avail = ImGui::GetContentRegionAvail();
-    const ImVec2 cursor = ImGui::GetCursorScreenPos();
-    Fit f;
-    f.scale = std::max(1e-3f, std::min(avail.x / float(width), avail.y / float(height)));
-    f.origin = ImVec2(cursor.x + 0.5f * (avail.x - f.scale * width), cursor.y);
-    return f;
-}
 
 // Points of a scan sector's outline in the probe plane (mm): the first line, the far
 // arc, the last line, the face.
@@ -109,22 +102,6 @@ cv::Mat energy_picture(const tissue::Volume& absorbed) {
     return rgb;
 }
 
-nlohmann::json transducer_record(const probe::Transducer& t) {
-    return {{"name", t.name},
-            {"type", probe::to_string(t.type)},
-            {"elements", t.elements},
-            {"pitch_mm", t.pitch_mm},
-            {"radius_mm", t.radius_mm},
-            {"fov_deg", t.fov_deg},
-            {"frequency_mhz", t.frequency_mhz},
-            {"bandwidth", t.bandwidth},
-            {"focus_mm", t.focus_mm},
-            {"f_number", t.f_number},
-            {"depth_mm", t.depth_mm},
-            {"lines", t.lines},
-            {"face_reflectivity", t.face_reflectivity}};
-}
-
 }  // namespace
 
 // ---- textures ----
@@ -151,6 +128,26 @@ void Texture::upload(const cv::Mat& picture) {
     width_ = rgba.cols;
     height_ = rgba.rows;
 }
+
+namespace {
+
+// Draws a picture as large as the window's content region allows, at its aspect,
+// centred horizontally; `rect` receives its screen rectangle.
+Fit show_image(const Texture& texture, Rect* rect) {
+    const ImVec2 avail = ImGui::GetContentRegionAvail();
+    const ImVec2 cursor = ImGui::GetCursorScreenPos();
+    const float w = float(texture.width()), h = float(texture.height());
+    Fit f;
+    f.scale = std::max(1e-3f, std::min(avail.x / w, avail.y / h));
+    f.origin = ImVec2(cursor.x + 0.5f * (avail.x - f.scale * w), cursor.y);
+    f.size = ImVec2(f.scale * w, f.scale * h);
+    ImGui::SetCursorScreenPos(f.origin);
+    ImGui::Image(texture.imgui_id(), f.size);
+    *rect = {f.origin.x, f.origin.y, f.size.x, f.size.y};
+    return f;
+}
+
+}  // namespace
 
 // ---- the application ----
 
@@ -532,11 +529,8 @@ void App::draw_explain(float x, float y, float w, float h) {
 void App::draw_slice(float x, float y, float w, float h) {
     begin_panel("Tissue under the probe (beams of a few scan lines)", x, y, w, h, kViewFlags);
     if (frame_ && !slice_texture_.empty()) {
-        const Fit fit = fit_image(slice_texture_.width(), slice_texture_.height());
-        ImGui::SetCursorScreenPos(fit.origin);
-        const ImVec2 size(fit.scale * slice_texture_.width(), fit.scale * slice_texture_.height());
-        ImGui::Image(slice_texture_.imgui_id(), size);
-        slice_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
+        const Fit fit = show_image(slice_texture_, &slice_rect_);
+        const ImVec2 size = fit.size;
         ImDrawList* draw = ImGui::GetWindowDrawList();
         const double texel = frame_->grid.geometry.spacing.x;
         auto to_screen = [&](glm::dvec2 map) {
@@ -592,11 +586,8 @@ void App::draw_bmode(float x, float y, float w, float h) {
     if (frame_ && !bmode_texture_.empty()) {
         ImGui::Text("%s  %.0f ms", imaging::to_string(frame_->quality).c_str(),
                     1e3 * frame_->seconds);
-        const Fit fit = fit_image(bmode_texture_.width(), bmode_texture_.height());
-        ImGui::SetCursorScreenPos(fit.origin);
-        const ImVec2 size(fit.scale * bmode_texture_.width(), fit.scale * bmode_texture_.height());
-        ImGui::Image(bmode_texture_.imgui_id(), size);
-        bmode_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
+        const Fit fit = show_image(bmode_texture_, &bmode_rect_);
+        const ImVec2 size = fit.size;
         // Depth scale every 10 mm.
         ImDrawList* draw = ImGui::GetWindowDrawList();
         const imaging::ScanConverted& image = frame_->frame.image;
@@ -622,12 +613,8 @@ void App::draw_context(float x, float y, float w, float h) {
         ImGui::TextDisabled("off (probe pose panel)");
     } else if (context_ && !context_texture_.empty()) {
         ImGui::Text("%d repetitions", context_->repetitions);
-        const Fit fit = fit_image(context_texture_.width(), context_texture_.height());
-        ImGui::SetCursorScreenPos(fit.origin);
-        const ImVec2 size(fit.scale * context_texture_.width(),
-                          fit.scale * context_texture_.height());
-        ImGui::Image(context_texture_.imgui_id(), size);
-        context_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
+        const Fit fit = show_image(context_texture_, &context_rect_);
+        const ImVec2 size = fit.size;
         // The live probe sector, projected with the image's camera (drawn at once, before
         // the renderer catches up).
         const imaging::pbvr::OrbitCamera& cam = context_->camera;
@@ -668,12 +655,7 @@ void App::draw_context(float x, float y, float w, float h) {
 void App::draw_energy(float x, float y, float w, float h) {
     begin_panel("Energy deposition (sedimentation), 40 dB", x, y, w, h, kViewFlags);
     if (frame_ && !energy_texture_.empty()) {
-        const Fit fit = fit_image(energy_texture_.width(), energy_texture_.height());
-        ImGui::SetCursorScreenPos(fit.origin);
-        const ImVec2 size(fit.scale * energy_texture_.width(),
-                          fit.scale * energy_texture_.height());
-        ImGui::Image(energy_texture_.imgui_id(), size);
-        energy_rect_ = {fit.origin.x, fit.origin.y, size.x, size.y};
+        show_image(energy_texture_, &energy_rect_);
     }
     ImGui::End();
 }
@@ -721,7 +703,7 @@ void App::save_frame() {
             {"version", SONOTRACE_VERSION},
             {"seed", frame_->settings.seed},
             {"scene", scene_->name},
-            {"probe", transducer_record(frame_->settings.transducer)},
+            {"probe", ui::transducer_json(frame_->settings.transducer)},
             {"pose", ui::pose_json(frame_->pose)},
             {"quality", imaging::to_string(frame_->quality)},
             {"image",
