@@ -168,6 +168,19 @@ App::App(const AppOptions& options)
     // The first scene loads synchronously: without it there is nothing to show.
     apply_scene(load_scene(options.scene, SONOTRACE_PHANTOM_DIR));
     if (options.slide_mm != 0.0) move_probe(options.slide_mm, 0.0, 0.0, 0.0);
+    if (!options.explain.empty()) {
+        std::string known;
+        for (const Artifact& a : explain(*scene_, parameters_)) {
+            if (a.name == options.explain) {
+                highlighted_ = a.control;
+                scroll_to_highlight_ = true;
+            }
+            known += (known.empty() ? "" : ", ") + a.name;
+        }
+        if (highlighted_ == Control::none)
+            throw tissue::InputError("--explain", options.explain,
+                                     "is not an artifact of this scene; it shows: " + known);
+    }
 }
 
 App::~App() {
@@ -181,6 +194,7 @@ void App::apply_scene(std::shared_ptr<const Scene> scene) {
     probe_preset_ = preset;
     parameters_.transducer = probe::find_transducer(preset, "probe");
     pose_ = scene_->start.pose;
+    view_.zoom = scene_->context_zoom;
     frame_.reset();
     context_.reset();
     dirty_ = true;
@@ -511,6 +525,10 @@ void App::draw_explain(float x, float y, float w, float h) {
             ImGui::PushStyleColor(ImGuiCol_Text, selected ? kHighlight : IM_COL32_WHITE);
             ImGui::TextUnformatted(a.name.c_str());
             ImGui::PopStyleColor();
+            if (selected && scroll_to_highlight_) {
+                ImGui::SetScrollHereY(0.1f);
+                scroll_to_highlight_ = false;
+            }
             if (ImGui::IsItemHovered()) hovered = a.control;
             if (ImGui::IsItemClicked()) highlighted_ = selected ? Control::none : a.control;
             ImGui::Indent();

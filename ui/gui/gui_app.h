@@ -25,6 +25,7 @@ struct AppOptions {
     bool animate = false;  // slide the probe back and forth by itself (benchmarks, demos)
     bool context = true;
     std::string open_later;  // opened like the "open file" field once a frame is shown
+    std::string explain;     // an artifact of the explain panel to highlight at start
 };
 
 // A GL texture holding an RGB(A) picture.
@@ -111,6 +112,7 @@ class App {
     bool frozen_ = false;
     bool dirty_ = true;  // parameters or pose changed since the last request
     Control highlighted_ = Control::none;
+    bool scroll_to_highlight_ = false;  // bring the highlighted artifact into view once
     double animate_phase_ = 0.0;
     bool opened_later_ = false;
 

@@ -251,6 +251,9 @@ int main(int argc, char** argv) {
     cli.add_flag("--record", o.record,
                  "with --screenshot: record the frames shown into a clip as the 'record clip' "
                  "button does (MJPEG AVI in --out)");
+    cli.add_option("--explain", o.app.explain,
+                   "highlight this artifact of the explain panel and its control at start "
+                   "(e.g. 'acoustic shadowing')");
     cli.add_option("--screenshot", o.screenshot,
                    "headless: save the window as PNG (and the view rectangles as .json) once "
                    "--frames B-mode frames have been shown, then exit");

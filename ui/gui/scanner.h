@@ -54,7 +54,7 @@ struct ScanParameters {
 // The 3D context view's camera: an orbit about the volume, zoom as a distance factor.
 struct ContextView {
     bool enabled = true;
-    double azimuth_deg = 235.0, elevation_deg = 18.0, zoom = 1.3;
+    double azimuth_deg = 235.0, elevation_deg = 18.0, zoom = 1.0;
     int width = 320, height = 320;
     bool operator==(const ContextView&) const = default;
 };

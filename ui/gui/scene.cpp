@@ -56,6 +56,7 @@ std::shared_ptr<Scene> volume_scene(const std::string& spec, const std::string& 
         scene->title = view == "temporal" ? "Colin27 head: transtemporal (phased probe)"
                                           : "Colin27 head: intraoperative (convex probe)";
         scene->context_tf = imaging::pbvr::load_colour_tf("head");
+        scene->context_zoom = 1.3;
     } else {
         scene->start.pose = ui::top_centre_pose(g);
         scene->start.description = "probe on the top face of " + spec;

@@ -36,6 +36,7 @@ struct Scene {
     // The 3D context: a volume and its colour transfer function (bound to it).
     std::shared_ptr<const tissue::Volume> context;
     imaging::pbvr::ColourTransferFunction context_tf;
+    double context_zoom = 1.0;  // the 3D view's start zoom (the head is framed closer)
     // The distinct materials present (tissues of the table or a phantom's explicit
     // properties), for the explain panel.
     std::vector<tissue::AcousticProperties> materials;
