@@ -140,6 +140,9 @@ TEST(Gui, BadOptionsFailWithAMessage) {
     EXPECT_FALSE(fs::exists(kDir / "never.png"));
     EXPECT_NE(run_gui("--quality ultra", "quality.log"), 0);
     EXPECT_NE(read_text(kDir / "quality.log").find("--quality"), std::string::npos);
+    EXPECT_NE(run_gui("--scene phantom:cyst_and_stone --explain bogus", "explain.log"), 0);
+    EXPECT_NE(read_text(kDir / "explain.log").find("acoustic shadowing"), std::string::npos)
+        << "the message lists the scene's artifacts";
     EXPECT_NE(run_gui("--frames 0 --screenshot " + (kDir / "never.png").string(), "frames.log"), 0);
     EXPECT_NE(read_text(kDir / "frames.log").find("--frames"), std::string::npos);
 }
