@@ -3,6 +3,7 @@
 // shows the error, and bad options fail with a message.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -23,10 +24,12 @@ const fs::path kDir = fs::temp_directory_path() / "sonotrace_test_gui";
 int run_gui(const std::string& arguments, const std::string& log) {
     fs::create_directories(kDir);
     // Leak checking off for the child: Mesa and X keep allocations until exit.
-    const std::string command =
-        "ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -s '-screen 0 "
-        "1280x800x24' " SONOTRACE_GUI_BINARY " --size 1280x800 " +
-        arguments + " > " + (kDir / log).string() + " 2>&1";
+    // The display search starts at a number of our own: another test run may be looking.
+    const std::string display = std::to_string(100 + getpid() % 800);
+    const std::string command = "ASAN_OPTIONS=detect_leaks=0 xvfb-run -a -n " + display +
+                                " -s '-screen 0 1280x800x24' " SONOTRACE_GUI_BINARY
+                                " --size 1280x800 " +
+                                arguments + " > " + (kDir / log).string() + " 2>&1";
     const int status = std::system(command.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
