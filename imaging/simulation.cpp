@@ -166,6 +166,55 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     return frame;
 }
 
+std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::TransferFunction& tf,
+                                  float outside, const tissue::VolumeGeometry& grid,
+                                  tissue::PropertyMaps& maps, tissue::Volume* labels) {
+    using tissue::Property;
+    const tissue::TissueEntry& dura = tissue::find_tissue("dura", "", "");
+    const tissue::TissueEntry& plexus = tissue::find_tissue("choroid_plexus", "", "");
+    const int brain = tissue::tissue_label_of("brain");
+    auto is_csf = [&](const tissue::PropertyMaps& m, int i, int j, int k) {
+        return m[Property::backscatter].at(i, j, k) < 0.05f &&
+               std::abs(m[Property::speed_of_sound].at(i, j, k) - 1515.0f) < 10.0f;
+    };
+    auto is_brain_or_csf = [&](int i, int j, int k) {
+        const float c = maps[Property::speed_of_sound].at(i, j, k);
+        return c > 1500.0f && c < 1580.0f && maps[Property::density].at(i, j, k) > 990.0f;
+    };
+    auto set = [&](int i, int j, int k, const tissue::TissueEntry& t) {
+        for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
+            maps.fields[f].at(i, j, k) = t.properties.values[f];
+        if (labels) labels->at(i, j, k) = float(tissue::tissue_label_of(std::string(t.key)));
+    };
+    std::size_t changed = 0;
+    const glm::ivec3 n = grid.dims;
+    for (int k = 0; k < n.z; ++k) {
+        for (int j = 0; j < n.y; ++j) {
+            for (int i = 0; i < n.x; ++i) {
+                const glm::dvec3 p = grid.index_to_world(glm::dvec3(i, j, k));
+                if (std::abs(p.x - 0.5) < 0.75 && p.z > 34.0 && is_brain_or_csf(i, j, k)) {
+                    set(i, j, k, dura);
+                    ++changed;
+                    continue;
+                }
+                const double ax = std::abs(p.x);
+                if (ax > 3.0 && ax < 22.0 && p.y > -45.0 && p.y < -5.0 && p.z > 8.0 && p.z < 26.0 &&
+                    is_csf(maps, i, j, k)) {
+                    // The floor: the head 2.5 mm lower is tissue, not CSF.
+                    const glm::dvec3 below = p - glm::dvec3(0.0, 0.0, 2.5);
+                    const float v =
+                        head.sample_trilinear(head.geometry().world_to_index(below), outside);
+                    if (tf.tissue_label(v) == brain) {
+                        set(i, j, k, plexus);
+                        ++changed;
+                    }
+                }
+            }
+        }
+    }
+    return changed;
+}
+
 tissue::AcousticProperties saline() {
     return tissue::find_tissue("water", "", "").properties;
 }
@@ -286,6 +335,8 @@ cv::Mat label_picture(const cv::Mat& labels) {
         {255, 255, 255},  // cortical bone: white
         {0, 0, 0},        // air: black
         {150, 170, 190},  // soft tissue
+        {80, 230, 250},   // dura (falx): pale yellow
+        {220, 80, 220},   // choroid plexus: magenta
     };
     cv::Mat out(labels.rows, labels.cols, CV_8UC3, cv::Scalar(0, 0, 0));
     const int known = int(std::size(kColours));

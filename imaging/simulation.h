@@ -123,6 +123,20 @@ ScenePlacement craniotomy_scene(const tissue::Volume& head, const tissue::Transf
 // The phased probe on the skin of the right temple (transtemporal window), axial plane.
 ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::TransferFunction& tf);
 
+// Membranes of the Colin27 head that its T1 MRI shows as CSF or brain, placed by
+// anatomy (MNI coordinates, mm) on a grid whose properties came from `head` (whose
+// value outside is `outside`):
+//   falx cerebri: the sheet of dura in the interhemispheric fissure, |x - 0.5| < 0.75,
+//     above the corpus callosum (z > 34), where the grid holds brain or CSF;
+//   choroid plexus: the lateral ventricles' CSF within 2.5 mm above their floor (the
+//     head 2.5 mm lower is not CSF), 3 < |x| < 22, -45 < y < -5, 8 < z < 26 (body and
+//     atrium).
+// Both are hyperechoic in intraoperative and neonatal cranial ultrasound. `labels` (the
+// grid's tissue labels, optional) follow. Returns the number of samples changed.
+std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::TransferFunction& tf,
+                                  float outside, const tissue::VolumeGeometry& grid,
+                                  tissue::PropertyMaps& maps, tissue::Volume* labels = nullptr);
+
 // Saline filling the craniotomy, and coupling gel (water properties).
 tissue::AcousticProperties saline();
 

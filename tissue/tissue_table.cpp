@@ -20,7 +20,7 @@ constexpr AcousticProperties props(float c, float rho, float alpha, float backsc
 // usual echogenicity ranking of clinical images (fluids anechoic, fat and muscle
 // hypoechoic, parenchyma mid-grey, bone bright); they are modelling choices, not
 // measurements.
-constexpr std::array<TissueEntry, 11> kTable = {{
+constexpr std::array<TissueEntry, 13> kTable = {{
     //                                     c     rho    alpha  bsc   n/mm3  rough
     {"water", "water (37 C)", props(1524, 993, 0.0022f, 0.0f, 0.0f, 0.0f), "Duck 1990"},
     {"blood", "blood", props(1584, 1060, 0.15f, 0.02f, 5.0f, 0.0f), "Duck 1990; IT'IS 4.1"},
@@ -38,6 +38,11 @@ constexpr std::array<TissueEntry, 11> kTable = {{
      "Kaye & Laby (attenuation ~1.6 dB/cm at 1 MHz)"},
     {"soft_tissue", "generic soft tissue", props(1540, 1060, 0.54f, 0.4f, 15.0f, 0.2f),
      "IEC 61391 / AIUM phantom convention (1540 m/s, 0.5-0.7 dB/cm/MHz)"},
+    // Membranes a T1 MRI shows as CSF or brain; placed by anatomy (imaging/simulation.h).
+    {"dura", "dura mater (falx cerebri)", props(1600, 1100, 1.0f, 0.9f, 20.0f, 0.4f),
+     "fibrous collagen: between brain and tendon (Duck 1990); hyperechoic in cranial US"},
+    {"choroid_plexus", "choroid plexus", props(1560, 1050, 0.8f, 0.9f, 20.0f, 0.3f),
+     "blood-rich villous epithelium: soft-tissue values; hyperechoic in cranial US"},
 }};
 
 }  // namespace

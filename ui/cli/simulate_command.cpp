@@ -471,7 +471,11 @@ int run_simulate_command(const SimulateOptions& o) {
         mapper = [&source](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
             const tissue::Volume values = source->resample(grid);
             if (labels) *labels = tissue::tissue_labels(values, *source->tf);
-            return tissue::classify(values, *source->tf);
+            tissue::PropertyMaps maps = tissue::classify(values, *source->tf);
+            if (source->is_default)
+                imaging::add_colin27_membranes(source->loaded.volume, *source->tf, source->outside,
+                                               grid, maps, labels);
+            return maps;
         };
         timer.begin("placing the probe (" + o.view + ")");
         if (pose) {

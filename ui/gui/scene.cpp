@@ -45,7 +45,11 @@ std::shared_ptr<Scene> volume_scene(const std::string& spec, const std::string& 
     scene->mapper = [source](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
         const tissue::Volume values = source->resample(grid);
         if (labels) *labels = tissue::tissue_labels(values, *source->tf);
-        return tissue::classify(values, *source->tf);
+        tissue::PropertyMaps maps = tissue::classify(values, *source->tf);
+        if (source->is_default)
+            imaging::add_colin27_membranes(source->loaded.volume, *source->tf, source->outside,
+                                           grid, maps, labels);
+        return maps;
     };
     const tissue::TransferFunction& tf = *source->tf;
     if (source->is_default) {
