@@ -22,13 +22,9 @@ const ui::VolumeSource& head() {
 }
 
 imaging::PlaneMapper head_mapper() {
+    // The embedded head: VolumeSource adds the membranes (is_default).
     return [](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
-        const tissue::Volume values = head().resample(grid);
-        if (labels) *labels = tissue::tissue_labels(values, *head().tf);
-        tissue::PropertyMaps maps = tissue::classify(values, *head().tf);
-        imaging::add_colin27_membranes(head().loaded.volume, *head().tf, head().outside, grid, maps,
-                                       labels);
-        return maps;
+        return head().plane_properties(grid, labels);
     };
 }
 

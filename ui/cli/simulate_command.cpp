@@ -469,13 +469,7 @@ int run_simulate_command(const SimulateOptions& o) {
         const glm::dvec3 voxel = source->loaded.volume.geometry().spacing;
         settings.trace.interface_reach_mm = 3.0 * std::max({voxel.x, voxel.y, voxel.z});
         mapper = [&source](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
-            const tissue::Volume values = source->resample(grid);
-            if (labels) *labels = tissue::tissue_labels(values, *source->tf);
-            tissue::PropertyMaps maps = tissue::classify(values, *source->tf);
-            if (source->is_default)
-                imaging::add_colin27_membranes(source->loaded.volume, *source->tf, source->outside,
-                                               grid, maps, labels);
-            return maps;
+            return source->plane_properties(grid, labels);
         };
         timer.begin("placing the probe (" + o.view + ")");
         if (pose) {

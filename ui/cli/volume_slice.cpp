@@ -3,6 +3,7 @@
 #include <cmath>
 #include <iostream>
 
+#include "imaging/simulation.h"
 #include "tissue/error.h"
 #include "tissue/memory.h"
 
@@ -123,6 +124,15 @@ tissue::Volume VolumeSource::resample(const tissue::VolumeGeometry& grid) const 
     const auto interpolation = tf->uses_nearest_sampling() ? tissue::Interpolation::nearest
                                                            : tissue::Interpolation::trilinear;
     return tissue::resample(loaded.volume, grid, interpolation, outside);
+}
+
+tissue::PropertyMaps VolumeSource::plane_properties(const tissue::VolumeGeometry& grid,
+                                                    tissue::Volume* labels) const {
+    const tissue::Volume values = resample(grid);
+    if (labels) *labels = tissue::tissue_labels(values, *tf);
+    tissue::PropertyMaps maps = tissue::classify(values, *tf);
+    if (is_default) imaging::add_colin27_membranes(loaded.volume, *tf, outside, grid, maps, labels);
+    return maps;
 }
 
 Slice make_slice(const SliceOptions& options, StageTimer& timer) {

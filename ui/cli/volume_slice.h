@@ -46,6 +46,10 @@ struct VolumeSource {
 
     // Resamples the volume on `grid` (trilinear, or nearest for label maps).
     tissue::Volume resample(const tissue::VolumeGeometry& grid) const;
+    // The acoustic properties on `grid` (and its tissue labels, on request), with the
+    // membranes the embedded head's MRI cannot show (imaging::add_colin27_membranes).
+    tissue::PropertyMaps plane_properties(const tissue::VolumeGeometry& grid,
+                                          tissue::Volume* labels) const;
 };
 
 // Validates the volume options (--volume, --spacing, --tf, --outside), loads the volume

@@ -43,13 +43,7 @@ std::shared_ptr<Scene> volume_scene(const std::string& spec, const std::string& 
     scene->box_high = glm::max(corners[0], corners[1]);
     scene->interface_reach_mm = 3.0 * std::max({g.spacing.x, g.spacing.y, g.spacing.z});
     scene->mapper = [source](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
-        const tissue::Volume values = source->resample(grid);
-        if (labels) *labels = tissue::tissue_labels(values, *source->tf);
-        tissue::PropertyMaps maps = tissue::classify(values, *source->tf);
-        if (source->is_default)
-            imaging::add_colin27_membranes(source->loaded.volume, *source->tf, source->outside,
-                                           grid, maps, labels);
-        return maps;
+        return source->plane_properties(grid, labels);
     };
     const tissue::TransferFunction& tf = *source->tf;
     if (source->is_default) {
