@@ -630,7 +630,7 @@ void App::draw_context(float x, float y, float w, float h) {
     if (!view_.enabled) {
         ImGui::TextDisabled("off (probe pose panel)");
     } else if (context_ && !context_texture_.empty()) {
-        ImGui::Text("%d repetitions", context_->repetitions);
+        ImGui::Text("%d repetitions, %.1f s", context_->repetitions, context_->seconds);
         const Fit fit = show_image(context_texture_, &context_rect_);
         const ImVec2 size = fit.size;
         // The live probe sector, projected with the image's camera (drawn at once, before

@@ -67,7 +67,6 @@ class App {
 
     uint64_t frames_shown() const { return frames_shown_; }  // B-mode frames displayed
     int context_repetitions() const { return context_repetitions_; }
-    bool scene_ready() const { return scene_ != nullptr; }
     // True while a scene loads, or until --open's file has been tried.
     bool loading() const {
         return loading_.valid() || (!options_.open_later.empty() && !opened_later_);

@@ -161,11 +161,6 @@ bool Scanner::busy() const {
     return working_ || pending_.has_value();
 }
 
-uint64_t Scanner::frames_done() const {
-    std::lock_guard lock(mutex_);
-    return frames_done_;
-}
-
 void Scanner::run() {
     for (;;) {
         ScanRequest request;
@@ -227,7 +222,6 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
             }
             std::lock_guard lock(mutex_);
             frame_ = std::move(frame);
-            ++frames_done_;
         }
         if (!overlay) continue;
         while (!renderer || renderer->repetitions_done() < context_repetitions[stage]) {

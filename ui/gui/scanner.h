@@ -85,7 +85,7 @@ struct ContextImage {
     cv::Mat rgb;  // CV_8UC3
     int repetitions = 0;
     imaging::pbvr::OrbitCamera camera;
-    double seconds = 0.0;
+    double seconds = 0.0;  // since the request began
 };
 
 // The camera of a context view of a scene (the orbit fitted to its volume).
@@ -107,7 +107,6 @@ class Scanner {
     std::optional<std::string> take_error();
     // True while a request is being worked on or refined.
     bool busy() const;
-    uint64_t frames_done() const;
 
   private:
     void run();
@@ -121,7 +120,6 @@ class Scanner {
     std::optional<ContextImage> context_;
     std::optional<std::string> error_;
     bool working_ = false, stop_ = false;
-    uint64_t frames_done_ = 0;
     struct ContextCache;
     std::unique_ptr<ContextCache> cache_;  // worker only
     std::thread thread_;

@@ -90,10 +90,14 @@ std::shared_ptr<Scene> volume_scene(const std::string& spec, const std::string& 
         if (hit) out.position = hit->point + (cortex ? 0.5 : 0.0) * beam;
         return out;
     };
-    // The tissues present: labels of every 7th voxel.
+    // The tissues present: the labels of every 7th voxel (no label volume needed).
     std::set<int> labels;
-    const tissue::Volume sampled = tissue::tissue_labels(volume, tf);
-    for (std::size_t n = 0; n < sampled.size(); n += 7) labels.insert(int(sampled.voxels()[n]));
+    for (std::size_t n = 0; n < volume.size(); n += 7)
+        labels.insert(tf.tissue_label(volume.voxels()[n]));
+    if (source->is_default) {  // the membranes placed by anatomy
+        labels.insert(tissue::tissue_label_of("dura"));
+        labels.insert(tissue::tissue_label_of("choroid_plexus"));
+    }
     scene->materials = materials_of_labels(labels);
     auto context = std::make_shared<tissue::Volume>(volume);
     scene->context_tf.bind(*context);
