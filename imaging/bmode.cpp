@@ -50,22 +50,30 @@ double lattice_correlation_sum(double u) {
     return sum;
 }
 
-// Three passes of a centred box of odd width b: a Gaussian of variance (b^2 - 1) / 4 to
-// within a few per cent (zero outside, sum 1), in O(n) whatever the width.
-void smooth_box3(std::vector<double>& v, double sigma, std::vector<double>& scratch) {
+// Three passes of a centred box of odd width b over C interleaved channels: a Gaussian
+// of variance (b^2 - 1) / 4 to within a few per cent (zero outside, sum 1), in O(n)
+// whatever the width. Channels side by side: one pass serves all (the four moments).
+template <std::size_t C>
+void smooth_box3(std::vector<std::array<double, C>>& v, double sigma,
+                 std::vector<std::array<double, C>>& scratch) {
     const int n = int(v.size());
     int b = int(std::lround(std::sqrt(4.0 * sigma * sigma + 1.0)));
     b += 1 - b % 2;
     const int r = b / 2;
     if (r == 0 || n == 0) return;
+    const double inverse_b = 1.0 / b;  // a multiply, not a division, per sample
     scratch.resize(v.size());
     for (int pass = 0; pass < 3; ++pass) {
-        double sum = 0.0;
-        for (int i = 0; i < std::min(r, n); ++i) sum += v[std::size_t(i)];
+        std::array<double, C> sum{};
+        for (int i = 0; i < std::min(r, n); ++i)
+            for (std::size_t c = 0; c < C; ++c) sum[c] += v[std::size_t(i)][c];
         for (int i = 0; i < n; ++i) {
-            if (i + r < n) sum += v[std::size_t(i + r)];
-            scratch[std::size_t(i)] = sum / b;
-            if (i - r >= 0) sum -= v[std::size_t(i - r)];
+            const std::size_t u = std::size_t(i);
+            if (i + r < n)
+                for (std::size_t c = 0; c < C; ++c) sum[c] += v[u + std::size_t(r)][c];
+            for (std::size_t c = 0; c < C; ++c) scratch[u][c] = sum[c] * inverse_b;
+            if (i - r >= 0)
+                for (std::size_t c = 0; c < C; ++c) sum[c] -= v[u - std::size_t(r)][c];
         }
         v.swap(scratch);
     }
@@ -112,8 +120,7 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
         const ScanLine line = geometry.line(l);
         const glm::dvec2 across(-line.direction.y, line.direction.x);
         const std::size_t row = std::size_t(l) * std::size_t(N);
-        std::vector<double> m[4], scratch;
-        for (auto& v : m) v.assign(std::size_t(N), 0.0);
+        std::vector<std::array<double, 4>> m(std::size_t(N), std::array<double, 4>{}), scratch;
         double peak = 0.0;
         for (int i = 0; i < N; ++i) {
             const std::size_t at = row + std::size_t(i);
@@ -123,23 +130,23 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
                 glm::dvec2(profile.position[at]) - (line.origin + line.direction * rf.depth_mm(i));
             const double da = glm::dot(d, across);
             const double var = glm::dot(across, glm::dmat2(profile.covariance[at]) * across);
-            m[0][std::size_t(i)] = wi;
-            m[1][std::size_t(i)] = wi * d.x;
-            m[2][std::size_t(i)] = wi * d.y;
-            m[3][std::size_t(i)] = wi * (std::max(var, 0.0) + da * da);
+            m[std::size_t(i)] = {wi, wi * d.x, wi * d.y, wi * (std::max(var, 0.0) + da * da)};
             peak = std::max(peak, wi);
         }
-        for (auto& v : m) smooth_box3(v, smooth_sigma, scratch);
+        if (!(peak > 0.0)) return;  // a line without echo
+        smooth_box3(m, smooth_sigma, scratch);
         for (int i = 0; i < N; ++i) {
-            const double s0 = m[0][std::size_t(i)];
+            const auto& mi = m[std::size_t(i)];
+            const double s0 = mi[0];
             // Running sums leave rounding residues where there was nothing.
             if (!(s0 > 1e-9 * peak)) continue;
             const std::size_t at = row + std::size_t(i);
-            const glm::dvec2 d(m[1][std::size_t(i)] / s0, m[2][std::size_t(i)] / s0);
+            const double inverse_s0 = 1.0 / s0;
+            const glm::dvec2 d(mi[1] * inverse_s0, mi[2] * inverse_s0);
             const double da = glm::dot(d, across);
             w[at] = s0;
             mean[at] = (line.origin + line.direction * rf.depth_mm(i)) + d;
-            across_var[at] = std::max(0.0, m[3][std::size_t(i)] / s0 - da * da);
+            across_var[at] = std::max(0.0, mi[3] * inverse_s0 - da * da);
         }
     });
 
@@ -201,18 +208,29 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     // the beam.
     const double axial_correlation =
         lattice_correlation_sum((rf.depth_mm(1) - rf.depth_mm(0)) / cell);
+    // What depends on depth only, once per sample rather than per line and sample.
+    struct AtDepth {
+        double receive_sigma, d_sub, inverse_d_sub, inverse_correlation;
+    };
+    std::vector<AtDepth> at_depth{std::size_t(N)};
+    for (int i = 0; i < N; ++i) {
+        const double depth = rf.depth_mm(i);
+        AtDepth& a = at_depth[std::size_t(i)];
+        a.receive_sigma =
+            t.wavelength_mm() * std::max(t.f_number, depth / t.array_length_mm()) / kFwhmPerSigma;
+        a.d_sub = std::max(geometry.line_spacing_mm(depth), 1e-6) / K;
+        a.inverse_d_sub = 1.0 / a.d_sub;
+        a.inverse_correlation = 1.0 / (lattice_correlation_sum(a.d_sub / cell) * axial_correlation);
+    }
     tbb::parallel_for(0, L, [&](int l) {
         for (int i = 0; i < N; ++i) {
             const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
             if (!(w[at] > 0.0)) continue;
-            const double depth = rf.depth_mm(i);
-            const double receive_sigma = t.wavelength_mm() *
-                                         std::max(t.f_number, depth / t.array_length_mm()) /
-                                         kFwhmPerSigma;
+            const AtDepth& a = at_depth[std::size_t(i)];
             const double sigma_g =
-                std::max(std::min(std::sqrt(2.0 * across_var[at]), receive_sigma), cell);
-            const double d_sub = std::max(geometry.line_spacing_mm(depth), 1e-6) / K;
-            const int reach = std::min(int(std::ceil(3.0 * sigma_g / d_sub)), 8 * K);
+                std::max(std::min(std::sqrt(2.0 * across_var[at]), a.receive_sigma), cell);
+            const double d_sub = a.d_sub;
+            const int reach = std::min(int(std::ceil(3.0 * sigma_g * a.inverse_d_sub)), 8 * K);
             // Gaussian weights by recurrence: g(j) = exp(-alpha j^2) = g(j-1) exp(-alpha (2j-1)).
             const double alpha = 0.5 * (d_sub / sigma_g) * (d_sub / sigma_g);
             auto value = [&](int s) {
@@ -228,10 +246,46 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
                     norm += g * g;
                 }
             }
-            speckle[at] = float(
-                sum / std::sqrt(norm * lattice_correlation_sum(d_sub / cell) * axial_correlation));
+            speckle[at] = float(sum * std::sqrt(a.inverse_correlation / norm));
         }
     });
+}
+
+// out[n] += amplitude * pulse((n - at) / fs) for n in [lo, hi], the pulse by recurrences
+// on the uniform sample grid (Gaussian ratio, rotating phasor: a multiply each instead of
+// exp and cos per sample; rounding after 30 taps ~1e-14).
+void add_pulse(const Pulse& pulse, double at, double fs, double amplitude, int lo, int hi,
+               float* out) {
+    if (hi < lo) return;
+    const double s = pulse.sigma_s(), w = 2.0 * std::numbers::pi * pulse.frequency_hz;
+    const double dt = 1.0 / fs, t0 = (lo - at) * dt;
+    const double dc = std::exp(-0.5 * w * w * s * s);  // the DC the pulse does not pass
+    const double k = 0.5 / (s * s);
+    double gauss = amplitude * std::exp(-k * t0 * t0);
+    double ratio = std::exp(-k * (2.0 * t0 * dt + dt * dt));  // gauss(n + 1) / gauss(n)
+    const double ratio_step = std::exp(-2.0 * k * dt * dt);
+    double re = std::cos(w * t0), im = std::sin(w * t0);
+    const double rot_re = std::cos(w * dt), rot_im = std::sin(w * dt);
+    for (int n = lo; n <= hi; ++n) {
+        out[n] += float(gauss * (re - dc));
+        gauss *= ratio;
+        ratio *= ratio_step;
+        const double next_re = re * rot_re - im * rot_im;
+        im = re * rot_im + im * rot_re;
+        re = next_re;
+    }
+}
+
+// Log compression with the dB scale folded in: clamp(scale ln(envelope) + offset, 0, 1).
+inline float compressed(float envelope, float scale, float offset) {
+    if (!(envelope > 0.0f)) return 0.0f;
+    return std::clamp(scale * std::log(envelope) + offset, 0.0f, 1.0f);
+}
+float compression_scale(double dynamic_range_db) {
+    return float(20.0 / std::numbers::ln10 / dynamic_range_db);  // 20 log10 x = (20 / ln 10) ln x
+}
+float compression_offset(double gain_db, double dynamic_range_db) {
+    return float((gain_db + dynamic_range_db) / dynamic_range_db);
 }
 
 }  // namespace
@@ -269,9 +323,8 @@ double tgc_gain_db(const std::vector<TgcPoint>& curve, double depth_mm) {
 }
 
 float log_compress(float envelope, double gain_db, double dynamic_range_db) {
-    if (!(envelope > 0.0f)) return 0.0f;
-    const double db = 20.0 * std::log10(double(envelope)) + gain_db;
-    return float(std::clamp((db + dynamic_range_db) / dynamic_range_db, 0.0, 1.0));
+    return compressed(envelope, compression_scale(dynamic_range_db),
+                      compression_offset(gain_db, dynamic_range_db));
 }
 
 double LineData::depth_mm(int i) const {
@@ -388,7 +441,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             const double amplitude = std::sqrt(intensity);
             const int lo = std::max(0, int(std::ceil(at - half))),
                       hi = std::min(N - 1, int(std::floor(at + half)));
-            for (int n = lo; n <= hi; ++n) out[n] += float(amplitude * pulse((n - at) / fs));
+            add_pulse(pulse, at, fs, amplitude, lo, hi, out);
         }
     });
     return rf;
@@ -418,7 +471,7 @@ LineData envelope(const LineData& rf) {
         for (int l = 0; l < count; ++l) {
             const auto* a = analytic.ptr<cv::Vec2f>(l);
             for (int i = 0; i < rf.samples; ++i)
-                env.at(first + l, i) = std::hypot(a[i][0], a[i][1]);
+                env.at(first + l, i) = std::sqrt(a[i][0] * a[i][0] + a[i][1] * a[i][1]);
         }
     });
     return env;
@@ -426,13 +479,15 @@ LineData envelope(const LineData& rf) {
 
 LineData compress(const LineData& envelope, const ImagingSettings& settings) {
     LineData out = envelope;
-    std::vector<double> gain(std::size_t(envelope.samples));
+    const float scale = compression_scale(settings.dynamic_range_db);
+    std::vector<float> offset(std::size_t(envelope.samples));
     for (int i = 0; i < envelope.samples; ++i)
-        gain[std::size_t(i)] = settings.gain_db + tgc_gain_db(settings.tgc, envelope.depth_mm(i));
+        offset[std::size_t(i)] =
+            compression_offset(settings.gain_db + tgc_gain_db(settings.tgc, envelope.depth_mm(i)),
+                               settings.dynamic_range_db);
     tbb::parallel_for(0, envelope.lines, [&](int l) {
         for (int i = 0; i < envelope.samples; ++i)
-            out.at(l, i) =
-                log_compress(envelope.at(l, i), gain[std::size_t(i)], settings.dynamic_range_db);
+            out.at(l, i) = compressed(envelope.at(l, i), scale, offset[std::size_t(i)]);
     });
     return out;
 }
