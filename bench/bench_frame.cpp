@@ -2,11 +2,14 @@
 // through the craniotomy, coronal plane through the lateral ventricles), 128 lines,
 // 60 degrees, 8 cm, 3.5 MHz, at the three quality presets. Reports ms per frame (the
 // whole frame: plane resampling, map, beams, trace, RF, envelope, compression, scan
-// conversion) and particle steps per second of the trace.
+// conversion), the mean time of each stage, and particle steps per second of the trace.
 //   ./build/bench/bench_frame --benchmark_repetitions=20 --benchmark_report_aggregates_only
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
+#include <map>
+#include <string>
 
 #include "imaging/simulation.h"
 #include "tissue/property_maps.h"
@@ -46,7 +49,8 @@ void frame(benchmark::State& state, imaging::Quality quality) {
     settings.imaging.gain_db = 36.0;
     const imaging::QualityLevel level = imaging::quality_level(quality);
     uint64_t steps = 0;
-    double plane_s = 0.0, trace_s = 0.0, rf_s = 0.0;
+    double plane_s = 0.0;
+    std::map<std::string, double> stage_s;  // the frame's own stage timings, summed
     for (auto _ : state) {
         const auto start = std::chrono::steady_clock::now();
         const imaging::PlaneGrid grid =
@@ -59,16 +63,19 @@ void frame(benchmark::State& state, imaging::Quality quality) {
         plane_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const imaging::Frame f = imaging::simulate_frame(map, grid, s.placement.pose, settings);
         steps += f.stats.steps;
-        trace_s += f.timings["trace"].get<double>();
-        rf_s += f.timings["rf"].get<double>();
+        for (const auto& [name, seconds] : f.timings.items())
+            stage_s[name] += seconds.get<double>();
         benchmark::DoNotOptimize(f.image.image.data);
     }
     state.counters["steps/s"] = benchmark::Counter(double(steps), benchmark::Counter::kIsRate);
     // Mean seconds per frame of the main stages (the rest: beams, envelope, scan conversion).
     const double n = double(std::max<int64_t>(state.iterations(), 1));
     state.counters["plane_ms"] = 1e3 * plane_s / n;
-    state.counters["trace_ms"] = 1e3 * trace_s / n;
-    state.counters["rf_ms"] = 1e3 * rf_s / n;
+    for (const auto& [name, seconds] : stage_s) {
+        std::string key = name;
+        std::replace(key.begin(), key.end(), ' ', '_');
+        state.counters[key + "_ms"] = 1e3 * seconds / n;
+    }
     state.counters["frames/s"] =
         benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
 }

@@ -23,16 +23,28 @@ constexpr double kC0 = tissue::kReferenceSpeed;       // m/s
 using probe::ScanLine;
 using tissue::mix64;
 
-// out = in (*) kernel (centred), zero outside.
+// out = in (*) kernel (centred), zero outside. The interior tap by tap over all samples
+// (a loop that vectorises; each sum still adds its terms in tap order), the edges as
+// they come.
 template <typename T>
 void convolve(const T* in, int n, const std::vector<float>& kernel, T* out) {
-    const int half = int(kernel.size() / 2);
-    for (int i = 0; i < n; ++i) {
+    const int half = int(kernel.size() / 2), taps = int(kernel.size());
+    auto edge = [&](int i) {
         const int lo = std::max(0, i - half), hi = std::min(n - 1, i + half);
         T sum = 0;
         for (int j = lo; j <= hi; ++j) sum += in[j] * kernel[std::size_t(j - i + half)];
         out[i] = sum;
+    };
+    const int first = std::min(half, n),
+              last = std::max(first, n - half);  // interior [first, last)
+    for (int i = 0; i < first; ++i) edge(i);
+    for (int i = first; i < last; ++i) out[i] = 0;
+    for (int k = 0; k < taps; ++k) {
+        const T tap = kernel[std::size_t(k)];
+        const T* shifted = in + (k - half);
+        for (int i = first; i < last; ++i) out[i] += shifted[i] * tap;
     }
+    for (int i = last; i < n; ++i) edge(i);
 }
 
 // Sum over k of the correlation of the scatterer field between points k u cells apart
@@ -194,8 +206,10 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             }
             const std::size_t u = std::size_t(i);
             px[u] = float(p.x), py[u] = float(p.y), pz[u] = float(p.z);
-            amplitude[u] = float(std::sqrt(lit));
+            amplitude[u] = float(lit);
         }
+        // Roots in a loop of their own: it vectorises (in the loop above each waited).
+        for (float& a : amplitude) a = std::sqrt(a);
         field_values(field.seed(), px.data(), py.data(), pz.data(), amplitude.data(), N, out);
     });
 
@@ -210,9 +224,10 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
         lattice_correlation_sum((rf.depth_mm(1) - rf.depth_mm(0)) / cell);
     // What depends on depth only, once per sample rather than per line and sample.
     struct AtDepth {
-        double receive_sigma, d_sub, inverse_d_sub, inverse_correlation;
+        double receive_sigma, d_sub, inverse_d_sub;
     };
-    std::vector<AtDepth> at_depth{std::size_t(N)};
+    std::vector<AtDepth> at_depth(static_cast<std::size_t>(N));
+    std::vector<double> inverse_correlation(static_cast<std::size_t>(N));
     for (int i = 0; i < N; ++i) {
         const double depth = rf.depth_mm(i);
         AtDepth& a = at_depth[std::size_t(i)];
@@ -220,9 +235,13 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             t.wavelength_mm() * std::max(t.f_number, depth / t.array_length_mm()) / kFwhmPerSigma;
         a.d_sub = std::max(geometry.line_spacing_mm(depth), 1e-6) / K;
         a.inverse_d_sub = 1.0 / a.d_sub;
-        a.inverse_correlation = 1.0 / (lattice_correlation_sum(a.d_sub / cell) * axial_correlation);
+        inverse_correlation[std::size_t(i)] =
+            1.0 / (lattice_correlation_sum(a.d_sub / cell) * axial_correlation);
     }
     tbb::parallel_for(0, L, [&](int l) {
+        // The sums per sample, then the normalisation in a loop of its own: it vectorises
+        // (inline, each sample waited for its division and root).
+        std::vector<double> sums(std::size_t(N), 0.0), norms(std::size_t(N), 1.0);
         for (int i = 0; i < N; ++i) {
             const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
             if (!(w[at] > 0.0)) continue;
@@ -246,8 +265,11 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
                     norm += g * g;
                 }
             }
-            speckle[at] = float(sum * std::sqrt(a.inverse_correlation / norm));
+            sums[std::size_t(i)] = sum, norms[std::size_t(i)] = norm;
         }
+        float* out = speckle.data() + std::size_t(l) * std::size_t(N);
+        for (std::size_t i = 0; i < std::size_t(N); ++i)
+            out[i] = float(sums[i] * std::sqrt(inverse_correlation[i] / norms[i]));
     });
 }
 

@@ -143,10 +143,16 @@ class ScattererField {
     // The same in single precision, for batches (cells up to 2^24 from the origin: the
     // lattice spans at most a few thousand cells).
     static float at_lattice_float(uint32_t seed, float x, float y, float z) {
-        const float bx = std::floor(x), by = std::floor(y), bz = std::floor(z);
-        const uint32_t key = seed + uint32_t(int32_t(bx)) * kSpreadI +
-                             uint32_t(int32_t(by)) * kSpreadJ + uint32_t(int32_t(bz)) * kSpreadK;
-        return blend(key, x - bx, y - by, z - bz);
+        const int32_t ix = floor_int(x), iy = floor_int(y), iz = floor_int(z);
+        const uint32_t key =
+            seed + uint32_t(ix) * kSpreadI + uint32_t(iy) * kSpreadJ + uint32_t(iz) * kSpreadK;
+        return blend(key, x - float(ix), y - float(iy), z - float(iz));
+    }
+    // floor(x) as an integer by truncation and a correction: unlike std::floor, GCC
+    // vectorises it without -fno-trapping-math (std::floor left field_values scalar).
+    static int32_t floor_int(float x) {
+        const int32_t t = int32_t(x);
+        return t - int32_t(x < float(t));
     }
     uint32_t seed() const { return seed_; }
     // Trilinear blend of the cell's 8 corner values at fractions (fx, fy, fz). Plain

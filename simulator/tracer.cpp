@@ -872,6 +872,11 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
         LineTracer<Dim> tracer(map, settings);
         tracer.run(sources, order, starts[l], starts[l + 1], deposits.local(), outputs[l]);
+        // Batches interleave particles; order the line's echoes by particle, then time.
+        std::stable_sort(outputs[l].echoes.begin(), outputs[l].echoes.end(),
+                         [](const EchoEvent<Dim>& a, const EchoEvent<Dim>& b) {
+                             return a.particle < b.particle;
+                         });
         if (progress) progress(++done, lines);
     });
 
@@ -879,18 +884,19 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     TraceResult<Dim> result;
     result.fluence = tissue::Volume(map.geometry());
     result.absorbed = tissue::Volume(map.geometry());
-    std::vector<int64_t> fluence(texels, 0), absorbed(texels, 0);
-    for (const DepositMaps& d : deposits) {
-        for (std::size_t i = 0; i < texels; ++i)
-            fluence[i] += d[i].fluence, absorbed[i] += d[i].absorbed;
-    }
     double area = 1.0;
     for (int a = 0; a < Dim; ++a) area *= map.spacing()[a];
     const double per_texel = 1.0 / (kFixedScale * area);  // energy*mm per texel -> per mm^Dim
-    for (std::size_t i = 0; i < texels; ++i) {
-        result.fluence.voxels()[i] = float(double(fluence[i]) * per_texel);
-        result.absorbed.voxels()[i] = float(double(absorbed[i]) / kFixedScale);
-    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t i = range.begin(); i < range.end(); ++i) {
+                              int64_t fluence = 0, absorbed = 0;
+                              for (const DepositMaps& d : deposits)
+                                  fluence += d[i].fluence, absorbed += d[i].absorbed;
+                              result.fluence.voxels()[i] = float(double(fluence) * per_texel);
+                              result.absorbed.voxels()[i] = float(double(absorbed) / kFixedScale);
+                          }
+                      });
     if (settings.ring) result.ring_profile.assign(std::size_t(settings.ring->bins), 0.0);
     if (settings.echo_profile) {
         // Lines are numbered by id; ids without particles keep empty rows.
@@ -903,7 +909,7 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         p.intensity.assign(std::size_t(p.lines) * std::size_t(p.bins), 0.0f);
         p.position.assign(p.intensity.size(), Vec<Dim>(0.0f));
         p.covariance.assign(p.intensity.size(), glm::mat<Dim, Dim, float>(0.0f));
-        for (std::size_t l = 0; l < lines; ++l) {
+        tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
             const std::size_t row =
                 std::size_t(sources[order[starts[l]]].line) * std::size_t(p.bins);
             for (int i = 0; i < p.bins; ++i) {
@@ -917,14 +923,12 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
                     outputs[l].profile_second[std::size_t(i)] / double(w) -
                     glm::outerProduct(mean, mean));
             }
-        }
+        });
     }
+    std::size_t echo_count = 0;
+    for (const LineOutput<Dim>& o : outputs) echo_count += o.echoes.size();
+    result.echoes.reserve(echo_count);
     for (LineOutput<Dim>& o : outputs) {
-        // Batches interleave particles; order each line's echoes by particle, then time.
-        std::stable_sort(o.echoes.begin(), o.echoes.end(),
-                         [](const EchoEvent<Dim>& a, const EchoEvent<Dim>& b) {
-                             return a.particle < b.particle;
-                         });
         result.echoes.insert(result.echoes.end(), o.echoes.begin(), o.echoes.end());
         for (auto& p : o.paths) result.paths.push_back(std::move(p));
         for (std::size_t i = 0; i < o.ring.size(); ++i) result.ring_profile[i] += o.ring[i];
