@@ -120,6 +120,8 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
                                 to_world.y_axis / cell};
     const double smooth_sigma =
         std::max(0.5, settings.profile_smoothing * pulse.envelope_fwhm_s() * fs / kFwhmPerSigma);
+    std::vector<double> depth(static_cast<std::size_t>(N));  // mm per sample
+    for (int i = 0; i < N; ++i) depth[std::size_t(i)] = rf.depth_mm(i);
 
     // Per line and sample: intensity w, mean position, variance across the line, from
     // moments S0 = w, S1 = w d, S2 = w (var + d_across^2) smoothed along the line, with
@@ -138,8 +140,8 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             const std::size_t at = row + std::size_t(i);
             const double wi = profile.intensity[at];
             if (!(wi > 0.0)) continue;
-            const glm::dvec2 d =
-                glm::dvec2(profile.position[at]) - (line.origin + line.direction * rf.depth_mm(i));
+            const glm::dvec2 d = glm::dvec2(profile.position[at]) -
+                                 (line.origin + line.direction * depth[std::size_t(i)]);
             const double da = glm::dot(d, across);
             const double var = glm::dot(across, glm::dmat2(profile.covariance[at]) * across);
             m[std::size_t(i)] = {wi, wi * d.x, wi * d.y, wi * (std::max(var, 0.0) + da * da)};
@@ -157,7 +159,7 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             const glm::dvec2 d(mi[1] * inverse_s0, mi[2] * inverse_s0);
             const double da = glm::dot(d, across);
             w[at] = s0;
-            mean[at] = (line.origin + line.direction * rf.depth_mm(i)) + d;
+            mean[at] = (line.origin + line.direction * depth[std::size_t(i)]) + d;
             across_var[at] = std::max(0.0, mi[3] * inverse_s0 - da * da);
         }
     });
@@ -175,42 +177,48 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
         int(std::ceil(widest_gap / (narrowest_sigma * settings.sub_line_sigmas))), 1, 32);
     const int sub_lines = std::max(L - 1, 0) * K + 1;
     std::vector<float> sub(std::size_t(sub_lines) * std::size_t(N), 0.0f);
-    tbb::parallel_for(0, sub_lines, [&](int s) {
-        const int l = std::clamp(s / K, 0, std::max(L - 2, 0)), k = s - l * K;
-        const double f = double(k) / K;
-        float* out = sub.data() + std::size_t(s) * std::size_t(N);
-        // Pass 1: where each sample looks into the field (lattice units) and how strongly
-        // it is lit; pass 2: the field values, a loop that vectorises.
-        std::vector<float> px(std::size_t(N), 0.0f), py(px), pz(px), amplitude(px);
+    // Per gap between lines l and l + 1: both ends in lattice units and their intensities
+    // (once; to_lattice is affine, so each sub-line is a linear blend of the ends), then
+    // per sub-line the blend, the amplitude and the field in loops that vectorise.
+    const int gaps = std::max(L - 1, 1);
+    tbb::parallel_for(0, gaps, [&](int l) {
+        const std::size_t n = std::size_t(N);
+        std::vector<float> ends[6];  // x, y, z at line l, then at line l + 1
+        for (auto& e : ends) e.assign(n, 0.0f);
+        std::vector<float> lit_a(n, 0.0f), lit_b(n, 0.0f);
+        const int other = L == 1 ? l : l + 1;
         for (int i = 0; i < N; ++i) {
-            const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
-            glm::dvec3 p;
-            double lit;
-            if (L == 1) {
-                lit = w[at];
-                if (!(lit > 0.0)) continue;
-                p = to_lattice(mean[at]);
-            } else {
-                const std::size_t next = at + std::size_t(N);
-                lit = (1.0 - f) * w[at] + f * w[next];
-                if (!(lit > 0.0)) continue;
-                glm::dvec2 a = mean[at], b = mean[next];
-                if (!(w[at] > 0.0) || !(w[next] > 0.0)) {  // a line without echo: nominal gap
-                    const double depth = rf.depth_mm(i);
-                    const glm::dvec2 nominal =
-                        geometry.point(l + 1, depth) - geometry.point(l, depth);
-                    if (!(w[at] > 0.0)) a = b - nominal;
-                    if (!(w[next] > 0.0)) b = a + nominal;
-                }
-                p = to_lattice(a + f * (b - a));
+            const std::size_t at = std::size_t(l) * n + std::size_t(i);
+            const std::size_t next = std::size_t(other) * n + std::size_t(i);
+            if (!(w[at] > 0.0) && !(w[next] > 0.0)) continue;
+            glm::dvec2 a = mean[at], b = mean[next];
+            if (!(w[at] > 0.0) || !(w[next] > 0.0)) {  // a line without echo: nominal gap
+                const glm::dvec2 nominal = geometry.point(other, depth[std::size_t(i)]) -
+                                           geometry.point(l, depth[std::size_t(i)]);
+                if (!(w[at] > 0.0)) a = b - nominal;
+                if (!(w[next] > 0.0)) b = a + nominal;
             }
+            const glm::dvec3 pa = to_lattice(a), pb = to_lattice(b);
             const std::size_t u = std::size_t(i);
-            px[u] = float(p.x), py[u] = float(p.y), pz[u] = float(p.z);
-            amplitude[u] = float(lit);
+            ends[0][u] = float(pa.x), ends[1][u] = float(pa.y), ends[2][u] = float(pa.z);
+            ends[3][u] = float(pb.x), ends[4][u] = float(pb.y), ends[5][u] = float(pb.z);
+            lit_a[u] = float(w[at]), lit_b[u] = float(w[next]);
         }
-        // Roots in a loop of their own: it vectorises (in the loop above each waited).
-        for (float& a : amplitude) a = std::sqrt(a);
-        field_values(field.seed(), px.data(), py.data(), pz.data(), amplitude.data(), N, out);
+        std::vector<float> px(n), py(n), pz(n), amplitude(n);
+        // The last gap ends on the last line; a single line is its own one sub-line.
+        const int last_k = L == 1 ? 0 : (l == gaps - 1 ? K : K - 1);
+        for (int k = 0; k <= last_k; ++k) {
+            const int s = std::min(l * K + k, sub_lines - 1);
+            const float f = float(k) / float(K);
+            for (std::size_t u = 0; u < n; ++u) {
+                px[u] = ends[0][u] + f * (ends[3][u] - ends[0][u]);
+                py[u] = ends[1][u] + f * (ends[4][u] - ends[1][u]);
+                pz[u] = ends[2][u] + f * (ends[5][u] - ends[2][u]);
+                amplitude[u] = std::sqrt((1.0f - f) * lit_a[u] + f * lit_b[u]);
+            }
+            field_values(field.seed(), px.data(), py.data(), pz.data(), amplitude.data(), N,
+                         sub.data() + std::size_t(s) * n);
+        }
     });
 
     // Each line sums the sub-lines under its two-way beam, amplitude weights g. The
@@ -229,11 +237,11 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     std::vector<AtDepth> at_depth(static_cast<std::size_t>(N));
     std::vector<double> inverse_correlation(static_cast<std::size_t>(N));
     for (int i = 0; i < N; ++i) {
-        const double depth = rf.depth_mm(i);
+        const double d = depth[std::size_t(i)];
         AtDepth& a = at_depth[std::size_t(i)];
         a.receive_sigma =
-            t.wavelength_mm() * std::max(t.f_number, depth / t.array_length_mm()) / kFwhmPerSigma;
-        a.d_sub = std::max(geometry.line_spacing_mm(depth), 1e-6) / K;
+            t.wavelength_mm() * std::max(t.f_number, d / t.array_length_mm()) / kFwhmPerSigma;
+        a.d_sub = std::max(geometry.line_spacing_mm(d), 1e-6) / K;
         a.inverse_d_sub = 1.0 / a.d_sub;
         inverse_correlation[std::size_t(i)] =
             1.0 / (lattice_correlation_sum(a.d_sub / cell) * axial_correlation);

@@ -273,10 +273,12 @@ class LineTracer {
         return index;
     }
 
-    float relative_z_gradient(const Texel& t) const {
+    // |grad Z| h / Z above the interface threshold, squared: no root or division.
+    bool steep(const Texel& t) const {
         float g2 = 0.0f;
         for (int a = 0; a < Dim; ++a) g2 += t.grad_impedance[a] * t.grad_impedance[a];
-        return std::sqrt(g2) * texel_mm_ / std::max(t.impedance, 1e-12f);
+        const float z = std::max(t.impedance, 1e-12f);
+        return g2 > threshold2_ * z * z * inverse_texel2_;
     }
 
     // Walks from x along `dir` in half-texel steps until the impedance gradient falls
@@ -288,12 +290,12 @@ class LineTracer {
         const float h = 0.5f * texel_mm_;
         Texel t = map_.sample(x);
         int i = 0;
-        for (; i < plateau_steps_ && relative_z_gradient(t) > settings_.interface_threshold; ++i) {
+        for (; i < plateau_steps_ && steep(t); ++i) {
             x += h * dir;
             t = map_.sample(x);
         }
         *end = x;
-        *reached = relative_z_gradient(t) <= settings_.interface_threshold;
+        *reached = !steep(t);
         return t;
     }
 
@@ -363,9 +365,12 @@ class LineTracer {
         normal = glm::normalize(normal);
         V forward = glm::dot(r, normal) >= 0.0f ? normal : -normal;
         V near_end, far_end;
-        bool near_found, far_found;
-        const Texel near_side = plateau(x, -forward, &near_end, &near_found);
+        bool near_found = false, far_found;
+        // The far side first: in a graded medium it is usually missing, and then the near
+        // side need not be searched (the re-checks every few graded steps were ~10 % of
+        // the trace on the head).
         const Texel far_side = plateau(x, forward, &far_end, &far_found);
+        const Texel near_side = far_found ? plateau(x, -forward, &near_end, &near_found) : far_side;
         if (!near_found || !far_found) {
             state = kGraded;  // no plateau within reach: refract step by step only
             b.graded_steps[k] = 0;
