@@ -247,25 +247,32 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             1.0 / (lattice_correlation_sum(a.d_sub / cell) * axial_correlation);
     }
     tbb::parallel_for(0, L, [&](int l) {
-        // The sums per sample, then the normalisation in a loop of its own: it vectorises
-        // (inline, each sample waited for its division and root).
-        std::vector<double> sums(std::size_t(N), 0.0), norms(std::size_t(N), 1.0);
-        for (int i = 0; i < N; ++i) {
-            const std::size_t at = std::size_t(l) * std::size_t(N) + std::size_t(i);
-            if (!(w[at] > 0.0)) continue;
-            const AtDepth& a = at_depth[std::size_t(i)];
+        // Per sample: the beam's width, reach and Gaussian ratio in loops without
+        // branches (they vectorise; inline, each sample waited for its root, division and
+        // exponential in turn), then the sums, then the normalisation.
+        const std::size_t n = std::size_t(N), row = std::size_t(l) * n;
+        std::vector<double> sums(n, 0.0), norms(n, 1.0), ratio(n);
+        std::vector<int> reach(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            const AtDepth& a = at_depth[i];
             const double sigma_g =
-                std::max(std::min(std::sqrt(2.0 * across_var[at]), a.receive_sigma), cell);
-            const double d_sub = a.d_sub;
-            const int reach = std::min(int(std::ceil(3.0 * sigma_g * a.inverse_d_sub)), 8 * K);
-            // Gaussian weights by recurrence: g(j) = exp(-alpha j^2) = g(j-1) exp(-alpha (2j-1)).
-            const double alpha = 0.5 * (d_sub / sigma_g) * (d_sub / sigma_g);
+                std::max(std::min(std::sqrt(2.0 * across_var[row + i]), a.receive_sigma), cell);
+            const double span = 3.0 * sigma_g * a.inverse_d_sub;  // > 0
+            const int whole = int(span);
+            reach[i] = std::min(whole + int(double(whole) < span), 8 * K);  // ceil
+            ratio[i] = -0.5 * (a.d_sub / sigma_g) * (a.d_sub / sigma_g);
+        }
+        for (std::size_t i = 0; i < n; ++i) ratio[i] = std::exp(ratio[i]);
+        for (int i = 0; i < N; ++i) {
+            const std::size_t at = row + std::size_t(i);
+            if (!(w[at] > 0.0)) continue;
             auto value = [&](int s) {
                 return double(sub[std::size_t(s) * std::size_t(N) + std::size_t(i)]);
             };
-            double sum = value(l * K), norm = 1.0, g = 1.0, q = std::exp(-alpha);
+            // Gaussian weights by recurrence: g(j) = exp(-alpha j^2) = g(j-1) exp(-alpha (2j-1)).
+            double sum = value(l * K), norm = 1.0, g = 1.0, q = ratio[std::size_t(i)];
             const double q_step = q * q;
-            for (int j = 1; j <= reach; ++j, q *= q_step) {
+            for (int j = 1; j <= reach[std::size_t(i)]; ++j, q *= q_step) {
                 g *= q;
                 for (const int s : {l * K - j, l * K + j}) {
                     if (s < 0 || s >= sub_lines) continue;
@@ -275,8 +282,8 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             }
             sums[std::size_t(i)] = sum, norms[std::size_t(i)] = norm;
         }
-        float* out = speckle.data() + std::size_t(l) * std::size_t(N);
-        for (std::size_t i = 0; i < std::size_t(N); ++i)
+        float* out = speckle.data() + row;
+        for (std::size_t i = 0; i < n; ++i)
             out[i] = float(sums[i] * std::sqrt(inverse_correlation[i] / norms[i]));
     });
 }
