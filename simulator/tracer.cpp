@@ -687,6 +687,10 @@ class LineTracer {
     // those. False if the particle ended.
     bool uniform_run(Batch<Dim>& b, int k) {
         if (!uniform_runs_ || b.in_interface[k] != kOutside) return true;
+        // Most steps in a textured medium (the head) are not in a uniform block: leave
+        // before loading and storing back the particle's state (Colin27 2D: +15 % steps/s).
+        const Texel* first = map_.uniform_block(b.position[k]);
+        if (first == nullptr || first->refractive_index != b.previous_index[k]) return true;
         // The particle's state in locals (registers) for the run, written back at its end.
         const float s = step_mm_;
         const V r = b.direction[k];
