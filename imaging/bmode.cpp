@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 
 #include "tissue/acoustic_map.h"
+#include "tissue/fast_math.h"
 #include "tissue/hash.h"
 
 namespace sonotrace::imaging {
@@ -79,27 +80,84 @@ void smooth_box3(std::vector<std::array<double, C>>& v, double sigma,
         std::array<double, C> sum{};
         for (int i = 0; i < std::min(r, n); ++i)
             for (std::size_t c = 0; c < C; ++c) sum[c] += v[std::size_t(i)][c];
+        // The window [i - r, i + r]: the sample entering and the one leaving are
+        // combined first, so the running sum waits for one add per sample, not two.
+        const std::array<double, C> none{};
         for (int i = 0; i < n; ++i) {
             const std::size_t u = std::size_t(i);
-            if (i + r < n)
-                for (std::size_t c = 0; c < C; ++c) sum[c] += v[u + std::size_t(r)][c];
-            for (std::size_t c = 0; c < C; ++c) scratch[u][c] = sum[c] * inverse_b;
-            if (i - r >= 0)
-                for (std::size_t c = 0; c < C; ++c) sum[c] -= v[u - std::size_t(r)][c];
+            const auto& entering = i + r < n ? v[u + std::size_t(r)] : none;
+            const auto& leaving = i - r >= 0 ? v[u - std::size_t(r)] : none;
+            for (std::size_t c = 0; c < C; ++c) {
+                scratch[u][c] = (sum[c] + entering[c]) * inverse_b;
+                sum[c] += entering[c] - leaving[c];
+            }
         }
         v.swap(scratch);
     }
 }
 
-// out[i] = amplitude[i] * the field at lattice point (x, y, z)[i]. The hot loop of the
-// speckle: built for AVX2 and for the baseline, picked at load time (IEEE operations in
-// the same order, no FMA in either: the same numbers either way).
-[[gnu::target_clones("avx2", "default")]] void field_values(uint32_t seed, const float* x,
-                                                            const float* y, const float* z,
-                                                            const float* amplitude, int n,
-                                                            float* out) {
-    for (int i = 0; i < n; ++i)
-        out[i] = amplitude[i] * ScattererField::at_lattice_float(seed, x[i], y[i], z[i]);
+// One sub-line of the speckle: the point a fraction f of the way from line a's mean
+// position to line b's (lattice units), lit by the blend of their intensities;
+// out[i] = sqrt(lit) * the field there. The hot loop of the speckle: built for AVX2 and
+// for the baseline, picked at load time (IEEE operations in the same order, no FMA in
+// either: the same numbers either way).
+struct SubLineEnds {
+    const float *ax, *ay, *az, *bx, *by, *bz;  // lattice positions on lines a and b
+    const float *lit_a, *lit_b;                // intensities of lines a and b
+};
+[[gnu::target_clones("avx2", "default")]] void field_values(uint32_t seed, const SubLineEnds& e,
+                                                            float f, int n, float* __restrict out) {
+    // Restrict-qualified locals: with eight inputs GCC gives up checking overlaps at run
+    // time and leaves the loop scalar.
+    const float* __restrict ax = e.ax;
+    const float* __restrict ay = e.ay;
+    const float* __restrict az = e.az;
+    const float* __restrict bx = e.bx;
+    const float* __restrict by = e.by;
+    const float* __restrict bz = e.bz;
+    const float* __restrict lit_a = e.lit_a;
+    const float* __restrict lit_b = e.lit_b;
+    for (int i = 0; i < n; ++i) {
+        const float x = ax[i] + f * (bx[i] - ax[i]);
+        const float y = ay[i] + f * (by[i] - ay[i]);
+        const float z = az[i] + f * (bz[i] - az[i]);
+        const float amplitude = std::sqrt((1.0f - f) * lit_a[i] + f * lit_b[i]);
+        out[i] = amplitude * ScattererField::at_lattice_float(seed, x, y, z);
+    }
+}
+
+// One line's Gaussian sums across its sub-lines, for every sample i at once:
+// sums[i] = sum over |j| <= reach[i] of g_i(j) sub[centre + j][i], norms[i] = sum of
+// g_i(j)^2, with g_i(j) = ratio[i]^(j^2) by recurrence. Sub-line rows outer, samples
+// inner: contiguous rows, loops that vectorise (per sample, an inner loop over j waited
+// for each multiply and add in turn). Terms are added in the same order as one sample at
+// a time would (j = 1, 2, ...; left, then right), so the sums are the same numbers.
+[[gnu::target_clones("avx2", "default")]] void gaussian_sums(
+    const float* __restrict sub, int n, int sub_lines, int centre, const int* __restrict reach,
+    const double* __restrict ratio, double* __restrict sums, double* __restrict norms,
+    double* __restrict g, double* __restrict q) {
+    int max_reach = 0;
+    const float* __restrict middle = sub + std::size_t(centre) * std::size_t(n);
+    for (int i = 0; i < n; ++i) {
+        sums[i] = double(middle[i]), norms[i] = 1.0, g[i] = 1.0, q[i] = ratio[i];
+        max_reach = std::max(max_reach, reach[i]);
+    }
+    for (int j = 1; j <= max_reach; ++j) {
+        const bool has_left = centre - j >= 0, has_right = centre + j < sub_lines;
+        const float* __restrict left =
+            sub + std::size_t(has_left ? centre - j : 0) * std::size_t(n);
+        const float* __restrict right =
+            sub + std::size_t(has_right ? centre + j : 0) * std::size_t(n);
+        for (int i = 0; i < n; ++i) {
+            const double gi = g[i] * q[i];
+            g[i] = gi, q[i] *= ratio[i] * ratio[i];
+            const double on = j <= reach[i] ? gi : 0.0;  // past the reach: adds +0
+            double sum = sums[i], norm = norms[i];
+            if (has_left) sum += on * double(left[i]), norm += on * on;
+            if (has_right) sum += on * double(right[i]), norm += on * on;
+            sums[i] = sum, norms[i] = norm;
+        }
+    }
 }
 
 // The speckle term of every line (see the header): the scatter profile smoothed over a
@@ -107,7 +165,7 @@ void smooth_box3(std::vector<std::array<double, C>>& v, double sigma,
 // each line's Gaussian sum across its beam.
 void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& profile,
                    const MapToWorld& to_world, const ImagingSettings& settings, const LineData& rf,
-                   std::vector<float>& speckle) {
+                   float* speckle) {
     const int L = rf.lines, N = rf.samples;
     const double fs = rf.fs_hz;
     const Pulse pulse{t.frequency_mhz * 1e6, t.bandwidth};
@@ -126,14 +184,21 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     // Per line and sample: intensity w, mean position, variance across the line, from
     // moments S0 = w, S1 = w d, S2 = w (var + d_across^2) smoothed along the line, with
     // d the offset from the nominal point (small numbers: no cancellation).
+    // Uninitialised: each line's task writes its whole row (zero-filling ~6 MB first
+    // was a serial millisecond per frame).
     const std::size_t size = std::size_t(L) * std::size_t(N);
-    std::vector<double> w(size, 0.0), across_var(size, 0.0);
-    std::vector<glm::dvec2> mean(size, glm::dvec2(0.0));
+    const auto w = std::make_unique_for_overwrite<double[]>(size);
+    const auto across_var = std::make_unique_for_overwrite<double[]>(size);
+    const auto mean = std::make_unique_for_overwrite<glm::dvec2[]>(size);
     const int profile_lines = std::min(L, profile.lines);
-    tbb::parallel_for(0, profile_lines, [&](int l) {
+    tbb::parallel_for(0, L, [&](int l) {
+        const std::size_t row = std::size_t(l) * std::size_t(N);
+        std::fill_n(w.get() + row, N, 0.0);
+        std::fill_n(across_var.get() + row, N, 0.0);
+        std::fill_n(mean.get() + row, N, glm::dvec2(0.0));
+        if (l >= profile_lines) return;
         const ScanLine line = geometry.line(l);
         const glm::dvec2 across(-line.direction.y, line.direction.x);
-        const std::size_t row = std::size_t(l) * std::size_t(N);
         std::vector<std::array<double, 4>> m(std::size_t(N), std::array<double, 4>{}), scratch;
         double peak = 0.0;
         for (int i = 0; i < N; ++i) {
@@ -176,7 +241,9 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     const int K = std::clamp(
         int(std::ceil(widest_gap / (narrowest_sigma * settings.sub_line_sigmas))), 1, 32);
     const int sub_lines = std::max(L - 1, 0) * K + 1;
-    std::vector<float> sub(std::size_t(sub_lines) * std::size_t(N), 0.0f);
+    // Every sub-line is written whole by its gap's task below.
+    const auto sub =
+        std::make_unique_for_overwrite<float[]>(std::size_t(sub_lines) * std::size_t(N));
     // Per gap between lines l and l + 1: both ends in lattice units and their intensities
     // (once; to_lattice is affine, so each sub-line is a linear blend of the ends), then
     // per sub-line the blend, the amplitude and the field in loops that vectorise.
@@ -204,20 +271,15 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             ends[3][u] = float(pb.x), ends[4][u] = float(pb.y), ends[5][u] = float(pb.z);
             lit_a[u] = float(w[at]), lit_b[u] = float(w[next]);
         }
-        std::vector<float> px(n), py(n), pz(n), amplitude(n);
+        const SubLineEnds sub_line_ends{ends[0].data(), ends[1].data(), ends[2].data(),
+                                        ends[3].data(), ends[4].data(), ends[5].data(),
+                                        lit_a.data(),   lit_b.data()};
         // The last gap ends on the last line; a single line is its own one sub-line.
         const int last_k = L == 1 ? 0 : (l == gaps - 1 ? K : K - 1);
         for (int k = 0; k <= last_k; ++k) {
             const int s = std::min(l * K + k, sub_lines - 1);
             const float f = float(k) / float(K);
-            for (std::size_t u = 0; u < n; ++u) {
-                px[u] = ends[0][u] + f * (ends[3][u] - ends[0][u]);
-                py[u] = ends[1][u] + f * (ends[4][u] - ends[1][u]);
-                pz[u] = ends[2][u] + f * (ends[5][u] - ends[2][u]);
-                amplitude[u] = std::sqrt((1.0f - f) * lit_a[u] + f * lit_b[u]);
-            }
-            field_values(field.seed(), px.data(), py.data(), pz.data(), amplitude.data(), N,
-                         sub.data() + std::size_t(s) * n);
+            field_values(field.seed(), sub_line_ends, f, N, sub.get() + std::size_t(s) * n);
         }
     });
 
@@ -235,7 +297,7 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
         double receive_sigma, d_sub, inverse_d_sub;
     };
     std::vector<AtDepth> at_depth(static_cast<std::size_t>(N));
-    std::vector<double> inverse_correlation(static_cast<std::size_t>(N));
+    std::vector<float> inverse_correlation(static_cast<std::size_t>(N));
     for (int i = 0; i < N; ++i) {
         const double d = depth[std::size_t(i)];
         AtDepth& a = at_depth[std::size_t(i)];
@@ -244,14 +306,14 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
         a.d_sub = std::max(geometry.line_spacing_mm(d), 1e-6) / K;
         a.inverse_d_sub = 1.0 / a.d_sub;
         inverse_correlation[std::size_t(i)] =
-            1.0 / (lattice_correlation_sum(a.d_sub / cell) * axial_correlation);
+            float(1.0 / (lattice_correlation_sum(a.d_sub / cell) * axial_correlation));
     }
     tbb::parallel_for(0, L, [&](int l) {
         // Per sample: the beam's width, reach and Gaussian ratio in loops without
         // branches (they vectorise; inline, each sample waited for its root, division and
         // exponential in turn), then the sums, then the normalisation.
         const std::size_t n = std::size_t(N), row = std::size_t(l) * n;
-        std::vector<double> sums(n, 0.0), norms(n, 1.0), ratio(n);
+        std::vector<double> sums(n), norms(n), ratio(n), g(n), q(n);
         std::vector<int> reach(n);
         for (std::size_t i = 0; i < n; ++i) {
             const AtDepth& a = at_depth[i];
@@ -262,29 +324,14 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             reach[i] = std::min(whole + int(double(whole) < span), 8 * K);  // ceil
             ratio[i] = -0.5 * (a.d_sub / sigma_g) * (a.d_sub / sigma_g);
         }
-        for (std::size_t i = 0; i < n; ++i) ratio[i] = std::exp(ratio[i]);
-        for (int i = 0; i < N; ++i) {
-            const std::size_t at = row + std::size_t(i);
-            if (!(w[at] > 0.0)) continue;
-            auto value = [&](int s) {
-                return double(sub[std::size_t(s) * std::size_t(N) + std::size_t(i)]);
-            };
-            // Gaussian weights by recurrence: g(j) = exp(-alpha j^2) = g(j-1) exp(-alpha (2j-1)).
-            double sum = value(l * K), norm = 1.0, g = 1.0, q = ratio[std::size_t(i)];
-            const double q_step = q * q;
-            for (int j = 1; j <= reach[std::size_t(i)]; ++j, q *= q_step) {
-                g *= q;
-                for (const int s : {l * K - j, l * K + j}) {
-                    if (s < 0 || s >= sub_lines) continue;
-                    sum += g * value(s);
-                    norm += g * g;
-                }
-            }
-            sums[std::size_t(i)] = sum, norms[std::size_t(i)] = norm;
-        }
-        float* out = speckle.data() + row;
-        for (std::size_t i = 0; i < n; ++i)
-            out[i] = float(sums[i] * std::sqrt(inverse_correlation[i] / norms[i]));
+        for (std::size_t i = 0; i < n; ++i) ratio[i] = double(tissue::exp_float(float(ratio[i])));
+        gaussian_sums(sub.get(), N, sub_lines, l * K, reach.data(), ratio.data(), sums.data(),
+                      norms.data(), g.data(), q.data());
+        float* out = speckle + row;
+        for (std::size_t i = 0; i < n; ++i)  // nothing where the line has no echo
+            out[i] = w[row + i] > 0.0
+                         ? float(sums[i]) * std::sqrt(inverse_correlation[i] / float(norms[i]))
+                         : 0.0f;
     });
 }
 
@@ -405,76 +452,94 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     for (std::size_t s = 0; s < sources.size(); ++s) {
         if (sources[s].line < uint32_t(L)) of_line[sources[s].line].push_back(uint32_t(s));
     }
-
-    // -- reflections: intensity per line and sample bin, with its intensity-weighted
-    // echo time (the pulse goes there exactly: a split between samples 1/(4 f0) apart
-    // would add two pulses a quarter period out of phase)
-    std::vector<double> reflected(std::size_t(L) * std::size_t(N), 0.0),
-        reflected_time(reflected.size(), 0.0);
+    // The reflection events of each line, in their order (a counting sort): lines are
+    // then independent, and run in parallel.
+    std::vector<uint32_t> event_start(std::size_t(L) + 1, 0), event_order;
     for (const auto& e : events) {
-        if (e.kind == simulator::EchoKind::scatter || e.line >= uint32_t(L)) continue;
-        const auto& line = of_line[e.line];
-        if (e.particle >= line.size()) continue;
-        const auto& source = sources[line[e.particle]];
-        double intensity = double(e.energy) * e.weight * source.receive_weight;
-        double echo_time = e.time_s;  // the particle came back itself: the full round trip
-        if (e.kind != simulator::EchoKind::returned_to_probe) {
-            echo_time = 2.0 * e.time_s;  // monostatic estimate: twice the one-way time
-            intensity *=
-                double(e.energy) / std::max(double(source.energy), 1e-30) * double(e.return_weight);
-            // Of the reflected energy, the share that returns into the receive aperture
-            // (dynamic receive at the F-number, at most the array) seen from the event.
-            const double range_mm = std::max(e.time_s * kC0 * 1e3, 1e-3);
-            const double aperture = std::min(t.array_length_mm(), range_mm / t.f_number);
-            intensity *= reflection_back_fraction(e.cos_incidence, e.lobe_exponent,
-                                                  std::atan(0.5 * aperture / range_mm));
-            // Dynamic receive focusing: the receive beam of the line at the event's range
-            // (intensity FWHM lambda F#_rx, as the speckle's) weights an echo by how far
-            // the event lies across the beam. Without it every line whose wide transmit
-            // beam grazes a strong target would show it: streaks beyond the focus. By
-            // reciprocity the receive beam bends as the transmit beam does, so it is
-            // centred on the transmit beam's centroid at that echo time (the scatter
-            // profile), or on the straight line where the profile is empty.
-            const ScanLine axis = geometry.line(int(e.line));
-            const double bin = echo_time * fs;
-            glm::dvec2 centre = to_world.face_in_map + axis.origin + axis.direction * range_mm;
-            if (int(e.line) < profile.lines && bin >= 0.0 && bin < double(profile.bins)) {
-                const std::size_t at =
-                    std::size_t(e.line) * std::size_t(profile.bins) + std::size_t(bin);
-                if (profile.intensity[at] > 0.0f) centre = glm::dvec2(profile.position[at]);
-            }
-            const glm::dvec2 q = glm::dvec2(e.position) - centre;
-            const double across = q.x * axis.direction.y - q.y * axis.direction.x;
-            const double sigma = t.wavelength_mm() * (range_mm / aperture) / kFwhmPerSigma;
-            intensity *= std::exp(-0.5 * across * across / (sigma * sigma));
+        if (e.kind != simulator::EchoKind::scatter && e.line < uint32_t(L))
+            event_start[e.line + 1]++;
+    }
+    for (int l = 0; l < L; ++l) event_start[std::size_t(l) + 1] += event_start[std::size_t(l)];
+    event_order.resize(event_start.back());
+    {
+        std::vector<uint32_t> next(event_start.begin(), event_start.end() - 1);
+        for (std::size_t n = 0; n < events.size(); ++n) {
+            const auto& e = events[n];
+            if (e.kind != simulator::EchoKind::scatter && e.line < uint32_t(L))
+                event_order[next[e.line]++] = uint32_t(n);
         }
-        const double position = echo_time * fs;
-        if (!(position >= 0.0) || position >= double(N - 1)) continue;
-        const std::size_t at = std::size_t(e.line) * std::size_t(N) + std::size_t(position);
-        reflected[at] += intensity;
-        reflected_time[at] += intensity * position;
     }
 
     // -- speckle (header)
-    std::vector<float> speckle(std::size_t(L) * std::size_t(N), 0.0f);
-    if (settings.speckle && profile.lines > 0 && profile.bins == N &&
-        profile.covariance.size() == profile.intensity.size()) {
-        speckle_lines(t, profile, to_world, settings, rf, speckle);
-    }
+    const bool with_speckle = settings.speckle && profile.lines > 0 && profile.bins == N &&
+                              profile.covariance.size() == profile.intensity.size();
+    const std::size_t size = std::size_t(L) * std::size_t(N);
+    const auto speckle = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
+    if (with_speckle) speckle_lines(t, profile, to_world, settings, rf, speckle.get());
 
-    // -- RF: speckle (*) pulse, plus a pulse at each reflection bin's echo time
+    // -- RF per line: speckle (*) pulse, plus a pulse at each reflection bin's echo time
     const int half = int(std::ceil(4.0 * pulse.sigma_s() * fs));
     std::vector<float> taps(std::size_t(2 * half + 1));
     for (int i = -half; i <= half; ++i) taps[std::size_t(i + half)] = float(pulse(i / fs));
-    rf.values.assign(std::size_t(L) * std::size_t(N), 0.0f);
+    rf.values.resize(size);
     tbb::parallel_for(0, L, [&](int l) {
+        // Reflections: intensity per sample bin, with its intensity-weighted echo time
+        // (the pulse goes there exactly: a split between samples 1/(4 f0) apart would add
+        // two pulses a quarter period out of phase).
+        std::vector<double> reflected(std::size_t(N), 0.0), reflected_time(std::size_t(N), 0.0);
+        const auto& line = of_line[std::size_t(l)];
+        const ScanLine axis = geometry.line(l);
+        for (uint32_t n = event_start[std::size_t(l)]; n < event_start[std::size_t(l) + 1]; ++n) {
+            const auto& e = events[event_order[n]];
+            if (e.particle >= line.size()) continue;
+            const auto& source = sources[line[e.particle]];
+            double intensity = double(e.energy) * e.weight * source.receive_weight;
+            double echo_time = e.time_s;  // the particle came back itself: the full round trip
+            if (e.kind != simulator::EchoKind::returned_to_probe) {
+                echo_time = 2.0 * e.time_s;  // monostatic estimate: twice the one-way time
+                intensity *= double(e.energy) / std::max(double(source.energy), 1e-30) *
+                             double(e.return_weight);
+                // Of the reflected energy, the share that returns into the receive aperture
+                // (dynamic receive at the F-number, at most the array) seen from the event.
+                const double range_mm = std::max(e.time_s * kC0 * 1e3, 1e-3);
+                const double aperture = std::min(t.array_length_mm(), range_mm / t.f_number);
+                intensity *= reflection_back_fraction(e.cos_incidence, e.lobe_exponent,
+                                                      std::atan(0.5 * aperture / range_mm));
+                // Dynamic receive focusing: the receive beam of the line at the event's
+                // range (intensity FWHM lambda F#_rx, as the speckle's) weights an echo by
+                // how far the event lies across the beam. Without it every line whose wide
+                // transmit beam grazes a strong target would show it: streaks beyond the
+                // focus. By reciprocity the receive beam bends as the transmit beam does,
+                // so it is centred on the transmit beam's centroid at that echo time (the
+                // scatter profile), or on the straight line where the profile is empty.
+                const double bin = echo_time * fs;
+                glm::dvec2 centre = to_world.face_in_map + axis.origin + axis.direction * range_mm;
+                if (l < profile.lines && bin >= 0.0 && bin < double(profile.bins)) {
+                    const std::size_t at =
+                        std::size_t(l) * std::size_t(profile.bins) + std::size_t(bin);
+                    if (profile.intensity[at] > 0.0f) centre = glm::dvec2(profile.position[at]);
+                }
+                const glm::dvec2 q = glm::dvec2(e.position) - centre;
+                const double across = q.x * axis.direction.y - q.y * axis.direction.x;
+                const double sigma = t.wavelength_mm() * (range_mm / aperture) / kFwhmPerSigma;
+                intensity *= std::exp(-0.5 * across * across / (sigma * sigma));
+            }
+            const double position = echo_time * fs;
+            if (!(position >= 0.0) || position >= double(N - 1)) continue;
+            reflected[std::size_t(position)] += intensity;
+            reflected_time[std::size_t(position)] += intensity * position;
+        }
+
         const std::size_t row = std::size_t(l) * std::size_t(N);
         float* out = rf.values.data() + row;
-        convolve(speckle.data() + row, N, taps, out);
+        if (with_speckle)
+            convolve(speckle.get() + row, N, taps, out);
+        else
+            std::fill_n(out, N, 0.0f);
         for (int i = 0; i < N; ++i) {
-            const double intensity = reflected[row + std::size_t(i)];
+            const double intensity = reflected[std::size_t(i)];
             if (!(intensity > 0.0)) continue;
-            const double at = reflected_time[row + std::size_t(i)] / intensity;  // samples
+            const double at = reflected_time[std::size_t(i)] / intensity;  // samples
             const double amplitude = std::sqrt(intensity);
             const int lo = std::max(0, int(std::ceil(at - half))),
                       hi = std::min(N - 1, int(std::floor(at + half)));

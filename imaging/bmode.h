@@ -28,6 +28,7 @@
 #include "probe/source_particle.h"
 #include "probe/transducer.h"
 #include "simulator/records.h"
+#include "tissue/fast_math.h"
 
 namespace sonotrace::imaging {
 
@@ -143,16 +144,11 @@ class ScattererField {
     // The same in single precision, for batches (cells up to 2^24 from the origin: the
     // lattice spans at most a few thousand cells).
     static float at_lattice_float(uint32_t seed, float x, float y, float z) {
-        const int32_t ix = floor_int(x), iy = floor_int(y), iz = floor_int(z);
+        const int32_t ix = tissue::floor_to_int(x), iy = tissue::floor_to_int(y),
+                      iz = tissue::floor_to_int(z);
         const uint32_t key =
             seed + uint32_t(ix) * kSpreadI + uint32_t(iy) * kSpreadJ + uint32_t(iz) * kSpreadK;
         return blend(key, x - float(ix), y - float(iy), z - float(iz));
-    }
-    // floor(x) as an integer by truncation and a correction: unlike std::floor, GCC
-    // vectorises it without -fno-trapping-math (std::floor left field_values scalar).
-    static int32_t floor_int(float x) {
-        const int32_t t = int32_t(x);
-        return t - int32_t(x < float(t));
     }
     uint32_t seed() const { return seed_; }
     // Trilinear blend of the cell's 8 corner values at fractions (fx, fy, fz). Plain

@@ -1,0 +1,38 @@
+// tissue/fast_math.h against libm: floor over integers, halves and negatives; exp over
+// its whole range within the stated relative error.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "tissue/fast_math.h"
+
+namespace sonotrace::tissue {
+namespace {
+
+TEST(FastMath, FloorToIntMatchesFloor) {
+    for (float x : {-3.0f, -2.5f, -1.0f, -0.75f, -1e-7f, 0.0f, 1e-7f, 0.5f, 1.0f, 2.999f, 1e6f,
+                    -1e6f - 0.5f}) {
+        EXPECT_EQ(floor_to_int(x), int32_t(std::floor(x))) << x;
+    }
+    for (int i = -4000; i <= 4000; ++i) {
+        const float x = float(i) * 0.37f;
+        ASSERT_EQ(floor_to_int(x), int32_t(std::floor(x))) << x;
+    }
+}
+
+TEST(FastMath, ExpWithinStatedRelativeError) {
+    double worst = 0.0;
+    for (int i = 0; i <= 200000; ++i) {
+        const float x = -87.0f + 175.0f * float(i) / 200000.0f;
+        const double exact = std::exp(double(x));
+        worst = std::max(worst, std::abs(double(exp_float(x)) - exact) / exact);
+    }
+    EXPECT_LT(worst, 2e-7);
+    EXPECT_EQ(exp_float(0.0f), 1.0f);
+    // Clamped outside [-87, 88]: finite and positive, no overflow into infinity.
+    EXPECT_GT(exp_float(-1000.0f), 0.0f);
+    EXPECT_TRUE(std::isfinite(exp_float(1000.0f)));
+}
+
+}  // namespace
+}  // namespace sonotrace::tissue
