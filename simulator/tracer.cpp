@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -63,16 +64,24 @@ struct RandomStream {
     }
 };
 
+// One bin of a line's echo profile: intensity w and its moments, in double (the spread
+// across the beam is a small difference of large second moments). One record per bin: a
+// step updates one cache line, not three.
+template <int Dim>
+struct ProfileBin {
+    static constexpr int kPairs = Dim * (Dim + 1) / 2;  // the upper triangle of x x^T
+    double weight;
+    std::array<double, Dim> first;      // sum of w x
+    std::array<double, kPairs> second;  // sum of w x_a x_b, a <= b
+};
+
 // Everything one scan line produces; lines are merged in order afterwards.
 template <int Dim>
 struct LineOutput {
     std::vector<EchoEvent<Dim>> echoes;
     std::vector<Path<Dim>> paths;
     std::vector<double> ring;
-    std::vector<float> profile;  // echo profile bins of this line
-    // Per bin, in double: the spread is a small difference of large second moments.
-    std::vector<glm::vec<Dim, double>> profile_moment;       // intensity * position
-    std::vector<glm::mat<Dim, Dim, double>> profile_second;  // intensity * position position^T
+    std::vector<ProfileBin<Dim>> profile;  // echo profile bins of this line
     EnergyLedger ledger;
     TraceStats stats;
 };
@@ -148,6 +157,8 @@ class LineTracer {
         scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
         profile_enabled_ = settings.echo_profile.has_value();
         if (profile_enabled_) inverse_profile_bin_ = 1.0 / settings.echo_profile->bin_s;
+        profile_scale_ = float(settings.scattering_rate_per_mm) * step_mm_ *
+                         float(settings.scatter_echo_fraction);
         threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
         follow_reflections_above_ = float(settings.follow_reflections_above);
         // At least 4 texels: central differences and interpolation spread even a one-texel
@@ -175,9 +186,7 @@ class LineTracer {
         out_ = &out;
         if (settings_.ring) out.ring.assign(std::size_t(settings_.ring->bins), 0.0);
         if (settings_.echo_profile) {
-            out.profile.assign(std::size_t(settings_.echo_profile->bins), 0.0f);
-            out.profile_moment.assign(out.profile.size(), glm::vec<Dim, double>(0.0));
-            out.profile_second.assign(out.profile.size(), glm::mat<Dim, Dim, double>(0.0));
+            out.profile.assign(std::size_t(settings_.echo_profile->bins), ProfileBin<Dim>{});
         }
         Batch<Dim> batch;
         std::size_t next = begin;
@@ -244,14 +253,18 @@ class LineTracer {
         if (!(echo_time >= 0.0)) return;
         const double bin = echo_time * inverse_profile_bin_;
         if (bin >= double(out_->profile.size())) return;
-        const float rate = float(settings_.scattering_rate_per_mm) * backscatter * step_mm_;
-        const float fraction = float(settings_.scatter_echo_fraction) * backscatter;
+        // rate * step * echo fraction, each proportional to the backscatter
+        const float scattered = profile_scale_ * backscatter * backscatter;
         const float two_way = E / b.initial_energy[k] * b.return_factor[k];
-        const float intensity = E * rate * fraction * two_way * b.receive_weight[k];
-        out_->profile[std::size_t(bin)] += intensity;
-        const glm::vec<Dim, double> xd(x);
-        out_->profile_moment[std::size_t(bin)] += double(intensity) * xd;
-        out_->profile_second[std::size_t(bin)] += glm::outerProduct(double(intensity) * xd, xd);
+        const double intensity = double(E * scattered * two_way * b.receive_weight[k]);
+        ProfileBin<Dim>& p = out_->profile[std::size_t(bin)];
+        p.weight += intensity;
+        int pair = 0;
+        for (int a = 0; a < Dim; ++a) {
+            const double wx = intensity * double(x[a]);
+            p.first[std::size_t(a)] += wx;
+            for (int c = a; c < Dim; ++c) p.second[std::size_t(pair++)] += wx * double(x[c]);
+        }
     }
 
     void flush_deposits(Batch<Dim>& b, int k) {
@@ -838,6 +851,7 @@ class LineTracer {
     float threshold2_ = 0.0f, inverse_texel2_ = 1.0f, follow_reflections_above_ = 0.0f;
     int plateau_steps_ = 16;
     double inverse_profile_bin_ = 0.0;
+    float profile_scale_ = 0.0f;
     DepositMaps* deposits_ = nullptr;
     LineOutput<Dim>* out_ = nullptr;
     uint32_t line_ = 0;
@@ -928,15 +942,22 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
             const std::size_t row =
                 std::size_t(sources[order[starts[l]]].line) * std::size_t(p.bins);
             for (int i = 0; i < p.bins; ++i) {
-                const float w = outputs[l].profile[std::size_t(i)];
-                p.intensity[row + std::size_t(i)] = w;
-                if (!(w > 0.0f)) continue;
-                const glm::vec<Dim, double> mean =
-                    outputs[l].profile_moment[std::size_t(i)] / double(w);
-                p.position[row + std::size_t(i)] = Vec<Dim>(mean);
-                p.covariance[row + std::size_t(i)] = glm::mat<Dim, Dim, float>(
-                    outputs[l].profile_second[std::size_t(i)] / double(w) -
-                    glm::outerProduct(mean, mean));
+                const ProfileBin<Dim>& bin = outputs[l].profile[std::size_t(i)];
+                const std::size_t at = row + std::size_t(i);
+                p.intensity[at] = float(bin.weight);
+                if (!(bin.weight > 0.0)) continue;
+                const double inverse_w = 1.0 / bin.weight;
+                glm::vec<Dim, double> mean;
+                for (int a = 0; a < Dim; ++a) mean[a] = bin.first[std::size_t(a)] * inverse_w;
+                p.position[at] = Vec<Dim>(mean);
+                int pair = 0;
+                for (int a = 0; a < Dim; ++a) {
+                    for (int c = a; c < Dim; ++c) {
+                        const float v =
+                            float(bin.second[std::size_t(pair++)] * inverse_w - mean[a] * mean[c]);
+                        p.covariance[at][a][c] = p.covariance[at][c][a] = v;
+                    }
+                }
             }
         });
     }
