@@ -1,8 +1,12 @@
 #include "imaging/simulation.h"
 
+#include <tbb/parallel_for.h>
+
 #include <chrono>
 #include <cmath>
 #include <iterator>
+#include <numeric>
+#include <vector>
 
 #include "probe/placement.h"
 #include "tissue/error.h"
@@ -186,33 +190,34 @@ std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::Tran
             maps.fields[f].at(i, j, k) = t.properties.values[f];
         if (labels) labels->at(i, j, k) = float(tissue::tissue_label_of(std::string(t.key)));
     };
-    std::size_t changed = 0;
+    // Rows in parallel (each sample reads and writes only itself); counts summed after.
     const glm::ivec3 n = grid.dims;
-    for (int k = 0; k < n.z; ++k) {
-        for (int j = 0; j < n.y; ++j) {
-            for (int i = 0; i < n.x; ++i) {
-                const glm::dvec3 p = grid.index_to_world(glm::dvec3(i, j, k));
-                if (std::abs(p.x - 0.5) < 0.75 && p.z > 34.0 && is_brain_or_csf(i, j, k)) {
-                    set(i, j, k, dura);
+    std::vector<std::size_t> changed_in_row(std::size_t(n.y) * std::size_t(n.z), 0);
+    tbb::parallel_for(0, n.y * n.z, [&](int row) {
+        const int j = row % n.y, k = row / n.y;
+        std::size_t& changed = changed_in_row[std::size_t(row)];
+        for (int i = 0; i < n.x; ++i) {
+            const glm::dvec3 p = grid.index_to_world(glm::dvec3(i, j, k));
+            if (std::abs(p.x - 0.5) < 0.75 && p.z > 34.0 && is_brain_or_csf(i, j, k)) {
+                set(i, j, k, dura);
+                ++changed;
+                continue;
+            }
+            const double ax = std::abs(p.x);
+            if (ax > 3.0 && ax < 22.0 && p.y > -45.0 && p.y < -5.0 && p.z > 8.0 && p.z < 26.0 &&
+                is_csf(maps, i, j, k)) {
+                // The floor: the head 2.5 mm lower is tissue, not CSF.
+                const glm::dvec3 below = p - glm::dvec3(0.0, 0.0, 2.5);
+                const float v =
+                    head.sample_trilinear(head.geometry().world_to_index(below), outside);
+                if (tf.tissue_label(v) == brain) {
+                    set(i, j, k, plexus);
                     ++changed;
-                    continue;
-                }
-                const double ax = std::abs(p.x);
-                if (ax > 3.0 && ax < 22.0 && p.y > -45.0 && p.y < -5.0 && p.z > 8.0 && p.z < 26.0 &&
-                    is_csf(maps, i, j, k)) {
-                    // The floor: the head 2.5 mm lower is tissue, not CSF.
-                    const glm::dvec3 below = p - glm::dvec3(0.0, 0.0, 2.5);
-                    const float v =
-                        head.sample_trilinear(head.geometry().world_to_index(below), outside);
-                    if (tf.tissue_label(v) == brain) {
-                        set(i, j, k, plexus);
-                        ++changed;
-                    }
                 }
             }
         }
-    }
-    return changed;
+    });
+    return std::accumulate(changed_in_row.begin(), changed_in_row.end(), std::size_t(0));
 }
 
 tissue::AcousticProperties saline() {

@@ -1,5 +1,6 @@
 #include "tissue/acoustic_map.h"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <cstring>
@@ -54,9 +55,10 @@ template <int Dim>
 AcousticMap<Dim> AcousticMap<Dim>::build(const PropertyMaps& maps) {
     Volume refractive_index(maps.geometry());
     const auto& speed = maps[Property::speed_of_sound].voxels();
-    for (std::size_t v = 0; v < speed.size(); ++v) {
-        refractive_index.voxels()[v] = float(kReferenceSpeed / speed[v]);
-    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, speed.size(), 4096), [&](const auto& r) {
+        for (std::size_t v = r.begin(); v != r.end(); ++v)
+            refractive_index.voxels()[v] = float(kReferenceSpeed / speed[v]);
+    });
     return pack(refractive_index, maps.impedance(), &maps[Property::attenuation],
                 &maps[Property::backscatter], &maps[Property::scatterer_density],
                 &maps[Property::roughness]);

@@ -9,7 +9,10 @@ Volume PropertyMaps::impedance() const {
     Volume z(geometry());
     const auto& c = (*this)[Property::speed_of_sound].voxels();
     const auto& rho = (*this)[Property::density].voxels();
-    for (std::size_t n = 0; n < z.size(); ++n) z.voxels()[n] = float(double(c[n]) * rho[n] * 1e-6);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, z.size(), 4096), [&](const auto& r) {
+        for (std::size_t n = r.begin(); n != r.end(); ++n)
+            z.voxels()[n] = float(double(c[n]) * rho[n] * 1e-6);
+    });
     return z;
 }
 
