@@ -1,4 +1,4 @@
-// tissue/fast_math.h against libm: floor over integers, halves and negatives; exp over
+// tissue/fast_math.h against libm: floor and ceil over integers, halves and negatives; exp over
 // its whole range within the stated relative error.
 #include <gtest/gtest.h>
 
@@ -9,14 +9,16 @@
 namespace sonotrace::tissue {
 namespace {
 
-TEST(FastMath, FloorToIntMatchesFloor) {
+TEST(FastMath, FloorAndCeilToIntMatchLibm) {
     for (float x : {-3.0f, -2.5f, -1.0f, -0.75f, -1e-7f, 0.0f, 1e-7f, 0.5f, 1.0f, 2.999f, 1e6f,
                     -1e6f - 0.5f}) {
         EXPECT_EQ(floor_to_int(x), int32_t(std::floor(x))) << x;
+        EXPECT_EQ(ceil_to_int(x), int32_t(std::ceil(x))) << x;
     }
     for (int i = -4000; i <= 4000; ++i) {
         const float x = float(i) * 0.37f;
         ASSERT_EQ(floor_to_int(x), int32_t(std::floor(x))) << x;
+        ASSERT_EQ(ceil_to_int(x), int32_t(std::ceil(x))) << x;
     }
 }
 

@@ -14,6 +14,11 @@ inline int32_t floor_to_int(float x) {
     return t - int32_t(x < float(t));
 }
 
+// ceil(x) as an integer; |x| < 2^31.
+inline int32_t ceil_to_int(float x) {
+    return -floor_to_int(-x);
+}
+
 // exp(x) in single precision, relative error < 2e-7 on [-87, 88] (clamped outside).
 // x = k ln 2 + r with |r| <= ln 2 / 2 (ln 2 in two parts, Cody-Waite, so k ln 2 is
 // exact), exp(r) by its Taylor polynomial to r^7 (remainder < 1.1e-8), 2^k from the
