@@ -112,7 +112,12 @@ glm::vec3 shade(const glm::vec3& colour, const glm::vec3& gradient, const glm::v
 }
 
 uint64_t zbuffer_entry(float depth, const glm::vec3& colour, uint32_t id) {
-    auto byte = [](float v) { return uint64_t(std::lround(glm::clamp(v, 0.0f, 1.0f) * 255.0f)); };
+    // Rounded half up, as std::lround for these non-negative values, without its call.
+    auto byte = [](float v) {
+        const float x = glm::clamp(v, 0.0f, 1.0f) * 255.0f;
+        const int whole = int(x);
+        return uint64_t(whole + int(x - float(whole) >= 0.5f));
+    };
     return uint64_t(std::bit_cast<uint32_t>(depth)) << 32 | byte(colour.x) << 24 |
            byte(colour.y) << 16 | byte(colour.z) << 8 | (id & 0xFFu);
 }
