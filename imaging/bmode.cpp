@@ -454,19 +454,19 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     }
     // The reflection events of each line, in their order (a counting sort): lines are
     // then independent, and run in parallel.
+    auto is_reflection = [L](const simulator::EchoEvent<2>& e) {
+        return e.kind != simulator::EchoKind::scatter && e.line < uint32_t(L);
+    };
     std::vector<uint32_t> event_start(std::size_t(L) + 1, 0), event_order;
     for (const auto& e : events) {
-        if (e.kind != simulator::EchoKind::scatter && e.line < uint32_t(L))
-            event_start[e.line + 1]++;
+        if (is_reflection(e)) event_start[e.line + 1]++;
     }
     for (int l = 0; l < L; ++l) event_start[std::size_t(l) + 1] += event_start[std::size_t(l)];
     event_order.resize(event_start.back());
     {
         std::vector<uint32_t> next(event_start.begin(), event_start.end() - 1);
         for (std::size_t n = 0; n < events.size(); ++n) {
-            const auto& e = events[n];
-            if (e.kind != simulator::EchoKind::scatter && e.line < uint32_t(L))
-                event_order[next[e.line]++] = uint32_t(n);
+            if (is_reflection(events[n])) event_order[next[events[n].line]++] = uint32_t(n);
         }
     }
 

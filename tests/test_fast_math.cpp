@@ -22,6 +22,10 @@ TEST(FastMath, FloorAndCeilToIntMatchLibm) {
     }
 }
 
+TEST(FastMath, PowerOfTwoMatchesLdexp) {
+    for (int k = -126; k <= 127; ++k) EXPECT_EQ(power_of_two(k), std::ldexp(1.0f, k)) << k;
+}
+
 TEST(FastMath, ExpWithinStatedRelativeError) {
     double worst = 0.0;
     for (int i = 0; i <= 200000; ++i) {

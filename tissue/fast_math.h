@@ -19,6 +19,11 @@ inline int32_t ceil_to_int(float x) {
     return -floor_to_int(-x);
 }
 
+// 2^k for k in [-126, 127] (a normal float) from the exponent bits, without a call.
+inline float power_of_two(int32_t k) {
+    return std::bit_cast<float>(uint32_t(k + 127) << 23);
+}
+
 // exp(x) in single precision, relative error < 2e-7 on [-87, 88] (clamped outside).
 // x = k ln 2 + r with |r| <= ln 2 / 2 (ln 2 in two parts, Cody-Waite, so k ln 2 is
 // exact), exp(r) by its Taylor polynomial to r^7 (remainder < 1.1e-8), 2^k from the
@@ -35,7 +40,7 @@ inline float exp_float(float x) {
     p = p * r + 0.5f;
     p = p * r + 1.0f;
     p = p * r + 1.0f;
-    return p * std::bit_cast<float>(uint32_t(k + 127) << 23);
+    return p * power_of_two(k);
 }
 
 }  // namespace sonotrace::tissue

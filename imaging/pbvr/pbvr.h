@@ -20,7 +20,6 @@
 // colour, id) entries, a total order, whatever order the threads write in, so images are
 // byte-identical on any thread count.
 #include <atomic>
-#include <bit>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -35,6 +34,7 @@
 #include "imaging/pbvr/colour_tf.h"
 #include "imaging/pbvr/sampling.h"
 #include "imaging/pbvr/tetra.h"
+#include "tissue/fast_math.h"
 #include "tissue/volume.h"
 
 namespace sonotrace::imaging::pbvr {
@@ -117,9 +117,8 @@ inline glm::vec3 RenderVolume::stored_gradient(int i, int j, int k) const {
         gradients_[(std::size_t(k) * std::size_t(geometry_.dims.y) + std::size_t(j)) *
                        std::size_t(geometry_.dims.x) +
                    std::size_t(i)];
-    // 2^e from the exponent bits (e in [-126, 127], a normal float): std::ldexp was a
-    // library call per corner, a fifth of a repetition's time.
-    const float scale = std::bit_cast<float>(uint32_t(int(int8_t(packed >> 24)) + 127) << 23);
+    // std::ldexp was a library call per corner, a fifth of a repetition's time.
+    const float scale = tissue::power_of_two(int8_t(packed >> 24));
     return glm::vec3(float(int8_t(packed)), float(int8_t(packed >> 8)),
                      float(int8_t(packed >> 16))) *
            scale;
