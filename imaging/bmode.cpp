@@ -361,9 +361,11 @@ void add_pulse(const Pulse& pulse, double at, double fs, double amplitude, int l
 }
 
 // Log compression with the dB scale folded in: clamp(scale ln(envelope) + offset, 0, 1).
+// tissue::log_float rather than std::log: the loop over a line vectorises (the call was
+// most of the stage). Infinite envelopes clamp to the largest float first.
 inline float compressed(float envelope, float scale, float offset) {
-    if (!(envelope > 0.0f)) return 0.0f;
-    return std::clamp(scale * std::log(envelope) + offset, 0.0f, 1.0f);
+    const float level = scale * tissue::log_float(std::min(envelope, 3.4e38f)) + offset;
+    return envelope > 0.0f ? std::clamp(level, 0.0f, 1.0f) : 0.0f;
 }
 float compression_scale(double dynamic_range_db) {
     return float(20.0 / std::numbers::ln10 / dynamic_range_db);  // 20 log10 x = (20 / ln 10) ln x
@@ -552,6 +554,10 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
 LineData envelope(const LineData& rf) {
     LineData env = rf;
     const int n = cv::getOptimalDFTSize(rf.samples + 64);  // padding: no wrap-around
+    // The analytic signal's real part is the RF itself; only its imaginary part, the
+    // Hilbert transform, is computed: -i times the positive frequencies (+i the negative),
+    // DC and Nyquist dropped. Its spectrum stays Hermitian, so both transforms are real
+    // (OpenCV's packed CCS rows), half the work of the complex pair.
     // Blocks of lines on the worker threads (cv::dft of DFT_ROWS runs on one).
     constexpr int kBlock = 16;
     tbb::parallel_for(0, (rf.lines + kBlock - 1) / kBlock, [&](int block) {
@@ -561,19 +567,25 @@ LineData envelope(const LineData& rf) {
             std::copy_n(rf.values.data() + std::size_t(first + l) * std::size_t(rf.samples),
                         rf.samples, lines.ptr<float>(l));
         cv::Mat spectrum;
-        cv::dft(lines, spectrum, cv::DFT_ROWS | cv::DFT_COMPLEX_OUTPUT);
-        // Analytic signal: keep DC (and Nyquist), double positive, drop negative frequencies.
+        cv::dft(lines, spectrum, cv::DFT_ROWS);
+        // CCS row: Re0, (Re_k, Im_k) for k = 1 .. (n - 1) / 2, then Re_{n/2} if n is even.
         for (int l = 0; l < count; ++l) {
-            auto* sp = spectrum.ptr<cv::Vec2f>(l);
-            for (int k = 1; k < (n + 1) / 2; ++k) sp[k] *= 2.0f;
-            for (int k = n / 2 + 1; k < n; ++k) sp[k] = cv::Vec2f(0.0f, 0.0f);
+            float* sp = spectrum.ptr<float>(l);
+            sp[0] = 0.0f;
+            for (int k = 1; k + 1 < n; k += 2) {  // (a + ib)(-i) = b - ia
+                const float re = sp[k];
+                sp[k] = sp[k + 1], sp[k + 1] = -re;
+            }
+            if (n % 2 == 0) sp[n - 1] = 0.0f;
         }
-        cv::Mat analytic;
-        cv::dft(spectrum, analytic, cv::DFT_ROWS | cv::DFT_INVERSE | cv::DFT_SCALE);
+        cv::Mat hilbert;
+        cv::dft(spectrum, hilbert,
+                cv::DFT_ROWS | cv::DFT_INVERSE | cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
         for (int l = 0; l < count; ++l) {
-            const auto* a = analytic.ptr<cv::Vec2f>(l);
-            for (int i = 0; i < rf.samples; ++i)
-                env.at(first + l, i) = std::sqrt(a[i][0] * a[i][0] + a[i][1] * a[i][1]);
+            const float* x = lines.ptr<float>(l);
+            const float* h = hilbert.ptr<float>(l);
+            float* out = env.values.data() + std::size_t(first + l) * std::size_t(rf.samples);
+            for (int i = 0; i < rf.samples; ++i) out[i] = std::sqrt(x[i] * x[i] + h[i] * h[i]);
         }
     });
     return env;
@@ -588,8 +600,11 @@ LineData compress(const LineData& envelope, const ImagingSettings& settings) {
             compression_offset(settings.gain_db + tgc_gain_db(settings.tgc, envelope.depth_mm(i)),
                                settings.dynamic_range_db);
     tbb::parallel_for(0, envelope.lines, [&](int l) {
-        for (int i = 0; i < envelope.samples; ++i)
-            out.at(l, i) = compressed(envelope.at(l, i), scale, offset[std::size_t(i)]);
+        const std::size_t row = std::size_t(l) * std::size_t(envelope.samples);
+        const float* __restrict in = envelope.values.data() + row;
+        float* __restrict to = out.values.data() + row;
+        const float* __restrict level = offset.data();
+        for (int i = 0; i < envelope.samples; ++i) to[i] = compressed(in[i], scale, level[i]);
     });
     return out;
 }

@@ -50,6 +50,39 @@ double axial_fwhm_mm(const LineData& env, int l, double* peak_depth) {
     return (crossing(1) - crossing(-1)) * (env.depth_mm(1) - env.depth_mm(0));
 }
 
+// The envelope of a Gaussian-modulated cosine A exp(-t^2 / 2 s^2) cos(w t + phi) is its
+// Gaussian, whatever the phase, to the spectral leakage of a pulse of ~7 cycles under its
+// envelope (its spectrum's Gaussian at DC is exp(-(w s)^2 / 2) < 1e-20): 1e-4 of the peak
+// bounds float rounding through two transforms. Lengths with an odd and an even padded
+// transform size.
+TEST(Bmode, EnvelopeOfAGaussianPulseIsItsGaussian) {
+    for (const int samples : {1050, 1237}) {  // transforms of 1125 and 1350
+        LineData rf;
+        rf.lines = 5, rf.samples = samples, rf.fs_hz = 40e6;
+        rf.values.assign(std::size_t(rf.lines) * std::size_t(samples), 0.0f);
+        const double f0 = 5e6, sigma = 0.35e-6, w = 2.0 * std::numbers::pi * f0;
+        auto gaussian = [&](int l, int i) {
+            const double t = (i - samples / 2 - 40 * l) / rf.fs_hz;
+            return 2.0 * std::exp(-0.5 * t * t / (sigma * sigma));
+        };
+        for (int l = 0; l < rf.lines; ++l) {
+            const double phase = 1.3 * l;
+            for (int i = 0; i < samples; ++i) {
+                const double t = (i - samples / 2 - 40 * l) / rf.fs_hz;
+                rf.at(l, i) = float(gaussian(l, i) * std::cos(w * t + phase));
+            }
+        }
+        const LineData env = imaging::envelope(rf);
+        ASSERT_EQ(env.samples, samples);
+        for (int l = 0; l < rf.lines; ++l) {
+            double worst = 0.0;
+            for (int i = 0; i < samples; ++i)
+                worst = std::max(worst, std::abs(double(env.at(l, i)) - gaussian(l, i)));
+            EXPECT_LT(worst, 2.0 * 1e-4) << "line " << l << ", " << samples << " samples";
+        }
+    }
+}
+
 // Axial FWHM of a point reflector within 20 % (issue) of the pulse's theoretical value
 // c0/2 * 2 sqrt(2 ln 2) sigma_t, sigma_t = 2 sqrt(2 ln 2) / (2 pi B f0); and at its depth.
 TEST(Bmode, PointEchoHasThePulsesAxialResolution) {

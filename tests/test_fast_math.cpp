@@ -40,5 +40,22 @@ TEST(FastMath, ExpWithinStatedRelativeError) {
     EXPECT_TRUE(std::isfinite(exp_float(1000.0f)));
 }
 
+TEST(FastMath, LogWithinStatedError) {
+    // Geometric steps (a factor no power of two divides) over the normal floats, and
+    // densely around 1 where ln x -> 0; the error relative to max(1, |ln x|).
+    double worst = 0.0;
+    auto check = [&](float x) {
+        const double exact = std::log(double(x));
+        worst = std::max(worst,
+                         std::abs(double(log_float(x)) - exact) / std::max(1.0, std::abs(exact)));
+    };
+    for (double x = 1.2e-38; x < 3e38; x *= 1.00044) check(float(x));
+    for (int i = -10000; i <= 10000; ++i) check(1.0f + float(i) * 3e-5f);
+    EXPECT_LT(worst, 1.2e-7);
+    EXPECT_EQ(log_float(1.0f), 0.0f);
+    // Below the normal range: the smallest normal's logarithm, finite.
+    EXPECT_NEAR(log_float(1e-40f), std::log(1.17549435e-38), 1e-5);
+}
+
 }  // namespace
 }  // namespace sonotrace::tissue

@@ -1,7 +1,8 @@
 #pragma once
 // Elementary functions in plain float and int32 arithmetic, so that loops over them
-// vectorise (libm's calls and std::floor do not without -ffast-math or
-// -fno-trapping-math). Same numbers whichever instruction set runs them: no FMA.
+// vectorise (libm's calls do not; the project builds with -fno-trapping-math, without
+// which float selects such as the clamps below block vectorisation too). Same numbers
+// whichever instruction set runs them: no FMA.
 #include <algorithm>
 #include <bit>
 #include <cstdint>
@@ -41,6 +42,26 @@ inline float exp_float(float x) {
     p = p * r + 1.0f;
     p = p * r + 1.0f;
     return p * power_of_two(k);
+}
+
+// ln(x) in single precision for x > 0: error below 1.2e-7 max(1, |ln x|), about an ulp
+// of the result (x below the smallest normal float is taken as it; NaN and inf are not
+// handled: callers filter them).
+// x = 2^k m with m in [sqrt(1/2), sqrt(2)) from the bits; ln m = 2 atanh(s), s = (m - 1) /
+// (m + 1), |s| <= 0.172, by its series to s^9 (remainder < 2e-9); k ln 2 in two parts.
+inline float log_float(float x) {
+    constexpr uint32_t kSqrtHalf = 0x3f3504f3;  // bits of sqrt(1/2)
+    const uint32_t u = std::bit_cast<uint32_t>(std::max(x, 1.17549435e-38f)) - kSqrtHalf;
+    const int32_t k = int32_t(u) >> 23;
+    const float m = std::bit_cast<float>((u & 0x7fffff) + kSqrtHalf);
+    const float f = m - 1.0f;
+    const float s = f / (2.0f + f), z = s * s;
+    float p = 1.0f / 9.0f;
+    p = p * z + 1.0f / 7.0f;
+    p = p * z + 1.0f / 5.0f;
+    p = p * z + 1.0f / 3.0f;
+    const float ln_m = f - s * (f - 2.0f * z * p);  // 2 s (1 + z p) = f - s (f - 2 z p)
+    return float(k) * 1.42860677e-6f + ln_m + float(k) * 0.693145752f;
 }
 
 }  // namespace sonotrace::tissue
