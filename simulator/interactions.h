@@ -47,7 +47,11 @@ inline Refraction<Dim> refract(const Vec<Dim>& r, const Vec<Dim>& normal, float 
     const float k = 1.0f - eta * eta * (1.0f - cos_i * cos_i);
     if (k < 0.0f) return {reflect<Dim>(r, facing), true, cos_i, 0.0f};
     const float cos_t = std::sqrt(k);
-    return {glm::normalize(eta * r + (eta * cos_i - cos_t) * facing), false, cos_i, cos_t};
+    // Unit length for unit r and normal; one Newton step for 1/sqrt(|t|^2) about 1 keeps
+    // the rounding of many steps from accumulating (error quadratic in |t|^2 - 1, where
+    // normalize() put a root and a division on every step's critical path).
+    const Vec<Dim> t = eta * r + (eta * cos_i - cos_t) * facing;
+    return {t * (1.5f - 0.5f * glm::dot(t, t)), false, cos_i, cos_t};
 }
 
 // Intensity fraction reflected at an interface Z1 -> Z2 at oblique incidence (eq. 10):
