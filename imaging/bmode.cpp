@@ -63,37 +63,39 @@ double lattice_correlation_sum(double u) {
     return sum;
 }
 
-// Three passes of a centred box of odd width b over C interleaved channels: a Gaussian
-// of variance (b^2 - 1) / 4 to within a few per cent (zero outside, sum 1), in O(n)
-// whatever the width. Channels side by side: one pass serves all (the four moments).
-template <std::size_t C>
-void smooth_box3(std::vector<std::array<double, C>>& v, double sigma,
-                 std::vector<std::array<double, C>>& scratch) {
-    const int n = int(v.size());
+// Three passes of a centred box of odd width b = 2r + 1 approximate a Gaussian of
+// variance (b^2 - 1) / 4 to within a few per cent (zero outside, sum 1), in O(n)
+// whatever the width. The r of a Gaussian of `sigma` samples:
+int box3_radius(double sigma) {
     int b = int(std::lround(std::sqrt(4.0 * sigma * sigma + 1.0)));
     b += 1 - b % 2;
-    const int r = b / 2;
-    if (r == 0 || n == 0) return;
-    const double inverse_b = 1.0 / b;  // a multiply, not a division, per sample
-    scratch.resize(v.size());
-    for (int pass = 0; pass < 3; ++pass) {
+    return b / 2;
+}
+
+// The three passes over n samples of C interleaved channels (one pass serves all four
+// moments). `v` and `scratch` each hold r zero samples, the n samples, r zero samples:
+// the windows read the padding beyond the ends, with no branch per sample. Returns
+// where the result's sample 0 is.
+template <std::size_t C>
+const std::array<double, C>* smooth_box3(std::array<double, C>* v, std::array<double, C>* scratch,
+                                         int n, int r) {
+    const double inverse_b = 1.0 / double(2 * r + 1);  // a multiply per sample, not a division
+    std::array<double, C>*in = v + r, *out = scratch + r;
+    for (int pass = 0; pass < 3 && r > 0; ++pass) {
         std::array<double, C> sum{};
-        for (int i = 0; i < std::min(r, n); ++i)
-            for (std::size_t c = 0; c < C; ++c) sum[c] += v[std::size_t(i)][c];
-        // The window [i - r, i + r]: the sample entering and the one leaving are
-        // combined first, so the running sum waits for one add per sample, not two.
-        const std::array<double, C> none{};
+        for (int i = 0; i < r; ++i)  // the window of sample 0 but its entering sample r
+            for (std::size_t c = 0; c < C; ++c) sum[c] += in[i][c];
+        // The sample entering and the one leaving are combined first, so the running sum
+        // waits for one add per sample, not two.
         for (int i = 0; i < n; ++i) {
-            const std::size_t u = std::size_t(i);
-            const auto& entering = i + r < n ? v[u + std::size_t(r)] : none;
-            const auto& leaving = i - r >= 0 ? v[u - std::size_t(r)] : none;
             for (std::size_t c = 0; c < C; ++c) {
-                scratch[u][c] = (sum[c] + entering[c]) * inverse_b;
-                sum[c] += entering[c] - leaving[c];
+                out[i][c] = (sum[c] + in[i + r][c]) * inverse_b;
+                sum[c] += in[i + r][c] - in[i - r][c];
             }
         }
-        v.swap(scratch);
+        std::swap(in, out);
     }
+    return in;
 }
 
 // One sub-line of the speckle: the point a fraction f of the way from line a's mean
@@ -191,41 +193,60 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     const auto across_var = std::make_unique_for_overwrite<double[]>(size);
     const auto mean = std::make_unique_for_overwrite<glm::dvec2[]>(size);
     const int profile_lines = std::min(L, profile.lines);
+    const int r = box3_radius(smooth_sigma);
+    using Moments = std::array<double, 4>;
     tbb::parallel_for(0, L, [&](int l) {
         const std::size_t row = std::size_t(l) * std::size_t(N);
-        std::fill_n(w.get() + row, N, 0.0);
-        std::fill_n(across_var.get() + row, N, 0.0);
-        std::fill_n(mean.get() + row, N, glm::dvec2(0.0));
-        if (l >= profile_lines) return;
+        double* const w_row = w.get() + row;
+        double* const var_row = across_var.get() + row;
+        glm::dvec2* const mean_row = mean.get() + row;
+        auto no_echo = [&] {
+            std::fill_n(w_row, N, 0.0);
+            std::fill_n(var_row, N, 0.0);
+            std::fill_n(mean_row, N, glm::dvec2(0.0));
+        };
+        if (l >= profile_lines) return no_echo();
         const ScanLine line = geometry.line(l);
         const glm::dvec2 across(-line.direction.y, line.direction.x);
-        std::vector<std::array<double, 4>> m(std::size_t(N), std::array<double, 4>{}), scratch;
+        // The moments and the smoothing's scratch, each padded by r zeros at both ends.
+        const std::size_t padded = std::size_t(N + 2 * r);
+        const auto buffer = std::make_unique_for_overwrite<Moments[]>(2 * padded);
+        Moments* const m = buffer.get() + r;
+        Moments* const scratch = buffer.get() + padded;
+        for (Moments* padding : {buffer.get(), m + N, scratch, scratch + N + r})
+            std::fill_n(padding, r, Moments{});
         double peak = 0.0;
         for (int i = 0; i < N; ++i) {
             const std::size_t at = row + std::size_t(i);
             const double wi = profile.intensity[at];
-            if (!(wi > 0.0)) continue;
+            if (!(wi > 0.0)) {
+                m[i] = Moments{};
+                continue;
+            }
             const glm::dvec2 d = glm::dvec2(profile.position[at]) -
                                  (line.origin + line.direction * depth[std::size_t(i)]);
             const double da = glm::dot(d, across);
             const double var = glm::dot(across, glm::dmat2(profile.covariance[at]) * across);
-            m[std::size_t(i)] = {wi, wi * d.x, wi * d.y, wi * (std::max(var, 0.0) + da * da)};
+            m[i] = {wi, wi * d.x, wi * d.y, wi * (std::max(var, 0.0) + da * da)};
             peak = std::max(peak, wi);
         }
-        if (!(peak > 0.0)) return;  // a line without echo
-        smooth_box3(m, smooth_sigma, scratch);
+        if (!(peak > 0.0)) return no_echo();  // a line without echo
+        const Moments* smoothed = smooth_box3(m - r, scratch, N, r);
         for (int i = 0; i < N; ++i) {
-            const auto& mi = m[std::size_t(i)];
+            const Moments& mi = smoothed[i];
             const double s0 = mi[0];
             // Running sums leave rounding residues where there was nothing.
-            if (!(s0 > 1e-9 * peak)) continue;
-            const std::size_t at = row + std::size_t(i);
+            if (!(s0 > 1e-9 * peak)) {
+                w_row[i] = var_row[i] = 0.0;
+                mean_row[i] = glm::dvec2(0.0);
+                continue;
+            }
             const double inverse_s0 = 1.0 / s0;
             const glm::dvec2 d(mi[1] * inverse_s0, mi[2] * inverse_s0);
             const double da = glm::dot(d, across);
-            w[at] = s0;
-            mean[at] = (line.origin + line.direction * depth[std::size_t(i)]) + d;
-            across_var[at] = std::max(0.0, mi[3] * inverse_s0 - da * da);
+            w_row[i] = s0;
+            mean_row[i] = (line.origin + line.direction * depth[std::size_t(i)]) + d;
+            var_row[i] = std::max(0.0, mi[3] * inverse_s0 - da * da);
         }
     });
 

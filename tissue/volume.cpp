@@ -65,7 +65,8 @@ float Volume::sample_trilinear(const glm::dvec3& ijk, float outside) const {
     // Clamp to the outer voxel centres, then interpolate between the two neighbours
     // on each axis (a degenerate axis of size 1 uses the single voxel twice).
     const glm::dvec3 p = glm::clamp(ijk, glm::dvec3(0.0), glm::dvec3(n - 1));
-    const glm::ivec3 i0 = glm::min(glm::ivec3(glm::floor(p)), glm::max(n - 2, 0));
+    // p >= 0: truncation is the floor (std::floor is a library call on the x86-64 baseline).
+    const glm::ivec3 i0 = glm::min(glm::ivec3(p), glm::max(n - 2, 0));
     const glm::ivec3 i1 = glm::min(i0 + 1, n - 1);
     const glm::dvec3 f = p - glm::dvec3(i0);
     auto v = [&](int x, int y, int z) { return double(voxels_[linear_index(x, y, z)]); };
