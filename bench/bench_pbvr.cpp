@@ -6,6 +6,8 @@
 //   build/bench/bench_pbvr [max_repetitions]
 //   build/bench/bench_pbvr tetra      # image-space PBVR of tetrahedra: tetrahedra per second
 //   build/bench/bench_pbvr fusion out/bmode.json [max_repetitions]   # head + sector
+//   build/bench/bench_pbvr repetitions [count]   # the default settings: ms per repetition
+//                                                # only (no reference; for A/B of changes)
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -130,7 +132,10 @@ int main(int argc, char** argv) {
         for (int side : {24, 48}) bench_tetrahedra(head, side);
         return 0;
     }
-    const int max_repetitions = argc > 1 ? std::atoi(argv[1]) : 48;
+    const bool repetitions_only = argc > 1 && std::string(argv[1]) == "repetitions";
+    const int max_repetitions = repetitions_only ? (argc > 2 ? std::atoi(argv[2]) : 16)
+                                : argc > 1       ? std::atoi(argv[1])
+                                                 : 48;
     auto t = Clock::now();
     const tissue::Volume head =
         tissue::load_volume({tissue::kDefaultVolumeName, std::nullopt}).volume;
@@ -148,6 +153,26 @@ int main(int argc, char** argv) {
         int subpixel;
         double radius_scale;
     };
+    if (repetitions_only) {
+        RenderSettings settings;
+        settings.cut_away = cut;
+        PbvrRenderer renderer(volume, tf, camera, settings);
+        std::vector<double> ms;
+        for (int r = 0; r < max_repetitions; ++r) {
+            t = Clock::now();
+            renderer.add_repetition();
+            ms.push_back(1e3 * seconds_since(t));
+        }
+        std::sort(ms.begin(), ms.end());
+        std::cout << nlohmann::json{{"image", "512x512"},
+                                    {"repetitions", max_repetitions},
+                                    {"ms_per_repetition_median", ms[ms.size() / 2]},
+                                    {"particles_per_repetition",
+                                     double(renderer.particles_drawn()) / double(ms.size())}}
+                         .dump()
+                  << std::endl;
+        return 0;
+    }
     for (const Config config : {Config{2, 2.0}, Config{1, 1.0}, Config{2, 3.0}}) {
         RenderSettings settings;
         settings.subpixel_level = config.subpixel;
