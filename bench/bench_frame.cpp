@@ -48,6 +48,7 @@ void frame(benchmark::State& state, imaging::Quality quality) {
     settings.quality = quality;
     settings.trace.interface_reach_mm = 3.0;
     settings.imaging.gain_db = 36.0;
+    settings.trace.deposition_maps = false;  // as `sonotrace simulate` without --energy
     const imaging::QualityLevel level = imaging::quality_level(quality);
     uint64_t steps = 0;
     double plane_s = 0.0;

@@ -78,7 +78,8 @@ struct Frame {
     ScanConverted image;             // scan-converted display
     simulator::EnergyLedger ledger;
     simulator::TraceStats stats;
-    // Energy deposition map on the grid of the plane, up to the close of the echo window.
+    // Energy deposition map on the grid of the plane, up to the close of the echo window
+    // (empty if SimulationSettings::trace.deposition_maps is off).
     tissue::Volume absorbed;
     std::vector<simulator::Path<2>> paths;  // SimulationSettings::trace.record_paths per line
     nlohmann::json timings = nlohmann::json::object();  // seconds per stage

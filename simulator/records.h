@@ -98,6 +98,7 @@ struct EchoProfile {
 template <int Dim>
 struct TraceResult {
     std::vector<EchoEvent<Dim>> echoes;  // by line, then particle, then time of the event
+    // Empty unless TraceSettings::deposition_maps.
     tissue::Volume fluence;   // sum of energy * step length per texel / texel area: intensity
     tissue::Volume absorbed;  // energy absorbed per texel: the deposition map
     std::vector<Path<Dim>> paths;

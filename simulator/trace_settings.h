@@ -107,6 +107,11 @@ struct TraceSettings {
     // step interpolates (for tests and benchmarks that compare the two).
     bool uniform_runs = true;
 
+    // The fluence and absorbed-energy maps (TraceResult::fluence, absorbed). Off: they
+    // stay empty and the absorbed energy goes to the ledger only, per particle; a step
+    // then writes no map (~6 % of a B-mode frame's trace, whose energy map is optional).
+    bool deposition_maps = true;
+
     int record_paths = 0;              // particles per line whose paths are kept as polylines
     int record_paths_line_stride = 1;  // ... of the lines whose id is a multiple of this
     bool record_scatter_echoes = true;

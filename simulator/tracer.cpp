@@ -156,6 +156,7 @@ class LineTracer {
         step_mm_ = float(settings.step_texels) * texel_mm_;
         scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
         profile_enabled_ = settings.echo_profile.has_value();
+        deposit_maps_ = settings.deposition_maps;
         if (profile_enabled_) inverse_profile_bin_ = 1.0 / settings.echo_profile->bin_s;
         profile_scale_ = float(settings.scattering_rate_per_mm) * step_mm_ *
                          float(settings.scatter_echo_fraction);
@@ -272,10 +273,14 @@ class LineTracer {
         b.pending_fluence[k] = b.pending_absorbed[k] = 0.0f;
     }
 
+    // Without maps, the pending sums run over the particle's whole path and reach the
+    // ledger when it ends.
     void deposit(uint32_t texel, float fluence, float absorbed) {
-        DepositCell& cell = (*deposits_)[texel];
-        cell.fluence += to_fixed(double(fluence));
-        cell.absorbed += to_fixed(double(absorbed));
+        if (deposit_maps_) {
+            DepositCell& cell = (*deposits_)[texel];
+            cell.fluence += to_fixed(double(fluence));
+            cell.absorbed += to_fixed(double(absorbed));
+        }
         out_->ledger.absorbed += double(absorbed);
     }
 
@@ -446,7 +451,7 @@ class LineTracer {
             const float lost = E * (1.0f - weight);
             E -= lost;
             out_->ledger.absorbed += lost;
-            (*deposits_)[texel_index(x)].absorbed += to_fixed(lost);
+            if (deposit_maps_) (*deposits_)[texel_index(x)].absorbed += to_fixed(lost);
         }
         b.in_interface[k] = kLeavingAfterReflection;  // leave on the near side, unrefracted
         // To the middle and back: the time and path of the reflection where it happens.
@@ -524,14 +529,16 @@ class LineTracer {
         const Texel* uniform =
             settings_.uniform_runs && !outside_blocks ? map_.uniform_block(x) : nullptr;
         const Texel t = uniform ? *uniform : map_.sample(x);
-        const uint32_t texel = uint32_t(texel_index(x));
         stats.steps++;
         stats.uniform_steps += uniform != nullptr;
 
         // -- deposits of this step go to the texel the particle is in
-        if (texel != b.pending_texel[k]) {
-            flush_deposits(b, k);
-            b.pending_texel[k] = texel;
+        if (deposit_maps_) {
+            const uint32_t texel = uint32_t(texel_index(x));
+            if (texel != b.pending_texel[k]) {
+                flush_deposits(b, k);
+                b.pending_texel[k] = texel;
+            }
         }
         // -- absorption along the step
         if (settings_.absorption && t.attenuation > 0.0f) {
@@ -751,10 +758,12 @@ class LineTracer {
                 break;  // a scattering event: step() records it
             ++steps;
             // -- deposits to the particle's texel
-            const uint32_t texel = uint32_t(texel_index(x));
-            if (texel != pending_texel) {
-                deposit(pending_texel, fluence, absorbed);
-                pending_texel = texel, fluence = absorbed = 0.0f;
+            if (deposit_maps_) {
+                const uint32_t texel = uint32_t(texel_index(x));
+                if (texel != pending_texel) {
+                    deposit(pending_texel, fluence, absorbed);
+                    pending_texel = texel, fluence = absorbed = 0.0f;
+                }
             }
             // -- absorption, fluence
             const float lost = E * absorbed_fraction;
@@ -853,6 +862,7 @@ class LineTracer {
     double inverse_profile_bin_ = 0.0;
     float profile_scale_ = 0.0f;
     DepositMaps* deposits_ = nullptr;
+    bool deposit_maps_ = true;
     LineOutput<Dim>* out_ = nullptr;
     uint32_t line_ = 0;
 };
@@ -894,7 +904,7 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     starts.push_back(order.size());
     const std::size_t lines = starts.size() - 1;
 
-    const std::size_t texels = map.geometry().voxel_count();
+    const std::size_t texels = settings.deposition_maps ? map.geometry().voxel_count() : 0;
     tbb::enumerable_thread_specific<DepositMaps> deposits([texels] { return DepositMaps(texels); });
     std::vector<LineOutput<Dim>> outputs(lines);
     std::atomic<std::size_t> done{0};
@@ -911,8 +921,10 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
 
     // Merge in line order (deterministic), maps by integer sums.
     TraceResult<Dim> result;
-    result.fluence = tissue::Volume(map.geometry());
-    result.absorbed = tissue::Volume(map.geometry());
+    if (settings.deposition_maps) {
+        result.fluence = tissue::Volume(map.geometry());
+        result.absorbed = tissue::Volume(map.geometry());
+    }
     double area = 1.0;
     for (int a = 0; a < Dim; ++a) area *= map.spacing()[a];
     const double per_texel = 1.0 / (kFixedScale * area);  // energy*mm per texel -> per mm^Dim

@@ -93,6 +93,17 @@ TEST(Tracer, EnergyLedgerBalancesToOnePartPerMillion) {
     double map_total = 0.0;
     for (float v : result.absorbed.voxels()) map_total += v;
     EXPECT_NEAR(map_total, l.absorbed, 1e-6 * l.injected);
+
+    // Without the maps: the same paths (deposits draw no random numbers), the balance
+    // still closes, the absorbed energy is the same up to the order of its sum.
+    s.deposition_maps = false;
+    const auto unmapped = trace(map, src, s);
+    EXPECT_NEAR(unmapped.ledger.relative_error(), 0.0, 1e-6);
+    EXPECT_NEAR(unmapped.ledger.absorbed, l.absorbed, 1e-6 * l.injected);
+    EXPECT_EQ(unmapped.ledger.escaped, l.escaped);
+    EXPECT_EQ(unmapped.stats.steps, result.stats.steps);
+    EXPECT_TRUE(unmapped.absorbed.voxels().empty());
+    EXPECT_TRUE(unmapped.fluence.voxels().empty());
 }
 
 TEST(Tracer, RussianRouletteIsUnbiased) {

@@ -422,6 +422,7 @@ int run_simulate_command(const SimulateOptions& o) {
                                           {{"monostatic", imaging::ReceiveModel::monostatic},
                                            {"capture", imaging::ReceiveModel::capture}});
     settings.seed = o.seed;
+    settings.trace.deposition_maps = o.write_energy;  // the energy map is their only reader
     settings.step_texels = o.step_texels;
     settings.imaging.gain_db = o.gain_db;
     settings.imaging.dynamic_range_db = o.dynamic_range_db;
