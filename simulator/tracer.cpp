@@ -408,16 +408,23 @@ class LineTracer {
         // come early by that much.
         const float ahead = glm::dot(halfway_point(x, far_end, near_side, far_side) - x, forward);
         const float to_middle_mm = std::max(ahead, 0.0f) / std::max(glm::dot(r, forward), 0.1f);
+        // The lobe's roughness: the rougher of the plateaus (a map of its own, sampled here
+        // only).
+        const float roughness =
+            settings_.diffuse_reflection && settings_.lobe_exponent == LobeExponent::roughness
+                ? std::max(map_.sample_roughness(near_end), map_.sample_roughness(far_end))
+                : 0.0f;
         return settings_.specular_reflection &&
-               decide_reflection(b, k, x, t, near_side, far_side, forward, to_middle_mm, r, E);
+               decide_reflection(b, k, x, t, near_side, far_side, roughness, forward, to_middle_mm,
+                                 r, E);
     }
 
     // The reflection decision at a sharp interface (eq. 10 with the plateau values on
     // both sides). Records the expected echo R^2 and reflects with probability R^2.
     // `to_middle_mm`: path from x to the middle of the transition, where it reflects.
     bool decide_reflection(Batch<Dim>& b, int k, const V& x, const Texel& t, const Texel& near_side,
-                           const Texel& far_side, const V& forward, float to_middle_mm, V& r,
-                           float& E) {
+                           const Texel& far_side, float roughness, const V& forward,
+                           float to_middle_mm, V& r, float& E) {
         // The direction the particle had on the near plateau: undo the slight
         // refraction it met in the fringe, using the conserved n sin(theta).
         const float cos_now = glm::dot(r, forward);
@@ -429,7 +436,8 @@ class LineTracer {
         const float sin_t = sin_i * near_side.refractive_index / far_side.refractive_index;
         const float cos_t = sin_t >= 1.0f ? 0.0f : std::sqrt(1.0f - sin_t * sin_t);
         const float R2 = reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
-        const float c = settings_.diffuse_reflection ? lobe_exponent(near_side, far_side) : 1e6f;
+        const float c =
+            settings_.diffuse_reflection ? lobe_exponent(near_side, far_side, roughness) : 1e6f;
         const double to_middle_s =
             double(to_middle_mm) * seconds_per_mm_ * near_side.refractive_index;
         record_echo(b, k, x + r * to_middle_mm, E, R2,
@@ -501,12 +509,10 @@ class LineTracer {
         return mirror;
     }
 
-    float lobe_exponent(const Texel& near_side, const Texel& far_side) const {
+    float lobe_exponent(const Texel& near_side, const Texel& far_side, float roughness) const {
         switch (settings_.lobe_exponent) {
-            case LobeExponent::roughness: {
-                const float rough = std::max(near_side.roughness, far_side.roughness);
-                return rough <= 1e-3f ? 1e6f : 1.0f / (rough * rough) - 1.0f;
-            }
+            case LobeExponent::roughness:
+                return roughness <= 1e-3f ? 1e6f : 1.0f / (roughness * roughness) - 1.0f;
             case LobeExponent::reflecting_density:
                 return float(settings_.lobe_scale) * far_side.impedance;
             case LobeExponent::density_ratio:

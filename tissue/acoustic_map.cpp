@@ -60,19 +60,18 @@ AcousticMap<Dim> AcousticMap<Dim>::build(const PropertyMaps& maps) {
             refractive_index.voxels()[v] = float(kReferenceSpeed / speed[v]);
     });
     return pack(refractive_index, maps.impedance(), &maps[Property::attenuation],
-                &maps[Property::backscatter], &maps[Property::scatterer_density],
-                &maps[Property::roughness]);
+                &maps[Property::backscatter], &maps[Property::roughness]);
 }
 
 template <int Dim>
 AcousticMap<Dim> AcousticMap<Dim>::build_paper(const Volume& density) {
-    return pack(density, density, nullptr, nullptr, nullptr, nullptr);
+    return pack(density, density, nullptr, nullptr, nullptr);
 }
 
 template <int Dim>
 AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Volume& impedance,
                                         const Volume* attenuation, const Volume* backscatter,
-                                        const Volume* scatterer_density, const Volume* roughness) {
+                                        const Volume* roughness) {
     AcousticMap map;
     map.geometry_ = refractive_index.geometry();
     const glm::ivec3 n = map.geometry_.dims;
@@ -86,7 +85,10 @@ AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Vo
         map.extent_[a] = float(n[a] - 1) * map.spacing_[a];
     }
     auto value = [](const Volume* f, std::size_t v) { return f ? f->voxels()[v] : 0.0f; };
-    map.texels_.assign(map.geometry_.voxel_count(), AcousticTexel<Dim>{});
+    // Value-initialised in place: the 3D records' padding is zero too (the uniform-block
+    // search compares records byte for byte).
+    map.texels_.resize(map.geometry_.voxel_count());
+    map.roughness_.assign(map.geometry_.voxel_count(), 0.0f);
     tbb::parallel_for(0, n.y * n.z, [&](int row) {
         const int j = row % n.y, k = row / n.y;
         for (int i = 0; i < n.x; ++i) {
@@ -96,8 +98,7 @@ AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Vo
             t.impedance = impedance.voxels()[v];
             t.attenuation = value(attenuation, v);
             t.backscatter = value(backscatter, v);
-            t.scatterer_density = value(scatterer_density, v);
-            t.roughness = value(roughness, v);
+            map.roughness_[v] = value(roughness, v);
             if (Dim == 2 && i > 0 && i + 1 < n.x && j > 0 && j + 1 < n.y) {
                 // Interior of a slice: the same Sobel weights, straight from the rows.
                 for (const auto& [f, grad] :
@@ -146,7 +147,7 @@ void AcousticMap<Dim>::find_uniform_blocks() {
             hi[a] = std::min(dims_[a] - 1, (b[a] + 1) * kBlock);
         }
         const AcousticTexel<Dim>& first = texel(lo);
-        for (int a = 0; a < 3; ++a) {
+        for (int a = 0; a < Dim; ++a) {
             if (first.grad_refractive_index[a] != 0.0f || first.grad_impedance[a] != 0.0f) return;
         }
         IVec i = lo;

@@ -5,10 +5,10 @@
 // Layout: texel-interleaved (array of structs), x fastest. Every tracer step reads all
 // fields and gradients at the same 4 (2D) or 8 (3D) texels, so one record per texel
 // puts everything a step needs into 2-3 contiguous cache lines per texel pair along x;
-// a planar layout would touch 10-12 separate lines per texel. Records are 12 floats
-// (48 bytes) in 2D and 3D, so interpolation runs as three 4-wide vector
-// blends: the scalar blend of 10 fields was the largest cost of a tracer step (96 of
-// ~390 instructions, callgrind).
+// a planar layout would touch 8-10 separate lines per texel. Records are 8 floats
+// (32 bytes) in 2D and 12 (48) in 3D, so interpolation runs as two or three 4-wide
+// vector blends: the scalar blend of 10 fields was the largest cost of a tracer step
+// (96 of ~390 instructions, callgrind).
 //
 // Positions are in mm in the grid's own frame: texel centre (i, j[, k]) sits at
 // (i*hx, j*hy[, k*hz]). For a probe grid (tissue/resample.h) the axes are lateral,
@@ -32,20 +32,21 @@ namespace sonotrace::tissue {
 // Reference speed of sound (m/s): display depth c0*t/2 and refractive index n = c0/c.
 inline constexpr double kReferenceSpeed = 1540.0;
 
+// What a step samples, a whole number of 4-float vectors (the alignment pads 3D's 10
+// floats to 12; 2D has 8). Roughness, read only at interfaces, is a map of its own
+// (sample_roughness): in the record it made 2D texels 48 bytes instead of 32, and the
+// map's cache footprint with them.
 template <int Dim>
-struct AcousticTexel {
-    float refractive_index;   // n = c0 / c, dimensionless
-    float impedance;          // Z = rho*c, MRayl
-    float attenuation;        // dB/(cm*MHz)
-    float backscatter;        // relative 0..1
-    float scatterer_density;  // 1/mm^3
-    float roughness;          // 0..1
-    // Gradients along the grid axes; in 2D the third component is 0 (it keeps every
-    // record at 12 floats = three 4-wide vectors).
-    float grad_refractive_index[3];  // 1/mm
-    float grad_impedance[3];         // MRayl/mm
+struct alignas(16) AcousticTexel {
+    float refractive_index;  // n = c0 / c, dimensionless
+    float impedance;         // Z = rho*c, MRayl
+    float attenuation;       // dB/(cm*MHz)
+    float backscatter;       // relative 0..1
+    // Gradients along the grid axes.
+    float grad_refractive_index[Dim];  // 1/mm
+    float grad_impedance[Dim];         // MRayl/mm
 };
-static_assert(sizeof(AcousticTexel<2>) == 48 && sizeof(AcousticTexel<3>) == 48);
+static_assert(sizeof(AcousticTexel<2>) == 32 && sizeof(AcousticTexel<3>) == 48);
 
 template <int Dim>
 class AcousticMap {
@@ -75,6 +76,8 @@ class AcousticMap {
     AcousticTexel<Dim> sample(const Vec& p_mm) const;
     // The refractive index alone (one float per texel read), same interpolation.
     float sample_refractive_index(const Vec& p_mm) const;
+    // Roughness (0..1), same interpolation.
+    float sample_roughness(const Vec& p_mm) const;
 
     // Uniform blocks: kBlock^Dim texels that, with a one-texel margin on every side,
     // hold one record with zero gradients. Anywhere in such a block sample() returns
@@ -90,7 +93,7 @@ class AcousticMap {
     void locate(const Vec& p_mm, IVec* i0, Vec* f) const;
     static AcousticMap pack(const Volume& refractive_index, const Volume& impedance,
                             const Volume* attenuation, const Volume* backscatter,
-                            const Volume* scatterer_density, const Volume* roughness);
+                            const Volume* roughness);
 
     VolumeGeometry geometry_;
     IVec dims_{};
@@ -98,6 +101,7 @@ class AcousticMap {
     Vec inverse_spacing_{};
     Vec extent_{};  // (n - 1) * h per axis: the domain for inside()
     std::vector<AcousticTexel<Dim>> texels_;
+    std::vector<float> roughness_;  // per texel
     IVec block_dims_{};
     // Per block: its record's index in uniform_records_ (distinct records, a handful in
     // practice, so they stay in L1), or -1.
@@ -142,10 +146,10 @@ template <int Dim>
     IVec i0;
     Vec f;
     locate(p_mm, &i0, &f);
-    // Blend 12 floats per texel as three 4-wide vectors (GCC vector extensions: SSE on
-    // x86-64, NEON on ARM).
+    // Blend the texel's floats as 4-wide vectors (GCC vector extensions: SSE on x86-64,
+    // NEON on ARM).
     typedef float v4 __attribute__((vector_size(16)));
-    static_assert(K == 12);
+    static_assert(K % 4 == 0);
     auto load = [](const float* p) {
         v4 v;
         std::memcpy(&v, p, sizeof v);
@@ -191,6 +195,26 @@ template <int Dim>
                             f[1] * ((1 - f[0]) * u[dy] + f[0] * u[dy + K]);
         return (1 - f[2]) * lower + f[2] * upper;
     }
+}
+
+// The same weights and order of operations as sample(): the value it gave when roughness
+// was a field of the record.
+template <int Dim>
+inline float AcousticMap<Dim>::sample_roughness(const Vec& p_mm) const {
+    IVec i0;
+    Vec f;
+    locate(p_mm, &i0, &f);
+    const float* t = roughness_.data() + linear(i0);
+    const std::size_t dy = std::size_t(dims_[0]);
+    const float gx = 1.0f - f[0], gy = 1.0f - f[1];
+    const float w00 = gx * gy, w10 = f[0] * gy, w01 = gx * f[1], w11 = f[0] * f[1];
+    float v = w00 * t[0] + w10 * t[1] + w01 * t[dy] + w11 * t[dy + 1];
+    if constexpr (Dim == 3) {
+        const float* u = t + dy * std::size_t(dims_[1]);
+        const float upper = w00 * u[0] + w10 * u[1] + w01 * u[dy] + w11 * u[dy + 1];
+        v = (1.0f - f[2]) * v + f[2] * upper;
+    }
+    return v;
 }
 
 template <int Dim>

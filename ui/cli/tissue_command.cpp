@@ -114,7 +114,7 @@ int run_tissue_command(const TissueOptions& options) {
                     const auto& t =
                         map.texel(typename std::decay_t<decltype(map)>::IVec(glm::ivec3(i, j, k)));
                     double gn = 0.0, gz = 0.0;
-                    for (int a = 0; a < 3; ++a) {  // the third component is 0 in 2D
+                    for (int a = 0; a < int(std::size(t.grad_impedance)); ++a) {
                         gn += double(t.grad_refractive_index[a]) * t.grad_refractive_index[a];
                         gz += double(t.grad_impedance[a]) * t.grad_impedance[a];
                     }
