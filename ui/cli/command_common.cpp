@@ -1,6 +1,7 @@
 #include "ui/cli/command_common.h"
 
 #include <tbb/global_control.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -39,9 +40,20 @@ void StageTimer::end() {
     stage_line_open = false;
 }
 
+ProgressBar::ProgressBar(std::string label, bool quiet)
+    : label_(std::move(label)), quiet_(quiet), terminal_(isatty(fileno(stderr)) == 1) {}
+
 void ProgressBar::update(std::size_t done, std::size_t total) {
     if (quiet_ || total == 0) return;
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!terminal_) {
+        // A log file: a line per quarter, not thirty redraws run together on one line.
+        const int quarter = int(4 * done / total);
+        if (quarter == last_drawn_ || (quarter == 0 && done != total)) return;
+        last_drawn_ = quarter;
+        std::fprintf(stderr, "sonotrace: %s %zu/%zu\n", label_.c_str(), done, total);
+        return;
+    }
     const int filled = int(30 * done / total);
     if (filled == last_drawn_ && done != total) return;
     last_drawn_ = filled;
@@ -52,7 +64,7 @@ void ProgressBar::update(std::size_t done, std::size_t total) {
 }
 
 void ProgressBar::finish() {
-    if (!quiet_ && last_drawn_ >= 0) std::fprintf(stderr, "\n");
+    if (!quiet_ && terminal_ && last_drawn_ >= 0) std::fprintf(stderr, "\n");
 }
 
 std::unique_ptr<tbb::global_control> limit_threads(int threads) {

@@ -58,16 +58,17 @@ class StageTimer {
 };
 
 // A progress bar on stderr ("tracing [#####.....] 12/40"), safe to call from worker
-// threads; silent when quiet.
+// threads; silent when quiet. When stderr is not a terminal (a log), a line per quarter.
 class ProgressBar {
   public:
-    ProgressBar(std::string label, bool quiet) : label_(std::move(label)), quiet_(quiet) {}
+    ProgressBar(std::string label, bool quiet);
     void update(std::size_t done, std::size_t total);
     void finish();
 
   private:
     std::string label_;
     bool quiet_;
+    bool terminal_;
     std::mutex mutex_;
     int last_drawn_ = -1;
 };
