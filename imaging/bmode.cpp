@@ -203,6 +203,8 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     const auto w = std::make_unique_for_overwrite<double[]>(size);
     const auto across_var = std::make_unique_for_overwrite<double[]>(size);
     const auto mean = std::make_unique_for_overwrite<glm::dvec2[]>(size);
+    // The mean positions in lattice units, where w > 0 (each is an end of two gaps below).
+    const auto lattice = std::make_unique_for_overwrite<glm::vec3[]>(size);
     const int profile_lines = std::min(L, profile.lines);
     const int r = box3_radius(smooth_sigma);
     tbb::parallel_for(0, L, [&](int l) {
@@ -256,6 +258,7 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             const double da = glm::dot(d, across);
             w_row[i] = s0;
             mean_row[i] = (line.origin + line.direction * depth[std::size_t(i)]) + d;
+            lattice[row + std::size_t(i)] = glm::vec3(to_lattice(mean_row[i]));
             var_row[i] = std::max(0.0, mi[3] * inverse_s0 - da * da);
         }
     });
@@ -289,17 +292,20 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             const std::size_t at = std::size_t(l) * n + std::size_t(i);
             const std::size_t next = std::size_t(other) * n + std::size_t(i);
             if (!(w[at] > 0.0) && !(w[next] > 0.0)) continue;
-            glm::dvec2 a = mean[at], b = mean[next];
-            if (!(w[at] > 0.0) || !(w[next] > 0.0)) {  // a line without echo: nominal gap
+            glm::vec3 pa, pb;
+            if (w[at] > 0.0 && w[next] > 0.0) {
+                pa = lattice[at], pb = lattice[next];
+            } else {  // a line without echo: the nominal gap from the other end
+                glm::dvec2 a = mean[at], b = mean[next];
                 const glm::dvec2 nominal = geometry.point(other, depth[std::size_t(i)]) -
                                            geometry.point(l, depth[std::size_t(i)]);
                 if (!(w[at] > 0.0)) a = b - nominal;
                 if (!(w[next] > 0.0)) b = a + nominal;
+                pa = glm::vec3(to_lattice(a)), pb = glm::vec3(to_lattice(b));
             }
-            const glm::dvec3 pa = to_lattice(a), pb = to_lattice(b);
             const std::size_t u = std::size_t(i);
-            ends[0][u] = float(pa.x), ends[1][u] = float(pa.y), ends[2][u] = float(pa.z);
-            ends[3][u] = float(pb.x), ends[4][u] = float(pb.y), ends[5][u] = float(pb.z);
+            ends[0][u] = pa.x, ends[1][u] = pa.y, ends[2][u] = pa.z;
+            ends[3][u] = pb.x, ends[4][u] = pb.y, ends[5][u] = pb.z;
             lit_a[u] = float(w[at]), lit_b[u] = float(w[next]);
         }
         const SubLineEnds sub_line_ends{ends[0].data(), ends[1].data(), ends[2].data(),
