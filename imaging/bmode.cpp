@@ -173,6 +173,36 @@ struct SubLineEnds {
     }
 }
 
+// What depends on depth only (speckle_lines): the receive PSF's sigma and the sub-line
+// spacing (mm), once per sample rather than per line and sample.
+struct AtDepth {
+    double receive_sigma, d_sub, inverse_d_sub;
+};
+
+// Per sample of a line: the beam's amplitude sigma from its intensity variance across
+// the line, bounded by the receive PSF and the lattice cell; its reach in sub-lines
+// (3 sigma, at most max_reach) and the log of its Gaussian ratio between neighbouring
+// sub-lines. Built for AVX2, where it vectorises (on the SSE2 baseline GCC does not
+// vectorise the three-double records), and the baseline: the same numbers (no FMA).
+// Selects by value, not std::min/max, whose references keep loops scalar.
+[[gnu::target_clones("avx2", "default")]] void beam_terms(const double* __restrict variance,
+                                                          const AtDepth* __restrict at_depth,
+                                                          double cell, int max_reach, int n,
+                                                          int* __restrict reach,
+                                                          double* __restrict log_ratio) {
+    for (int i = 0; i < n; ++i) {
+        const AtDepth& a = at_depth[i];
+        const double width = std::sqrt(2.0 * variance[i]);
+        const double bounded = a.receive_sigma < width ? a.receive_sigma : width;  // min
+        const double sigma_g = bounded < cell ? cell : bounded;                    // max
+        const double span = 3.0 * sigma_g * a.inverse_d_sub;                       // > 0
+        const int whole = int(span);
+        const int ceiling = whole + int(double(whole) < span);
+        reach[i] = max_reach < ceiling ? max_reach : ceiling;
+        log_ratio[i] = -0.5 * (a.d_sub / sigma_g) * (a.d_sub / sigma_g);
+    }
+}
+
 // The speckle term of every line (see the header): the scatter profile smoothed over a
 // pulse length, the scatterer field on sub-lines between the lines' mean positions, and
 // each line's Gaussian sum across its beam.
@@ -330,9 +360,6 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     const double axial_correlation =
         lattice_correlation_sum((rf.depth_mm(1) - rf.depth_mm(0)) / cell);
     // What depends on depth only, once per sample rather than per line and sample.
-    struct AtDepth {
-        double receive_sigma, d_sub, inverse_d_sub;
-    };
     std::vector<AtDepth> at_depth(static_cast<std::size_t>(N));
     std::vector<float> inverse_correlation(static_cast<std::size_t>(N));
     for (int i = 0; i < N; ++i) {
@@ -352,23 +379,18 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
         const std::size_t n = std::size_t(N), row = std::size_t(l) * n;
         std::vector<double> sums(n), norms(n), ratio(n), g(n), q(n);
         std::vector<int> reach(n);
-        for (std::size_t i = 0; i < n; ++i) {
-            const AtDepth& a = at_depth[i];
-            const double sigma_g =
-                std::max(std::min(std::sqrt(2.0 * across_var[row + i]), a.receive_sigma), cell);
-            const double span = 3.0 * sigma_g * a.inverse_d_sub;  // > 0
-            const int whole = int(span);
-            reach[i] = std::min(whole + int(double(whole) < span), 8 * K);  // ceil
-            ratio[i] = -0.5 * (a.d_sub / sigma_g) * (a.d_sub / sigma_g);
-        }
+        beam_terms(across_var.get() + row, at_depth.data(), cell, 8 * K, N, reach.data(),
+                   ratio.data());
         for (std::size_t i = 0; i < n; ++i) ratio[i] = double(tissue::exp_float(float(ratio[i])));
         gaussian_sums(sub.get(), N, sub_lines, l * K, reach.data(), ratio.data(), sums.data(),
                       norms.data(), g.data(), q.data());
         float* out = speckle + row;
-        for (std::size_t i = 0; i < n; ++i)  // nothing where the line has no echo
-            out[i] = w[row + i] > 0.0
-                         ? float(sums[i]) * std::sqrt(inverse_correlation[i] / float(norms[i]))
-                         : 0.0f;
+        for (std::size_t i = 0; i < n; ++i) {  // nothing where the line has no echo
+            // Computed for every sample (norms >= 1), selected after: the loop vectorises.
+            const float value =
+                float(sums[i]) * std::sqrt(inverse_correlation[i] / float(norms[i]));
+            out[i] = w[row + i] > 0.0 ? value : 0.0f;
+        }
     });
 }
 
