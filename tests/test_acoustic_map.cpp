@@ -37,6 +37,8 @@ PropertyMaps smooth_maps(glm::ivec3 dims, double h) {
                 maps[Property::density].at(i, j, k) = float(kRho);
                 maps[Property::attenuation].at(i, j, k) =
                     float(0.5 + 0.01 * p.x - 0.02 * p.y + 0.03 * p.z);
+                maps[Property::roughness].at(i, j, k) =
+                    float(0.2 - 0.01 * p.x + 0.02 * p.y + 0.01 * p.z);
             }
     return maps;
 }
@@ -120,7 +122,28 @@ TEST(AcousticMap, SamplingIsExactForLinearFields) {
                           std::uniform_real_distribution<float>(0, 4.5f)(rng),
                           std::uniform_real_distribution<float>(0, 3.5f)(rng));
         EXPECT_NEAR(map.sample(p).attenuation, 0.5 + 0.01 * p.x - 0.02 * p.y + 0.03 * p.z, 1e-5);
+        // Roughness, a map beside the records, interpolates the same way.
+        EXPECT_NEAR(map.sample_roughness(p), 0.2 - 0.01 * p.x + 0.02 * p.y + 0.01 * p.z, 1e-5);
     }
+}
+
+// The single-field lookups give exactly what the whole-record sample() gives: the tracer
+// mixes them (the index at a particle's birth, the record at its steps).
+template <int Dim>
+void check_single_fields_match_sample(glm::ivec3 dims) {
+    const auto map = AcousticMap<Dim>::build(smooth_maps(dims, 0.5));
+    std::mt19937 rng(11);
+    const auto extent = map.extent_mm();
+    for (int s = 0; s < 500; ++s) {
+        glm::vec<Dim, float> p;
+        for (int a = 0; a < Dim; ++a)
+            p[a] = std::uniform_real_distribution<float>(0.0f, extent[a])(rng);
+        ASSERT_EQ(map.sample_refractive_index(p), map.sample(p).refractive_index);
+    }
+}
+TEST(AcousticMap, RefractiveIndexLookupIsSamplesValue) {
+    check_single_fields_match_sample<2>({16, 12, 1});
+    check_single_fields_match_sample<3>({12, 10, 8});
 }
 
 TEST(AcousticMap, DomainIsTheTexelCentreBox) {

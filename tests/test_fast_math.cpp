@@ -19,6 +19,9 @@ TEST(FastMath, FloorAndCeilToIntMatchLibm) {
         const float x = float(i) * 0.37f;
         ASSERT_EQ(floor_to_int(x), int32_t(std::floor(x))) << x;
         ASSERT_EQ(ceil_to_int(x), int32_t(std::ceil(x))) << x;
+        const double d = double(i) * 0.37 + 1e-12;  // doubles too, just off the integers
+        ASSERT_EQ(floor_to_int(d), int32_t(std::floor(d))) << d;
+        ASSERT_EQ(ceil_to_int(d), int32_t(std::ceil(d))) << d;
     }
 }
 

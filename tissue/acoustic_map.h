@@ -74,7 +74,7 @@ class AcousticMap {
     bool inside(const Vec& p_mm) const;
     // Bi-/trilinear interpolation of every field; clamps to the edge outside.
     AcousticTexel<Dim> sample(const Vec& p_mm) const;
-    // The refractive index alone (one float per texel read), same interpolation.
+    // The refractive index alone (one float per texel read), the value sample() gives.
     float sample_refractive_index(const Vec& p_mm) const;
     // Roughness (0..1), same interpolation.
     float sample_roughness(const Vec& p_mm) const;
@@ -91,6 +91,7 @@ class AcousticMap {
   private:
     std::size_t linear(const IVec& i) const;
     void locate(const Vec& p_mm, IVec* i0, Vec* f) const;
+    float sample_field(const float* field, std::size_t stride, const Vec& p_mm) const;
     static AcousticMap pack(const Volume& refractive_index, const Volume& impedance,
                             const Volume* attenuation, const Volume* backscatter,
                             const Volume* roughness);
@@ -176,45 +177,38 @@ template <int Dim>
     return result;
 }
 
+// One float field of `stride` floats per texel (field points at texel 0's), with
+// sample()'s weights and order of operations: the same value sample() gives.
 template <int Dim>
-[[gnu::always_inline]] inline float AcousticMap<Dim>::sample_refractive_index(
-    const Vec& p_mm) const {
-    constexpr int K = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
+[[gnu::always_inline]] inline float AcousticMap<Dim>::sample_field(const float* field,
+                                                                   std::size_t stride,
+                                                                   const Vec& p_mm) const {
     IVec i0;
     Vec f;
     locate(p_mm, &i0, &f);
-    const float* t = reinterpret_cast<const float*>(texels_.data() + linear(i0));  // n is field 0
-    const std::size_t dy = std::size_t(dims_[0]) * K;
-    const float lower = (1 - f[1]) * ((1 - f[0]) * t[0] + f[0] * t[K]) +
-                        f[1] * ((1 - f[0]) * t[dy] + f[0] * t[dy + K]);
-    if constexpr (Dim == 2) {
-        return lower;
-    } else {
-        const float* u = t + dy * std::size_t(dims_[1]);
-        const float upper = (1 - f[1]) * ((1 - f[0]) * u[0] + f[0] * u[K]) +
-                            f[1] * ((1 - f[0]) * u[dy] + f[0] * u[dy + K]);
-        return (1 - f[2]) * lower + f[2] * upper;
-    }
-}
-
-// The same weights and order of operations as sample(): the value it gave when roughness
-// was a field of the record.
-template <int Dim>
-inline float AcousticMap<Dim>::sample_roughness(const Vec& p_mm) const {
-    IVec i0;
-    Vec f;
-    locate(p_mm, &i0, &f);
-    const float* t = roughness_.data() + linear(i0);
-    const std::size_t dy = std::size_t(dims_[0]);
+    const float* t = field + linear(i0) * stride;
+    const std::size_t dx = stride, dy = std::size_t(dims_[0]) * stride;
     const float gx = 1.0f - f[0], gy = 1.0f - f[1];
     const float w00 = gx * gy, w10 = f[0] * gy, w01 = gx * f[1], w11 = f[0] * f[1];
-    float v = w00 * t[0] + w10 * t[1] + w01 * t[dy] + w11 * t[dy + 1];
+    float v = w00 * t[0] + w10 * t[dx] + w01 * t[dy] + w11 * t[dy + dx];
     if constexpr (Dim == 3) {
         const float* u = t + dy * std::size_t(dims_[1]);
-        const float upper = w00 * u[0] + w10 * u[1] + w01 * u[dy] + w11 * u[dy + 1];
+        const float upper = w00 * u[0] + w10 * u[dx] + w01 * u[dy] + w11 * u[dy + dx];
         v = (1.0f - f[2]) * v + f[2] * upper;
     }
     return v;
+}
+
+template <int Dim>
+[[gnu::always_inline]] inline float AcousticMap<Dim>::sample_refractive_index(
+    const Vec& p_mm) const {
+    constexpr std::size_t K = sizeof(AcousticTexel<Dim>) / sizeof(float);  // n is field 0
+    return sample_field(reinterpret_cast<const float*>(texels_.data()), K, p_mm);
+}
+
+template <int Dim>
+inline float AcousticMap<Dim>::sample_roughness(const Vec& p_mm) const {
+    return sample_field(roughness_.data(), 1, p_mm);
 }
 
 template <int Dim>

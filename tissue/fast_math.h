@@ -6,17 +6,21 @@
 #include <algorithm>
 #include <bit>
 #include <cstdint>
+#include <type_traits>
 
 namespace sonotrace::tissue {
 
 // floor(x) as an integer, by truncation and a correction; |x| < 2^31.
-inline int32_t floor_to_int(float x) {
+template <typename Real>
+inline int32_t floor_to_int(Real x) {
+    static_assert(std::is_floating_point_v<Real>);
     const int32_t t = int32_t(x);
-    return t - int32_t(x < float(t));
+    return t - int32_t(x < Real(t));
 }
 
 // ceil(x) as an integer; |x| < 2^31.
-inline int32_t ceil_to_int(float x) {
+template <typename Real>
+inline int32_t ceil_to_int(Real x) {
     return -floor_to_int(-x);
 }
 

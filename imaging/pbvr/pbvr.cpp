@@ -192,6 +192,16 @@ struct LocalRays {
 
 namespace {
 
+// The sub-pixels [first, last] of a buffer row `size` wide whose centres (index + 1/2) lie
+// in [low, high]; first > last if none. Integer floor and ceil (std::floor and std::ceil
+// are library calls on the x86-64 baseline: a tenth of the particle loop), arguments
+// clamped first so that far-off or non-finite positions convert safely.
+template <typename Real>
+inline void centres_within(Real low, Real high, int size, int* first, int* last) {
+    *first = std::max(0, tissue::ceil_to_int(std::max(Real(-1), low - Real(0.5))));
+    *last = std::min(size - 1, tissue::floor_to_int(std::min(Real(size), high - Real(0.5))));
+}
+
 uint32_t particle_id(uint32_t cell, uint32_t k) {
     uint32_t h = cell * 0x9E3779B1u ^ (k + 0x7F4A7C15u) * 0x85EBCA77u;
     h ^= h >> 15;
@@ -365,10 +375,9 @@ void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
                     low = glm::min(low, q[v]), high = glm::max(high, q[v]);
                 }
                 if (!visible) continue;  // tetrahedra reaching behind the eye are not drawn
-                const int x0 = std::max(0, int(std::ceil(low.x - 0.5)));
-                const int x1 = std::min(sub_width_ - 1, int(std::floor(high.x - 0.5)));
-                const int y0 = std::max(0, int(std::ceil(low.y - 0.5)));
-                const int y1 = std::min(sub_height_ - 1, int(std::floor(high.y - 0.5)));
+                int x0, x1, y0, y1;
+                centres_within(low.x, high.x, sub_width_, &x0, &x1);
+                centres_within(low.y, high.y, sub_height_, &y0, &y1);
                 if (x0 > x1 || y0 > y1) continue;
                 const int w = x1 - x0 + 1, h = y1 - y0 + 1;
                 hits.assign(std::size_t(w) * std::size_t(h), FaceHits{0, 0, 0, 0, 0});
@@ -377,10 +386,13 @@ void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
                     const glm::dvec2 a = q[face[0]], b = q[face[1]], c = q[face[2]];
                     const double area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
                     if (std::abs(area) < 1e-12) continue;  // seen edge-on
-                    const int fx0 = std::max(x0, int(std::ceil(std::min({a.x, b.x, c.x}) - 0.5)));
-                    const int fx1 = std::min(x1, int(std::floor(std::max({a.x, b.x, c.x}) - 0.5)));
-                    const int fy0 = std::max(y0, int(std::ceil(std::min({a.y, b.y, c.y}) - 0.5)));
-                    const int fy1 = std::min(y1, int(std::floor(std::max({a.y, b.y, c.y}) - 0.5)));
+                    int fx0, fx1, fy0, fy1;
+                    centres_within(std::min({a.x, b.x, c.x}), std::max({a.x, b.x, c.x}), sub_width_,
+                                   &fx0, &fx1);
+                    centres_within(std::min({a.y, b.y, c.y}), std::max({a.y, b.y, c.y}),
+                                   sub_height_, &fy0, &fy1);
+                    fx0 = std::max(fx0, x0), fx1 = std::min(fx1, x1);
+                    fy0 = std::max(fy0, y0), fy1 = std::min(fy1, y1);
                     for (int y = fy0; y <= fy1; ++y) {
                         for (int x = fx0; x <= fx1; ++x) {
                             const glm::dvec2 m(x + 0.5, y + 0.5);
@@ -531,19 +543,6 @@ void PbvrRenderer::set_overlay(std::vector<uint64_t> layer) {
         throw std::invalid_argument("overlay layer size differs from the sub-pixel grid");
     overlay_ = std::move(layer);
 }
-
-namespace {
-
-// The sub-pixels [first, last] of a buffer row `size` wide whose centres (index + 1/2) lie
-// in [low, high]; first > last if none. Integer floor and ceil (std::floor and std::ceil
-// are library calls on the x86-64 baseline: a tenth of the particle loop), arguments
-// clamped first so that far-off or non-finite positions convert safely.
-inline void centres_within(float low, float high, int size, int* first, int* last) {
-    *first = std::max(0, tissue::ceil_to_int(std::max(-1.0f, low - 0.5f)));
-    *last = std::min(size - 1, tissue::floor_to_int(std::min(float(size), high - 0.5f)));
-}
-
-}  // namespace
 
 void PbvrRenderer::add_repetition() {
     const std::size_t subpixels = std::size_t(sub_width_) * std::size_t(sub_height_);
