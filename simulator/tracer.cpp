@@ -458,8 +458,7 @@ class LineTracer {
         if (weight < 1.0f) {  // lossy lobe: the rest becomes heat
             const float lost = E * (1.0f - weight);
             E -= lost;
-            out_->ledger.absorbed += lost;
-            if (deposit_maps_) (*deposits_)[texel_index(x)].absorbed += to_fixed(lost);
+            deposit(uint32_t(texel_index(x)), 0.0f, lost);
         }
         b.in_interface[k] = kLeavingAfterReflection;  // leave on the near side, unrefracted
         // To the middle and back: the time and path of the reflection where it happens.
