@@ -95,18 +95,20 @@ void run(benchmark::State& state, const tissue::AcousticMap<Dim>& map,
          const simulator::Sources<Dim>& sources) {
     simulator::TraceSettings settings;  // full acoustic physics, echoes recorded
     settings.frequency_mhz = 3.5;
-    uint64_t steps = 0, uniform_steps = 0;
+    uint64_t steps = 0, uniform_steps = 0, vector_steps = 0;
     std::size_t echoes = 0;
     for (auto _ : state) {
         const auto result = simulator::trace(map, sources, settings);
         steps += result.stats.steps;
         uniform_steps += result.stats.uniform_steps;
+        vector_steps += result.stats.vector_steps;
         echoes = result.echoes.size();
         benchmark::DoNotOptimize(result.echoes.data());
     }
     state.counters["steps/s"] = benchmark::Counter(double(steps), benchmark::Counter::kIsRate);
     state.counters["echoes"] = double(echoes);
     state.counters["uniform_steps"] = double(uniform_steps) / double(std::max<uint64_t>(steps, 1));
+    state.counters["vector_steps"] = double(vector_steps) / double(std::max<uint64_t>(steps, 1));
     state.counters["uniform_blocks"] = map.uniform_block_fraction();
 }
 

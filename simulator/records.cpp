@@ -25,6 +25,7 @@ EnergyLedger& EnergyLedger::operator+=(const EnergyLedger& o) {
 
 TraceStats& TraceStats::operator+=(const TraceStats& o) {
     particles += o.particles, steps += o.steps, uniform_steps += o.uniform_steps;
+    vector_steps += o.vector_steps;
     interface_events += o.interface_events;
     reflections += o.reflections, total_reflections += o.total_reflections;
     scatter_events += o.scatter_events, captured += o.captured;

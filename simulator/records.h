@@ -75,6 +75,7 @@ struct TraceStats {
     uint64_t particles = 0;
     uint64_t steps = 0;
     uint64_t uniform_steps = 0;  // steps in a uniform block (AcousticMap::uniform_block)
+    uint64_t vector_steps = 0;   // steps the vector stage took (TraceSettings::vector_steps)
     uint64_t interface_events = 0;
     uint64_t reflections = 0;
     uint64_t total_reflections = 0;

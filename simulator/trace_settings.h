@@ -106,6 +106,10 @@ struct TraceSettings {
     // without interpolation: the same arithmetic as the general step there. Off: every
     // step interpolates (for tests and benchmarks that compare the two).
     bool uniform_runs = true;
+    // The general step of eight particles at once (vector registers), with the scalar
+    // step's arithmetic: the same paths bit for bit. Off: one particle at a time (for
+    // tests and benchmarks that compare the two). Not with a probe face or ring detector.
+    bool vector_steps = true;
 
     // The fluence and absorbed-energy maps (TraceResult::fluence, absorbed). Off: they
     // stay empty and the absorbed energy goes to the ledger only, per particle; a step

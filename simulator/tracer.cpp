@@ -8,8 +8,10 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numeric>
 
+#include "simulator/batch.h"
 #include "simulator/interactions.h"
 #include "simulator/rng.h"
 #include "tissue/error.h"
@@ -18,27 +20,13 @@ namespace sonotrace::simulator {
 
 namespace {
 
-// exp(-x) for the per-step attenuation, x >= 0. Per step x = alpha f s is small: 0.005
-// in soft tissue and 0.2 in skull at 3.5 MHz and 0.125 mm steps. Below 0.03 a degree-4
-// Taylor polynomial is exact to x^5/5! < 2.1e-10; up to 0.5 degree 7, to x^8/8! < 1.6e-7
-// relative. The libm call was 14 % of the step time.
+using namespace detail;
+
+// exp(-x) for the per-step attenuation, x >= 0 (the series: batch.h).
 inline float exp_minus(float x) {
-    if (x < 0.03f) {
-        float p = 1.0f / 24.0f;
-        p = p * -x + 1.0f / 6.0f;
-        p = p * -x + 0.5f;
-        p = p * -x + 1.0f;
-        return p * -x + 1.0f;
-    }
-    if (x > 0.5f) return std::exp(-x);
-    float p = 1.0f / 5040.0f;
-    p = p * -x + 1.0f / 720.0f;
-    p = p * -x + 1.0f / 120.0f;
-    p = p * -x + 1.0f / 24.0f;
-    p = p * -x + 1.0f / 6.0f;
-    p = p * -x + 0.5f;
-    p = p * -x + 1.0f;
-    return p * -x + 1.0f;
+    if (x < kExpSeries4Below) return exp_minus_series4(x);
+    if (x > kExpSeries7Below) return std::exp(-x);
+    return exp_minus_series7(x);
 }
 
 // Deposit maps in 64-bit fixed point: sums are exact and order-independent.
@@ -52,17 +40,6 @@ struct DepositCell {
     int64_t fluence = 0, absorbed = 0;
 };
 using DepositMaps = std::vector<DepositCell>;
-
-// Uniform random numbers of one particle, four per Philox call.
-struct RandomStream {
-    ParticleRng rng;
-    std::array<float, 4> block{};
-    int used = 4;
-    float next() {
-        if (used == 4) block = rng.draw4(), used = 0;
-        return block[used++];
-    }
-};
 
 // One bin of a line's echo profile: intensity w and its moments, in double (the spread
 // across the beam is a small difference of large second moments). One record per bin: a
@@ -84,63 +61,6 @@ struct LineOutput {
     std::vector<ProfileBin<Dim>> profile;  // echo profile bins of this line
     EnergyLedger ledger;
     TraceStats stats;
-};
-
-// Interface state of a particle (Batch::in_interface).
-// An enum rather than uint8_t: stores through a char type may alias anything, which
-// forced the compiler to reload the whole particle state after each state update.
-enum class InterfaceState : uint16_t {
-    outside,            // flat or gently graded medium
-    crossing,           // transmitting through a sharp interface
-    leaving_reflected,  // reflected; leaves without refracting
-    graded,             // steep but no plateau near: graded medium
-};
-constexpr InterfaceState kOutside = InterfaceState::outside;
-constexpr InterfaceState kCrossing = InterfaceState::crossing;
-constexpr InterfaceState kLeavingAfterReflection = InterfaceState::leaving_reflected;
-constexpr InterfaceState kGraded = InterfaceState::graded;
-
-// Particles of one batch, stored field by field (structure of arrays).
-template <int Dim>
-struct Batch {
-    static constexpr int kSize = 64;
-    using V = Vec<Dim>;
-    std::array<V, kSize> position, direction;
-    std::array<float, kSize> energy, initial_energy, optical_depth, scatter_target;
-    std::array<float, kSize> receive_weight;
-    // Product of the probabilities of the stochastic choices made so far (R^2 for each
-    // reflection taken, 1 - R^2 for each transmission): by reciprocity the echo's way
-    // back makes the same crossings, so its two-way intensity carries this factor again.
-    std::array<float, kSize> return_factor;
-    std::array<float, kSize> previous_index;  // n sampled at the previous step's position
-    // Deposits gather per particle while it stays in one texel (2-3 steps at the default
-    // step), then go to the map in one write: the map writes were cache misses.
-    std::array<uint32_t, kSize> pending_texel;
-    std::array<float, kSize> pending_fluence, pending_absorbed;
-    std::array<double, kSize> time, path_length;
-    std::array<uint16_t, kSize> bounces;
-    std::array<InterfaceState, kSize> in_interface;
-    std::array<uint16_t, kSize> graded_steps;  // steps since the last interface check in kGraded
-    std::array<V, kSize> interface_normal;     // normal of the interface being crossed
-    std::array<uint32_t, kSize> particle;
-    std::array<int, kSize> path;  // index into LineOutput::paths or -1
-    std::array<RandomStream, kSize> random;
-    int count = 0;
-
-    void remove(int k) {  // swap with the last live particle
-        const int last = --count;
-        position[k] = position[last], direction[k] = direction[last];
-        energy[k] = energy[last], initial_energy[k] = initial_energy[last];
-        receive_weight[k] = receive_weight[last], return_factor[k] = return_factor[last];
-        optical_depth[k] = optical_depth[last], scatter_target[k] = scatter_target[last];
-        previous_index[k] = previous_index[last];
-        pending_texel[k] = pending_texel[last];
-        pending_fluence[k] = pending_fluence[last], pending_absorbed[k] = pending_absorbed[last];
-        time[k] = time[last], path_length[k] = path_length[last];
-        bounces[k] = bounces[last], in_interface[k] = in_interface[last];
-        graded_steps[k] = graded_steps[last], interface_normal[k] = interface_normal[last];
-        particle[k] = particle[last], path[k] = path[last], random[k] = random[last];
-    }
 };
 
 template <int Dim>
@@ -179,6 +99,25 @@ class LineTracer {
             settings.uniform_runs && probe_face() == nullptr && !(Dim == 2 && settings.ring);
         max_time_s_ = settings.max_time_s > 0.0 ? settings.max_time_s
                                                 : std::numeric_limits<double>::infinity();
+        // The vector stage has no probe face or ring detector test.
+        vector_steps_ =
+            settings.vector_steps && probe_face() == nullptr && !(Dim == 2 && settings.ring);
+        StepConstants<Dim>& c = step_constants_;
+        c.step_mm = step_mm_;
+        c.attenuation_per_mm = attenuation_per_mm_;
+        c.scattering_rate_per_mm = float(settings.scattering_rate_per_mm);
+        c.threshold2 = threshold2_;
+        c.inverse_texel2 = inverse_texel2_;
+        c.roulette_energy = float(settings.roulette_energy);
+        c.step_time_per_index = double(step_mm_) * seconds_per_mm_;
+        c.max_path_mm = settings.max_path_mm;
+        c.max_time_s = max_time_s_;
+        for (int a = 0; a < Dim; ++a) c.extent[std::size_t(a)] = map.extent_mm()[a];
+        c.deposition_maps = deposit_maps_;
+        c.absorption = settings.absorption;
+        c.scattering = scatter_enabled_;
+        c.refraction = settings.refraction;
+        c.profile = profile_enabled_;
     }
 
     void run(const Sources<Dim>& sources, const std::vector<uint32_t>& order, std::size_t begin,
@@ -189,26 +128,102 @@ class LineTracer {
         if (settings_.echo_profile) {
             out.profile.assign(std::size_t(settings_.echo_profile->bins), ProfileBin<Dim>{});
         }
-        Batch<Dim> batch;
+        auto batch = std::make_unique<Batch<Dim>>();
         std::size_t next = begin;
-        while (next < end || batch.count > 0) {
+        while (next < end || batch->count > 0) {
             // Refill the batch from the line's particles.
-            while (batch.count < Batch<Dim>::kSize && next < end) {
-                emit(sources[order[next]], uint32_t(next - begin), batch);
+            while (batch->count < Batch<Dim>::kSize && next < end) {
+                emit(sources[order[next]], uint32_t(next - begin), *batch);
                 ++next;
             }
             // Lockstep over the batch. (Running each particle to its end instead measured
             // the same within noise: 36 vs 43 M steps/s synthetic, 19 vs 17 M Colin27.)
-            for (int k = 0; k < batch.count;) {
-                const RunEnd run_end = uniform_run(batch, k);
+            if (vector_steps_) {
+                lockstep_vector(*batch);
+                continue;
+            }
+            for (int k = 0; k < batch->count;) {
+                const RunEnd run_end = uniform_run(*batch, k);
                 if (run_end != RunEnd::ended &&
-                    step(batch, k, run_end == RunEnd::step_outside_blocks)) {
+                    step(*batch, k, run_end == RunEnd::step_outside_blocks)) {
                     ++k;
                 } else {
-                    flush_deposits(batch, k);
-                    batch.remove(k);
+                    flush_deposits(*batch, k);
+                    batch->remove(k);
                 }
             }
+        }
+    }
+
+  private:
+    // One lockstep round with the general step in the vector stage (batch.h): uniform
+    // runs, then the fields at every lane's position, the vector stage, and what it left
+    // (events, deposits, profile, paths, endings) lane by lane in order.
+    void lockstep_vector(Batch<Dim>& b) {
+        // -- uniform blocks: tight runs per particle
+        LaneFields<Dim>& f = fields_;
+        for (int k = 0; k < b.count;) {
+            // Outside every block (nearly every step in the head) the general step applies.
+            if (!uniform_runs_ || map_.uniform_block(b.position[k]) == nullptr) {
+                f.eligible[std::size_t(k++)] = -1;
+                continue;
+            }
+            const RunEnd run_end = uniform_run(b, k);
+            if (run_end == RunEnd::ended) {
+                flush_deposits(b, k);
+                b.remove(k);
+                continue;
+            }
+            f.eligible[std::size_t(k++)] = run_end == RunEnd::step_outside_blocks ? -1 : 0;
+        }
+        // -- fields at each position, one lane per field array
+        const int lanes = (b.count + 7) & ~7;
+        for (int k = 0; k < b.count; ++k) {
+            const auto i = std::size_t(k);
+            const V x = b.position[k];
+            const Texel t = map_.sample(x);
+            f.refractive_index[i] = t.refractive_index;
+            f.impedance[i] = t.impedance;
+            f.attenuation[i] = t.attenuation;
+            f.backscatter[i] = t.backscatter;
+            for (std::size_t a = 0; a < Dim; ++a) {
+                f.grad_refractive_index[a][i] = t.grad_refractive_index[a];
+                f.grad_impedance[a][i] = t.grad_impedance[a];
+            }
+            if (deposit_maps_) f.texel[i] = uint32_t(texel_index(x));
+        }
+        for (int k = b.count; k < lanes; ++k) f.eligible[std::size_t(k)] = 0;
+        // -- the general step, eight lanes at a time
+        vector_step(b, f, step_constants_, results_, lanes);
+        // -- the rest, lane by lane in order (the ledger's sums keep one order)
+        std::array<bool, Batch<Dim>::N> ended{};
+        for (int k = 0; k < b.count; ++k) {
+            const auto i = std::size_t(k);
+            const int32_t flags = results_.flags[i];
+            if (flags & kLaneToStep) {
+                ended[i] = !step(b, k, f.eligible[i] != 0);
+                continue;
+            }
+            out_->stats.steps++;
+            out_->stats.vector_steps++;
+            if (flags & kLaneFlush)
+                deposit(results_.flush_texel[i], results_.flush_fluence[i],
+                        results_.flush_absorbed[i]);
+            if (profile_enabled_ && scatter_enabled_ && f.backscatter[i] > 0.0f) {
+                V start;
+                for (std::size_t a = 0; a < Dim; ++a) start[int(a)] = results_.start_position[a][i];
+                add_to_profile(b, k, start, results_.profile_energy[i], f.backscatter[i],
+                               results_.start_time[i]);
+            }
+            if (b.path[i] >= 0)
+                out_->paths[std::size_t(b.path[i])].vertices.push_back(
+                    {b.position[k], b.energy[i]});
+            if (flags & kLaneMayEnd) ended[i] = !continues(b, k, b.position[k]);
+        }
+        for (int k = b.count - 1; k >= 0; --k) {
+            if (!ended[std::size_t(k)]) continue;
+            flush_deposits(b, k);
+            b.remove(k);
         }
     }
 
@@ -222,8 +237,8 @@ class LineTracer {
             return;
         }
         const int k = b.count++;
-        b.position[k] = s.position;
-        b.direction[k] = glm::normalize(s.direction);
+        b.position.set(k, s.position);
+        b.direction.set(k, glm::normalize(s.direction));
         b.energy[k] = b.initial_energy[k] = s.energy;
         b.optical_depth[k] = 0.0f;
         b.previous_index[k] = map_.sample_refractive_index(s.position);
@@ -400,7 +415,7 @@ class LineTracer {
         out_->stats.interface_events++;
         normal = interface_normal(near_end, far_end, forward);
         forward = glm::dot(forward, normal) >= 0.0f ? normal : -normal;
-        b.interface_normal[k] = normal;
+        b.interface_normal.set(k, normal);
         // The particle meets the transition at its near fringe; the interface itself is
         // about half the smoothing width further on, where ln Z is halfway between the
         // plateaus (a transition thinner than the pulse reflects like a step at the centre
@@ -577,7 +592,8 @@ class LineTracer {
         for (int a = 0; a < Dim; ++a) gz2 += t.grad_impedance[a] * t.grad_impedance[a];
         const float scale2 = t.impedance * t.impedance * inverse_texel2_;
         if (gz2 > threshold2_ * scale2) {
-            if (state == kOutside || (state == kGraded && ++b.graded_steps[k] >= 8)) {
+            if (state == kOutside ||
+                (state == kGraded && ++b.graded_steps[k] >= kGradedRecheckSteps)) {
                 reflected = enter_interface(b, k, x, t, r, E);
             }
         } else if (gz2 < 0.25f * threshold2_ * scale2) {
@@ -655,8 +671,8 @@ class LineTracer {
             }
         }
 
-        b.position[k] = x;
-        b.direction[k] = r;
+        b.position.set(k, x);
+        b.direction.set(k, r);
         b.energy[k] = E;
         if (b.path[k] >= 0) out_->paths[std::size_t(b.path[k])].vertices.push_back({x, E});
         return continues(b, k, x);
@@ -716,12 +732,13 @@ class LineTracer {
     // those. Says whether the particle ended, or how step() goes on.
     enum class RunEnd { ended, step, step_outside_blocks };
     RunEnd uniform_run(Batch<Dim>& b, int k) {
-        if (!uniform_runs_ || b.in_interface[k] != kOutside) return RunEnd::step;
+        if (!uniform_runs_) return RunEnd::step;
         // Most steps in a textured medium (the head) are not in a uniform block: leave
         // before loading and storing back the particle's state (Colin27 2D: +15 % steps/s).
         const Texel* first = map_.uniform_block(b.position[k]);
         if (first == nullptr) return RunEnd::step_outside_blocks;  // step() need not look again
-        if (first->refractive_index != b.previous_index[k]) return RunEnd::step;
+        if (b.in_interface[k] != kOutside || first->refractive_index != b.previous_index[k])
+            return RunEnd::step;
         // The particle's state in locals (registers) for the run, written back at its end.
         const float s = step_mm_;
         const V r = b.direction[k];
@@ -792,7 +809,7 @@ class LineTracer {
                 break;
             }
         }
-        b.position[k] = x;
+        b.position.set(k, x);
         b.energy[k] = E, b.optical_depth[k] = optical_depth;
         b.pending_fluence[k] = fluence, b.pending_absorbed[k] = absorbed;
         b.pending_texel[k] = pending_texel;
@@ -870,6 +887,10 @@ class LineTracer {
     bool deposit_maps_ = true;
     LineOutput<Dim>* out_ = nullptr;
     uint32_t line_ = 0;
+    bool vector_steps_ = true;
+    StepConstants<Dim> step_constants_;
+    LaneFields<Dim> fields_;
+    LaneResults<Dim> results_;
 };
 
 template <int Dim>

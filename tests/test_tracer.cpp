@@ -240,6 +240,113 @@ TEST(Tracer, UniformRunsAreByteIdenticalOnOneAndTwoThreads) {
     EXPECT_EQ(std::memcmp(&a.ledger, &b.ledger, sizeof a.ledger), 0);
 }
 
+// Textured tissue, as in an MRI-derived map: every texel has a gradient (smooth
+// pseudo-random speed and density), with a rough bone-like disc or ball (sharp interfaces,
+// reflections, total reflection), a strongly absorbing spot (beyond the attenuation
+// series) and backscatter everywhere.
+template <int Dim>
+tissue::AcousticMap<Dim> textured_tissue(int n, double h) {
+    tissue::VolumeGeometry g;
+    g.dims = {n, n, Dim == 3 ? n / 2 : 1};
+    g.spacing = glm::dvec3(h);
+    const auto soft = tissue::find_tissue("soft_tissue", "", "").properties;
+    tissue::PropertyMaps maps;
+    for (tissue::Volume& f : maps.fields) f = tissue::Volume(g);
+    const glm::dvec3 ball(0.5 * n * h, 0.55 * n * h, 0.25 * n * h);
+    for (int k = 0; k < g.dims.z; ++k)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const glm::dvec3 q = glm::dvec3(i, j, k) * h;
+                const double texture = std::sin(1.3 * q.x + 0.4 * q.y) * std::cos(0.9 * q.y) +
+                                       0.5 * std::sin(2.1 * q.y - 1.7 * q.x + 0.8 * q.z);
+                glm::dvec3 d = q - ball;
+                if (Dim == 2) d.z = 0.0;
+                const double bone =
+                    std::clamp((0.15 * n * h - glm::length(d)) / (2 * h) + 0.5, 0.0, 1.0);
+                const double spot =
+                    glm::length(q - glm::dvec3(0.3 * n * h, 0.3 * n * h, d.z)) < 1.5 ? 1.0 : 0.0;
+                auto at = [&](Property p) -> float& { return maps[p].at(i, j, k); };
+                at(Property::speed_of_sound) =
+                    float(soft[Property::speed_of_sound] + 25.0 * texture + 1500.0 * bone);
+                at(Property::density) =
+                    float(soft[Property::density] + 15.0 * texture + 800.0 * bone);
+                at(Property::attenuation) = float(0.6 + 0.2 * texture + 10.0 * bone + 60.0 * spot);
+                at(Property::backscatter) = float(0.5 + 0.3 * texture);
+                at(Property::roughness) = float(0.3 * bone);
+            }
+    return tissue::AcousticMap<Dim>::build(maps);
+}
+
+// The vector stage (TraceSettings::vector_steps) repeats step()'s arithmetic, so every
+// particle takes the same path bit for bit; only sums over particles (the ledger, the
+// echo profile) may round differently, as they add in another order.
+template <int Dim>
+void expect_vector_steps_take_scalar_paths(const tissue::AcousticMap<Dim>& map,
+                                           const Sources<Dim>& sources) {
+    TraceSettings s;  // all physics
+    s.frequency_mhz = 5.0;
+    s.roulette_energy = 0.05;
+    s.echo_profile = EchoProfileSettings{1e-7, 600};
+    s.record_paths = 1000;  // every path, vertex by vertex
+    s.vector_steps = false;
+    const auto scalar = trace(map, sources, s);
+    s.vector_steps = true;
+    const auto vector = trace(map, sources, s);
+    EXPECT_EQ(scalar.stats.vector_steps, 0u);
+    EXPECT_GT(vector.stats.vector_steps, scalar.stats.steps * 9 / 10);
+    EXPECT_EQ(vector.stats.steps, scalar.stats.steps);
+    EXPECT_EQ(vector.stats.interface_events, scalar.stats.interface_events);
+    EXPECT_EQ(vector.stats.reflections, scalar.stats.reflections);
+    EXPECT_EQ(vector.stats.total_reflections, scalar.stats.total_reflections);
+    EXPECT_EQ(vector.stats.scatter_events, scalar.stats.scatter_events);
+    EXPECT_GT(scalar.stats.reflections, 0u);
+    EXPECT_GT(scalar.stats.scatter_events, 0u);
+    ASSERT_EQ(vector.paths.size(), scalar.paths.size());
+    std::size_t differing = 0;
+    for (std::size_t p = 0; p < scalar.paths.size(); ++p) {
+        const auto &a = scalar.paths[p].vertices, &b = vector.paths[p].vertices;
+        differing +=
+            a.size() != b.size() || std::memcmp(a.data(), b.data(), a.size() * sizeof a[0]) != 0;
+    }
+    EXPECT_EQ(differing, 0u) << "of " << scalar.paths.size() << " paths";
+    EXPECT_TRUE(vector.echoes == scalar.echoes);
+    EXPECT_EQ(vector.fluence.voxels(), scalar.fluence.voxels());
+    EXPECT_EQ(vector.absorbed.voxels(), scalar.absorbed.voxels());
+    const EnergyLedger &a = scalar.ledger, &b = vector.ledger;
+    for (const auto& [x, y, name] : {std::tuple{a.absorbed, b.absorbed, "absorbed"},
+                                     std::tuple{a.escaped, b.escaped, "escaped"},
+                                     std::tuple{a.recorded, b.recorded, "recorded"},
+                                     std::tuple{a.remaining, b.remaining, "remaining"},
+                                     std::tuple{a.roulette_killed, b.roulette_killed, "killed"}})
+        EXPECT_NEAR(x, y, 1e-12 * a.injected) << name;
+    const auto &pa = scalar.echo_profile.intensity, &pb = vector.echo_profile.intensity;
+    ASSERT_EQ(pa.size(), pb.size());
+    for (std::size_t i = 0; i < pa.size(); ++i)
+        ASSERT_NEAR(pa[i], pb[i], 1e-6f * std::abs(pa[i])) << "profile bin " << i;
+}
+
+TEST(Tracer, VectorStepsTakeTheScalarStepsPaths) {
+    const auto map = textured_tissue<2>(160, 0.25);
+    Sources<2> src;
+    for (int line = 0; line < 6; ++line) {
+        auto beam =
+            fan_beam({20.0f, 0.3f}, {0.15f * float(line - 3), 1.0f}, 20.0f, 150, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    expect_vector_steps_take_scalar_paths(map, src);
+}
+
+TEST(Tracer3D, VectorStepsTakeTheScalarStepsPaths) {
+    const auto map = textured_tissue<3>(64, 0.25);
+    Sources<3> src;
+    for (int line = 0; line < 4; ++line) {
+        auto beam = fan_beam_3d({8.0f, 0.2f, 4.0f}, {0.15f * float(line - 2), 1.0f, 0.05f}, 20.0f,
+                                9, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    expect_vector_steps_take_scalar_paths(map, src);
+}
+
 TEST(TracerErrors, BadSettingsAndSourcesAreNamed) {
     const auto map =
         tissue::AcousticMap<2>::build(homogeneous(10, 10, 1.0, lossless_medium(1540, 1000)));

@@ -1,0 +1,186 @@
+#pragma once
+// Internal to the tracer: a batch of particles in lockstep, stored field by field
+// (structure of arrays, one array per axis for vectors), and the vector stage that takes
+// the common step of all of them at once (vector_step.cpp). tracer.cpp runs everything
+// else: emission, uniform runs, interface events, endings.
+#include <array>
+#include <cstdint>
+
+#include "simulator/interactions.h"
+#include "simulator/rng.h"
+
+namespace sonotrace::simulator::detail {
+
+// Uniform random numbers of one particle, four per Philox call.
+struct RandomStream {
+    ParticleRng rng;
+    std::array<float, 4> block{};
+    int used = 4;
+    float next() {
+        if (used == 4) block = rng.draw4(), used = 0;
+        return block[used++];
+    }
+};
+
+// Interface state of a particle (Batch::in_interface). 32 bits: the vector stage compares
+// it lane by lane with float masks. (An enum, not a char type: stores through a char may
+// alias anything, which made the compiler reload the particle's state after each update.)
+enum class InterfaceState : int32_t {
+    outside,            // flat or gently graded medium
+    crossing,           // transmitting through a sharp interface
+    leaving_reflected,  // reflected; leaves without refracting
+    graded,             // steep but no plateau near: graded medium
+};
+constexpr InterfaceState kOutside = InterfaceState::outside;
+constexpr InterfaceState kCrossing = InterfaceState::crossing;
+constexpr InterfaceState kLeavingAfterReflection = InterfaceState::leaving_reflected;
+constexpr InterfaceState kGraded = InterfaceState::graded;
+// In the graded state the interface search is repeated every this many steep steps.
+constexpr int32_t kGradedRecheckSteps = 8;
+
+// exp(-x) for the per-step attenuation, x >= 0, as two Taylor polynomials: per step
+// x = alpha f s is small (0.005 in soft tissue, 0.2 in skull at 3.5 MHz and 0.125 mm
+// steps). Below 0.03 degree 4 is exact to x^5/5! < 2.1e-10; up to 0.5 degree 7, to
+// x^8/8! < 1.6e-7 relative. Templates: the scalar step and the vector stage evaluate the
+// same operations, so both give the same bits. (The libm call was 14 % of a step.)
+constexpr float kExpSeries4Below = 0.03f, kExpSeries7Below = 0.5f;
+template <class T>
+inline T exp_minus_series4(T x) {
+    T p = T{} + 1.0f / 24.0f;
+    p = p * -x + 1.0f / 6.0f;
+    p = p * -x + 0.5f;
+    p = p * -x + 1.0f;
+    return p * -x + 1.0f;
+}
+template <class T>
+inline T exp_minus_series7(T x) {
+    T p = T{} + 1.0f / 5040.0f;
+    p = p * -x + 1.0f / 720.0f;
+    p = p * -x + 1.0f / 120.0f;
+    p = p * -x + 1.0f / 24.0f;
+    p = p * -x + 1.0f / 6.0f;
+    p = p * -x + 0.5f;
+    p = p * -x + 1.0f;
+    return p * -x + 1.0f;
+}
+
+// Vectors of N lanes, one array per axis.
+template <int Dim, int N>
+struct LaneVectors {
+    std::array<std::array<float, N>, Dim> axis{};
+    Vec<Dim> operator[](int k) const {
+        Vec<Dim> v;
+        for (int a = 0; a < Dim; ++a) v[a] = axis[std::size_t(a)][std::size_t(k)];
+        return v;
+    }
+    void set(int k, const Vec<Dim>& v) {
+        for (int a = 0; a < Dim; ++a) axis[std::size_t(a)][std::size_t(k)] = v[a];
+    }
+    void copy(int to, int from) {
+        for (auto& lane : axis) lane[std::size_t(to)] = lane[std::size_t(from)];
+    }
+};
+
+// Particles of one batch, stored field by field (structure of arrays).
+template <int Dim>
+struct Batch {
+    static constexpr int kSize = 64;
+    static constexpr std::size_t N = kSize;
+    LaneVectors<Dim, kSize> position, direction;
+    std::array<float, N> energy{}, initial_energy{}, optical_depth{}, scatter_target{};
+    std::array<float, N> receive_weight{};
+    // Product of the probabilities of the stochastic choices made so far (R^2 for each
+    // reflection taken, 1 - R^2 for each transmission): by reciprocity the echo's way
+    // back makes the same crossings, so its two-way intensity carries this factor again.
+    std::array<float, N> return_factor{};
+    std::array<float, N> previous_index{};  // n sampled at the previous step's position
+    // Deposits gather per particle while it stays in one texel (2-3 steps at the default
+    // step), then go to the map in one write: the map writes were cache misses.
+    std::array<uint32_t, N> pending_texel{};
+    std::array<float, N> pending_fluence{}, pending_absorbed{};
+    std::array<double, N> time{}, path_length{};
+    std::array<uint16_t, N> bounces{};
+    std::array<InterfaceState, N> in_interface{};
+    std::array<int32_t, N> graded_steps{};     // steps since the last interface check in kGraded
+    LaneVectors<Dim, kSize> interface_normal;  // normal of the interface being crossed
+    std::array<uint32_t, N> particle{};
+    std::array<int, N> path{};  // index into LineOutput::paths or -1
+    std::array<RandomStream, N> random{};
+    int count = 0;
+
+    void remove(int k) {  // swap with the last live particle
+        const int last = --count;
+        const auto to = std::size_t(k), from = std::size_t(last);
+        position.copy(k, last), direction.copy(k, last), interface_normal.copy(k, last);
+        energy[to] = energy[from], initial_energy[to] = initial_energy[from];
+        receive_weight[to] = receive_weight[from], return_factor[to] = return_factor[from];
+        optical_depth[to] = optical_depth[from], scatter_target[to] = scatter_target[from];
+        previous_index[to] = previous_index[from];
+        pending_texel[to] = pending_texel[from];
+        pending_fluence[to] = pending_fluence[from];
+        pending_absorbed[to] = pending_absorbed[from];
+        time[to] = time[from], path_length[to] = path_length[from];
+        bounces[to] = bounces[from], in_interface[to] = in_interface[from];
+        graded_steps[to] = graded_steps[from];
+        particle[to] = particle[from], path[to] = path[from], random[to] = random[from];
+    }
+};
+
+// ---- the vector stage (vector_step.cpp) ----
+
+// The fields sampled at each lane's position (the scalar stage interpolates them) and
+// whether the general step applies to the lane: not in a uniform block, whose record
+// step() would use as it is.
+template <int Dim>
+struct LaneFields {
+    static constexpr std::size_t N = Batch<Dim>::N;
+    alignas(32) std::array<float, N> refractive_index{}, impedance{}, attenuation{}, backscatter{};
+    alignas(32) std::array<std::array<float, N>, Dim> grad_refractive_index{}, grad_impedance{};
+    alignas(32) std::array<uint32_t, N> texel{};    // the deposit texel of the position
+    alignas(32) std::array<int32_t, N> eligible{};  // -1: the general step applies, 0: step()
+};
+
+// What the vector stage leaves to the scalar one, per lane.
+enum LaneFlag : int32_t {
+    kLaneToStep = 1,  // an event or a state the vector stage does not take: step() does it
+    kLaneFlush = 2,   // the particle changed texel: deposit the flush_* sums
+    kLaneMayEnd = 4,  // outside the domain, past a limit or below the roulette energy
+};
+template <int Dim>
+struct LaneResults {
+    static constexpr std::size_t N = Batch<Dim>::N;
+    alignas(32) std::array<int32_t, N> flags{};
+    alignas(32) std::array<uint32_t, N> flush_texel{};
+    alignas(32) std::array<float, N> flush_fluence{}, flush_absorbed{};
+    // For the echo profile (StepConstants::profile): the step's start position and time,
+    // and the energy after absorption.
+    alignas(32) std::array<std::array<float, N>, Dim> start_position{};
+    alignas(32) std::array<float, N> profile_energy{};
+    alignas(32) std::array<double, N> start_time{};
+};
+
+// The step's settings, as the scalar step() uses them (LineTracer's constructor).
+template <int Dim>
+struct StepConstants {
+    float step_mm = 0.5f;
+    float attenuation_per_mm = 0.0f;  // Np/mm per dB/(cm MHz)
+    float scattering_rate_per_mm = 0.0f;
+    float threshold2 = 0.0f, inverse_texel2 = 1.0f;  // the interface test, squared
+    float roulette_energy = 0.0f;                    // relative to the initial energy
+    double step_time_per_index = 0.0;                // s per step per unit refractive index
+    double max_path_mm = 0.0, max_time_s = 0.0;
+    std::array<float, Dim> extent{};  // the domain [0, extent] per axis
+    bool deposition_maps = true, absorption = true, scattering = true, refraction = true;
+    bool profile = false;
+};
+
+// Takes the general step (what LineTracer::step does when nothing but absorption,
+// scattering's optical depth, the interface test and refraction happens) for lanes
+// [0, lanes) of the batch, lanes a multiple of 8. Lanes it does not take (flag
+// kLaneToStep) keep their state untouched for step().
+void vector_step(Batch<2>& batch, const LaneFields<2>& fields, const StepConstants<2>& constants,
+                 LaneResults<2>& results, int lanes);
+void vector_step(Batch<3>& batch, const LaneFields<3>& fields, const StepConstants<3>& constants,
+                 LaneResults<3>& results, int lanes);
+
+}  // namespace sonotrace::simulator::detail

@@ -1,0 +1,249 @@
+// The general step of a batch, eight particles at a time (GCC vector extensions: AVX2
+// registers where the CPU has them, SSE pairs otherwise). In textured tissue (the head)
+// nearly every step interpolates and refracts; as scalar code with a branch per physics
+// stage it cost ~270 cycles, while lanes in lockstep share one instruction stream.
+//
+// The arithmetic is LineTracer::step()'s, operation for operation (no FMA contraction:
+// this file is built with -ffp-contract=off), so a particle takes the same path bit for
+// bit whichever stage steps it (test: Tracer.VectorStepsTakeTheScalarStepsPaths).
+// Anything rarer (an interface to search, a scattering event, total reflection while
+// crossing, a large attenuation) goes back to step() untouched.
+#include <cstring>
+
+// The helpers here (and batch.h's series) pass 32-byte vectors by value; they are inlined,
+// so the ABI note about AVX vectors in the SSE build does not apply.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+#include "simulator/batch.h"
+
+namespace sonotrace::simulator::detail {
+
+namespace {
+
+constexpr int kLanes = 8;
+typedef float vf __attribute__((vector_size(32)));
+typedef int32_t vi __attribute__((vector_size(32)));
+typedef double vd __attribute__((vector_size(32)));
+typedef int64_t vl __attribute__((vector_size(32)));
+typedef float vf4 __attribute__((vector_size(16)));
+typedef int32_t vi4 __attribute__((vector_size(16)));
+
+template <class T, class S>
+[[gnu::always_inline]] inline T load(const S* p) {
+    T v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+template <class T, class S>
+[[gnu::always_inline]] inline void store(S* p, const T& v) {
+    std::memcpy(p, &v, sizeof v);
+}
+
+[[gnu::always_inline]] inline vf lane_sqrt(vf v) {
+    vf out;
+    for (int i = 0; i < kLanes; ++i) out[i] = __builtin_sqrtf(v[i]);
+    return out;
+}
+
+// Lanes 0-3 or 4-7 as doubles, and 4 + 4 double-lane masks as one 8-lane mask.
+[[gnu::always_inline]] inline vd low_to_double(vf v) {
+    return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3), vd);
+}
+[[gnu::always_inline]] inline vd high_to_double(vf v) {
+    return __builtin_convertvector(__builtin_shufflevector(v, v, 4, 5, 6, 7), vd);
+}
+[[gnu::always_inline]] inline vi join_masks(vl low, vl high) {
+    return __builtin_shufflevector(__builtin_convertvector(low, vi4),
+                                   __builtin_convertvector(high, vi4), 0, 1, 2, 3, 4, 5, 6, 7);
+}
+
+template <int Dim>
+[[gnu::always_inline]] inline void step_lanes(Batch<Dim>& b, const LaneFields<Dim>& f,
+                                              const StepConstants<Dim>& c, LaneResults<Dim>& out,
+                                              int lanes) {
+    const float s = c.step_mm;
+    for (int base = 0; base < lanes; base += kLanes) {
+        const auto at = std::size_t(base);
+        vi to_step = ~load<vi>(&f.eligible[at]);
+        vf E = load<vf>(&b.energy[at]);
+        vf x[Dim], r[Dim];
+        for (int a = 0; a < Dim; ++a) {
+            x[a] = load<vf>(&b.position.axis[std::size_t(a)][at]);
+            r[a] = load<vf>(&b.direction.axis[std::size_t(a)][at]);
+        }
+        const vf n1 = load<vf>(&f.refractive_index[at]);
+
+        // -- deposits go to the texel the particle is in: hand the old sums over on a change
+        vf fluence = load<vf>(&b.pending_fluence[at]);
+        vf absorbed = load<vf>(&b.pending_absorbed[at]);
+        vi pending_texel = load<vi>(&b.pending_texel[at]);
+        vi flush = vi{};
+        if (c.deposition_maps) {
+            const vi texel = load<vi>(&f.texel[at]);
+            flush = texel != pending_texel;
+            store(&out.flush_texel[at], pending_texel);
+            store(&out.flush_fluence[at], fluence);
+            store(&out.flush_absorbed[at], absorbed);
+            fluence = flush ? vf{} : fluence;
+            absorbed = flush ? vf{} : absorbed;
+            pending_texel = texel;
+        }
+        // -- absorption along the step (exp_minus in tracer.cpp; beyond its series: step())
+        if (c.absorption) {
+            const vf attenuation = load<vf>(&f.attenuation[at]);
+            const vf optical = c.attenuation_per_mm * attenuation * s;
+            const vf transmitted = optical < kExpSeries4Below ? exp_minus_series4(optical)
+                                                              : exp_minus_series7(optical);
+            const vi absorbs = attenuation > 0.0f;
+            to_step |= absorbs & (optical > kExpSeries7Below);
+            const vf lost = absorbs ? E * (1.0f - transmitted) : vf{};
+            E = E - lost;
+            absorbed = absorbed + lost;
+        }
+        fluence = fluence + E * s;
+
+        // -- scattering's optical depth; the event itself is step()'s
+        vf optical_depth = load<vf>(&b.optical_depth[at]);
+        if (c.scattering) {
+            const vf backscatter = load<vf>(&f.backscatter[at]);
+            const vi scatters = backscatter > 0.0f;
+            const vf deeper = optical_depth + c.scattering_rate_per_mm * backscatter * s;
+            optical_depth = scatters ? deeper : optical_depth;
+            to_step |= scatters & (optical_depth >= load<vf>(&b.scatter_target[at]));
+            if (c.profile) {
+                for (int a = 0; a < Dim; ++a) store(&out.start_position[std::size_t(a)][at], x[a]);
+                store(&out.profile_energy[at], E);
+                std::memcpy(&out.start_time[at], &b.time[at], kLanes * sizeof(double));
+            }
+        }
+
+        // -- interface test, squared: a steep gradient met from outside needs step()
+        vf gz2 = vf{};
+        for (int a = 0; a < Dim; ++a) {
+            const vf g = load<vf>(&f.grad_impedance[std::size_t(a)][at]);
+            gz2 = gz2 + g * g;
+        }
+        const vf impedance = load<vf>(&f.impedance[at]);
+        const vf scale2 = impedance * impedance * c.inverse_texel2;
+        const vi steep = gz2 > c.threshold2 * scale2;
+        vi state = load<vi>(&b.in_interface[at]);
+        vi graded_steps = load<vi>(&b.graded_steps[at]);
+        const vi graded = state == int32_t(kGraded);
+        const vi next_graded = graded_steps + 1;
+        to_step |= steep & (state == int32_t(kOutside));
+        to_step |= steep & graded & (next_graded >= kGradedRecheckSteps);
+        graded_steps = steep & graded ? next_graded : graded_steps;
+        const vi calm = ~steep & (gz2 < 0.25f * c.threshold2 * scale2);  // hysteresis
+        state = calm ? int32_t(kOutside) : state;
+
+        // -- continuous refraction by Snell's law (refract() in interactions.h)
+        const vf n0 = load<vf>(&b.previous_index[at]);
+        vf previous_index = n1;
+        if (c.refraction) {
+            const vi crossing = state == int32_t(kCrossing);
+            vf g[Dim], g2 = vf{};
+            for (int a = 0; a < Dim; ++a) {
+                g[a] = load<vf>(&f.grad_refractive_index[std::size_t(a)][at]);
+                g2 = g2 + g[a] * g[a];
+            }
+            const vi bends =
+                (state != int32_t(kLeavingAfterReflection)) & (n0 != n1) & (crossing | (g2 > 0.0f));
+            const vf inverse_length = 1.0f / lane_sqrt(g2);
+            vf normal[Dim], d = vf{};
+            for (int a = 0; a < Dim; ++a) {
+                normal[a] = crossing ? load<vf>(&b.interface_normal.axis[std::size_t(a)][at])
+                                     : g[a] * inverse_length;
+            }
+            d = r[0] * normal[0];
+            for (int a = 1; a < Dim; ++a) d = d + r[a] * normal[a];
+            vf facing[Dim];
+            for (int a = 0; a < Dim; ++a) facing[a] = d > 0.0f ? -normal[a] : normal[a];
+            const vf cos_i = d > 0.0f ? d : -d;
+            const vf eta = n0 / n1;
+            const vf k = 1.0f - eta * eta * (1.0f - cos_i * cos_i);
+            const vi total = k < 0.0f;
+            const vf cos_t = lane_sqrt(k);  // NaN where total: not selected
+            vf t[Dim], tt, rf;
+            for (int a = 0; a < Dim; ++a) t[a] = eta * r[a] + (eta * cos_i - cos_t) * facing[a];
+            tt = t[0] * t[0];
+            rf = r[0] * facing[0];
+            for (int a = 1; a < Dim; ++a) tt = tt + t[a] * t[a], rf = rf + r[a] * facing[a];
+            const vf renormalise = 1.5f - 0.5f * tt;
+            const vf twice = 2.0f * rf;
+            for (int a = 0; a < Dim; ++a) {
+                const vf bent = total ? r[a] - twice * facing[a] : t[a] * renormalise;
+                r[a] = bends ? bent : r[a];
+            }
+            // Total reflection: still on the n0 side; while crossing it is a bounce (step()).
+            previous_index = bends & total ? n0 : n1;
+            to_step |= bends & total & crossing;
+        }
+
+        // -- move
+        for (int a = 0; a < Dim; ++a) x[a] = x[a] + s * r[a];
+        vd time[2] = {load<vd>(&b.time[at]), load<vd>(&b.time[at + 4])};
+        vd path[2] = {load<vd>(&b.path_length[at]), load<vd>(&b.path_length[at + 4])};
+        time[0] = time[0] + c.step_time_per_index * low_to_double(n1);
+        time[1] = time[1] + c.step_time_per_index * high_to_double(n1);
+        for (vd& p : path) p = p + double(s);
+
+        // -- endings are continues()'s (bounces do not change in this stage)
+        vi inside = ~vi{};
+        for (int a = 0; a < Dim; ++a) inside &= (x[a] >= 0.0f) & (x[a] <= c.extent[std::size_t(a)]);
+        const vi past_limit = join_masks((path[0] > c.max_path_mm) | (time[0] > c.max_time_s),
+                                         (path[1] > c.max_path_mm) | (time[1] > c.max_time_s));
+        const vi weak = E < c.roulette_energy * load<vf>(&b.initial_energy[at]);
+        const vi may_end = ~inside | past_limit | weak;
+
+        // -- commit the lanes taken; the others stay as they were for step()
+        auto commit = [&](auto* field, auto value) {
+            using T = decltype(value);
+            const T old = load<T>(field);
+            store(field, to_step ? old : value);
+        };
+        auto commit_double = [&](double* field, const vd(&value)[2]) {
+            const vl keep[2] = {
+                __builtin_convertvector(__builtin_shufflevector(to_step, to_step, 0, 1, 2, 3), vl),
+                __builtin_convertvector(__builtin_shufflevector(to_step, to_step, 4, 5, 6, 7), vl)};
+            for (int h = 0; h < 2; ++h) {
+                const vd old = load<vd>(field + 4 * h);
+                store(field + 4 * h, keep[h] ? old : value[h]);
+            }
+        };
+        commit(&b.energy[at], E);
+        for (int a = 0; a < Dim; ++a) {
+            commit(&b.position.axis[std::size_t(a)][at], x[a]);
+            commit(&b.direction.axis[std::size_t(a)][at], r[a]);
+        }
+        commit(&b.pending_fluence[at], fluence);
+        commit(&b.pending_absorbed[at], absorbed);
+        commit(reinterpret_cast<int32_t*>(&b.pending_texel[at]), pending_texel);
+        commit(&b.optical_depth[at], optical_depth);
+        commit(reinterpret_cast<int32_t*>(&b.in_interface[at]), state);
+        commit(&b.graded_steps[at], graded_steps);
+        commit(&b.previous_index[at], previous_index);
+        commit_double(&b.time[at], time);
+        commit_double(&b.path_length[at], path);
+        store(&out.flags[at],
+              to_step ? vi{} + int32_t(kLaneToStep)
+                      : (flush & int32_t(kLaneFlush)) | (may_end & int32_t(kLaneMayEnd)));
+    }
+}
+
+}  // namespace
+
+[[gnu::target_clones("avx2", "default")]] void vector_step(Batch<2>& batch,
+                                                           const LaneFields<2>& fields,
+                                                           const StepConstants<2>& constants,
+                                                           LaneResults<2>& results, int lanes) {
+    step_lanes(batch, fields, constants, results, lanes);
+}
+
+[[gnu::target_clones("avx2", "default")]] void vector_step(Batch<3>& batch,
+                                                           const LaneFields<3>& fields,
+                                                           const StepConstants<3>& constants,
+                                                           LaneResults<3>& results, int lanes) {
+    step_lanes(batch, fields, constants, results, lanes);
+}
+
+}  // namespace sonotrace::simulator::detail
