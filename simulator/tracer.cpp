@@ -164,11 +164,12 @@ class LineTracer {
         LaneFields<Dim>& f = fields_;
         for (int k = 0; k < b.count;) {
             // Outside every block (nearly every step in the head) the general step applies.
-            if (!uniform_runs_ || map_.uniform_block(b.position[k]) == nullptr) {
+            const Texel* block = uniform_runs_ ? map_.uniform_block(b.position[k]) : nullptr;
+            if (block == nullptr) {
                 f.eligible[std::size_t(k++)] = -1;
                 continue;
             }
-            const RunEnd run_end = uniform_run(b, k);
+            const RunEnd run_end = uniform_run(b, k, block);
             if (run_end == RunEnd::ended) {
                 flush_deposits(b, k);
                 b.remove(k);
@@ -180,6 +181,7 @@ class LineTracer {
         const int lanes = (b.count + 7) & ~7;
         for (int k = 0; k < b.count; ++k) {
             const auto i = std::size_t(k);
+            if (f.eligible[i] == 0) continue;  // step()'s
             const V x = b.position[k];
             const Texel t = map_.sample(x);
             f.refractive_index[i] = t.refractive_index;
@@ -737,6 +739,10 @@ class LineTracer {
         // before loading and storing back the particle's state (Colin27 2D: +15 % steps/s).
         const Texel* first = map_.uniform_block(b.position[k]);
         if (first == nullptr) return RunEnd::step_outside_blocks;  // step() need not look again
+        return uniform_run(b, k, first);
+    }
+    // The same for a particle in the block whose record is `first`.
+    RunEnd uniform_run(Batch<Dim>& b, int k, const Texel* first) {
         if (b.in_interface[k] != kOutside || first->refractive_index != b.previous_index[k])
             return RunEnd::step;
         // The particle's state in locals (registers) for the run, written back at its end.
