@@ -39,7 +39,55 @@ inline int64_t to_fixed(double v) {
 struct DepositCell {
     int64_t fluence = 0, absorbed = 0;
 };
-using DepositMaps = std::vector<DepositCell>;
+
+// A thread's deposit maps in tiles of 8^Dim texels, allocated when first written: a fan
+// lights part of a volume, and zeroing and merging whole maps per thread cost more than
+// the deposits themselves in 3D (page faults, clearing, a pass over every texel). Texels
+// are numbered tile by tile, so a particle's deposits stay within one tile for 8 rows.
+template <int Dim>
+class DepositTiles {
+  public:
+    static constexpr int kShift = 3, kSide = 1 << kShift;
+    static constexpr uint32_t kCells = 1u << (kShift * Dim);
+    using Tile = std::array<DepositCell, kCells>;
+
+    explicit DepositTiles(const glm::ivec3& dims) : dims_(dims) {
+        for (int a = 0; a < 3; ++a) tiles_per_axis_[a] = (dims[a] + kSide - 1) >> kShift;
+        tiles_.resize(std::size_t(tiles_per_axis_.x) * std::size_t(tiles_per_axis_.y) *
+                      std::size_t(tiles_per_axis_.z));
+    }
+    // The cell number of texel i (inside the map).
+    uint32_t index(const glm::vec<Dim, int>& i) const {
+        uint32_t tile = 0, offset = 0;
+        for (int a = Dim - 1; a >= 0; --a) {
+            tile = tile * uint32_t(tiles_per_axis_[a]) + uint32_t(i[a] >> kShift);
+            offset = (offset << kShift) | uint32_t(i[a] & (kSide - 1));
+        }
+        return tile << (kShift * Dim) | offset;
+    }
+    DepositCell& operator[](uint32_t cell) {
+        std::unique_ptr<Tile>& tile = tiles_[cell >> (kShift * Dim)];
+        if (!tile) tile = std::make_unique<Tile>();
+        return (*tile)[cell & (kCells - 1)];
+    }
+    std::size_t tile_count() const { return tiles_.size(); }
+    const Tile* tile(std::size_t t) const { return tiles_[t].get(); }
+    // The texel of cell c of tile t, or false if it lies beyond the map's edge.
+    bool texel(std::size_t t, uint32_t c, glm::ivec3* i) const {
+        *i = glm::ivec3(0);
+        for (int a = 0; a < Dim; ++a) {
+            const auto tile_a = int(t % std::size_t(tiles_per_axis_[a]));
+            t /= std::size_t(tiles_per_axis_[a]);
+            (*i)[a] = tile_a * kSide + int(c >> (kShift * a) & (kSide - 1));
+            if ((*i)[a] >= dims_[a]) return false;
+        }
+        return true;
+    }
+
+  private:
+    glm::ivec3 dims_, tiles_per_axis_{1};
+    std::vector<std::unique_ptr<Tile>> tiles_;
+};
 
 // One bin of a line's echo profile: intensity w and its moments, in double (the spread
 // across the beam is a small difference of large second moments). One record per bin: a
@@ -121,7 +169,7 @@ class LineTracer {
     }
 
     void run(const Sources<Dim>& sources, const std::vector<uint32_t>& order, std::size_t begin,
-             std::size_t end, DepositMaps& deposits, LineOutput<Dim>& out) {
+             std::size_t end, DepositTiles<Dim>& deposits, LineOutput<Dim>& out) {
         deposits_ = &deposits;
         out_ = &out;
         if (settings_.ring) out.ring.assign(std::size_t(settings_.ring->bins), 0.0);
@@ -301,13 +349,12 @@ class LineTracer {
         out_->ledger.absorbed += double(absorbed);
     }
 
-    std::size_t texel_index(const V& x) const {
-        std::size_t index = 0;
-        for (int a = Dim - 1; a >= 0; --a) {
-            const int i = std::clamp(int(x[a] * inverse_spacing_[a] + 0.5f), 0, map_.dims()[a] - 1);
-            index = index * std::size_t(map_.dims()[a]) + std::size_t(i);
-        }
-        return index;
+    // The deposit cell of the texel nearest to x.
+    uint32_t texel_index(const V& x) const {
+        glm::vec<Dim, int> i;
+        for (int a = 0; a < Dim; ++a)
+            i[a] = std::clamp(int(x[a] * inverse_spacing_[a] + 0.5f), 0, map_.dims()[a] - 1);
+        return deposits_->index(i);
     }
 
     // |grad Z| h / Z above the interface threshold, squared: no root or division.
@@ -889,7 +936,7 @@ class LineTracer {
     int plateau_steps_ = 16;
     double inverse_profile_bin_ = 0.0;
     float profile_scale_ = 0.0f;
-    DepositMaps* deposits_ = nullptr;
+    DepositTiles<Dim>* deposits_ = nullptr;
     bool deposit_maps_ = true;
     LineOutput<Dim>* out_ = nullptr;
     uint32_t line_ = 0;
@@ -936,8 +983,9 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     starts.push_back(order.size());
     const std::size_t lines = starts.size() - 1;
 
-    const std::size_t texels = settings.deposition_maps ? map.geometry().voxel_count() : 0;
-    tbb::enumerable_thread_specific<DepositMaps> deposits([texels] { return DepositMaps(texels); });
+    const glm::ivec3 dims = map.geometry().dims;
+    tbb::enumerable_thread_specific<DepositTiles<Dim>> deposits(
+        [dims] { return DepositTiles<Dim>(dims); });
     std::vector<LineOutput<Dim>> outputs(lines);
     std::atomic<std::size_t> done{0};
     tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
@@ -960,16 +1008,24 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     double area = 1.0;
     for (int a = 0; a < Dim; ++a) area *= map.spacing()[a];
     const double per_texel = 1.0 / (kFixedScale * area);  // energy*mm per texel -> per mm^Dim
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                          for (std::size_t i = range.begin(); i < range.end(); ++i) {
-                              int64_t fluence = 0, absorbed = 0;
-                              for (const DepositMaps& d : deposits)
-                                  fluence += d[i].fluence, absorbed += d[i].absorbed;
-                              result.fluence.voxels()[i] = float(double(fluence) * per_texel);
-                              result.absorbed.voxels()[i] = float(double(absorbed) / kFixedScale);
-                          }
-                      });
+    std::vector<const DepositTiles<Dim>*> maps;           // one per thread that traced
+    for (const DepositTiles<Dim>& d : deposits) maps.push_back(&d);
+    const std::size_t tiles = settings.deposition_maps && !maps.empty() ? maps[0]->tile_count() : 0;
+    tbb::parallel_for(std::size_t(0), tiles, [&](std::size_t t) {
+        if (std::none_of(maps.begin(), maps.end(), [t](auto* m) { return m->tile(t) != nullptr; }))
+            return;  // nothing deposited: the result is zero there already
+        for (uint32_t c = 0; c < DepositTiles<Dim>::kCells; ++c) {
+            glm::ivec3 i;
+            if (!maps[0]->texel(t, c, &i)) continue;
+            int64_t fluence = 0, absorbed = 0;
+            for (const DepositTiles<Dim>* m : maps) {
+                if (const auto* tile = m->tile(t))
+                    fluence += (*tile)[c].fluence, absorbed += (*tile)[c].absorbed;
+            }
+            result.fluence.at(i.x, i.y, i.z) = float(double(fluence) * per_texel);
+            result.absorbed.at(i.x, i.y, i.z) = float(double(absorbed) / kFixedScale);
+        }
+    });
     if (settings.ring) result.ring_profile.assign(std::size_t(settings.ring->bins), 0.0);
     if (settings.echo_profile) {
         // Lines are numbered by id; ids without particles keep empty rows.
