@@ -45,7 +45,7 @@ constexpr int32_t kGradedRecheckSteps = 8;
 // same operations, so both give the same bits. (The libm call was 14 % of a step.)
 constexpr float kExpSeries4Below = 0.03f, kExpSeries7Below = 0.5f;
 template <class T>
-inline T exp_minus_series4(T x) {
+inline T exp_minus_series4(const T& x) {
     T p = T{} + 1.0f / 24.0f;
     p = p * -x + 1.0f / 6.0f;
     p = p * -x + 0.5f;
@@ -53,7 +53,7 @@ inline T exp_minus_series4(T x) {
     return p * -x + 1.0f;
 }
 template <class T>
-inline T exp_minus_series7(T x) {
+inline T exp_minus_series7(const T& x) {
     T p = T{} + 1.0f / 5040.0f;
     p = p * -x + 1.0f / 720.0f;
     p = p * -x + 1.0f / 120.0f;

@@ -225,7 +225,7 @@ class LineTracer {
             }
             f.eligible[std::size_t(k++)] = run_end == RunEnd::step_outside_blocks ? -1 : 0;
         }
-        // -- fields at each position, one lane per field array
+        // -- the fields at each lane's position, field by field
         const int lanes = (b.count + 7) & ~7;
         for (int k = 0; k < b.count; ++k) {
             const auto i = std::size_t(k);
@@ -277,7 +277,6 @@ class LineTracer {
         }
     }
 
-  private:
     void emit(const SourceParticle<Dim>& s, uint32_t index, Batch<Dim>& b) {
         out_->stats.particles++;
         out_->ledger.injected += s.energy;

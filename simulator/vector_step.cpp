@@ -9,9 +9,10 @@
 // Anything rarer (an interface to search, a scattering event, total reflection while
 // crossing, a large attenuation) goes back to step() untouched.
 #include <cstring>
+#include <type_traits>
 
-// The helpers here (and batch.h's series) pass 32-byte vectors by value; they are inlined,
-// so the ABI note about AVX vectors in the SSE build does not apply.
+// The helpers here (and batch.h's series) return 32-byte vectors by value; they are
+// inlined, so the ABI warning about AVX vectors in the SSE build does not apply.
 #pragma GCC diagnostic ignored "-Wpsabi"
 
 #include "simulator/batch.h"
@@ -39,20 +40,20 @@ template <class T, class S>
     std::memcpy(p, &v, sizeof v);
 }
 
-[[gnu::always_inline]] inline vf lane_sqrt(vf v) {
+[[gnu::always_inline]] inline vf lane_sqrt(const vf& v) {
     vf out;
     for (int i = 0; i < kLanes; ++i) out[i] = __builtin_sqrtf(v[i]);
     return out;
 }
 
 // Lanes 0-3 or 4-7 as doubles, and 4 + 4 double-lane masks as one 8-lane mask.
-[[gnu::always_inline]] inline vd low_to_double(vf v) {
+[[gnu::always_inline]] inline vd low_to_double(const vf& v) {
     return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3), vd);
 }
-[[gnu::always_inline]] inline vd high_to_double(vf v) {
+[[gnu::always_inline]] inline vd high_to_double(const vf& v) {
     return __builtin_convertvector(__builtin_shufflevector(v, v, 4, 5, 6, 7), vd);
 }
-[[gnu::always_inline]] inline vi join_masks(vl low, vl high) {
+[[gnu::always_inline]] inline vi join_masks(const vl& low, const vl& high) {
     return __builtin_shufflevector(__builtin_convertvector(low, vi4),
                                    __builtin_convertvector(high, vi4), 0, 1, 2, 3, 4, 5, 6, 7);
 }
@@ -149,12 +150,12 @@ template <int Dim>
             const vi bends =
                 (state != int32_t(kLeavingAfterReflection)) & (n0 != n1) & (crossing | (g2 > 0.0f));
             const vf inverse_length = 1.0f / lane_sqrt(g2);
-            vf normal[Dim], d = vf{};
+            vf normal[Dim];
             for (int a = 0; a < Dim; ++a) {
                 normal[a] = crossing ? load<vf>(&b.interface_normal.axis[std::size_t(a)][at])
                                      : g[a] * inverse_length;
             }
-            d = r[0] * normal[0];
+            vf d = r[0] * normal[0];
             for (int a = 1; a < Dim; ++a) d = d + r[a] * normal[a];
             vf facing[Dim];
             for (int a = 0; a < Dim; ++a) facing[a] = d > 0.0f ? -normal[a] : normal[a];
@@ -196,8 +197,8 @@ template <int Dim>
         const vi may_end = ~inside | past_limit | weak;
 
         // -- commit the lanes taken; the others stay as they were for step()
-        auto commit = [&](auto* field, auto value) {
-            using T = decltype(value);
+        auto commit = [&](auto* field, const auto& value) {
+            using T = std::remove_cvref_t<decltype(value)>;
             const T old = load<T>(field);
             store(field, to_step ? old : value);
         };
