@@ -136,6 +136,89 @@ TEST(PbvrSampling, UniformThinningPositionsFollowTheDensity) {
     expect_positions_follow(samples, rho_3d, 4);
 }
 
+TEST(PbvrSampling, StratifiedNumbersAreIndependentUniformsWithinARepetition) {
+    // Within one repetition, over 20000 cells: the count's uniform and candidate 0's four
+    // numbers on 16 bins each, candidate 0's position on 4x4x4 boxes, and candidates 0
+    // and 1 jointly on 8x8 bins (independence of draws); chi-square at p = 0.001 each.
+    const int cells = 20000;
+    for (const uint32_t repetition : {0u, 1u, 7u, 100u}) {
+        std::vector<std::vector<int>> marginal(5, std::vector<int>(16, 0));
+        std::vector<int> box(64, 0), joint(64, 0);
+        for (uint32_t c = 0; c < uint32_t(cells); ++c) {
+            const CellSequence sequence(11, repetition, c);
+            const glm::vec4 a = sequence.candidate(0), b = sequence.candidate(1);
+            const float numbers[5] = {sequence.count_uniform(), a.x, a.y, a.z, a.w};
+            for (int d = 0; d < 5; ++d) marginal[std::size_t(d)][std::size_t(numbers[d] * 16)]++;
+            const glm::ivec3 q(glm::vec3(a) * 4.0f);
+            box[std::size_t((q.z * 4 + q.y) * 4 + q.x)]++;
+            joint[std::size_t(int(a.x * 8) * 8 + int(b.x * 8))]++;
+        }
+        for (int d = 0; d < 5; ++d)
+            EXPECT_LT(
+                chi_square(marginal[std::size_t(d)], std::vector<double>(16, 1.0 / 16), cells),
+                chi_square_critical_001(15))
+                << "repetition " << repetition << ", number " << d;
+        EXPECT_LT(chi_square(box, std::vector<double>(64, 1.0 / 64), cells),
+                  chi_square_critical_001(63))
+            << "repetition " << repetition;
+        EXPECT_LT(chi_square(joint, std::vector<double>(64, 1.0 / 64), cells),
+                  chi_square_critical_001(63))
+            << "repetition " << repetition;
+    }
+}
+
+TEST(PbvrSampling, StratifiedNumbersAreStratifiedAcrossRepetitions) {
+    // Over the first 64 repetitions each of a cell's numbers falls once into each 1/64 of
+    // [0, 1) (independent uniforms would do so with probability 64!/64^64 ~ 1e-27); the
+    // candidates' first three numbers share a point per repetition, a net in 3D: every
+    // box of 1/4 x 1/4 x 1/4 holds one of the 64 positions, up to the t = 1 of Sobol's
+    // first three dimensions (at most two per box).
+    for (uint32_t c = 0; c < 50; ++c) {
+        std::vector<std::vector<int>> strata(5, std::vector<int>(64, 0));
+        std::vector<int> box(64, 0);
+        for (uint32_t r = 0; r < 64; ++r) {
+            const CellSequence sequence(5, r, c);
+            const glm::vec4 a = sequence.candidate(3);
+            const float numbers[5] = {sequence.count_uniform(), a.x, a.y, a.z, a.w};
+            for (int d = 0; d < 5; ++d) strata[std::size_t(d)][std::size_t(numbers[d] * 64)]++;
+            const glm::ivec3 q(glm::vec3(a) * 4.0f);
+            box[std::size_t((q.z * 4 + q.y) * 4 + q.x)]++;
+        }
+        for (int d = 0; d < 5; ++d)
+            EXPECT_EQ(
+                *std::max_element(strata[std::size_t(d)].begin(), strata[std::size_t(d)].end()), 1)
+                << "cell " << c << ", number " << d;
+        EXPECT_LE(*std::max_element(box.begin(), box.end()), 2) << "cell " << c;
+    }
+    // So a cell's total count over 64 repetitions hardly varies: Poisson(0.7) counts, 1000
+    // cells; independent counts would give the variance 64 * 0.7 = 44.8.
+    double sum = 0.0, squares = 0.0;
+    for (uint32_t c = 0; c < 1000; ++c) {
+        int total = 0;
+        for (uint32_t r = 0; r < 64; ++r)
+            total += poisson_count_inversion(0.7, std::exp(-0.7),
+                                             double(CellSequence(9, r, c).count_uniform()));
+        sum += total, squares += double(total) * total;
+    }
+    const double mean = sum / 1000.0, variance = squares / 1000.0 - mean * mean;
+    EXPECT_NEAR(mean, 64 * 0.7, 0.5);
+    EXPECT_LT(variance, 0.1 * 64 * 0.7);
+}
+
+TEST(PbvrSampling, StratifiedThinningPositionsFollowTheDensity) {
+    // thin_stratified in one repetition over many cells, as in the uniform thinning test.
+    auto density = [](const glm::vec3& x) { return std::pair{float(rho_3d(x)), 0}; };
+    const float majorant = 1.5f * 1.5f * 1.25f;
+    std::vector<glm::vec3> samples;
+    for (uint32_t c = 0; samples.size() < 40000; ++c) {
+        const CellSequence sequence(3, 5, c);
+        thin_stratified(glm::vec3(0.0f), glm::vec3(1.0f), majorant, double(majorant),
+                        std::exp(-double(majorant)), density, sequence,
+                        [&](const glm::vec3& x, int) { samples.push_back(x); });
+    }
+    expect_positions_follow(samples, rho_3d, 4);
+}
+
 TEST(PbvrSampling, MetropolisSamplesFollowTheDensity1DAnd3D) {
     // One sample per chain (the first after 24 burn-in proposals), so samples are
     // independent: the chi-square's assumptions hold. The independence sampler with

@@ -636,7 +636,11 @@ void PbvrRenderer::add_repetition() {
                     ++drawn;
                 };
                 const glm::vec3 size = h;
-                if (settings_.sampling == Sampling::uniform) {
+                if (settings_.sampling == Sampling::uniform && cell.candidates <= 100.0f) {
+                    CellSequence sequence(settings_.seed, repetition, cell.index);
+                    thin_stratified(origin, size, cell.majorant * inverse_area, cell.candidates,
+                                    cell.no_candidate, density, sequence, emit);
+                } else if (settings_.sampling == Sampling::uniform) {
                     const int candidates =
                         cell.candidates <= 100.0f
                             ? poisson_count_inversion(cell.candidates, cell.no_candidate, random)

@@ -8,11 +8,14 @@
 //             count is Poisson with mean exactly the density integral of eq. 14, and the
 //             positions follow rho inside the cell (no blocky noise: that comes from
 //             placing a cell's expected count uniformly, which thinning does not do).
+//             The renderer draws its numbers stratified across repetitions
+//             (CellSequence, thin_stratified): each repetition is still this process.
 // metropolis: the count ~ Poisson of the integral estimated at the 2x2x2 Gauss points,
 //             positions from an independence Metropolis chain with uniform proposals
 //             (accept min(1, rho(y)/rho(x))), after a short burn-in. Fewer density
 //             evaluations where rho_max is far above the mean, at the price of a count
 //             exact only for densities the Gauss rule integrates exactly.
+#include <array>
 #include <cmath>
 #include <cstdint>
 
@@ -56,10 +59,129 @@ class CellRandom {
     bool has_spare_ = false;
 };
 
-// A Poisson(mean) count by inversion, given p_zero = exp(-mean) (callers that draw the
-// same mean often precompute it); mean <= 100 so p_zero stays representable.
-inline int poisson_count_inversion(double mean, double p_zero, CellRandom& random) {
-    const double u = random.next();
+// Sobol' points in dimensions 0-3 (direction numbers of Joe & Kuo, new-joe-kuo-6.21201:
+// s = 1, 2, 3; a = 0, 1, 1; m = {1}, {1, 3}, {1, 3, 1}), 32 bits, and Owen's nested
+// uniform scrambling by hashing (Burley 2020, "Practical hash-based Owen scrambling").
+namespace sobol {
+constexpr std::array<std::array<uint32_t, 32>, 4> make_directions() {
+    std::array<std::array<uint32_t, 32>, 4> v{};
+    for (int i = 0; i < 32; ++i) v[0][std::size_t(i)] = 1u << (31 - i);  // van der Corput
+    constexpr int s[4] = {0, 1, 2, 3}, a[4] = {0, 0, 1, 1};
+    constexpr uint32_t m[4][3] = {{}, {1}, {1, 3}, {1, 3, 1}};
+    for (int d = 1; d < 4; ++d) {
+        auto& dv = v[std::size_t(d)];
+        for (int i = 0; i < 32; ++i) {
+            if (i < s[d]) {
+                dv[std::size_t(i)] = m[d][i] << (31 - i);
+                continue;
+            }
+            uint32_t x = dv[std::size_t(i - s[d])] ^ (dv[std::size_t(i - s[d])] >> s[d]);
+            for (int k = 1; k < s[d]; ++k)
+                if ((a[d] >> (s[d] - 1 - k)) & 1) x ^= dv[std::size_t(i - k)];
+            dv[std::size_t(i)] = x;
+        }
+    }
+    return v;
+}
+inline constexpr auto kDirections = make_directions();
+
+inline uint32_t reverse_bits(uint32_t x) {
+    x = (x >> 16) | (x << 16);
+    x = ((x & 0xFF00FF00u) >> 8) | ((x & 0x00FF00FFu) << 8);
+    x = ((x & 0xF0F0F0F0u) >> 4) | ((x & 0x0F0F0F0Fu) << 4);
+    x = ((x & 0xCCCCCCCCu) >> 2) | ((x & 0x33333333u) << 2);
+    return ((x & 0xAAAAAAAAu) >> 1) | ((x & 0x55555555u) << 1);
+}
+
+// Points of indices below 2^16 given as bit-reversed 32-bit words (the index's bit k is
+// the word's bit 31 - k, as the scramble leaves it): the XOR of the direction numbers of
+// the top byte's bits (index bits 0-7), then of the next byte's (index bits 8-15).
+constexpr std::array<std::array<std::array<uint32_t, 256>, 2>, 4> make_byte_tables() {
+    std::array<std::array<std::array<uint32_t, 256>, 2>, 4> t{};
+    for (int d = 0; d < 4; ++d)
+        for (int half = 0; half < 2; ++half)
+            for (uint32_t byte = 0; byte < 256; ++byte) {
+                uint32_t x = 0;  // word bit 7 - k of this byte is index bit 8 * half + k
+                for (int k = 0; k < 8; ++k)
+                    if (byte >> (7 - k) & 1u)
+                        x ^= kDirections[std::size_t(d)][std::size_t(8 * half + k)];
+                t[std::size_t(d)][std::size_t(half)][byte] = x;
+            }
+    return t;
+}
+inline constexpr auto kPoints = make_byte_tables();
+inline uint32_t point_of_reversed(uint32_t reversed_index, int dim) {
+    const auto& t = kPoints[std::size_t(dim)];
+    return t[0][reversed_index >> 24] ^ t[1][reversed_index >> 16 & 0xFFu];
+}
+
+// Owen's nested uniform scramble on bit-reversed values: each bit is flipped by a hash of
+// the bits below it, which are the more significant ones before reversal (Laine & Karras
+// 2011, constants of Burley 2020).
+inline uint32_t scramble_reversed(uint32_t x, uint32_t seed) {
+    x += seed;
+    x ^= x * 0x6c50b47cu;
+    x ^= x * 0xb82f1e52u;
+    x ^= x * 0xc7afe638u;
+    x ^= x * 0x8d22f6e6u;
+    return x;
+}
+}  // namespace sobol
+
+// A cell's numbers across repetitions: for each draw (the count; each candidate's
+// position and thinning decision), Owen-scrambled Sobol' points indexed by the
+// repetition, with a scramble of its own per cell and draw. Within one repetition every
+// number is uniform and independent of the others, as the scrambles are, so each
+// repetition is the same Poisson process as with CellRandom; across repetitions a
+// cell's counts and its candidates are stratified instead of independent. (A shared
+// sequence shifted per cell is not enough: every cell's particles then move by the same
+// offset from one repetition to the next, and the images correlate.)
+class CellSequence {
+  public:
+    CellSequence(uint64_t seed, uint32_t repetition, uint32_t cell)
+        : key_(mix(seed ^ mix(uint64_t(cell) << 32 | 0xFFFFFFFFu))),
+          reversed_repetition_(sobol::reverse_bits(repetition)) {}
+    float count_uniform() const {
+        const uint64_t h = mix(key_);
+        return value(index(uint32_t(h)), uint32_t(h >> 32), 0);
+    }
+    // Candidate `slot`'s position in the unit cube (x, y, z) and thinning number (w).
+    glm::vec4 candidate(uint32_t slot) const {
+        const uint64_t h = mix(key_ + slot + 1);
+        const auto a = uint32_t(h), b = uint32_t(h >> 32);
+        const uint32_t i = index(a);
+        return {value(i, b, 0), value(i, b * 0x9E3779B9u, 1), value(i, b * 0x85EBCA6Bu, 2),
+                value(i, b * 0xC2B2AE35u, 3)};
+    }
+
+  private:
+    static uint64_t mix(uint64_t z) {  // SplitMix64's finaliser
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        return z ^ (z >> 31);
+    }
+    // The Sobol' index of this repetition for one draw: the repetition index shuffled by
+    // a nested scramble of its own per draw (Burley's shuffled Owen-scrambled Sobol'),
+    // kept below 2^16 (a bijection there). The first 2^m repetitions still take an
+    // aligned block of 2^m points, which is stratified; but the draws no longer share
+    // one index. With a shared index, points r and r + 2^k agree in their first k bits
+    // in every draw, so repetitions r and r + 128 drew nearly the same particles
+    // everywhere (the slab test's error grew with the repetitions).
+    uint32_t index(uint32_t seed) const {  // bit-reversed (sobol::point_of_reversed)
+        return sobol::scramble_reversed(reversed_repetition_, seed);
+    }
+    // Coordinate `dim` of point `index` under a random digital shift (an XOR with
+    // `shift`): uniform, and it keeps the stratification of the points.
+    static float value(uint32_t index, uint32_t shift, int dim) {
+        return float((sobol::point_of_reversed(index, dim) ^ shift) >> 8) * (1.0f / 16777216.0f);
+    }
+    uint64_t key_;
+    uint32_t reversed_repetition_;
+};
+
+// A Poisson(mean) count by inversion of the uniform u, given p_zero = exp(-mean) (callers
+// that draw the same mean often precompute it); mean <= 100 so p_zero stays representable.
+inline int poisson_count_inversion(double mean, double p_zero, double u) {
     double p = p_zero, cumulative = p;
     int n = 0;
     while (u > cumulative && n < 10000) {
@@ -69,6 +191,9 @@ inline int poisson_count_inversion(double mean, double p_zero, CellRandom& rando
         if (p < 1e-300) break;
     }
     return n;
+}
+inline int poisson_count_inversion(double mean, double p_zero, CellRandom& random) {
+    return poisson_count_inversion(mean, p_zero, double(random.next()));
 }
 
 // A Poisson(mean) count (sums of parts of at most 100); cost grows with the mean, like
@@ -91,6 +216,22 @@ void thin_candidates(const glm::vec3& origin, const glm::vec3& size, float major
         const glm::vec3 x = origin + size * glm::vec3(random.next(), random.next(), random.next());
         const auto [rho, payload] = density(x);
         if (random.next() * majorant < rho) emit(x, payload);
+    }
+}
+
+// Thinning with the cell's numbers stratified across repetitions (CellSequence); the
+// count is Poisson(candidates_mean), p_zero = exp(-candidates_mean), mean <= 100.
+template <typename Density, typename Emit>
+void thin_stratified(const glm::vec3& origin, const glm::vec3& size, float majorant,
+                     double candidates_mean, double p_zero, const Density& density,
+                     const CellSequence& sequence, const Emit& emit) {
+    const int candidates =
+        poisson_count_inversion(candidates_mean, p_zero, double(sequence.count_uniform()));
+    for (int c = 0; c < candidates; ++c) {
+        const glm::vec4 u = sequence.candidate(uint32_t(c));
+        const glm::vec3 x = origin + size * glm::vec3(u);
+        const auto [rho, payload] = density(x);
+        if (u.w * majorant < rho) emit(x, payload);
     }
 }
 
