@@ -166,9 +166,9 @@ OrbitCamera fit_camera(const tissue::VolumeGeometry& geometry, double azimuth_de
 CutAway facing_octant(const tissue::VolumeGeometry& geometry, const OrbitCamera& camera);
 
 struct RenderSettings {
-    // Defaults: 35 dB against the ray-cast reference on the Colin27 head preset (32
-    // repetitions of 2 x 2 sub-pixels, particles twice the sub-pixel footprint: fewer,
-    // larger particles reach a given PSNR faster, bench/README.md).
+    // Defaults: 35 dB against the ray-cast reference on the Colin27 head preset after 19
+    // of the 32 repetitions of 2 x 2 sub-pixels, particles twice the sub-pixel
+    // footprint: fewer, larger particles reach a given PSNR faster, bench/README.md.
     int repetitions = 32;    // ensemble size
     int subpixel_level = 2;  // sub-pixels per pixel side (L x L rays per pixel)
     uint64_t seed = 1;
