@@ -361,8 +361,11 @@ TEST(Pbvr, RadiusAdaptationMatchesRegenerationAfterAnOpacityEdit) {
     // the edited one (extinction doubled), against particles regenerated from the edit.
     // Both estimate the same image: PSNR between them above 43 dB at 128 repetitions
     // (their noise alone, two independent 128-sample means, allows ~44.5 dB: 3 dB below
-    // each one's 47.5 dB against the reference), and each within 0.5 dB of the other
-    // against the ray-cast reference of the edit.
+    // each one's ~47 dB against the reference), and each within 1 dB of the other
+    // against the ray-cast reference of the edit. (Over seeds 1-5 the adapted image was
+    // 0.06-0.52 dB below the regenerated one, mean 0.22, sd 0.18: its particles are
+    // larger where the opacity rose, with more finite-radius bias; 1 dB is the mean
+    // plus 4 sd.)
     const BlobScene scene;
     const RenderVolume volume(scene.data, scene.tf);
     const ColourTransferFunction edited = scene.tf.with_extinction_scaled(2.0);
@@ -378,7 +381,7 @@ TEST(Pbvr, RadiusAdaptationMatchesRegenerationAfterAnOpacityEdit) {
     const double regenerated_db = psnr(regenerated.image(), reference);
     const double adapted_db = psnr(adapted.image(), reference);
     EXPECT_GT(psnr(adapted.image(), regenerated.image()), 43.0);
-    EXPECT_NEAR(adapted_db, regenerated_db, 0.5);
+    EXPECT_NEAR(adapted_db, regenerated_db, 1.0);
     // The edit is visible: without adaptation the image is far from the edited reference.
     const double unadapted_db = psnr(unadapted.image(), reference);
     EXPECT_LT(unadapted_db, regenerated_db - 8.0);

@@ -61,7 +61,8 @@ class CellRandom {
 
 // Sobol' points in dimensions 0-3 (direction numbers of Joe & Kuo, new-joe-kuo-6.21201:
 // s = 1, 2, 3; a = 0, 1, 1; m = {1}, {1, 3}, {1, 3, 1}), 32 bits, and Owen's nested
-// uniform scrambling by hashing (Burley 2020, "Practical hash-based Owen scrambling").
+// uniform scrambling by hashing (Burley 2020, "Practical hash-based Owen scrambling"),
+// which CellSequence applies to the point index.
 namespace sobol {
 constexpr std::array<std::array<uint32_t, 32>, 4> make_directions() {
     std::array<std::array<uint32_t, 32>, 4> v{};
@@ -129,13 +130,14 @@ inline uint32_t scramble_reversed(uint32_t x, uint32_t seed) {
 }  // namespace sobol
 
 // A cell's numbers across repetitions: for each draw (the count; each candidate's
-// position and thinning decision), Owen-scrambled Sobol' points indexed by the
-// repetition, with a scramble of its own per cell and draw. Within one repetition every
-// number is uniform and independent of the others, as the scrambles are, so each
-// repetition is the same Poisson process as with CellRandom; across repetitions a
-// cell's counts and its candidates are stratified instead of independent. (A shared
-// sequence shifted per cell is not enough: every cell's particles then move by the same
-// offset from one repetition to the next, and the images correlate.)
+// position and thinning number, one 4D point), a Sobol' point whose index is the
+// repetition under a nested scramble, with a random digital shift per coordinate; index
+// scramble and shifts are hashes of (seed, cell, draw). Within one repetition every
+// number is uniform and independent of the others, so each repetition is the same
+// Poisson process as with CellRandom; across repetitions a cell's counts and its
+// candidates are stratified instead of independent. (A shared sequence shifted per cell
+// is not enough: every cell's particles then move by the same offset from one repetition
+// to the next, and the images correlate.)
 class CellSequence {
   public:
     CellSequence(uint64_t seed, uint32_t repetition, uint32_t cell)
@@ -150,11 +152,18 @@ class CellSequence {
         const uint64_t h = mix(key_ + slot + 1);
         const auto a = uint32_t(h), b = uint32_t(h >> 32);
         const uint32_t i = index(a);
-        return {value(i, b, 0), value(i, b * 0x9E3779B9u, 1), value(i, b * 0x85EBCA6Bu, 2),
-                value(i, b * 0xC2B2AE35u, 3)};
+        return {value(i, b, 0), value(i, hash32(b + 1), 1), value(i, hash32(b + 2), 2),
+                value(i, hash32(b + 3), 3)};
     }
 
   private:
+    static uint32_t hash32(uint32_t x) {  // "lowbias32" (C. Wellons)
+        x ^= x >> 16;
+        x *= 0x7feb352du;
+        x ^= x >> 15;
+        x *= 0x846ca68bu;
+        return x ^ (x >> 16);
+    }
     static uint64_t mix(uint64_t z) {  // SplitMix64's finaliser
         z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
         z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
