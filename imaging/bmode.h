@@ -29,6 +29,7 @@
 #include "probe/transducer.h"
 #include "simulator/records.h"
 #include "tissue/fast_math.h"
+#include "tissue/hash.h"
 
 namespace sonotrace::imaging {
 
@@ -171,12 +172,7 @@ class ScattererField {
                               kSpreadK = 0xC2B2AE3Du;
     // Uniform on [-sqrt 3, sqrt 3): zero mean, unit variance (lowbias32 finaliser).
     static float value(uint32_t h) {
-        h ^= h >> 16;
-        h *= 0x7feb352du;
-        h ^= h >> 15;
-        h *= 0x846ca68bu;
-        h ^= h >> 16;
-        return float(int32_t(h)) * 8.0654901e-10f;  // sqrt(3) / 2^31
+        return float(int32_t(tissue::mix32(h))) * 8.0654901e-10f;  // sqrt(3) / 2^31
     }
     uint32_t seed_;
     double inverse_cell_;

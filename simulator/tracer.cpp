@@ -51,7 +51,7 @@ class DepositTiles {
     static constexpr uint32_t kCells = 1u << (kShift * Dim);
     using Tile = std::array<DepositCell, kCells>;
 
-    explicit DepositTiles(const glm::ivec3& dims) : dims_(dims) {
+    explicit DepositTiles(const glm::ivec3& dims) {
         for (int a = 0; a < 3; ++a) tiles_per_axis_[a] = (dims[a] + kSide - 1) >> kShift;
         tiles_.resize(std::size_t(tiles_per_axis_.x) * std::size_t(tiles_per_axis_.y) *
                       std::size_t(tiles_per_axis_.z));
@@ -72,20 +72,23 @@ class DepositTiles {
     }
     std::size_t tile_count() const { return tiles_.size(); }
     const Tile* tile(std::size_t t) const { return tiles_[t].get(); }
-    // The texel of cell c of tile t, or false if it lies beyond the map's edge.
-    bool texel(std::size_t t, uint32_t c, glm::ivec3* i) const {
-        *i = glm::ivec3(0);
+    // The texel of tile t's first cell, and that of cell c relative to it.
+    glm::ivec3 tile_origin(std::size_t t) const {
+        glm::ivec3 i(0);
         for (int a = 0; a < Dim; ++a) {
-            const auto tile_a = int(t % std::size_t(tiles_per_axis_[a]));
+            i[a] = int(t % std::size_t(tiles_per_axis_[a])) * kSide;
             t /= std::size_t(tiles_per_axis_[a]);
-            (*i)[a] = tile_a * kSide + int(c >> (kShift * a) & (kSide - 1));
-            if ((*i)[a] >= dims_[a]) return false;
         }
-        return true;
+        return i;
+    }
+    static glm::ivec3 cell_offset(uint32_t c) {
+        glm::ivec3 i(0);
+        for (int a = 0; a < Dim; ++a) i[a] = int(c >> (kShift * a) & (kSide - 1));
+        return i;
     }
 
   private:
-    glm::ivec3 dims_, tiles_per_axis_{1};
+    glm::ivec3 tiles_per_axis_{1};
     std::vector<std::unique_ptr<Tile>> tiles_;
 };
 
@@ -1013,9 +1016,10 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     tbb::parallel_for(std::size_t(0), tiles, [&](std::size_t t) {
         if (std::none_of(maps.begin(), maps.end(), [t](auto* m) { return m->tile(t) != nullptr; }))
             return;  // nothing deposited: the result is zero there already
+        const glm::ivec3 origin = maps[0]->tile_origin(t);
         for (uint32_t c = 0; c < DepositTiles<Dim>::kCells; ++c) {
-            glm::ivec3 i;
-            if (!maps[0]->texel(t, c, &i)) continue;
+            const glm::ivec3 i = origin + DepositTiles<Dim>::cell_offset(c);
+            if (glm::any(glm::greaterThanEqual(i, dims))) continue;  // beyond the map's edge
             int64_t fluence = 0, absorbed = 0;
             for (const DepositTiles<Dim>* m : maps) {
                 if (const auto* tile = m->tile(t))

@@ -202,10 +202,11 @@ template <int Dim>
             const T old = load<T>(field);
             store(field, to_step ? old : value);
         };
+        const vl keep[2] = {
+            // to_step as two double-lane masks
+            __builtin_convertvector(__builtin_shufflevector(to_step, to_step, 0, 1, 2, 3), vl),
+            __builtin_convertvector(__builtin_shufflevector(to_step, to_step, 4, 5, 6, 7), vl)};
         auto commit_double = [&](double* field, const vd(&value)[2]) {
-            const vl keep[2] = {
-                __builtin_convertvector(__builtin_shufflevector(to_step, to_step, 0, 1, 2, 3), vl),
-                __builtin_convertvector(__builtin_shufflevector(to_step, to_step, 4, 5, 6, 7), vl)};
             for (int h = 0; h < 2; ++h) {
                 const vd old = load<vd>(field + 4 * h);
                 store(field + 4 * h, keep[h] ? old : value[h]);

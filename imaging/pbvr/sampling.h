@@ -21,6 +21,8 @@
 
 #include <glm/glm.hpp>
 
+#include "tissue/hash.h"
+
 namespace sonotrace::imaging::pbvr {
 
 enum class Sampling { uniform, metropolis };
@@ -34,14 +36,15 @@ enum class Sampling { uniform, metropolis };
 class CellRandom {
   public:
     CellRandom(uint64_t seed, uint32_t repetition, uint32_t cell)
-        : state_(mix(seed ^ mix(uint64_t(repetition) << 32 | cell))) {}
+        : state_(tissue::finalise64(seed ^ tissue::finalise64(uint64_t(repetition) << 32 | cell))) {
+    }
     float next() {
         if (has_spare_) {
             has_spare_ = false;
             return spare_;
         }
         state_ += kGamma;
-        const uint64_t bits = mix(state_);
+        const uint64_t bits = tissue::finalise64(state_);
         spare_ = float(uint32_t(bits) >> 8) * (1.0f / 16777216.0f);
         has_spare_ = true;
         return float(uint32_t(bits >> 32) >> 8) * (1.0f / 16777216.0f);
@@ -49,11 +52,6 @@ class CellRandom {
 
   private:
     static constexpr uint64_t kGamma = 0x9E3779B97F4A7C15ull;
-    static uint64_t mix(uint64_t z) {
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
     uint64_t state_;
     float spare_ = 0.0f;
     bool has_spare_ = false;
@@ -141,34 +139,22 @@ inline uint32_t scramble_reversed(uint32_t x, uint32_t seed) {
 class CellSequence {
   public:
     CellSequence(uint64_t seed, uint32_t repetition, uint32_t cell)
-        : key_(mix(seed ^ mix(uint64_t(cell) << 32 | 0xFFFFFFFFu))),
+        : key_(tissue::finalise64(seed ^ tissue::finalise64(uint64_t(cell) << 32 | 0xFFFFFFFFu))),
           reversed_repetition_(sobol::reverse_bits(repetition)) {}
     float count_uniform() const {
-        const uint64_t h = mix(key_);
+        const uint64_t h = tissue::finalise64(key_);
         return value(index(uint32_t(h)), uint32_t(h >> 32), 0);
     }
     // Candidate `slot`'s position in the unit cube (x, y, z) and thinning number (w).
     glm::vec4 candidate(uint32_t slot) const {
-        const uint64_t h = mix(key_ + slot + 1);
+        const uint64_t h = tissue::finalise64(key_ + slot + 1);
         const auto a = uint32_t(h), b = uint32_t(h >> 32);
         const uint32_t i = index(a);
-        return {value(i, b, 0), value(i, hash32(b + 1), 1), value(i, hash32(b + 2), 2),
-                value(i, hash32(b + 3), 3)};
+        return {value(i, b, 0), value(i, tissue::mix32(b + 1), 1),
+                value(i, tissue::mix32(b + 2), 2), value(i, tissue::mix32(b + 3), 3)};
     }
 
   private:
-    static uint32_t hash32(uint32_t x) {  // "lowbias32" (C. Wellons)
-        x ^= x >> 16;
-        x *= 0x7feb352du;
-        x ^= x >> 15;
-        x *= 0x846ca68bu;
-        return x ^ (x >> 16);
-    }
-    static uint64_t mix(uint64_t z) {  // SplitMix64's finaliser
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
     // The Sobol' index of this repetition for one draw: the repetition index shuffled by
     // a nested scramble of its own per draw (Burley's shuffled Owen-scrambled Sobol'),
     // kept below 2^16 (a bijection there). The first 2^m repetitions still take an
