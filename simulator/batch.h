@@ -140,6 +140,28 @@ struct LaneFields {
     alignas(32) std::array<int32_t, N> eligible{};  // -1: the general step applies, 0: step()
 };
 
+// Deposit maps are numbered in tiles of 2^kDepositTileShift texels per axis (DepositTiles
+// in tracer.cpp; sample_lanes computes the same numbers).
+constexpr int kDepositTileShift = 3;
+
+// The map as sample_lanes reads it: tissue::AcousticMap's records and locate(), and the
+// tracer's deposit texel numbering (LineTracer::texel_index).
+template <int Dim>
+struct MapView {
+    const float* texels = nullptr;  // AcousticTexel<Dim> records, x fastest
+    std::array<int32_t, Dim> dims{};
+    std::array<float, Dim> inverse_spacing{};          // the map's, for locate()
+    std::array<float, Dim> deposit_inverse_spacing{};  // the tracer's, for texel_index()
+    std::array<int32_t, Dim> deposit_tiles{};          // deposit tiles per axis
+    bool deposit_texels = true;
+};
+
+// The fields at the positions of lanes [0, lanes) whose `eligible` is -1, as
+// AcousticMap::sample() gives them bit for bit, and (deposit_texels) their deposit texels.
+// Lanes a multiple of 8; other lanes' fields are left unspecified.
+void sample_lanes(const MapView<2>& map, const Batch<2>& batch, LaneFields<2>& fields, int lanes);
+void sample_lanes(const MapView<3>& map, const Batch<3>& batch, LaneFields<3>& fields, int lanes);
+
 // What the vector stage leaves to the scalar one, per lane.
 enum LaneFlag : int32_t {
     kLaneToStep = 1,  // an event or a state the vector stage does not take: step() does it

@@ -47,7 +47,7 @@ struct DepositCell {
 template <int Dim>
 class DepositTiles {
   public:
-    static constexpr int kShift = 3, kSide = 1 << kShift;
+    static constexpr int kShift = kDepositTileShift, kSide = 1 << kShift;
     static constexpr uint32_t kCells = 1u << (kShift * Dim);
     using Tile = std::array<DepositCell, kCells>;
 
@@ -169,6 +169,17 @@ class LineTracer {
         c.scattering = scatter_enabled_;
         c.refraction = settings.refraction;
         c.profile = profile_enabled_;
+        MapView<Dim>& m = map_view_;
+        m.texels = reinterpret_cast<const float*>(map.texels());
+        for (int a = 0; a < Dim; ++a) {
+            const auto axis = std::size_t(a);
+            m.dims[axis] = map.dims()[a];
+            m.inverse_spacing[axis] = map.inverse_spacing()[a];
+            m.deposit_inverse_spacing[axis] = inverse_spacing_[a];
+            m.deposit_tiles[axis] =
+                (map.dims()[a] + DepositTiles<Dim>::kSide - 1) >> kDepositTileShift;
+        }
+        m.deposit_texels = deposit_maps_;
     }
 
     void run(const Sources<Dim>& sources, const std::vector<uint32_t>& order, std::size_t begin,
@@ -228,25 +239,10 @@ class LineTracer {
             }
             f.eligible[std::size_t(k++)] = run_end == RunEnd::step_outside_blocks ? -1 : 0;
         }
-        // -- the fields at each lane's position, field by field
+        // -- the fields at each lane's position, then the general step, eight lanes at a time
         const int lanes = (b.count + 7) & ~7;
-        for (int k = 0; k < b.count; ++k) {
-            const auto i = std::size_t(k);
-            if (f.eligible[i] == 0) continue;  // step()'s
-            const V x = b.position[k];
-            const Texel t = map_.sample(x);
-            f.refractive_index[i] = t.refractive_index;
-            f.impedance[i] = t.impedance;
-            f.attenuation[i] = t.attenuation;
-            f.backscatter[i] = t.backscatter;
-            for (std::size_t a = 0; a < Dim; ++a) {
-                f.grad_refractive_index[a][i] = t.grad_refractive_index[a];
-                f.grad_impedance[a][i] = t.grad_impedance[a];
-            }
-            if (deposit_maps_) f.texel[i] = uint32_t(texel_index(x));
-        }
         for (int k = b.count; k < lanes; ++k) f.eligible[std::size_t(k)] = 0;
-        // -- the general step, eight lanes at a time
+        sample_lanes(map_view_, b, f, lanes);
         vector_step(b, f, step_constants_, results_, lanes);
         // -- the rest, lane by lane in order (the ledger's sums keep one order)
         std::array<bool, Batch<Dim>::N> ended{};
@@ -944,6 +940,7 @@ class LineTracer {
     uint32_t line_ = 0;
     bool vector_steps_ = true;
     StepConstants<Dim> step_constants_;
+    MapView<Dim> map_view_;
     LaneFields<Dim> fields_;
     LaneResults<Dim> results_;
 };

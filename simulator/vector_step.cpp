@@ -58,6 +58,138 @@ template <class T, class S>
                                    __builtin_convertvector(high, vi4), 0, 1, 2, 3, 4, 5, 6, 7);
 }
 
+// Lanes' records (one 8-float vector each) to fields (one vector of 8 lanes each).
+[[gnu::always_inline]] inline void transpose8(const vf (&rows)[kLanes], vf (&columns)[kLanes]) {
+    vf t[kLanes], u[kLanes];
+    for (int p = 0; p < kLanes; p += 2) {
+        t[p] = __builtin_shufflevector(rows[p], rows[p + 1], 0, 8, 1, 9, 4, 12, 5, 13);
+        t[p + 1] = __builtin_shufflevector(rows[p], rows[p + 1], 2, 10, 3, 11, 6, 14, 7, 15);
+    }
+    for (int q = 0; q < kLanes; q += 4) {
+        for (int h = 0; h < 2; ++h) {
+            u[q + 2 * h] =
+                __builtin_shufflevector(t[q + h], t[q + h + 2], 0, 1, 8, 9, 4, 5, 12, 13);
+            u[q + 2 * h + 1] =
+                __builtin_shufflevector(t[q + h], t[q + h + 2], 2, 3, 10, 11, 6, 7, 14, 15);
+        }
+    }
+    for (int j = 0; j < 4; ++j) {
+        columns[j] = __builtin_shufflevector(u[j], u[j + 4], 0, 1, 2, 3, 8, 9, 10, 11);
+        columns[j + 4] = __builtin_shufflevector(u[j], u[j + 4], 4, 5, 6, 7, 12, 13, 14, 15);
+    }
+}
+
+// Lanes' 4-float tails to 4 fields of 8 lanes.
+[[gnu::always_inline]] inline void transpose4x8(const vf4 (&rows)[kLanes], vf (&columns)[4]) {
+    vf q[4], t[4];
+    for (int p = 0; p < 4; ++p)
+        q[p] = __builtin_shufflevector(rows[p], rows[p + 4], 0, 1, 2, 3, 4, 5, 6, 7);
+    for (int p = 0; p < 4; p += 2) {
+        t[p] = __builtin_shufflevector(q[p], q[p + 1], 0, 8, 1, 9, 4, 12, 5, 13);
+        t[p + 1] = __builtin_shufflevector(q[p], q[p + 1], 2, 10, 3, 11, 6, 14, 7, 15);
+    }
+    for (int h = 0; h < 2; ++h) {
+        columns[2 * h] = __builtin_shufflevector(t[h], t[h + 2], 0, 1, 8, 9, 4, 5, 12, 13);
+        columns[2 * h + 1] = __builtin_shufflevector(t[h], t[h + 2], 2, 3, 10, 11, 6, 7, 14, 15);
+    }
+}
+
+// sample()'s blend of the four records around a point in one plane, w = (w00, w10, w01,
+// w11), for the floats of T from p on.
+template <class T, int K>
+[[gnu::always_inline]] inline T blend(const float* p, std::size_t dy, const float (&w)[4]) {
+    return w[0] * load<T>(p) + w[1] * load<T>(p + K) + w[2] * load<T>(p + dy) +
+           w[3] * load<T>(p + dy + K);
+}
+
+// AcousticMap::sample() for 8 lanes: locate() and the weights as vectors, each lane's
+// corner records blended as one 8-float vector (plus a 4-float tail in 3D), then turned
+// into fields. The operations and their order are sample()'s (glm::clamp, std::min,
+// truncation), so the values are the same bits.
+template <int Dim>
+[[gnu::always_inline]] inline void sample_lanes_impl(const MapView<Dim>& m, const Batch<Dim>& b,
+                                                     LaneFields<Dim>& f, int lanes) {
+    constexpr int K = Dim == 2 ? 8 : 12;  // floats per record
+    const std::size_t dy = std::size_t(m.dims[0]) * K;
+    const std::size_t dz = Dim == 3 ? dy * std::size_t(m.dims[1]) : 0;  // between z planes
+    for (int base = 0; base < lanes; base += kLanes) {
+        const auto at = std::size_t(base);
+        const vi eligible = load<vi>(&f.eligible[at]);
+        vf x[Dim];
+        for (int a = 0; a < Dim; ++a) x[a] = load<vf>(&b.position.axis[std::size_t(a)][at]);
+        // -- locate(): corner i0 and fraction per axis
+        vi corner[Dim];
+        vf frac[Dim];
+        for (int a = 0; a < Dim; ++a) {
+            const auto axis = std::size_t(a);
+            const float top = float(m.dims[axis] - 1);
+            vf u = x[a] * m.inverse_spacing[axis];
+            u = u < 0.0f ? vf{} : u;                // glm::max(u, 0)
+            u = top < u ? vf{} + top : u;           // glm::min(u, top)
+            vi i = __builtin_convertvector(u, vi);  // truncation, u >= 0
+            const vi last = vi{} + (m.dims[axis] - 2);
+            i = last < i ? last : i;  // std::min(i, dims - 2)
+            corner[a] = i;
+            frac[a] = u - __builtin_convertvector(i, vf);
+        }
+        const vf gx = 1.0f - frac[0], gy = 1.0f - frac[1];
+        const vf w00 = gx * gy, w10 = frac[0] * gy, w01 = gx * frac[1], w11 = frac[0] * frac[1];
+        vi index = corner[Dim - 1];
+        for (int a = Dim - 2; a >= 0; --a) index = index * m.dims[std::size_t(a)] + corner[a];
+        // -- each lane's four (eight) corner records, blended
+        vf head[kLanes];
+        vf4 tail[kLanes];
+        for (int l = 0; l < kLanes; ++l) {
+            head[l] = vf{};
+            tail[l] = vf4{};
+            if (eligible[l] == 0) continue;
+            const float* t = m.texels + std::size_t(uint32_t(index[l])) * K;
+            const float w[4] = {w00[l], w10[l], w01[l], w11[l]};
+            head[l] = blend<vf, K>(t, dy, w);
+            if constexpr (Dim == 3) {
+                const float fz = frac[2][l];
+                head[l] = (1.0f - fz) * head[l] + fz * blend<vf, K>(t + dz, dy, w);
+                tail[l] = (1.0f - fz) * blend<vf4, K>(t + 8, dy, w) +
+                          fz * blend<vf4, K>(t + dz + 8, dy, w);
+            }
+        }
+        vf field[kLanes];
+        transpose8(head, field);
+        store(&f.refractive_index[at], field[0]);
+        store(&f.impedance[at], field[1]);
+        store(&f.attenuation[at], field[2]);
+        store(&f.backscatter[at], field[3]);
+        if constexpr (Dim == 2) {
+            store(&f.grad_refractive_index[0][at], field[4]);
+            store(&f.grad_refractive_index[1][at], field[5]);
+            store(&f.grad_impedance[0][at], field[6]);
+            store(&f.grad_impedance[1][at], field[7]);
+        } else {
+            vf rest[4];
+            transpose4x8(tail, rest);
+            for (int a = 0; a < 3; ++a)
+                store(&f.grad_refractive_index[std::size_t(a)][at], field[4 + a]);
+            store(&f.grad_impedance[0][at], field[7]);
+            store(&f.grad_impedance[1][at], rest[0]);
+            store(&f.grad_impedance[2][at], rest[1]);
+        }
+        // -- the deposit texel: the nearest texel's number in DepositTiles
+        if (m.deposit_texels) {
+            constexpr int shift = kDepositTileShift;
+            vi tile = vi{}, offset = vi{};
+            for (int a = Dim - 1; a >= 0; --a) {
+                const auto axis = std::size_t(a);
+                vi i = __builtin_convertvector(x[a] * m.deposit_inverse_spacing[axis] + 0.5f, vi);
+                const vi last = vi{} + (m.dims[axis] - 1);
+                i = i < 0 ? vi{} : (last < i ? last : i);  // std::clamp(i, 0, dims - 1)
+                tile = tile * m.deposit_tiles[axis] + (i >> shift);
+                offset = (offset << shift) | (i & ((1 << shift) - 1));
+            }
+            store(reinterpret_cast<int32_t*>(&f.texel[at]), (tile << (shift * Dim)) | offset);
+        }
+    }
+}
+
 template <int Dim>
 [[gnu::always_inline]] inline void step_lanes(Batch<Dim>& b, const LaneFields<Dim>& f,
                                               const StepConstants<Dim>& c, LaneResults<Dim>& out,
@@ -246,6 +378,18 @@ template <int Dim>
                                                            const StepConstants<3>& constants,
                                                            LaneResults<3>& results, int lanes) {
     step_lanes(batch, fields, constants, results, lanes);
+}
+
+[[gnu::target_clones("avx2", "default")]] void sample_lanes(const MapView<2>& map,
+                                                            const Batch<2>& batch,
+                                                            LaneFields<2>& fields, int lanes) {
+    sample_lanes_impl(map, batch, fields, lanes);
+}
+
+[[gnu::target_clones("avx2", "default")]] void sample_lanes(const MapView<3>& map,
+                                                            const Batch<3>& batch,
+                                                            LaneFields<3>& fields, int lanes) {
+    sample_lanes_impl(map, batch, fields, lanes);
 }
 
 }  // namespace sonotrace::simulator::detail

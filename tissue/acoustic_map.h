@@ -70,6 +70,10 @@ class AcousticMap {
     Vec extent_mm() const { return Vec(dims_ - 1) * spacing_; }
 
     const AcousticTexel<Dim>& texel(const IVec& i) const { return texels_[linear(i)]; }
+    // All records, x fastest (for vectorised readers that repeat sample()'s arithmetic).
+    const AcousticTexel<Dim>* texels() const { return texels_.data(); }
+    // 1 / spacing as locate() uses it.
+    const Vec& inverse_spacing() const { return inverse_spacing_; }
     // True within the texel-centre box [0, (n-1)*h] (the tracer's domain).
     bool inside(const Vec& p_mm) const;
     // Bi-/trilinear interpolation of every field; clamps to the edge outside.
