@@ -137,6 +137,7 @@ struct LaneFields {
     alignas(32) std::array<float, N> refractive_index{}, impedance{}, attenuation{}, backscatter{};
     alignas(32) std::array<std::array<float, N>, Dim> grad_refractive_index{}, grad_impedance{};
     alignas(32) std::array<uint32_t, N> texel{};    // the deposit texel of the position
+    alignas(32) std::array<int32_t, N> block{};     // find_uniform_blocks
     alignas(32) std::array<int32_t, N> eligible{};  // -1: the general step applies, 0: step()
 };
 
@@ -154,7 +155,20 @@ struct MapView {
     std::array<float, Dim> deposit_inverse_spacing{};  // the tracer's, for texel_index()
     std::array<int32_t, Dim> deposit_tiles{};          // deposit tiles per axis
     bool deposit_texels = true;
+    // Uniform blocks (AcousticMap::uniform_block): null if uniform runs are off.
+    const int32_t* block_records = nullptr;
+    std::array<int32_t, Dim> block_dims{};
+    int block_shift = 3;
 };
+
+// Per live lane (of `count`): the record index of the uniform block the lane's position
+// is in (AcousticMap::block_records; -1 if it varies or uniform runs are off) in `block`,
+// and `eligible` -1 where that is -1. Up to the next multiple of 8, other lanes get block
+// -1 and eligible 0.
+void find_uniform_blocks(const MapView<2>& map, const Batch<2>& batch, LaneFields<2>& fields,
+                         int count);
+void find_uniform_blocks(const MapView<3>& map, const Batch<3>& batch, LaneFields<3>& fields,
+                         int count);
 
 // The fields at the positions of lanes [0, lanes) whose `eligible` is -1, as
 // AcousticMap::sample() gives them bit for bit, and (deposit_texels) their deposit texels.

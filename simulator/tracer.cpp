@@ -180,6 +180,11 @@ class LineTracer {
                 (map.dims()[a] + DepositTiles<Dim>::kSide - 1) >> kDepositTileShift;
         }
         m.deposit_texels = deposit_maps_;
+        if (uniform_runs_) {
+            m.block_records = map.block_records();
+            for (int a = 0; a < Dim; ++a) m.block_dims[std::size_t(a)] = map.block_dims()[a];
+            m.block_shift = tissue::AcousticMap<Dim>::kBlockShift;
+        }
     }
 
     void run(const Sources<Dim>& sources, const std::vector<uint32_t>& order, std::size_t begin,
@@ -222,22 +227,27 @@ class LineTracer {
     // runs, then the fields at every lane's position, the vector stage, and what it left
     // (events, deposits, profile, paths, endings) lane by lane in order.
     void lockstep_vector(Batch<Dim>& b) {
-        // -- uniform blocks: tight runs per particle
+        // -- uniform blocks: tight runs per particle. Outside every block (nearly every
+        // step in the head) the general step applies.
         LaneFields<Dim>& f = fields_;
+        find_uniform_blocks(map_view_, b, f, b.count);
         for (int k = 0; k < b.count;) {
-            // Outside every block (nearly every step in the head) the general step applies.
-            const Texel* block = uniform_runs_ ? map_.uniform_block(b.position[k]) : nullptr;
-            if (block == nullptr) {
-                f.eligible[std::size_t(k++)] = -1;
+            const auto i = std::size_t(k);
+            if (f.block[i] < 0) {
+                ++k;
                 continue;
             }
-            const RunEnd run_end = uniform_run(b, k, block);
+            const RunEnd run_end = uniform_run(b, k, map_.uniform_record(f.block[i]));
             if (run_end == RunEnd::ended) {
                 flush_deposits(b, k);
-                b.remove(k);
+                b.remove(k);  // the last lane moves here, with its block
+                const auto last = std::size_t(b.count);
+                f.block[i] = f.block[last], f.eligible[i] = f.eligible[last];
+                f.eligible[last] = 0;
                 continue;
             }
-            f.eligible[std::size_t(k++)] = run_end == RunEnd::step_outside_blocks ? -1 : 0;
+            f.eligible[i] = run_end == RunEnd::step_outside_blocks ? -1 : 0;
+            ++k;
         }
         // -- the fields at each lane's position, then the general step, eight lanes at a time
         const int lanes = (b.count + 7) & ~7;

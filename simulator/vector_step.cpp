@@ -190,6 +190,34 @@ template <int Dim>
     }
 }
 
+// AcousticMap::uniform_block() for 8 lanes at a time (the positions are inside the map).
+template <int Dim>
+[[gnu::always_inline]] inline void find_uniform_blocks_impl(const MapView<Dim>& m,
+                                                            const Batch<Dim>& b, LaneFields<Dim>& f,
+                                                            int count) {
+    const vi lane = {0, 1, 2, 3, 4, 5, 6, 7};
+    for (int base = 0; base < count; base += kLanes) {
+        const auto at = std::size_t(base);
+        const vi live = lane + base < count;  // the others' positions are stale
+        vi record = vi{} - 1;
+        if (m.block_records != nullptr) {
+            vi index = vi{};
+            for (int a = Dim - 1; a >= 0; --a) {
+                const auto axis = std::size_t(a);
+                const vf u = load<vf>(&b.position.axis[axis][at]) * m.inverse_spacing[axis];
+                vi block = __builtin_convertvector(u, vi) >> m.block_shift;
+                const vi last = vi{} + (m.block_dims[axis] - 1);
+                block = last < block ? last : block;  // std::min(block, dims - 1)
+                index = index * m.block_dims[axis] + block;
+            }
+            for (int l = 0; l < kLanes; ++l)
+                if (live[l]) record[l] = m.block_records[uint32_t(index[l])];
+        }
+        store(&f.block[at], record);
+        store(&f.eligible[at], live & (record >> 31));  // -1 where no uniform block
+    }
+}
+
 template <int Dim>
 [[gnu::always_inline]] inline void step_lanes(Batch<Dim>& b, const LaneFields<Dim>& f,
                                               const StepConstants<Dim>& c, LaneResults<Dim>& out,
@@ -390,6 +418,20 @@ template <int Dim>
                                                             const Batch<3>& batch,
                                                             LaneFields<3>& fields, int lanes) {
     sample_lanes_impl(map, batch, fields, lanes);
+}
+
+[[gnu::target_clones("avx2", "default")]] void find_uniform_blocks(const MapView<2>& map,
+                                                                   const Batch<2>& batch,
+                                                                   LaneFields<2>& fields,
+                                                                   int count) {
+    find_uniform_blocks_impl(map, batch, fields, count);
+}
+
+[[gnu::target_clones("avx2", "default")]] void find_uniform_blocks(const MapView<3>& map,
+                                                                   const Batch<3>& batch,
+                                                                   LaneFields<3>& fields,
+                                                                   int count) {
+    find_uniform_blocks_impl(map, batch, fields, count);
 }
 
 }  // namespace sonotrace::simulator::detail

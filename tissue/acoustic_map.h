@@ -89,6 +89,13 @@ class AcousticMap {
     // tissue of phantoms, air). p_mm must be inside(); nullptr if the block varies.
     static constexpr int kBlockShift = 3, kBlock = 1 << kBlockShift;
     const AcousticTexel<Dim>* uniform_block(const Vec& p_mm) const;
+    // The same lookup in parts, for vectorised readers: per block (x fastest, block_dims()
+    // per axis) the index of its record for uniform_record(), or -1.
+    const int32_t* block_records() const { return block_record_.data(); }
+    const IVec& block_dims() const { return block_dims_; }
+    const AcousticTexel<Dim>* uniform_record(int32_t index) const {
+        return &uniform_records_[std::size_t(index)];
+    }
     // Fraction of blocks that are uniform (for benchmarks and logs).
     double uniform_block_fraction() const;
 
