@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -255,20 +256,22 @@ class LineTracer {
         sample_lanes(map_view_, b, f, lanes);
         vector_step(b, f, step_constants_, results_, lanes);
         // -- the rest, lane by lane in order (the ledger's sums keep one order)
-        std::array<bool, Batch<Dim>::N> ended{};
+        static_assert(Batch<Dim>::kSize <= 64);
+        uint64_t ended = 0;  // bit k: lane k ended
+        uint64_t taken = 0;  // steps the vector stage took
+        const bool profile = profile_enabled_ && scatter_enabled_;
         for (int k = 0; k < b.count; ++k) {
             const auto i = std::size_t(k);
             const int32_t flags = results_.flags[i];
             if (flags & kLaneToStep) {
-                ended[i] = !step(b, k, f.eligible[i] != 0);
+                if (!step(b, k, f.eligible[i] != 0)) ended |= uint64_t(1) << k;
                 continue;
             }
-            out_->stats.steps++;
-            out_->stats.vector_steps++;
+            ++taken;
             if (flags & kLaneFlush)
                 deposit(results_.flush_texel[i], results_.flush_fluence[i],
                         results_.flush_absorbed[i]);
-            if (profile_enabled_ && scatter_enabled_ && f.backscatter[i] > 0.0f) {
+            if (profile && f.backscatter[i] > 0.0f) {
                 V start;
                 for (std::size_t a = 0; a < Dim; ++a) start[int(a)] = results_.start_position[a][i];
                 add_to_profile(b, k, start, results_.profile_energy[i], f.backscatter[i],
@@ -277,10 +280,13 @@ class LineTracer {
             if (b.path[i] >= 0)
                 out_->paths[std::size_t(b.path[i])].vertices.push_back(
                     {b.position[k], b.energy[i]});
-            if (flags & kLaneMayEnd) ended[i] = !continues(b, k, b.position[k]);
+            if ((flags & kLaneMayEnd) && !continues(b, k, b.position[k])) ended |= uint64_t(1) << k;
         }
-        for (int k = b.count - 1; k >= 0; --k) {
-            if (!ended[std::size_t(k)]) continue;
+        out_->stats.steps += taken;
+        out_->stats.vector_steps += taken;
+        while (ended != 0) {  // from the highest lane down: remove() moves the last lane
+            const int k = 63 - std::countl_zero(ended);
+            ended &= ~(uint64_t(1) << k);
             flush_deposits(b, k);
             b.remove(k);
         }
