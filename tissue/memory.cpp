@@ -1,6 +1,9 @@
 #include "tissue/memory.h"
 
+#include <sys/mman.h>
 #include <unistd.h>
+
+#include <cstdlib>
 
 #include <cmath>
 #include <fstream>
@@ -9,6 +12,26 @@
 #include "tissue/error.h"
 
 namespace sonotrace::tissue {
+
+namespace {
+constexpr std::size_t kHugePage = std::size_t(2) << 20;
+}
+
+void* allocate_huge(std::size_t bytes) {
+    if (bytes < kHugePage) return ::operator new(bytes);
+    const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+    void* p = std::aligned_alloc(kHugePage, rounded);
+    if (p == nullptr) throw std::bad_alloc();
+    madvise(p, rounded, MADV_HUGEPAGE);  // a hint: without it the pages are 4 KiB
+    return p;
+}
+
+void free_huge(void* p, std::size_t bytes) {
+    if (bytes < kHugePage)
+        ::operator delete(p);
+    else
+        std::free(p);
+}
 
 double available_memory_bytes() {
     std::ifstream meminfo("/proc/meminfo");
