@@ -295,7 +295,6 @@ class LineTracer {
                 b.remove(k);  // the last lane moves here, with its block
                 const auto last = std::size_t(b.count);
                 f.block[i] = f.block[last], f.eligible[i] = f.eligible[last];
-                f.eligible[last] = 0;
                 continue;
             }
             f.eligible[i] = run_end == RunEnd::step_outside_blocks ? -1 : 0;
