@@ -45,26 +45,29 @@ struct DepositCell {
 
 // 2 MiB blocks on huge pages for deposit tiles, kept for the next trace: the kernel
 // clears a new huge page at its first touch, which was 9 % of a 3D trace when every
-// trace allocated its own. At most kKept blocks (256 MiB) wait between traces.
+// trace allocated its own. At most kKept blocks (256 MiB) wait between traces; they are
+// freed at exit.
 class DepositChunks {
   public:
     static constexpr std::size_t kBytes = std::size_t(2) << 20;
     static void* take() {
+        Pool& pool = the_pool();
         {
-            const std::lock_guard lock(mutex_);
-            if (!kept_.empty()) {
-                void* chunk = kept_.back();
-                kept_.pop_back();
+            const std::lock_guard lock(pool.mutex);
+            if (!pool.kept.empty()) {
+                void* chunk = pool.kept.back();
+                pool.kept.pop_back();
                 return chunk;
             }
         }
         return tissue::allocate_huge(kBytes);
     }
     static void give(void* chunk) {
+        Pool& pool = the_pool();
         {
-            const std::lock_guard lock(mutex_);
-            if (kept_.size() < kKept) {
-                kept_.push_back(chunk);
+            const std::lock_guard lock(pool.mutex);
+            if (pool.kept.size() < kKept) {
+                pool.kept.push_back(chunk);
                 return;
             }
         }
@@ -73,8 +76,17 @@ class DepositChunks {
 
   private:
     static constexpr std::size_t kKept = 128;
-    static inline std::mutex mutex_;
-    static inline std::vector<void*> kept_;
+    struct Pool {
+        std::mutex mutex;
+        std::vector<void*> kept;
+        ~Pool() {
+            for (void* chunk : kept) tissue::free_huge(chunk, kBytes);
+        }
+    };
+    static Pool& the_pool() {
+        static Pool pool;
+        return pool;
+    }
 };
 
 // A thread's deposit maps in tiles of 8^Dim texels, allocated when first written: a fan
