@@ -8,8 +8,10 @@
 
 #include <cmath>
 #include <cstring>
+#include <random>
 
 #include "phantoms/trace_scene.h"
+#include "simulator/batch.h"
 #include "simulator/interactions.h"
 #include "simulator/scenes.h"
 #include "simulator/tracer.h"
@@ -328,6 +330,69 @@ void expect_vector_steps_take_scalar_paths(const tissue::AcousticMap<Dim>& map,
     ASSERT_EQ(pa.size(), pb.size());
     for (std::size_t i = 0; i < pa.size(); ++i)
         ASSERT_NEAR(pa[i], pb[i], 1e-6f * std::abs(pa[i])) << "profile bin " << i;
+}
+
+// The vector stage's sampler gives AcousticMap::sample()'s values bit for bit, and its
+// uniform-block lookup the blocks uniform_block() finds, at random points (a tenth of
+// them a little outside the map, where sampling clamps to the edge).
+template <int Dim>
+void expect_lane_sampling_is_the_maps(const tissue::AcousticMap<Dim>& map) {
+    detail::MapView<Dim> view;
+    view.texels = reinterpret_cast<const float*>(map.texels());
+    view.block_records = map.block_records();
+    for (int a = 0; a < Dim; ++a) {
+        const auto axis = std::size_t(a);
+        view.dims[axis] = map.dims()[a];
+        view.inverse_spacing[axis] = map.inverse_spacing()[a];
+        view.block_dims[axis] = map.block_dims()[a];
+    }
+    view.deposit_texels = false;
+    auto batch = std::make_unique<detail::Batch<Dim>>();
+    auto fields = std::make_unique<detail::LaneFields<Dim>>();
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> unit(-0.05f, 1.05f);
+    int uniform_lanes = 0;
+    for (int round = 0; round < 40; ++round) {
+        batch->count = detail::Batch<Dim>::kSize;
+        for (int k = 0; k < batch->count; ++k) {
+            Vec<Dim> p;
+            for (int a = 0; a < Dim; ++a) p[a] = unit(rng) * map.extent_mm()[a];
+            if (round % 10 != 0) p = glm::clamp(p, Vec<Dim>(0.0f), map.extent_mm());
+            batch->position.set(k, p);
+        }
+        if (round % 10 != 0) {  // inside: the block lookup
+            detail::find_uniform_blocks(view, *batch, *fields, batch->count);
+            for (int k = 0; k < batch->count; ++k) {
+                const auto* block = map.uniform_block(batch->position[k]);
+                const int32_t record = fields->block[std::size_t(k)];
+                ASSERT_EQ(block, record < 0 ? nullptr : map.uniform_record(record)) << k;
+                ASSERT_EQ(fields->eligible[std::size_t(k)], record < 0 ? -1 : 0);
+                uniform_lanes += record >= 0;
+            }
+        }
+        fields->eligible.fill(-1);
+        detail::sample_lanes(view, *batch, *fields, batch->count);
+        for (int k = 0; k < batch->count; ++k) {
+            const auto i = std::size_t(k);
+            const auto t = map.sample(batch->position[k]);
+            const auto& f = *fields;
+            float lane[4 + 2 * Dim] = {f.refractive_index[i], f.impedance[i], f.attenuation[i],
+                                       f.backscatter[i]};
+            for (std::size_t a = 0; a < Dim; ++a) {
+                lane[4 + a] = f.grad_refractive_index[a][i];
+                lane[4 + Dim + a] = f.grad_impedance[a][i];
+            }
+            ASSERT_EQ(std::memcmp(lane, &t, sizeof lane), 0) << "lane " << k << " round " << round;
+        }
+    }
+    EXPECT_GT(uniform_lanes, 0);
+}
+
+TEST(Tracer, LaneSamplingIsTheMapsSampling) {
+    expect_lane_sampling_is_the_maps(textured_tissue<2>(160, 0.25));
+}
+TEST(Tracer3D, LaneSamplingIsTheMapsSampling) {
+    expect_lane_sampling_is_the_maps(textured_tissue<3>(64, 0.25));
 }
 
 TEST(Tracer, VectorStepsTakeTheScalarStepsPaths) {
