@@ -151,9 +151,8 @@ template <int Dim>
 struct MapView {
     const float* texels = nullptr;  // AcousticTexel<Dim> records, x fastest
     std::array<int32_t, Dim> dims{};
-    std::array<float, Dim> inverse_spacing{};          // the map's, for locate()
-    std::array<float, Dim> deposit_inverse_spacing{};  // the tracer's, for texel_index()
-    std::array<int32_t, Dim> deposit_tiles{};          // deposit tiles per axis
+    std::array<float, Dim> inverse_spacing{};  // the map's (locate(), texel_index())
+    std::array<int32_t, Dim> deposit_tiles{};  // deposit tiles per axis
     bool deposit_texels = true;
     // Uniform blocks (AcousticMap::uniform_block): null if uniform runs are off.
     const int32_t* block_records = nullptr;

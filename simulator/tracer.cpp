@@ -206,7 +206,7 @@ class LineTracer {
                 ? std::max(8, int(std::ceil(settings.interface_reach_mm / (0.5 * texel_mm_))))
                 : 16;
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
-        for (int a = 0; a < Dim; ++a) inverse_spacing_[a] = 1.0f / map.spacing()[a];
+        inverse_spacing_ = map.inverse_spacing();  // the vector stage's locate() uses the same
         // alpha [dB/(cm MHz)] * f [MHz] / 10 [mm/cm] -> dB/mm; * ln(10)/10 -> Np/mm (intensity).
         attenuation_per_mm_ = float(settings.frequency_mhz * 0.1 * std::log(10.0) / 10.0);
         seconds_per_mm_ = float(1e-3 / tissue::kReferenceSpeed);  // times n gives 1/c
@@ -239,7 +239,6 @@ class LineTracer {
             const auto axis = std::size_t(a);
             m.dims[axis] = map.dims()[a];
             m.inverse_spacing[axis] = map.inverse_spacing()[a];
-            m.deposit_inverse_spacing[axis] = inverse_spacing_[a];
             m.deposit_tiles[axis] =
                 (map.dims()[a] + DepositTiles<Dim>::kSide - 1) >> kDepositTileShift;
         }

@@ -179,7 +179,7 @@ template <int Dim>
             vi tile = vi{}, offset = vi{};
             for (int a = Dim - 1; a >= 0; --a) {
                 const auto axis = std::size_t(a);
-                vi i = __builtin_convertvector(x[a] * m.deposit_inverse_spacing[axis] + 0.5f, vi);
+                vi i = __builtin_convertvector(x[a] * m.inverse_spacing[axis] + 0.5f, vi);
                 const vi last = vi{} + (m.dims[axis] - 1);
                 i = i < 0 ? vi{} : (last < i ? last : i);  // std::clamp(i, 0, dims - 1)
                 tile = tile * m.deposit_tiles[axis] + (i >> shift);
