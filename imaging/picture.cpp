@@ -89,7 +89,7 @@ cv::Mat render_field(const tissue::Volume& field, const FieldStyle& style) {
 
     // Canvas: title above, colour bar and labels to the right.
     const int title_h = 28, bar_w = 18, label_w = 90, margin = 8;
-    const int scale = std::max(1, 320 / std::max(h, 1));  // small maps are enlarged
+    const int scale = style.scale > 0 ? style.scale : std::max(1, 320 / std::max(h, 1));
     cv::Mat shown;
     cv::resize(image, shown, cv::Size(w * scale, h * scale), 0, 0, cv::INTER_NEAREST);
     const int H = shown.rows + title_h + margin, W = shown.cols + margin * 3 + bar_w + label_w;

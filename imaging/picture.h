@@ -21,6 +21,7 @@ struct FieldStyle {
     std::optional<std::pair<double, double>> range;  // default: the field's min..max
     bool log_scale = false;                          // colour by log10(1 + v / (1e-3*max))
     double pixel_mm = 0.0;                           // > 0 draws a 10 mm scale bar
+    int scale = 0;  // output pixels per texel; 0: maps under 320 rows are enlarged to it
 };
 
 // Renders the k = 0 plane of `field` (rows = j, columns = i) as an 8-bit BGR picture with

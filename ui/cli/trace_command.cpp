@@ -308,6 +308,8 @@ int run_trace_command(const TraceOptions& options) {
     const double fluence_top = std::max(1e-12, double(result.fluence.quantile(0.995)));
     const bool absorbing = result.ledger.absorbed > 0.0;
     std::vector<Picture> pictures(absorbing ? 4 : 3);
+    // Maps at the paths' scale, so that the overview sets them side by side texel for texel.
+    const int scale = imaging::PathStyle{}.scale;
     tbb::parallel_for(0, int(pictures.size()), [&](int n) {
         switch (n) {
             case 0: {
@@ -320,22 +322,23 @@ int run_trace_command(const TraceOptions& options) {
             }
             case 1:
                 pictures[1] = {"medium", imaging::render_field(
-                                             scene.medium,
-                                             {scene.medium_label, scene.medium_unit,
-                                              imaging::Colormap::gray, std::nullopt, false, px})};
+                                             scene.medium, {scene.medium_label, scene.medium_unit,
+                                                            imaging::Colormap::gray, std::nullopt,
+                                                            false, px, scale})};
                 break;
             case 2:
-                pictures[2] = {"fluence",
-                               imaging::render_field(
-                                   result.fluence,
-                                   {"intensity (fluence)", "energy/mm", imaging::Colormap::inferno,
-                                    std::pair<double, double>(0.0, fluence_top), false, px})};
+                pictures[2] = {
+                    "fluence",
+                    imaging::render_field(
+                        result.fluence,
+                        {"intensity (fluence)", "energy/mm", imaging::Colormap::inferno,
+                         std::pair<double, double>(0.0, fluence_top), false, px, scale})};
                 break;
             case 3:
-                pictures[3] = {"absorbed", imaging::render_field(
-                                               result.absorbed,
-                                               {"absorbed energy", "energy/texel",
-                                                imaging::Colormap::magma, std::nullopt, true, px})};
+                pictures[3] = {"absorbed", imaging::render_field(result.absorbed,
+                                                                 {"absorbed energy", "energy/texel",
+                                                                  imaging::Colormap::magma,
+                                                                  std::nullopt, true, px, scale})};
                 break;
         }
     });
