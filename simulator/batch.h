@@ -149,7 +149,9 @@ constexpr int kDepositTileShift = 3;
 // tracer's deposit texel numbering (LineTracer::texel_index).
 template <int Dim>
 struct MapView {
-    const float* texels = nullptr;  // AcousticTexel<Dim> records, x fastest
+    // AcousticTexel<Dim> records, x fastest: n, Z, attenuation, backscatter, grad n, grad Z
+    // (the order sample_lanes stores fields in; test LaneSamplingIsTheMapsSampling).
+    const float* texels = nullptr;
     std::array<int32_t, Dim> dims{};
     std::array<float, Dim> inverse_spacing{};  // the map's (locate(), texel_index())
     std::array<int32_t, Dim> deposit_tiles{};  // deposit tiles per axis
