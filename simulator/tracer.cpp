@@ -101,10 +101,12 @@ class DepositTiles {
     using Tile = std::array<DepositCell, kCells>;
 
     explicit DepositTiles(const glm::ivec3& dims) {
-        for (int a = 0; a < 3; ++a) tiles_per_axis_[a] = (dims[a] + kSide - 1) >> kShift;
+        for (int a = 0; a < 3; ++a) tiles_per_axis_[a] = tiles_along(dims[a]);
         tiles_.resize(std::size_t(tiles_per_axis_.x) * std::size_t(tiles_per_axis_.y) *
                       std::size_t(tiles_per_axis_.z));
     }
+    // Tiles along an axis of n texels.
+    static int tiles_along(int n) { return (n + kSide - 1) >> kShift; }
     // The cell number of texel i (inside the map).
     uint32_t index(const glm::vec<Dim, int>& i) const {
         uint32_t tile = 0, offset = 0;
@@ -206,7 +208,6 @@ class LineTracer {
                 ? std::max(8, int(std::ceil(settings.interface_reach_mm / (0.5 * texel_mm_))))
                 : 16;
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
-        inverse_spacing_ = map.inverse_spacing();  // the vector stage's locate() uses the same
         // alpha [dB/(cm MHz)] * f [MHz] / 10 [mm/cm] -> dB/mm; * ln(10)/10 -> Np/mm (intensity).
         attenuation_per_mm_ = float(settings.frequency_mhz * 0.1 * std::log(10.0) / 10.0);
         seconds_per_mm_ = float(1e-3 / tissue::kReferenceSpeed);  // times n gives 1/c
@@ -239,8 +240,7 @@ class LineTracer {
             const auto axis = std::size_t(a);
             m.dims[axis] = map.dims()[a];
             m.inverse_spacing[axis] = map.inverse_spacing()[a];
-            m.deposit_tiles[axis] =
-                (map.dims()[a] + DepositTiles<Dim>::kSide - 1) >> kDepositTileShift;
+            m.deposit_tiles[axis] = DepositTiles<Dim>::tiles_along(map.dims()[a]);
         }
         m.deposit_texels = deposit_maps_;
         if (uniform_runs_) {
@@ -428,7 +428,7 @@ class LineTracer {
     uint32_t texel_index(const V& x) const {
         glm::vec<Dim, int> i;
         for (int a = 0; a < Dim; ++a)
-            i[a] = std::clamp(int(x[a] * inverse_spacing_[a] + 0.5f), 0, map_.dims()[a] - 1);
+            i[a] = std::clamp(int(x[a] * map_.inverse_spacing()[a] + 0.5f), 0, map_.dims()[a] - 1);
         return deposits_->index(i);
     }
 
@@ -839,7 +839,7 @@ class LineTracer {
             // The block as uniform_block() finds it.
             const float h = map_.spacing()[a];
             const int block =
-                int(x[a] * inverse_spacing_[a]) >> tissue::AcousticMap<Dim>::kBlockShift;
+                int(x[a] * map_.inverse_spacing()[a]) >> tissue::AcousticMap<Dim>::kBlockShift;
             const float lo = float(block) * kBlock * h;
             if (r[a] > 0.0f) distance = std::min(distance, (lo + kBlock * h - x[a]) / r[a]);
             if (r[a] < 0.0f) distance = std::min(distance, (x[a] - lo) / -r[a]);
@@ -1006,7 +1006,6 @@ class LineTracer {
     const TraceSettings& settings_;
     float texel_mm_ = 1.0f, step_mm_ = 0.5f, attenuation_per_mm_ = 0.0f, seconds_per_mm_ = 0.0f;
     double max_time_s_ = 0.0;
-    V inverse_spacing_{};
     float threshold2_ = 0.0f, inverse_texel2_ = 1.0f, follow_reflections_above_ = 0.0f;
     int plateau_steps_ = 16;
     double inverse_profile_bin_ = 0.0;
