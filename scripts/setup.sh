@@ -20,6 +20,9 @@ packages=(
   g++ cmake ninja-build ccache pkg-config
   # libraries (OpenCV only in the modules we link: core, imgproc, videoio)
   libniftiio-dev libznz-dev zlib1g-dev libopenimageio-dev
+  # OpenImageIO's CMake config checks that its tools (/usr/bin/iconvert, ...) exist;
+  # without this package find_package(OpenImageIO) fails on a fresh machine
+  openimageio-tools
   libopencv-core-dev libopencv-imgproc-dev libopencv-videoio-dev
   libglm-dev libcli11-dev nlohmann-json3-dev libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
