@@ -20,6 +20,8 @@ packages=(
   g++ cmake ninja-build ccache pkg-config
   # libraries (OpenCV only in the modules we link: core, imgproc, videoio)
   libniftiio-dev libznz-dev zlib1g-dev libopenimageio-dev
+  # nifti1_io.h includes nifti1.h, which only libnifti2-dev installs
+  libnifti2-dev
   # OpenImageIO's CMake config checks that its tools (/usr/bin/iconvert, ...) exist;
   # without this package find_package(OpenImageIO) fails on a fresh machine
   openimageio-tools
