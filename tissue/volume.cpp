@@ -47,8 +47,12 @@ void VolumeGeometry::validate(const std::string& source) const {
                      "dims");
 }
 
-Volume::Volume(const VolumeGeometry& geometry, float fill)
-    : geometry_(geometry), voxels_(geometry.voxel_count(), fill) {}
+Volume::Volume(const VolumeGeometry& geometry, float fill) : geometry_(geometry) {
+    const std::size_t count = geometry.voxel_count();
+    voxels_.reserve(count);
+    advise_huge_pages(voxels_.data(), count * sizeof(float));  // before the fill touches it
+    voxels_.assign(count, fill);
+}
 
 Volume::Volume(const VolumeGeometry& geometry, std::vector<float> voxels)
     : geometry_(geometry), voxels_(std::move(voxels)) {
