@@ -110,6 +110,12 @@ struct TraceSettings {
     // step's arithmetic: the same paths bit for bit. Off: one particle at a time (for
     // tests and benchmarks that compare the two). Not with a probe face or ring detector.
     bool vector_steps = true;
+    // The transition around a texel (sharp or graded; plateaus, patch normal, middle) is
+    // searched from the texel's centre once per trace and kept for the texel's later
+    // interface events (in the head 5-20 events share a texel; a search takes 40-80
+    // samples). Off: every event searches again, with the same results bit for bit (for
+    // tests and benchmarks that compare the two).
+    bool interface_cache = true;
 
     // The fluence and absorbed-energy maps (TraceResult::fluence, absorbed). Off: they
     // stay empty and the absorbed energy goes to the ledger only, per particle; a step

@@ -158,6 +158,89 @@ class DepositTiles {
     std::size_t chunk_used_ = 0;
 };
 
+// A plateau's values that the reflection decision reads.
+struct Plateau {
+    float refractive_index = 1.0f, impedance = 1.0f;
+};
+
+// What an interface event needs to know of the transition around a point: whether it is
+// sharp (a plateau on each side within reach) or graded, and if sharp its patch normal,
+// its middle, the plateaus' values and roughness. A function of the point alone, so the
+// tracer finds it once per texel and trace (InterfaceCache): in the head, 22 (2D) and 5
+// (3D) interface events share each texel, and each search took 40-80 samples.
+template <int Dim>
+struct InterfaceSides {
+    // from_position: the texel's centre is not steep, so a point of it that is searches
+    // from itself (InterfaceCache keeps only what a texel's centre gives).
+    enum class Kind : uint8_t { graded, sharp, from_position };
+    Kind kind = Kind::graded;
+    float roughness = 0.0f;  // the rougher plateau's (sharp)
+    Plateau low, high;       // the plateaus at lower and higher Z (sharp)
+    Vec<Dim> normal{0.0f};   // the patch normal, towards higher Z (sharp)
+    Vec<Dim> middle{0.0f};   // where Z is halfway between the plateaus
+};
+
+// InterfaceSides per texel, shared by the threads of one trace. An open-addressing table:
+// a slot's key is 0 (empty), texel + 1 with kBusy while its owner fills it, then texel + 1.
+// Whoever claims a slot fills it; a thread that finds it busy, or finds no free slot
+// within kProbes, computes the entry itself. Entries depend on the texel only, so what
+// the table holds never changes a result, whatever the threads' timing.
+template <int Dim>
+class InterfaceCache {
+  public:
+    // `particles`: sources of the trace; the table holds up to 4 entries per particle
+    // (2^12 to 2^18), on huge pages (slots are touched at random). Not `enabled`: it
+    // holds nothing and every get() computes.
+    InterfaceCache(std::size_t particles, bool enabled) {
+        if (!enabled) return;
+        int bits = 12;
+        while (bits < 18 && (std::size_t(1) << bits) < 4 * particles) ++bits;
+        shift_ = 32 - bits;
+        capacity_ = std::size_t(1) << bits;
+        keys_ = std::make_unique<std::atomic<uint32_t>[]>(capacity_);  // zero: empty
+        entries_ = static_cast<InterfaceSides<Dim>*>(
+            tissue::allocate_huge(capacity_ * sizeof(InterfaceSides<Dim>)));
+    }
+    ~InterfaceCache() {
+        if (entries_) tissue::free_huge(entries_, capacity_ * sizeof(InterfaceSides<Dim>));
+    }
+    InterfaceCache(const InterfaceCache&) = delete;
+    InterfaceCache& operator=(const InterfaceCache&) = delete;
+
+    // The entry of `texel`; `find(entry)` fills one when it is not in the table yet.
+    template <class Find>
+    const InterfaceSides<Dim>& get(uint32_t texel, InterfaceSides<Dim>& scratch, Find&& find) {
+        const uint32_t key = texel + 1;
+        if (capacity_ == 0 || key >= kBusy) return find(scratch), scratch;
+        std::size_t slot = std::size_t((key * 0x9E3779B1u) >> shift_);
+        for (int probe = 0; probe < kProbes; ++probe, slot = (slot + 1) & (capacity_ - 1)) {
+            uint32_t seen = keys_[slot].load(std::memory_order_acquire);
+            if (seen == 0) {
+                if (keys_[slot].compare_exchange_strong(seen, key | kBusy,
+                                                        std::memory_order_acquire)) {
+                    InterfaceSides<Dim>& entry = entries_[slot];
+                    find(entry);
+                    keys_[slot].store(key, std::memory_order_release);
+                    return entry;
+                }
+                // Claimed meanwhile: `seen` now holds the claimant's key.
+            }
+            if (seen == key) return entries_[slot];
+            if (seen == (key | kBusy)) break;  // being filled: do not wait
+        }
+        find(scratch);
+        return scratch;
+    }
+
+  private:
+    static constexpr uint32_t kBusy = 0x80000000u;
+    static constexpr int kProbes = 16;
+    std::size_t capacity_ = 0;
+    int shift_ = 0;
+    std::unique_ptr<std::atomic<uint32_t>[]> keys_;
+    InterfaceSides<Dim>* entries_ = nullptr;
+};
+
 // One bin of a line's echo profile: intensity w and its moments, in double (the spread
 // across the beam is a small difference of large second moments). One record per bin: a
 // step updates one cache line, not three.
@@ -251,8 +334,10 @@ class LineTracer {
     }
 
     void run(const Sources<Dim>& sources, const std::vector<uint32_t>& order, std::size_t begin,
-             std::size_t end, DepositTiles<Dim>& deposits, LineOutput<Dim>& out) {
+             std::size_t end, DepositTiles<Dim>& deposits, InterfaceCache<Dim>& interfaces,
+             LineOutput<Dim>& out) {
         deposits_ = &deposits;
+        interfaces_ = &interfaces;
         out_ = &out;
         if (settings_.ring) out.ring.assign(std::size_t(settings_.ring->bins), 0.0);
         if (settings_.echo_profile) {
@@ -513,57 +598,111 @@ class LineTracer {
         return glm::length(sum) > 0.0f ? glm::normalize(sum) : guess;
     }
 
-    // A particle meets a steep impedance gradient: find the plateaus on both sides. If
-    // both exist it is a sharp interface (patch normal, reflection decision); otherwise
-    // a graded medium. Returns true if the particle reflected. Rare: kept out of line.
+    // The transition around `from` (whose sample is `at`): walks along grad Z to the
+    // plateau on the higher side, then the lower; both found: a sharp interface with its
+    // patch normal and middle; otherwise a graded medium.
+    void find_sides(const V& from, const Texel& at, InterfaceSides<Dim>& sides) const {
+        V g(0.0f);
+        for (int a = 0; a < Dim; ++a) g[a] = at.grad_impedance[a];
+        g = glm::normalize(g);
+        sides.kind = InterfaceSides<Dim>::Kind::graded;
+        V high_end, low_end;
+        bool high_found, low_found = false;
+        const Texel high = plateau(from, g, &high_end, &high_found);
+        if (!high_found) return;  // graded: the other side need not be searched
+        const Texel low = plateau(from, -g, &low_end, &low_found);
+        if (!low_found) return;
+        sides.kind = InterfaceSides<Dim>::Kind::sharp;
+        sides.low = {low.refractive_index, low.impedance};
+        sides.high = {high.refractive_index, high.impedance};
+        sides.normal = interface_normal(low_end, high_end, g);
+        if (glm::dot(sides.normal, g) < 0.0f) sides.normal = -sides.normal;
+        // The particle meets the transition at its fringe; the interface itself is about
+        // half the smoothing width further on, where ln Z is halfway between the plateaus
+        // (a transition thinner than the pulse reflects like a step at the centre of
+        // d(ln Z)/dx). Echoes and reflections are timed there, or every echo would come
+        // early by that much.
+        sides.middle = halfway_point(low_end, high_end, low, high);
+        // The lobe's roughness: the rougher of the plateaus (a map of its own, sampled
+        // here only).
+        sides.roughness =
+            settings_.diffuse_reflection && settings_.lobe_exponent == LobeExponent::roughness
+                ? std::max(map_.sample_roughness(low_end), map_.sample_roughness(high_end))
+                : 0.0f;
+    }
+
+    // The transition around x, found from the centre of x's nearest texel (once per texel
+    // and trace: InterfaceCache), or from x itself where that centre is not steep.
+    const InterfaceSides<Dim>& sides_at(const V& x, const Texel& t) {
+        glm::vec<Dim, int> i;
+        uint32_t texel = 0;
+        for (int a = Dim - 1; a >= 0; --a) {
+            i[a] = std::clamp(int(x[a] * map_.inverse_spacing()[a] + 0.5f), 0, map_.dims()[a] - 1);
+            texel = texel * uint32_t(map_.dims()[a]) + uint32_t(i[a]);
+        }
+        const InterfaceSides<Dim>& cached =
+            interfaces_->get(texel, scratch_sides_, [&](InterfaceSides<Dim>& sides) {
+                // From the centre, or where it is not steep (a texel on the transition's
+                // fringe), from the first steep point of four along grad Z beside it.
+                const V centre = V(i) * map_.spacing();
+                Texel c = map_.sample(centre);
+                if (steep(c)) return find_sides(centre, c, sides);
+                V g(0.0f);
+                for (int a = 0; a < Dim; ++a) g[a] = c.grad_impedance[a];
+                sides.kind = InterfaceSides<Dim>::Kind::from_position;
+                if (!(glm::dot(g, g) > 0.0f)) return;
+                g = glm::normalize(g) * texel_mm_;
+                for (const float offset : {0.5f, -0.5f, 1.0f, -1.0f}) {
+                    const V start = centre + offset * g;
+                    c = map_.sample(start);
+                    if (steep(c)) return find_sides(start, c, sides);
+                }
+            });
+        if (cached.kind != InterfaceSides<Dim>::Kind::from_position) return cached;
+        find_sides(x, t, scratch_sides_);
+        return scratch_sides_;
+    }
+
+    // A particle meets a steep impedance gradient: if the transition is sharp, it is
+    // crossed as a whole (patch normal, one reflection decision); otherwise the medium is
+    // graded. Returns true if the particle reflected. Rare: kept out of line.
     [[gnu::noinline]] bool enter_interface(Batch<Dim>& b, int k, const V& x, const Texel& t, V& r,
                                            float& E) {
         InterfaceState& state = b.in_interface[k];
-        V normal(0.0f);
-        for (int a = 0; a < Dim; ++a) normal[a] = t.grad_impedance[a];
-        normal = glm::normalize(normal);
-        V forward = glm::dot(r, normal) >= 0.0f ? normal : -normal;
-        V near_end, far_end;
-        bool near_found = false, far_found;
-        // The far side first: in a graded medium it is usually missing, and then the near
-        // side need not be searched (the re-checks every few graded steps were ~10 % of
-        // the trace on the head).
-        const Texel far_side = plateau(x, forward, &far_end, &far_found);
-        const Texel near_side = far_found ? plateau(x, -forward, &near_end, &near_found) : far_side;
-        if (!near_found || !far_found) {
+        const InterfaceSides<Dim>& sides = sides_at(x, t);
+        if (sides.kind != InterfaceSides<Dim>::Kind::sharp) {
             state = kGraded;  // no plateau within reach: refract step by step only
             b.graded_steps[k] = 0;
             return false;
         }
         state = kCrossing;
         out_->stats.interface_events++;
-        normal = interface_normal(near_end, far_end, forward);
-        forward = glm::dot(forward, normal) >= 0.0f ? normal : -normal;
-        b.interface_normal.set(k, normal);
-        // The particle meets the transition at its near fringe; the interface itself is
-        // about half the smoothing width further on, where ln Z is halfway between the
-        // plateaus (a transition thinner than the pulse reflects like a step at the centre
-        // of d(ln Z)/dx). Echoes and reflections are timed there, or every echo would
-        // come early by that much.
-        const float ahead = glm::dot(halfway_point(x, far_end, near_side, far_side) - x, forward);
+        // Which way the particle crosses: by grad Z where it stands.
+        V towards(0.0f);
+        for (int a = 0; a < Dim; ++a) towards[a] = t.grad_impedance[a];
+        const bool upwards =
+            glm::dot(glm::dot(r, towards) >= 0.0f ? towards : -towards, sides.normal) >= 0.0f;
+        const V forward = upwards ? sides.normal : -sides.normal;
+        b.interface_normal.set(k, sides.normal);
+        const Plateau& near_side = upwards ? sides.low : sides.high;
+        const Plateau& far_side = upwards ? sides.high : sides.low;
+        const float ahead = glm::dot(sides.middle - x, forward);
         const float to_middle_mm = std::max(ahead, 0.0f) / std::max(glm::dot(r, forward), 0.1f);
-        // The lobe's roughness: the rougher of the plateaus (a map of its own, sampled here
-        // only).
-        const float roughness =
-            settings_.diffuse_reflection && settings_.lobe_exponent == LobeExponent::roughness
-                ? std::max(map_.sample_roughness(near_end), map_.sample_roughness(far_end))
-                : 0.0f;
-        return settings_.specular_reflection &&
-               decide_reflection(b, k, x, t, near_side, far_side, roughness, forward, to_middle_mm,
-                                 r, E);
+        // Without specular reflection only total reflection, which is refraction's
+        // (Snell's law between the plateaus has no solution), reflects.
+        return decide_reflection(b, k, x, t, near_side, far_side, sides.roughness, forward,
+                                 to_middle_mm, r, E, settings_.specular_reflection);
     }
 
     // The reflection decision at a sharp interface (eq. 10 with the plateau values on
     // both sides). Records the expected echo R^2 and reflects with probability R^2.
     // `to_middle_mm`: path from x to the middle of the transition, where it reflects.
-    bool decide_reflection(Batch<Dim>& b, int k, const V& x, const Texel& t, const Texel& near_side,
-                           const Texel& far_side, float roughness, const V& forward,
-                           float to_middle_mm, V& r, float& E) {
+    // `partial_reflection` false: only total reflection happens (no decision, no echo
+    // otherwise).
+    bool decide_reflection(Batch<Dim>& b, int k, const V& x, const Texel& t,
+                           const Plateau& near_side, const Plateau& far_side, float roughness,
+                           const V& forward, float to_middle_mm, V& r, float& E,
+                           bool partial_reflection) {
         // The direction the particle had on the near plateau: undo the slight
         // refraction it met in the fringe, using the conserved n sin(theta).
         const float cos_now = glm::dot(r, forward);
@@ -574,6 +713,7 @@ class LineTracer {
         const V incoming = tangential + cos_i * forward;
         const float sin_t = sin_i * near_side.refractive_index / far_side.refractive_index;
         const float cos_t = sin_t >= 1.0f ? 0.0f : std::sqrt(1.0f - sin_t * sin_t);
+        if (!partial_reflection && cos_t > 0.0f) return false;
         const float R2 = reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
         const float c =
             settings_.diffuse_reflection ? lobe_exponent(near_side, far_side, roughness) : 1e6f;
@@ -647,7 +787,7 @@ class LineTracer {
         return mirror;
     }
 
-    float lobe_exponent(const Texel& near_side, const Texel& far_side, float roughness) const {
+    float lobe_exponent(const Plateau& near_side, const Plateau& far_side, float roughness) const {
         switch (settings_.lobe_exponent) {
             case LobeExponent::roughness:
                 return roughness <= 1e-3f ? 1e6f : 1.0f / (roughness * roughness) - 1.0f;
@@ -1011,6 +1151,8 @@ class LineTracer {
     double inverse_profile_bin_ = 0.0;
     float profile_scale_ = 0.0f;
     DepositTiles<Dim>* deposits_ = nullptr;
+    InterfaceCache<Dim>* interfaces_ = nullptr;
+    InterfaceSides<Dim> scratch_sides_;
     bool deposit_maps_ = true;
     LineOutput<Dim>* out_ = nullptr;
     uint32_t line_ = 0;
@@ -1062,10 +1204,12 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     tbb::enumerable_thread_specific<DepositTiles<Dim>> deposits(
         [dims] { return DepositTiles<Dim>(dims); });
     std::vector<LineOutput<Dim>> outputs(lines);
+    InterfaceCache<Dim> interfaces(sources.size(), settings.interface_cache);
     std::atomic<std::size_t> done{0};
     tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
         LineTracer<Dim> tracer(map, settings);
-        tracer.run(sources, order, starts[l], starts[l + 1], deposits.local(), outputs[l]);
+        tracer.run(sources, order, starts[l], starts[l + 1], deposits.local(), interfaces,
+                   outputs[l]);
         // Batches interleave particles; order the line's echoes by particle, then time.
         std::stable_sort(outputs[l].echoes.begin(), outputs[l].echoes.end(),
                          [](const EchoEvent<Dim>& a, const EchoEvent<Dim>& b) {

@@ -417,6 +417,57 @@ TEST(Tracer3D, VectorStepsTakeTheScalarStepsPaths) {
     expect_vector_steps_take_scalar_paths(map, src);
 }
 
+// The interface cache keeps what a search from a texel's centre finds; with it off every
+// event searches again. Both threads share the cache and race to fill it, so equal
+// results also say that no thread ever reads another texel's entry or a half-filled one.
+template <int Dim>
+void expect_interface_cache_changes_nothing(const tissue::AcousticMap<Dim>& map,
+                                            const Sources<Dim>& sources) {
+    TraceSettings s;  // all physics
+    s.frequency_mhz = 5.0;
+    s.record_paths = 1000;
+    s.interface_cache = false;
+    const auto searched = trace(map, sources, s);
+    s.interface_cache = true;
+    const auto cached = trace(map, sources, s);
+    EXPECT_GT(searched.stats.interface_events, 100u);
+    EXPECT_GT(searched.stats.reflections, 0u);
+    EXPECT_EQ(cached.stats.interface_events, searched.stats.interface_events);
+    EXPECT_EQ(cached.stats.reflections, searched.stats.reflections);
+    EXPECT_EQ(cached.stats.steps, searched.stats.steps);
+    ASSERT_EQ(cached.paths.size(), searched.paths.size());
+    for (std::size_t p = 0; p < cached.paths.size(); ++p) {
+        const auto &a = searched.paths[p].vertices, &b = cached.paths[p].vertices;
+        ASSERT_TRUE(a.size() == b.size() &&
+                    std::memcmp(a.data(), b.data(), a.size() * sizeof a[0]) == 0)
+            << "path " << p;
+    }
+    EXPECT_TRUE(cached.echoes == searched.echoes);
+    EXPECT_EQ(cached.fluence.voxels(), searched.fluence.voxels());
+}
+
+TEST(Tracer, InterfaceCacheChangesNothing) {
+    const auto map = textured_tissue<2>(160, 0.25);
+    Sources<2> src;
+    for (int line = 0; line < 16; ++line) {
+        auto beam =
+            fan_beam({20.0f, 0.3f}, {0.05f * float(line - 8), 1.0f}, 20.0f, 100, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    expect_interface_cache_changes_nothing(map, src);
+}
+
+TEST(Tracer3D, InterfaceCacheChangesNothing) {
+    const auto map = textured_tissue<3>(64, 0.25);
+    Sources<3> src;
+    for (int line = 0; line < 8; ++line) {
+        auto beam = fan_beam_3d({8.0f, 0.2f, 4.0f}, {0.05f * float(line - 4), 1.0f, 0.05f}, 20.0f,
+                                9, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    expect_interface_cache_changes_nothing(map, src);
+}
+
 TEST(TracerErrors, BadSettingsAndSourcesAreNamed) {
     const auto map =
         tissue::AcousticMap<2>::build(homogeneous(10, 10, 1.0, lossless_medium(1540, 1000)));
