@@ -162,7 +162,8 @@ inline constexpr const char* kInterfaceThreshold =
 inline constexpr const char* kScatteringRate =
     "sub-resolution scattering events per mm at backscatter 1";
 inline constexpr const char* kRoulette =
-    "Russian roulette below this fraction of a particle's initial energy";
+    "Russian roulette below this fraction of a particle's initial energy (survivors go on "
+    "with twice it)";
 inline constexpr const char* kFollowReflections =
     "reflections with intensity fraction R^2 below this are scored (echo recorded, particle "
     "transmits with E(1-R^2)) instead of followed; 0 = all stochastic (unbiased)";

@@ -263,6 +263,10 @@ struct LineOutput {
     TraceStats stats;
 };
 
+// Russian roulette: a particle below the threshold survives with probability
+// E / (kRouletteRestart * threshold) and then carries that energy (unbiased).
+constexpr float kRouletteRestart = 2.0f;
+
 // Below this fraction of uniform blocks the tracer does not look for them (LineTracer).
 constexpr double kFewUniformBlocks = 0.05;
 
@@ -969,10 +973,14 @@ class LineTracer {
         }
         const float threshold = float(settings_.roulette_energy) * b.initial_energy[k];
         if (E < threshold) {
-            const float survive = E / threshold;
+            // A survivor restarts at twice the threshold, so the next roulette comes once
+            // its energy has halved. (Restarting at the threshold itself drew a random
+            // number at every later step: 23 % of the head's steps.)
+            const float restart = kRouletteRestart * threshold;
+            const float survive = E / restart;
             if (b.random[k].next() < survive) {
-                ledger.roulette_added += double(threshold) - E;
-                b.energy[k] = threshold;
+                ledger.roulette_added += double(restart) - E;
+                b.energy[k] = restart;
             } else {
                 ledger.roulette_killed += E;
                 return false;
