@@ -395,26 +395,33 @@ TEST(Tracer3D, LaneSamplingIsTheMapsSampling) {
     expect_lane_sampling_is_the_maps(textured_tissue<3>(64, 0.25));
 }
 
-TEST(Tracer, VectorStepsTakeTheScalarStepsPaths) {
-    const auto map = textured_tissue<2>(160, 0.25);
+// `lines` fans of 20 degrees from the top of textured_tissue<2>(160, 0.25) (3D: of
+// textured_tissue<3>(64, 0.25)), their axes `tilt` apart (the tangent's step).
+Sources<2> fans_2d(int lines, int per_line, float tilt) {
     Sources<2> src;
-    for (int line = 0; line < 6; ++line) {
-        auto beam =
-            fan_beam({20.0f, 0.3f}, {0.15f * float(line - 3), 1.0f}, 20.0f, 150, uint32_t(line));
+    for (int line = 0; line < lines; ++line) {
+        auto beam = fan_beam({20.0f, 0.3f}, {tilt * float(line - lines / 2), 1.0f}, 20.0f, per_line,
+                             uint32_t(line));
         src.insert(src.end(), beam.begin(), beam.end());
     }
-    expect_vector_steps_take_scalar_paths(map, src);
+    return src;
+}
+Sources<3> fans_3d(int lines, int per_line, float tilt) {
+    Sources<3> src;
+    for (int line = 0; line < lines; ++line) {
+        auto beam = fan_beam_3d({8.0f, 0.2f, 4.0f}, {tilt * float(line - lines / 2), 1.0f, 0.05f},
+                                20.0f, per_line, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    return src;
+}
+
+TEST(Tracer, VectorStepsTakeTheScalarStepsPaths) {
+    expect_vector_steps_take_scalar_paths(textured_tissue<2>(160, 0.25), fans_2d(6, 150, 0.15f));
 }
 
 TEST(Tracer3D, VectorStepsTakeTheScalarStepsPaths) {
-    const auto map = textured_tissue<3>(64, 0.25);
-    Sources<3> src;
-    for (int line = 0; line < 4; ++line) {
-        auto beam = fan_beam_3d({8.0f, 0.2f, 4.0f}, {0.15f * float(line - 2), 1.0f, 0.05f}, 20.0f,
-                                9, uint32_t(line));
-        src.insert(src.end(), beam.begin(), beam.end());
-    }
-    expect_vector_steps_take_scalar_paths(map, src);
+    expect_vector_steps_take_scalar_paths(textured_tissue<3>(64, 0.25), fans_3d(4, 9, 0.15f));
 }
 
 // The interface cache keeps what a search from a texel's centre finds; with it off every
@@ -447,25 +454,11 @@ void expect_interface_cache_changes_nothing(const tissue::AcousticMap<Dim>& map,
 }
 
 TEST(Tracer, InterfaceCacheChangesNothing) {
-    const auto map = textured_tissue<2>(160, 0.25);
-    Sources<2> src;
-    for (int line = 0; line < 16; ++line) {
-        auto beam =
-            fan_beam({20.0f, 0.3f}, {0.05f * float(line - 8), 1.0f}, 20.0f, 100, uint32_t(line));
-        src.insert(src.end(), beam.begin(), beam.end());
-    }
-    expect_interface_cache_changes_nothing(map, src);
+    expect_interface_cache_changes_nothing(textured_tissue<2>(160, 0.25), fans_2d(16, 100, 0.05f));
 }
 
 TEST(Tracer3D, InterfaceCacheChangesNothing) {
-    const auto map = textured_tissue<3>(64, 0.25);
-    Sources<3> src;
-    for (int line = 0; line < 8; ++line) {
-        auto beam = fan_beam_3d({8.0f, 0.2f, 4.0f}, {0.05f * float(line - 4), 1.0f, 0.05f}, 20.0f,
-                                9, uint32_t(line));
-        src.insert(src.end(), beam.begin(), beam.end());
-    }
-    expect_interface_cache_changes_nothing(map, src);
+    expect_interface_cache_changes_nothing(textured_tissue<3>(64, 0.25), fans_3d(8, 9, 0.05f));
 }
 
 TEST(TracerErrors, BadSettingsAndSourcesAreNamed) {
