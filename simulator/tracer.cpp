@@ -276,7 +276,9 @@ class LineTracer {
     using V = Vec<Dim>;
     using Texel = tissue::AcousticTexel<Dim>;
 
-    LineTracer(const tissue::AcousticMap<Dim>& map, const TraceSettings& settings)
+    // `look_up_blocks`: uniform blocks are worth looking up (trace(): kFewUniformBlocks).
+    LineTracer(const tissue::AcousticMap<Dim>& map, const TraceSettings& settings,
+               bool look_up_blocks)
         : map_(map), settings_(settings) {
         texel_mm_ = map.spacing()[0];
         for (int a = 1; a < Dim; ++a) texel_mm_ = std::min(texel_mm_, map.spacing()[a]);
@@ -305,8 +307,7 @@ class LineTracer {
         // reach) is not searched for them: the lookup for every particle and step cost
         // 4 % of a 2D trace there, for 0.4 % of steps run in blocks. The general step
         // gives the uniform run's results to float rounding.
-        look_up_blocks_ =
-            settings.uniform_runs && map.uniform_block_fraction() >= kFewUniformBlocks;
+        look_up_blocks_ = settings.uniform_runs && look_up_blocks;
         uniform_runs_ = look_up_blocks_ && probe_face() == nullptr && !(Dim == 2 && settings.ring);
         max_time_s_ = settings.max_time_s > 0.0 ? settings.max_time_s
                                                 : std::numeric_limits<double>::infinity();
@@ -1226,8 +1227,9 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     std::vector<LineOutput<Dim>> outputs(lines);
     InterfaceCache<Dim> interfaces(sources.size(), settings.interface_cache);
     std::atomic<std::size_t> done{0};
+    const bool look_up_blocks = map.uniform_block_fraction() >= kFewUniformBlocks;  // once
     tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
-        LineTracer<Dim> tracer(map, settings);
+        LineTracer<Dim> tracer(map, settings, look_up_blocks);
         tracer.run(sources, order, starts[l], starts[l + 1], deposits.local(), interfaces,
                    outputs[l]);
         // Batches interleave particles; order the line's echoes by particle, then time.
