@@ -30,7 +30,7 @@ struct Gray {
 };
 Gray read_gray(const std::string& path) {
     const tissue::Volume v = tissue::read_image(path, glm::dvec3(1.0));
-    return {{v.geometry().dims.x, v.geometry().dims.y}, v.voxels()};
+    return {{v.geometry().dims.x, v.geometry().dims.y}, {v.voxels().begin(), v.voxels().end()}};
 }
 
 // Frames a video really holds, counted by decoding them.

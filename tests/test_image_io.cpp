@@ -50,11 +50,11 @@ TEST(ImageIo, TiffExrAndColourLuminance) {
     ScratchDir dir;
     std::vector<uint16_t> t = {5, 6, 7, 8};
     write_oiio(dir / "t.tif", 2, 2, 1, OIIO::TypeDesc::UINT16, t);
-    EXPECT_EQ(read_image(dir / "t.tif", {1, 1, 1}).voxels(), std::vector<float>({5, 6, 7, 8}));
+    EXPECT_EQ(read_image(dir / "t.tif", {1, 1, 1}).voxels(), Voxels({5, 6, 7, 8}));
 
     std::vector<float> e = {-1.5f, 0.25f, 1e3f, 3.0f};
     write_oiio(dir / "e.exr", 4, 1, 1, OIIO::TypeDesc::FLOAT, e);
-    EXPECT_EQ(read_image(dir / "e.exr", {1, 1, 1}).voxels(), e);
+    EXPECT_EQ(read_image(dir / "e.exr", {1, 1, 1}).voxels(), Voxels(e.begin(), e.end()));
 
     // RGBA pixel (100, 200, 50, 7): luminance 0.2126*100 + 0.7152*200 + 0.0722*50; alpha ignored.
     std::vector<uint8_t> rgba = {100, 200, 50, 7};
@@ -94,10 +94,10 @@ TEST(ImageIo, OurGrayWriterRoundTrips) {
     ScratchDir dir;
     const std::vector<float> values = {0, 17, 255, 3};
     write_gray_image(dir / "g8.png", 2, 2, values, 8);
-    EXPECT_EQ(read_image(dir / "g8.png", {1, 1, 1}).voxels(), values);
+    EXPECT_EQ(read_image(dir / "g8.png", {1, 1, 1}).voxels(), Voxels(values.begin(), values.end()));
     const std::vector<float> big = {0, 1000, 65535, 42};
     write_gray_image(dir / "g16.png", 2, 2, big, 16);
-    EXPECT_EQ(read_image(dir / "g16.png", {1, 1, 1}).voxels(), big);
+    EXPECT_EQ(read_image(dir / "g16.png", {1, 1, 1}).voxels(), Voxels(big.begin(), big.end()));
 }
 
 TEST(ImageIoErrors, SpacingIsRequiredAndValidated) {

@@ -42,7 +42,7 @@ TEST(RawIo, BigEndianInt16WithHeaderBytes) {
         .write(reinterpret_cast<const char*>(bytes), sizeof bytes);
     write_text(dir / "b.json", R"({"dims": [4, 1, 1], "spacing": [1, 1, 1], "datatype": "int16",
                                    "byte_order": "big", "header_bytes": 2})");
-    EXPECT_EQ(read_raw(dir / "b.json").voxels(), std::vector<float>({1, -2, 300, -32768}));
+    EXPECT_EQ(read_raw(dir / "b.json").voxels(), Voxels({1, -2, 300, -32768}));
 }
 
 TEST(RawIoErrors, EachProblemNamesFileAndField) {

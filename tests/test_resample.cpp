@@ -123,7 +123,7 @@ TEST(Resample, IdenticalOnOneAndTwoThreads) {
     const Volume v = linear_volume();
     const probe::Pose pose = probe::Pose::looking({1, 2, -3}, {0.2, 0.1, 1}, {1, 0, 0});
     const VolumeGeometry grid = probe_grid(pose.frame(), {30, 30, 4, 0.2}, "t");
-    std::vector<float> one, two;
+    Voxels one, two;
     {
         tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
         one = resample(v, grid, Interpolation::trilinear, 0.0f).voxels();

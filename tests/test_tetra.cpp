@@ -197,7 +197,7 @@ TEST(Tetra, OneTetrahedronAndOneHexahedronConvergeToTheRayIntegral) {
     tissue::VolumeGeometry g;
     g.dims = {2, 2, 2};
     g.spacing = glm::dvec3(1.5);
-    tissue::Volume cell(g, std::vector<float>{0.0f, 0.9f, 0.2f, 1.0f, 0.4f, 0.6f, 0.1f, 0.8f});
+    tissue::Volume cell(g, tissue::Voxels{0.0f, 0.9f, 0.2f, 1.0f, 0.4f, 0.6f, 0.1f, 0.8f});
     const TetMesh hexahedron = tetrahedralize(cell);
     ColourTransferFunction tf = colour_map({0.1f, 0.2f, 0.9f}, {1.0f, 0.9f, 0.2f}, 0.9);
     for (const TetMesh* mesh : {static_cast<const TetMesh*>(&single), &hexahedron}) {

@@ -44,7 +44,7 @@ struct ImageSlice {
 };
 
 // Reads `path` into `out` (width*height floats). Returns the size it found.
-ImageSlice read_into(const std::string& path, std::vector<float>* out, const ImageSlice* expect) {
+ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* expect) {
     if (!fs::exists(path)) throw InputError(path, "", "file not found");
     // Stored colour values, not premultiplied by alpha (which we ignore).
     OIIO::ImageSpec config;
@@ -160,7 +160,7 @@ Volume read_image(const std::string& path, const glm::dvec3& spacing) {
 Volume read_image_stack(const std::vector<std::string>& files, const glm::dvec3& spacing,
                         const std::string& source) {
     if (files.empty()) throw InputError(source, "", "no image files");
-    std::vector<float> voxels;
+    Voxels voxels;
     ImageSlice first;
     for (std::size_t n = 0; n < files.size(); ++n) {
         const ImageSlice slice = read_into(files[n], &voxels, n == 0 ? nullptr : &first);

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <cstdlib>
 
+#include <algorithm>
+
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -27,18 +29,42 @@ void* allocate_huge(std::size_t bytes) {
     return p;
 }
 
-void advise_huge_pages(void* p, std::size_t bytes) {
-    const auto begin = reinterpret_cast<std::uintptr_t>(p);
-    const std::uintptr_t first = (begin + kHugePage - 1) / kHugePage * kHugePage;
-    const std::uintptr_t last = (begin + bytes) / kHugePage * kHugePage;
-    if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
-}
-
 void free_huge(void* p, std::size_t bytes) {
     if (bytes < kHugePage)
         ::operator delete(p);
     else
         std::free(p);
+}
+
+void* allocate_zeroed(std::size_t bytes) {
+    if (bytes < kHugePage) {
+        void* p = std::calloc(std::max<std::size_t>(bytes, 1), 1);
+        if (p == nullptr) throw std::bad_alloc();
+        return p;
+    }
+    // Map a huge page more than needed and unmap the ends, so the block starts on one.
+    const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+    void* mapped = mmap(nullptr, rounded + kHugePage, PROT_READ | PROT_WRITE,
+                        MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (mapped == MAP_FAILED) throw std::bad_alloc();
+    const auto begin = reinterpret_cast<std::uintptr_t>(mapped);
+    const std::uintptr_t aligned = (begin + kHugePage - 1) / kHugePage * kHugePage;
+    if (aligned > begin) munmap(mapped, aligned - begin);
+    const std::uintptr_t tail = aligned + rounded;
+    if (begin + rounded + kHugePage > tail)
+        munmap(reinterpret_cast<void*>(tail), begin + rounded + kHugePage - tail);
+    void* p = reinterpret_cast<void*>(aligned);
+    madvise(p, rounded, MADV_HUGEPAGE);  // a hint: without it the pages are 4 KiB
+    return p;
+}
+
+void free_zeroed(void* p, std::size_t bytes) {
+    if (p == nullptr) return;
+    if (bytes < kHugePage) {
+        std::free(p);
+        return;
+    }
+    munmap(p, (bytes + kHugePage - 1) / kHugePage * kHugePage);
 }
 
 double available_memory_bytes() {

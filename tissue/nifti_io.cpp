@@ -269,7 +269,7 @@ NiftiReadResult read_nifti(const std::string& path) {
         nifti_swap_Nbytes(count, nim->nbyper, bytes.data());
     }
     // Scaled to float; NaN/Inf refused (the tracer's gradients would spread them).
-    std::vector<float> voxels(count);
+    Voxels voxels(count);
     const bool scaled = nim->scl_slope != 0.0f;
     convert_voxels(nim->datatype, bytes.data(), count, scaled ? nim->scl_slope : 1.0,
                    scaled ? nim->scl_inter : 0.0, voxels.data());

@@ -116,7 +116,7 @@ Volume read_raw(const std::string& path) {
     in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(bytes.size()));
     if (!in) throw InputError(raw.string(), "", "read error");
 
-    std::vector<float> voxels(g.voxel_count());
+    Voxels voxels(g.voxel_count());
     for (std::size_t n = 0; n < voxels.size(); ++n) {
         voxels[n] = float(decode(bytes.data() + n * type->bytes, *type, swap));
     }

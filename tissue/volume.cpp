@@ -48,13 +48,11 @@ void VolumeGeometry::validate(const std::string& source) const {
 }
 
 Volume::Volume(const VolumeGeometry& geometry, float fill) : geometry_(geometry) {
-    const std::size_t count = geometry.voxel_count();
-    voxels_.reserve(count);
-    advise_huge_pages(voxels_.data(), count * sizeof(float));  // before the fill touches it
-    voxels_.assign(count, fill);
+    voxels_.resize(geometry.voxel_count());  // zero without a write
+    if (fill != 0.0f) std::fill(voxels_.begin(), voxels_.end(), fill);
 }
 
-Volume::Volume(const VolumeGeometry& geometry, std::vector<float> voxels)
+Volume::Volume(const VolumeGeometry& geometry, Voxels voxels)
     : geometry_(geometry), voxels_(std::move(voxels)) {
     if (voxels_.size() != geometry_.voxel_count()) {
         throw std::invalid_argument("Volume: voxel count does not match dims");

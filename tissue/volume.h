@@ -12,6 +12,8 @@
 
 #include <glm/glm.hpp>
 
+#include "tissue/memory.h"
+
 namespace sonotrace::tissue {
 
 struct VolumeGeometry {
@@ -40,11 +42,14 @@ struct VolumeGeometry {
     void validate(const std::string& source) const;
 };
 
+// A volume's voxels. Zero-initialized without writing: see ZeroedAllocator.
+using Voxels = std::vector<float, ZeroedAllocator<float>>;
+
 class Volume {
   public:
     Volume() = default;
     Volume(const VolumeGeometry& geometry, float fill = 0.0f);
-    Volume(const VolumeGeometry& geometry, std::vector<float> voxels);
+    Volume(const VolumeGeometry& geometry, Voxels voxels);
 
     const VolumeGeometry& geometry() const { return geometry_; }
     const glm::ivec3& dims() const { return geometry_.dims; }
@@ -58,8 +63,8 @@ class Volume {
     }
     float& at(int i, int j, int k = 0) { return voxels_[linear_index(i, j, k)]; }
     float at(int i, int j, int k = 0) const { return voxels_[linear_index(i, j, k)]; }
-    std::vector<float>& voxels() { return voxels_; }
-    const std::vector<float>& voxels() const { return voxels_; }
+    Voxels& voxels() { return voxels_; }
+    const Voxels& voxels() const { return voxels_; }
 
     // Trilinear interpolation at a continuous index. Positions within half a voxel of
     // the outer voxel centres clamp to the edge; farther out return `outside`.
@@ -77,7 +82,7 @@ class Volume {
 
   private:
     VolumeGeometry geometry_;
-    std::vector<float> voxels_;
+    Voxels voxels_;
 };
 
 }  // namespace sonotrace::tissue

@@ -94,7 +94,9 @@ void TetMesh::validate(const std::string& source) const {
 tissue::Volume TetMesh::values_as_volume() const {
     tissue::VolumeGeometry g;
     g.dims = {int(std::max<std::size_t>(values.size(), 1)), 1, 1};
-    return tissue::Volume(g, values.empty() ? std::vector<float>{0.0f} : values);
+    tissue::Volume volume(g);
+    std::copy(values.begin(), values.end(), volume.voxels().begin());  // empty: one zero
+    return volume;
 }
 
 TetMesh read_vtk_unstructured(const std::string& path) {
