@@ -149,13 +149,16 @@ constexpr int kDepositTileShift = 3;
 // tracer's deposit texel numbering (LineTracer::texel_index).
 template <int Dim>
 struct MapView {
-    // AcousticTexel<Dim> records, x fastest: n, Z, attenuation, backscatter, grad n, grad Z
+    // AcousticTexel<Dim> records, x fastest: Z, grad Z, n, grad n, attenuation, backscatter
     // (the order sample_lanes stores fields in; test LaneSamplingIsTheMapsSampling).
     const float* texels = nullptr;
     std::array<int32_t, Dim> dims{};
     std::array<float, Dim> inverse_spacing{};  // the map's (locate(), texel_index())
     std::array<int32_t, Dim> deposit_tiles{};  // deposit tiles per axis
     bool deposit_texels = true;
+    // Distance (mm) ahead along each lane's direction whose corner records are
+    // prefetched (the next step's position); 0: none.
+    float prefetch_mm = 0.0f;
     // Uniform blocks (AcousticMap::uniform_block): null if uniform runs are off.
     const int32_t* block_records = nullptr;
     std::array<int32_t, Dim> block_dims{};

@@ -339,6 +339,7 @@ class LineTracer {
             m.deposit_tiles[axis] = DepositTiles<Dim>::tiles_along(map.dims()[a]);
         }
         m.deposit_texels = deposit_maps_;
+        m.prefetch_mm = Dim == 3 ? step_mm_ : 0.0f;
         if (uniform_runs_) {
             m.block_records = map.block_records();
             for (int a = 0; a < Dim; ++a) m.block_dims[std::size_t(a)] = map.block_dims()[a];
@@ -535,7 +536,8 @@ class LineTracer {
     }
 
     // |grad Z| h / Z above the interface threshold, squared: no root or division.
-    bool steep(const Texel& t) const {
+    template <class Sample>  // Texel or tissue::ImpedanceSample
+    bool steep(const Sample& t) const {
         float g2 = 0.0f;
         for (int a = 0; a < Dim; ++a) g2 += t.grad_impedance[a] * t.grad_impedance[a];
         const float z = std::max(t.impedance, 1e-12f);
@@ -544,20 +546,18 @@ class LineTracer {
 
     // Walks from x along `dir` in half-texel steps until the impedance gradient falls
     // below the interface threshold (at most the interface reach, TraceSettings): the
-    // plateau beyond the interface.
-    // `reached` tells whether a plateau was found: a sharp interface has one on each side
-    // within a few texels, a graded medium (the fibre of figure 4) does not.
-    Texel plateau(V x, const V& dir, V* end, bool* reached) const {
+    // plateau beyond the interface, at *end. Returns whether a plateau was reached: a
+    // sharp interface has one on each side within a few texels, a graded medium (the
+    // fibre of figure 4) does not.
+    bool plateau(V x, const V& dir, V* end) const {
         const float h = 0.5f * texel_mm_;
-        Texel t = map_.sample(x);
-        int i = 0;
-        for (; i < plateau_steps_ && steep(t); ++i) {
+        auto t = map_.sample_impedance(x);
+        for (int i = 0; i < plateau_steps_ && steep(t); ++i) {
             x += h * dir;
-            t = map_.sample(x);
+            t = map_.sample_impedance(x);
         }
         *end = x;
-        *reached = !steep(t);
-        return t;
+        return !steep(t);
     }
 
     // The first point from `from` towards `to` where the impedance crosses the geometric
@@ -567,11 +567,11 @@ class LineTracer {
         const float half = std::sqrt(near_side.impedance * far_side.impedance);
         const float sign = far_side.impedance >= near_side.impedance ? 1.0f : -1.0f;
         const int steps = std::max(1, int(std::ceil(4.0f * glm::length(to - from) / texel_mm_)));
-        float previous = sign * (map_.sample(from).impedance - half);
+        float previous = sign * (map_.sample_impedance(from).impedance - half);
         if (previous >= 0.0f) return from;
         for (int i = 1; i <= steps; ++i) {
             const V p = from + (to - from) * (float(i) / float(steps));
-            const float now = sign * (map_.sample(p).impedance - half);
+            const float now = sign * (map_.sample_impedance(p).impedance - half);
             if (now >= 0.0f) {
                 const float f = previous / (previous - now);  // previous < 0 <= now
                 return from + (to - from) * ((float(i - 1) + f) / float(steps));
@@ -607,7 +607,8 @@ class LineTracer {
                 if (tn == 1 && o == 0) continue;  // the centre line is already summed
                 const V start = first + tangents[tn] * (texel_mm_ * float(o));
                 for (int i = 0; i <= steps; ++i) {
-                    const Texel t = map_.sample(start + across * (float(i) / float(steps)));
+                    const auto t =
+                        map_.sample_impedance(start + across * (float(i) / float(steps)));
                     for (int a = 0; a < Dim; ++a) sum[a] += t.grad_impedance[a];
                 }
             }
@@ -618,17 +619,16 @@ class LineTracer {
     // The transition around `from` (whose sample is `at`): walks along grad Z to the
     // plateau on the higher side, then the lower; both found: a sharp interface with its
     // patch normal and middle; otherwise a graded medium.
-    void find_sides(const V& from, const Texel& at, InterfaceSides<Dim>& sides) const {
+    template <class Sample>  // Texel or tissue::ImpedanceSample
+    void find_sides(const V& from, const Sample& at, InterfaceSides<Dim>& sides) const {
         V g(0.0f);
         for (int a = 0; a < Dim; ++a) g[a] = at.grad_impedance[a];
         g = glm::normalize(g);
         sides.kind = InterfaceSides<Dim>::Kind::graded;
         V high_end, low_end;
-        bool high_found, low_found = false;
-        const Texel high = plateau(from, g, &high_end, &high_found);
-        if (!high_found) return;  // graded: the other side need not be searched
-        const Texel low = plateau(from, -g, &low_end, &low_found);
-        if (!low_found) return;
+        if (!plateau(from, g, &high_end)) return;  // graded: the other side need not be searched
+        if (!plateau(from, -g, &low_end)) return;
+        const Texel high = map_.sample(high_end), low = map_.sample(low_end);
         sides.kind = InterfaceSides<Dim>::Kind::sharp;
         sides.low = {low.refractive_index, low.impedance};
         sides.high = {high.refractive_index, high.impedance};
@@ -662,7 +662,7 @@ class LineTracer {
                 // From the centre, or where it is not steep (a texel on the transition's
                 // fringe), from the first steep point of four along grad Z beside it.
                 const V centre = V(i) * map_.spacing();
-                Texel c = map_.sample(centre);
+                auto c = map_.sample_impedance(centre);
                 if (steep(c)) return find_sides(centre, c, sides);
                 V g(0.0f);
                 for (int a = 0; a < Dim; ++a) g[a] = c.grad_impedance[a];
@@ -671,7 +671,7 @@ class LineTracer {
                 g = glm::normalize(g) * texel_mm_;
                 for (const float offset : {0.5f, -0.5f, 1.0f, -1.0f}) {
                     const V start = centre + offset * g;
-                    c = map_.sample(start);
+                    c = map_.sample_impedance(start);
                     if (steep(c)) return find_sides(start, c, sides);
                 }
             });

@@ -155,23 +155,47 @@ template <int Dim>
         }
         vf field[kLanes];
         transpose8(head, field);
-        store(&f.refractive_index[at], field[0]);
-        store(&f.impedance[at], field[1]);
-        store(&f.attenuation[at], field[2]);
-        store(&f.backscatter[at], field[3]);
+        // AcousticTexel's order: Z, grad Z, n, grad n, attenuation, backscatter
+        store(&f.impedance[at], field[0]);
+        for (int a = 0; a < Dim; ++a) {
+            store(&f.grad_impedance[std::size_t(a)][at], field[1 + a]);
+            store(&f.grad_refractive_index[std::size_t(a)][at], field[2 + Dim + a]);
+        }
+        store(&f.refractive_index[at], field[1 + Dim]);
         if constexpr (Dim == 2) {
-            store(&f.grad_refractive_index[0][at], field[4]);
-            store(&f.grad_refractive_index[1][at], field[5]);
-            store(&f.grad_impedance[0][at], field[6]);
-            store(&f.grad_impedance[1][at], field[7]);
+            store(&f.attenuation[at], field[6]);
+            store(&f.backscatter[at], field[7]);
         } else {
             vf rest[4];
             transpose4x8(tail, rest);
-            for (int a = 0; a < 3; ++a)
-                store(&f.grad_refractive_index[std::size_t(a)][at], field[4 + a]);
-            store(&f.grad_impedance[0][at], field[7]);
-            store(&f.grad_impedance[1][at], rest[0]);
-            store(&f.grad_impedance[2][at], rest[1]);
+            store(&f.attenuation[at], rest[0]);
+            store(&f.backscatter[at], rest[1]);
+        }
+        // -- the next step's corner records, prefetched: in 3D the records of a new texel
+        // come from a 172 MB map (Colin27), and the blends above waited for them
+        if (m.prefetch_mm > 0.0f) {
+            vi ahead = vi{};
+            for (int a = Dim - 1; a >= 0; --a) {
+                const auto axis = std::size_t(a);
+                const vf d = load<vf>(&b.direction.axis[axis][at]);
+                vf u = (x[a] + m.prefetch_mm * d) * m.inverse_spacing[axis];
+                u = u < 0.0f ? vf{} : u;
+                const float top = float(m.dims[axis] - 2);
+                u = top < u ? vf{} + top : u;
+                ahead = ahead * m.dims[axis] + __builtin_convertvector(u, vi);
+            }
+            for (int l = 0; l < kLanes; ++l) {
+                if (eligible[l] == 0) continue;
+                const char* t =
+                    reinterpret_cast<const char*>(m.texels + std::size_t(uint32_t(ahead[l])) * K);
+                // each row's two records: 2 K floats, over two or three cache lines
+                for (const std::size_t row : {std::size_t(0), dy, dz, dz + dy}) {
+                    const char* r = t + row * sizeof(float);
+                    __builtin_prefetch(r);
+                    __builtin_prefetch(r + 64);
+                    __builtin_prefetch(r + 2 * K * sizeof(float) - 1);
+                }
+            }
         }
         // -- the deposit texel: the nearest texel's number in DepositTiles
         if (m.deposit_texels) {

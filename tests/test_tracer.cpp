@@ -332,9 +332,9 @@ void expect_vector_steps_take_scalar_paths(const tissue::AcousticMap<Dim>& map,
         ASSERT_NEAR(pa[i], pb[i], 1e-6f * std::abs(pa[i])) << "profile bin " << i;
 }
 
-// The vector stage's sampler gives AcousticMap::sample()'s values bit for bit, and its
-// uniform-block lookup the blocks uniform_block() finds, at random points (a tenth of
-// them a little outside the map, where sampling clamps to the edge).
+// The vector stage's sampler and sample_impedance() give AcousticMap::sample()'s values bit for
+// bit, and the uniform-block lookup the blocks uniform_block() finds, at random points (a
+// tenth of them a little outside the map, where sampling clamps to the edge).
 template <int Dim>
 void expect_lane_sampling_is_the_maps(const tissue::AcousticMap<Dim>& map) {
     detail::MapView<Dim> view;
@@ -376,13 +376,21 @@ void expect_lane_sampling_is_the_maps(const tissue::AcousticMap<Dim>& map) {
             const auto i = std::size_t(k);
             const auto t = map.sample(batch->position[k]);
             const auto& f = *fields;
-            float lane[4 + 2 * Dim] = {f.refractive_index[i], f.impedance[i], f.attenuation[i],
-                                       f.backscatter[i]};
+            tissue::AcousticTexel<Dim> lane{};  // the 3D records' padding is zero too
+            lane.refractive_index = f.refractive_index[i];
+            lane.impedance = f.impedance[i];
+            lane.attenuation = f.attenuation[i];
+            lane.backscatter = f.backscatter[i];
             for (std::size_t a = 0; a < Dim; ++a) {
-                lane[4 + a] = f.grad_refractive_index[a][i];
-                lane[4 + Dim + a] = f.grad_impedance[a][i];
+                lane.grad_refractive_index[a] = f.grad_refractive_index[a][i];
+                lane.grad_impedance[a] = f.grad_impedance[a][i];
             }
-            ASSERT_EQ(std::memcmp(lane, &t, sizeof lane), 0) << "lane " << k << " round " << round;
+            ASSERT_EQ(std::memcmp(&lane, &t, sizeof lane), 0) << "lane " << k << " round " << round;
+            // The interface searches' partial sample: the same bits.
+            const auto z = map.sample_impedance(batch->position[k]);
+            ASSERT_EQ(std::memcmp(&z.impedance, &t.impedance, sizeof(float)), 0) << k;
+            ASSERT_EQ(std::memcmp(z.grad_impedance, t.grad_impedance, sizeof z.grad_impedance), 0)
+                << k;
         }
     }
     EXPECT_GT(uniform_lanes, 0);
