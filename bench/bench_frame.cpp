@@ -13,6 +13,7 @@
 #include <string>
 
 #include "imaging/simulation.h"
+#include "tissue/memory.h"
 #include "tissue/property_maps.h"
 #include "tissue/resample.h"
 #include "tissue/transfer_function.h"
@@ -96,4 +97,11 @@ BENCHMARK_CAPTURE(frame, high, imaging::Quality::high)
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+    sonotrace::tissue::keep_freed_memory();  // as the sonotrace program does
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}

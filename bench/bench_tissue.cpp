@@ -9,6 +9,7 @@
 
 #include "probe/pose.h"
 #include "tissue/acoustic_map.h"
+#include "tissue/memory.h"
 #include "tissue/resample.h"
 #include "tissue/transfer_function.h"
 #include "tissue/volume_io.h"
@@ -149,4 +150,11 @@ BENCHMARK(BM_SampleTrilinear3D_Beams)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+    sonotrace::tissue::keep_freed_memory();  // as the sonotrace program does
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}

@@ -10,6 +10,7 @@
 #include "probe/pose.h"
 #include "simulator/scenes.h"
 #include "simulator/tracer.h"
+#include "tissue/memory.h"
 #include "tissue/resample.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
@@ -144,4 +145,11 @@ BENCHMARK(BM_Trace3D_Colin27)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+    sonotrace::tissue::keep_freed_memory();  // as the sonotrace program does
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}

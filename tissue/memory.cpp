@@ -1,5 +1,6 @@
 #include "tissue/memory.h"
 
+#include <malloc.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -65,6 +66,11 @@ void free_zeroed(void* p, std::size_t bytes) {
         return;
     }
     munmap(p, (bytes + kHugePage - 1) / kHugePage * kHugePage);
+}
+
+void keep_freed_memory() {
+    mallopt(M_MMAP_THRESHOLD, 64 << 20);
+    mallopt(M_TRIM_THRESHOLD, 256 << 20);
 }
 
 double available_memory_bytes() {

@@ -15,6 +15,14 @@ double available_memory_bytes();
 // Throws InputError(source, field, ...) when `bytes` exceeds the available memory.
 void check_allocation(double bytes, const std::string& source, const std::string& field);
 
+// Asks glibc's malloc to keep freed memory for reuse: blocks up to 64 MiB come from the
+// heap, which is trimmed only above 256 MiB free. By default a block above its adaptive
+// threshold is a fresh mapping each time, and each trace allocates tens of MB of transient
+// buffers (echo lists, per-line outputs); the kernel zeroes fresh pages at first touch,
+// and in a virtual machine the host may fault on them too (bench/README.md: 2D synthetic
+// 180 -> 196-210 M steps/s). Called at the start of main() by our programs.
+void keep_freed_memory();
+
 // Memory on 2 MiB pages where the kernel offers them (transparent huge pages: asked for
 // with madvise, which is all Debian's default "madvise" mode grants). For arrays read at
 // random by the particle tracer: one TLB entry then covers 512 pages' worth, and in a

@@ -5,6 +5,7 @@
 
 #include "sonotrace_version.h"
 #include "tissue/error.h"
+#include "tissue/memory.h"
 #include "ui/cli/render_command.h"
 #include "ui/cli/simulate_command.h"
 #include "ui/cli/tissue_command.h"
@@ -13,6 +14,7 @@
 
 int main(int argc, char** argv) {
     using namespace sonotrace;
+    tissue::keep_freed_memory();
     CLI::App app(
         "sonotrace " SONOTRACE_VERSION
         " - ultrasound image simulation by particle tracing through tissue maps.\n"

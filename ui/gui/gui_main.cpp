@@ -22,6 +22,7 @@
 #include "imaging/picture.h"
 #include "tissue/atomic_output.h"
 #include "tissue/error.h"
+#include "tissue/memory.h"
 #include "ui/cli/command_common.h"
 #include "ui/gui/gui_app.h"
 
@@ -217,6 +218,7 @@ int run(const Options& o) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    sonotrace::tissue::keep_freed_memory();
     Options o;
     CLI::App cli(
         "sonotrace-gui: a live ultrasound scanner for teaching. Move the probe over the Colin27 "
