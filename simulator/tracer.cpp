@@ -121,6 +121,11 @@ class DepositTiles {
         if (tile == nullptr) tile = new_tile();
         return (*tile)[cell & (kCells - 1)];
     }
+    // A hint that `cell` will be written soon (nothing if its tile is not there yet).
+    void prefetch(uint32_t cell) const {
+        if (const Tile* tile = tiles_[cell >> (kShift * Dim)])
+            __builtin_prefetch(&(*tile)[cell & (kCells - 1)], 1);
+    }
     std::size_t tile_count() const { return tiles_.size(); }
     const Tile* tile(std::size_t t) const { return tiles_[t]; }
     // The texel of tile t's first cell, and that of cell c relative to it.
@@ -432,9 +437,13 @@ class LineTracer {
                 continue;
             }
             ++taken;
-            if (flags & kLaneFlush)
+            if (flags & kLaneFlush) {
                 deposit(results_.flush_texel[i], results_.flush_fluence[i],
                         results_.flush_absorbed[i]);
+                // The new texel's cell is written when the particle leaves it, 2-3 steps
+                // on: its cache miss was 6 % of a 3D trace.
+                if (deposit_maps_) deposits_->prefetch(b.pending_texel[i]);
+            }
             if (profile && f.backscatter[i] > 0.0f) {
                 V start;
                 for (std::size_t a = 0; a < Dim; ++a) start[int(a)] = results_.start_position[a][i];
