@@ -128,18 +128,13 @@ class DepositTiles {
     }
     std::size_t tile_count() const { return tiles_.size(); }
     const Tile* tile(std::size_t t) const { return tiles_[t]; }
-    // The texel of tile t's first cell, and that of cell c relative to it.
+    // The texel of tile t's first cell (cells follow x fastest, then y, then z).
     glm::ivec3 tile_origin(std::size_t t) const {
         glm::ivec3 i(0);
         for (int a = 0; a < Dim; ++a) {
             i[a] = int(t % std::size_t(tiles_per_axis_[a])) * kSide;
             t /= std::size_t(tiles_per_axis_[a]);
         }
-        return i;
-    }
-    static glm::ivec3 cell_offset(uint32_t c) {
-        glm::ivec3 i(0);
-        for (int a = 0; a < Dim; ++a) i[a] = int(c >> (kShift * a) & (kSide - 1));
         return i;
     }
 
@@ -1264,17 +1259,30 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     tbb::parallel_for(std::size_t(0), tiles, [&](std::size_t t) {
         if (std::none_of(maps.begin(), maps.end(), [t](auto* m) { return m->tile(t) != nullptr; }))
             return;  // nothing deposited: the result is zero there already
+        // Row by row of the tile (cells x fastest), within the map's edge.
+        constexpr int side = DepositTiles<Dim>::kSide;
         const glm::ivec3 origin = maps[0]->tile_origin(t);
-        for (uint32_t c = 0; c < DepositTiles<Dim>::kCells; ++c) {
-            const glm::ivec3 i = origin + DepositTiles<Dim>::cell_offset(c);
-            if (glm::any(glm::greaterThanEqual(i, dims))) continue;  // beyond the map's edge
-            int64_t fluence = 0, absorbed = 0;
-            for (const DepositTiles<Dim>* m : maps) {
-                if (const auto* tile = m->tile(t))
-                    fluence += (*tile)[c].fluence, absorbed += (*tile)[c].absorbed;
+        const int width = std::min(side, dims.x - origin.x);
+        const int height = std::min(side, dims.y - origin.y);
+        const int depth = Dim == 3 ? std::min(side, dims.z - origin.z) : 1;
+        for (int z = 0; z < depth; ++z) {
+            for (int y = 0; y < height; ++y) {
+                const auto first = uint32_t((z * side + y) * side);
+                const std::size_t to =
+                    result.fluence.linear_index(origin.x, origin.y + y, origin.z + z);
+                for (int x = 0; x < width; ++x) {
+                    const uint32_t c = first + uint32_t(x);
+                    int64_t fluence = 0, absorbed = 0;
+                    for (const DepositTiles<Dim>* m : maps) {
+                        if (const auto* tile = m->tile(t))
+                            fluence += (*tile)[c].fluence, absorbed += (*tile)[c].absorbed;
+                    }
+                    result.fluence.voxels()[to + std::size_t(x)] =
+                        float(double(fluence) * per_texel);
+                    result.absorbed.voxels()[to + std::size_t(x)] =
+                        float(double(absorbed) / kFixedScale);
+                }
             }
-            result.fluence.at(i.x, i.y, i.z) = float(double(fluence) * per_texel);
-            result.absorbed.at(i.x, i.y, i.z) = float(double(absorbed) / kFixedScale);
         }
     });
     if (settings.ring) result.ring_profile.assign(std::size_t(settings.ring->bins), 0.0);
