@@ -37,37 +37,6 @@ void free_huge(void* p, std::size_t bytes) {
         std::free(p);
 }
 
-void* allocate_zeroed(std::size_t bytes) {
-    if (bytes < kHugePage) {
-        void* p = std::calloc(std::max<std::size_t>(bytes, 1), 1);
-        if (p == nullptr) throw std::bad_alloc();
-        return p;
-    }
-    // Map a huge page more than needed and unmap the ends, so the block starts on one.
-    const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
-    void* mapped = mmap(nullptr, rounded + kHugePage, PROT_READ | PROT_WRITE,
-                        MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (mapped == MAP_FAILED) throw std::bad_alloc();
-    const auto begin = reinterpret_cast<std::uintptr_t>(mapped);
-    const std::uintptr_t aligned = (begin + kHugePage - 1) / kHugePage * kHugePage;
-    if (aligned > begin) munmap(mapped, aligned - begin);
-    const std::uintptr_t tail = aligned + rounded;
-    if (begin + rounded + kHugePage > tail)
-        munmap(reinterpret_cast<void*>(tail), begin + rounded + kHugePage - tail);
-    void* p = reinterpret_cast<void*>(aligned);
-    madvise(p, rounded, MADV_HUGEPAGE);  // a hint: without it the pages are 4 KiB
-    return p;
-}
-
-void free_zeroed(void* p, std::size_t bytes) {
-    if (p == nullptr) return;
-    if (bytes < kHugePage) {
-        std::free(p);
-        return;
-    }
-    munmap(p, (bytes + kHugePage - 1) / kHugePage * kHugePage);
-}
-
 void keep_freed_memory() {
     mallopt(M_MMAP_THRESHOLD, 64 << 20);
     mallopt(M_TRIM_THRESHOLD, 256 << 20);
