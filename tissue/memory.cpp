@@ -38,8 +38,8 @@ void free_huge(void* p, std::size_t bytes) {
 }
 
 void keep_freed_memory() {
-    mallopt(M_MMAP_THRESHOLD, 64 << 20);
-    mallopt(M_TRIM_THRESHOLD, 256 << 20);
+    mallopt(M_MMAP_THRESHOLD, 32 << 20);
+    mallopt(M_TRIM_THRESHOLD, 64 << 20);
 }
 
 double available_memory_bytes() {

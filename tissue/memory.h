@@ -17,12 +17,13 @@ double available_memory_bytes();
 // Throws InputError(source, field, ...) when `bytes` exceeds the available memory.
 void check_allocation(double bytes, const std::string& source, const std::string& field);
 
-// Asks glibc's malloc to keep freed memory for reuse: blocks up to 64 MiB come from the
-// heap, which is trimmed only above 256 MiB free. By default a block above its adaptive
-// threshold is a fresh mapping each time, and each trace allocates tens of MB of transient
-// buffers (echo lists, per-line outputs); the kernel zeroes fresh pages at first touch,
-// and in a virtual machine the host may fault on them too (bench/README.md: 2D synthetic
-// 180 -> 196-210 M steps/s). Called at the start of main() by our programs.
+// Asks glibc's malloc to keep freed memory for reuse: blocks up to 32 MiB come from the
+// heap, which is trimmed only above 64 MiB free. By default a block above malloc's
+// adaptive threshold is a fresh mapping each time, and each trace allocates tens of MB of
+// transient buffers (echo lists, per-line outputs, result maps); the kernel zeroes fresh
+// pages at their first touch, and in a virtual machine the host may fault on them too
+// (bench/README.md: 2D synthetic 189 -> 205-211 M steps/s; peak RSS +8 MB). Called at the
+// start of main() by our programs.
 void keep_freed_memory();
 
 // Memory on 2 MiB pages where the kernel offers them (transparent huge pages: asked for
