@@ -180,6 +180,21 @@ void find_uniform_blocks(const MapView<3>& map, const Batch<3>& batch, LaneField
 void sample_lanes(const MapView<2>& map, const Batch<2>& batch, LaneFields<2>& fields, int lanes);
 void sample_lanes(const MapView<3>& map, const Batch<3>& batch, LaneFields<3>& fields, int lanes);
 
+// Points for sample_impedance_points (the interface searches' lines), one array per axis,
+// and what is sampled there: per point Z and grad Z in AcousticMap::sample_impedance()'s
+// bits, as the first 1 + Dim floats of a 4-float record (the map's first 4 floats).
+template <int Dim>
+struct ImpedancePoints {
+    static constexpr int kSize = 64;
+    alignas(32) std::array<std::array<float, kSize>, Dim> position{};
+    alignas(32) std::array<std::array<float, 4>, kSize> sample{};
+};
+
+// Z and grad Z at points [0, count) (count <= kSize); points up to the next multiple of
+// 8 are sampled too and must be finite (they are left zero or from earlier use).
+void sample_impedance_points(const MapView<2>& map, ImpedancePoints<2>& points, int count);
+void sample_impedance_points(const MapView<3>& map, ImpedancePoints<3>& points, int count);
+
 // What the vector stage leaves to the scalar one, per lane.
 enum LaneFlag : int32_t {
     kLaneToStep = 1,  // an event or a state the vector stage does not take: step() does it

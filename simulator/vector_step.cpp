@@ -8,7 +8,8 @@
 // this file is built with -ffp-contract=off), so a particle takes the same path bit for
 // bit whichever stage steps it (test: Tracer.VectorStepsTakeTheScalarStepsPaths).
 // Anything rarer (an interface to search, a scattering event, total reflection while
-// crossing, a large attenuation) goes back to step() untouched.
+// crossing, a large attenuation) goes back to step() untouched. The interface searches'
+// points are sampled here too (sample_impedance_points), eight at a time.
 #include <cstring>
 #include <type_traits>
 
@@ -103,6 +104,31 @@ template <class T, int K>
            w[3] * load<T>(p + dy + K);
 }
 
+// AcousticMap::locate() for 8 lanes: the lower corner's record index, the fractions and
+// the four weights of a plane (sample()'s operations: glm::clamp, std::min, truncation).
+template <int Dim>
+[[gnu::always_inline]] inline vi locate_lanes(const MapView<Dim>& m, const vf (&x)[Dim],
+                                              vf (&frac)[Dim], vf& w00, vf& w10, vf& w01, vf& w11) {
+    vi corner[Dim];
+    for (int a = 0; a < Dim; ++a) {
+        const auto axis = std::size_t(a);
+        const float top = float(m.dims[axis] - 1);
+        vf u = x[a] * m.inverse_spacing[axis];
+        u = u < 0.0f ? vf{} : u;                // glm::max(u, 0)
+        u = top < u ? vf{} + top : u;           // glm::min(u, top)
+        vi i = __builtin_convertvector(u, vi);  // truncation, u >= 0
+        const vi last = vi{} + (m.dims[axis] - 2);
+        i = last < i ? last : i;  // std::min(i, dims - 2)
+        corner[a] = i;
+        frac[a] = u - __builtin_convertvector(i, vf);
+    }
+    const vf gx = 1.0f - frac[0], gy = 1.0f - frac[1];
+    w00 = gx * gy, w10 = frac[0] * gy, w01 = gx * frac[1], w11 = frac[0] * frac[1];
+    vi index = corner[Dim - 1];
+    for (int a = Dim - 2; a >= 0; --a) index = index * m.dims[std::size_t(a)] + corner[a];
+    return index;
+}
+
 // AcousticMap::sample() for 8 lanes: locate() and the weights as vectors, each lane's
 // corner records blended as one 8-float vector (plus a 4-float tail in 3D), then turned
 // into fields. The operations and their order are sample()'s (glm::clamp, std::min,
@@ -119,24 +145,8 @@ template <int Dim>
         vf x[Dim];
         for (int a = 0; a < Dim; ++a) x[a] = load<vf>(&b.position.axis[std::size_t(a)][at]);
         // -- locate(): corner i0 and fraction per axis
-        vi corner[Dim];
-        vf frac[Dim];
-        for (int a = 0; a < Dim; ++a) {
-            const auto axis = std::size_t(a);
-            const float top = float(m.dims[axis] - 1);
-            vf u = x[a] * m.inverse_spacing[axis];
-            u = u < 0.0f ? vf{} : u;                // glm::max(u, 0)
-            u = top < u ? vf{} + top : u;           // glm::min(u, top)
-            vi i = __builtin_convertvector(u, vi);  // truncation, u >= 0
-            const vi last = vi{} + (m.dims[axis] - 2);
-            i = last < i ? last : i;  // std::min(i, dims - 2)
-            corner[a] = i;
-            frac[a] = u - __builtin_convertvector(i, vf);
-        }
-        const vf gx = 1.0f - frac[0], gy = 1.0f - frac[1];
-        const vf w00 = gx * gy, w10 = frac[0] * gy, w01 = gx * frac[1], w11 = frac[0] * frac[1];
-        vi index = corner[Dim - 1];
-        for (int a = Dim - 2; a >= 0; --a) index = index * m.dims[std::size_t(a)] + corner[a];
+        vf frac[Dim], w00, w10, w01, w11;
+        const vi index = locate_lanes(m, x, frac, w00, w10, w01, w11);
         // -- each lane's four (eight) corner records, blended
         vf head[kLanes];
         vf4 tail[kLanes];
@@ -211,6 +221,33 @@ template <int Dim>
                 offset = (offset << shift) | (i & ((1 << shift) - 1));
             }
             store(reinterpret_cast<int32_t*>(&f.texel[at]), (tile << (shift * Dim)) | offset);
+        }
+    }
+}
+
+// AcousticMap::sample_impedance() at 8 points at a time: locate() as vectors, then each
+// point's first 4-float chunk of its corner records blended (sample()'s operations).
+template <int Dim>
+[[gnu::always_inline]] inline void sample_impedance_impl(const MapView<Dim>& m,
+                                                         ImpedancePoints<Dim>& p, int count) {
+    constexpr int K = Dim == 2 ? 8 : 12;  // floats per record
+    const std::size_t dy = std::size_t(m.dims[0]) * K;
+    const std::size_t dz = Dim == 3 ? dy * std::size_t(m.dims[1]) : 0;
+    for (int base = 0; base < count; base += kLanes) {
+        const auto at = std::size_t(base);
+        vf x[Dim];
+        for (int a = 0; a < Dim; ++a) x[a] = load<vf>(&p.position[std::size_t(a)][at]);
+        vf frac[Dim], w00, w10, w01, w11;
+        const vi index = locate_lanes(m, x, frac, w00, w10, w01, w11);
+        for (int l = 0; l < kLanes; ++l) {
+            const float* t = m.texels + std::size_t(uint32_t(index[l])) * K;
+            const float w[4] = {w00[l], w10[l], w01[l], w11[l]};
+            vf4 v = blend<vf4, K>(t, dy, w);
+            if constexpr (Dim == 3) {
+                const float fz = frac[2][l];
+                v = (1.0f - fz) * v + fz * blend<vf4, K>(t + dz, dy, w);
+            }
+            store(p.sample[at + std::size_t(l)].data(), v);
         }
     }
 }
@@ -443,6 +480,16 @@ template <int Dim>
                                                                               LaneFields<3>& fields,
                                                                               int lanes) {
     sample_lanes_impl(map, batch, fields, lanes);
+}
+
+[[gnu::target_clones("arch=x86-64-v4", "avx2", "default")]] void sample_impedance_points(
+    const MapView<2>& map, ImpedancePoints<2>& points, int count) {
+    sample_impedance_impl(map, points, count);
+}
+
+[[gnu::target_clones("arch=x86-64-v4", "avx2", "default")]] void sample_impedance_points(
+    const MapView<3>& map, ImpedancePoints<3>& points, int count) {
+    sample_impedance_impl(map, points, count);
 }
 
 [[gnu::target_clones("arch=x86-64-v4", "avx2", "default")]] void find_uniform_blocks(

@@ -332,9 +332,10 @@ void expect_vector_steps_take_scalar_paths(const tissue::AcousticMap<Dim>& map,
         ASSERT_NEAR(pa[i], pb[i], 1e-6f * std::abs(pa[i])) << "profile bin " << i;
 }
 
-// The vector stage's sampler and sample_impedance() give AcousticMap::sample()'s values bit for
-// bit, and the uniform-block lookup the blocks uniform_block() finds, at random points (a
-// tenth of them a little outside the map, where sampling clamps to the edge).
+// The vector stage's samplers (sample_lanes, sample_impedance_points) and sample_impedance()
+// give AcousticMap::sample()'s values bit for bit, and the uniform-block lookup the blocks
+// uniform_block() finds, at random points (a tenth of them a little outside the map, where sampling
+// clamps to the edge).
 template <int Dim>
 void expect_lane_sampling_is_the_maps(const tissue::AcousticMap<Dim>& map) {
     detail::MapView<Dim> view;
@@ -349,6 +350,7 @@ void expect_lane_sampling_is_the_maps(const tissue::AcousticMap<Dim>& map) {
     view.deposit_texels = false;
     auto batch = std::make_unique<detail::Batch<Dim>>();
     auto fields = std::make_unique<detail::LaneFields<Dim>>();
+    auto points = std::make_unique<detail::ImpedancePoints<Dim>>();
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> unit(-0.05f, 1.05f);
     int uniform_lanes = 0;
@@ -372,6 +374,12 @@ void expect_lane_sampling_is_the_maps(const tissue::AcousticMap<Dim>& map) {
         }
         fields->eligible.fill(-1);
         detail::sample_lanes(view, *batch, *fields, batch->count);
+        // The interface lines' sampler, on a count that is not a multiple of 8.
+        const int point_count = 61 - round;
+        for (int k = 0; k < point_count; ++k)
+            for (int a = 0; a < Dim; ++a)
+                points->position[std::size_t(a)][std::size_t(k)] = batch->position[k][a];
+        detail::sample_impedance_points(view, *points, point_count);
         for (int k = 0; k < batch->count; ++k) {
             const auto i = std::size_t(k);
             const auto t = map.sample(batch->position[k]);
@@ -391,6 +399,12 @@ void expect_lane_sampling_is_the_maps(const tissue::AcousticMap<Dim>& map) {
             ASSERT_EQ(std::memcmp(&z.impedance, &t.impedance, sizeof(float)), 0) << k;
             ASSERT_EQ(std::memcmp(z.grad_impedance, t.grad_impedance, sizeof z.grad_impedance), 0)
                 << k;
+            if (k < point_count) {
+                const float* point = points->sample[i].data();
+                ASSERT_EQ(std::memcmp(point, &t.impedance, sizeof(float)), 0) << k;
+                ASSERT_EQ(std::memcmp(point + 1, t.grad_impedance, sizeof t.grad_impedance), 0)
+                    << k;
+            }
         }
     }
     EXPECT_GT(uniform_lanes, 0);
