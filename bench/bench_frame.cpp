@@ -5,7 +5,7 @@
 // whole frame: plane resampling, map, beams, trace, RF, envelope, compression, scan
 // conversion), the mean time of each stage, and particle steps per second of the trace.
 //   ./build/bench/bench_frame --benchmark_repetitions=20 --benchmark_report_aggregates_only
-#include <benchmark/benchmark.h>
+#include "bench/benchmark_main.h"
 
 #include <algorithm>
 #include <chrono>
@@ -13,7 +13,6 @@
 #include <string>
 
 #include "imaging/simulation.h"
-#include "tissue/memory.h"
 #include "tissue/property_maps.h"
 #include "tissue/resample.h"
 #include "tissue/transfer_function.h"
@@ -97,11 +96,4 @@ BENCHMARK_CAPTURE(frame, high, imaging::Quality::high)
 
 }  // namespace
 
-int main(int argc, char** argv) {
-    sonotrace::tissue::keep_freed_memory();  // as the sonotrace program does
-    benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-    benchmark::RunSpecifiedBenchmarks();
-    benchmark::Shutdown();
-    return 0;
-}
+SONOTRACE_BENCHMARK_MAIN()

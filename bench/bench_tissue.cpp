@@ -3,13 +3,12 @@
 // floor under the tracer's step rate).
 //
 //   build/bench/bench_tissue --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
-#include <benchmark/benchmark.h>
+#include "bench/benchmark_main.h"
 
 #include <random>
 
 #include "probe/pose.h"
 #include "tissue/acoustic_map.h"
-#include "tissue/memory.h"
 #include "tissue/resample.h"
 #include "tissue/transfer_function.h"
 #include "tissue/volume_io.h"
@@ -150,11 +149,4 @@ BENCHMARK(BM_SampleTrilinear3D_Beams)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-int main(int argc, char** argv) {
-    sonotrace::tissue::keep_freed_memory();  // as the sonotrace program does
-    benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-    benchmark::RunSpecifiedBenchmarks();
-    benchmark::Shutdown();
-    return 0;
-}
+SONOTRACE_BENCHMARK_MAIN()

@@ -3,14 +3,13 @@
 // roulette, echo records), on all cores.
 //
 //   build/bench/bench_tracer --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
-#include <benchmark/benchmark.h>
+#include "bench/benchmark_main.h"
 
 #include <cmath>
 
 #include "probe/pose.h"
 #include "simulator/scenes.h"
 #include "simulator/tracer.h"
-#include "tissue/memory.h"
 #include "tissue/resample.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
@@ -145,11 +144,4 @@ BENCHMARK(BM_Trace3D_Colin27)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
-int main(int argc, char** argv) {
-    sonotrace::tissue::keep_freed_memory();  // as the sonotrace program does
-    benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-    benchmark::RunSpecifiedBenchmarks();
-    benchmark::Shutdown();
-    return 0;
-}
+SONOTRACE_BENCHMARK_MAIN()

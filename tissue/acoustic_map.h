@@ -114,6 +114,8 @@ class AcousticMap {
   private:
     std::size_t linear(const IVec& i) const;
     void locate(const Vec& p_mm, IVec* i0, Vec* f) const;
+    template <int Chunks>
+    void blend_chunks(const Vec& p_mm, float* out) const;
     float sample_field(const float* field, std::size_t stride, const Vec& p_mm) const;
     static AcousticMap pack(const Volume& refractive_index, const Volume& impedance,
                             const Volume* attenuation, const Volume* backscatter,
@@ -162,18 +164,19 @@ inline bool AcousticMap<Dim>::inside(const Vec& p_mm) const {
     return true;
 }
 
-// Forced inline: in the tracer's large step function GCC otherwise calls it and returns
-// the 40-byte record through memory (27 % of the step time, measured).
+// The first 4 * Chunks floats of the records around p_mm, blended: trilinear weights,
+// each 4-float chunk as one vector (GCC vector extensions: SSE on x86-64, NEON on ARM).
+// sample() blends every chunk, sample_impedance() the first: the same bits.
 template <int Dim>
-[[gnu::always_inline]] inline AcousticTexel<Dim> AcousticMap<Dim>::sample(const Vec& p_mm) const {
+template <int Chunks>
+[[gnu::always_inline]] inline void AcousticMap<Dim>::blend_chunks(const Vec& p_mm,
+                                                                  float* out) const {
     constexpr int K = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
+    static_assert(K % 4 == 0 && Chunks * 4 <= K);
     IVec i0;
     Vec f;
     locate(p_mm, &i0, &f);
-    // Blend the texel's floats as 4-wide vectors (GCC vector extensions: SSE on x86-64,
-    // NEON on ARM).
     typedef float v4 __attribute__((vector_size(16)));
-    static_assert(K % 4 == 0);
     auto load = [](const float* p) {
         v4 v;
         std::memcpy(&v, p, sizeof v);
@@ -183,8 +186,7 @@ template <int Dim>
     const std::size_t dy = std::size_t(dims_[0]) * K;
     const float gx = 1.0f - f[0], gy = 1.0f - f[1];
     const float w00 = gx * gy, w10 = f[0] * gy, w01 = gx * f[1], w11 = f[0] * f[1];
-    float out[K];
-    for (int c = 0; c < K; c += 4) {
+    for (int c = 0; c < 4 * Chunks; c += 4) {
         const float* t = t000 + c;
         v4 v = w00 * load(t) + w10 * load(t + K) + w01 * load(t + dy) + w11 * load(t + dy + K);
         if constexpr (Dim == 3) {
@@ -195,6 +197,15 @@ template <int Dim>
         }
         std::memcpy(out + c, &v, sizeof v);
     }
+}
+
+// Forced inline: in the tracer's large step function GCC otherwise calls it and returns
+// the 40-byte record through memory (27 % of the step time, measured).
+template <int Dim>
+[[gnu::always_inline]] inline AcousticTexel<Dim> AcousticMap<Dim>::sample(const Vec& p_mm) const {
+    constexpr int K = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
+    float out[K];
+    blend_chunks<K / 4>(p_mm, out);
     AcousticTexel<Dim> result;
     std::memcpy(&result, out, sizeof result);
     return result;
@@ -203,29 +214,9 @@ template <int Dim>
 template <int Dim>
 [[gnu::always_inline]] inline ImpedanceSample<Dim> AcousticMap<Dim>::sample_impedance(
     const Vec& p_mm) const {
-    constexpr int K = int(sizeof(AcousticTexel<Dim>) / sizeof(float));
     static_assert(offsetof(AcousticTexel<Dim>, grad_impedance) + sizeof(float) * Dim <= 16);
-    IVec i0;
-    Vec f;
-    locate(p_mm, &i0, &f);
-    typedef float v4 __attribute__((vector_size(16)));
-    auto load = [](const float* p) {
-        v4 v;
-        std::memcpy(&v, p, sizeof v);
-        return v;
-    };
-    // sample()'s first chunk, operation for operation.
-    const float* t = reinterpret_cast<const float*>(texels_.data() + linear(i0));
-    const std::size_t dy = std::size_t(dims_[0]) * K;
-    const float gx = 1.0f - f[0], gy = 1.0f - f[1];
-    const float w00 = gx * gy, w10 = f[0] * gy, w01 = gx * f[1], w11 = f[0] * f[1];
-    v4 v = w00 * load(t) + w10 * load(t + K) + w01 * load(t + dy) + w11 * load(t + dy + K);
-    if constexpr (Dim == 3) {
-        const float* u = t + dy * std::size_t(dims_[1]);
-        const v4 upper =
-            w00 * load(u) + w10 * load(u + K) + w01 * load(u + dy) + w11 * load(u + dy + K);
-        v = (1.0f - f[2]) * v + f[2] * upper;
-    }
+    float v[4];
+    blend_chunks<1>(p_mm, v);
     ImpedanceSample<Dim> result;
     result.impedance = v[0];
     for (int a = 0; a < Dim; ++a) result.grad_impedance[a] = v[1 + a];
