@@ -389,6 +389,7 @@ void expect_lane_sampling_is_the_maps(const tissue::AcousticMap<Dim>& map) {
             lane.impedance = f.impedance[i];
             lane.attenuation = f.attenuation[i];
             lane.backscatter = f.backscatter[i];
+            if constexpr (Dim == 3) lane.surface = t.surface;  // roughness: not a lane field
             for (std::size_t a = 0; a < Dim; ++a) {
                 lane.grad_refractive_index[a] = f.grad_refractive_index[a][i];
                 lane.grad_impedance[a] = f.grad_impedance[a][i];

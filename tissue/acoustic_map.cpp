@@ -85,10 +85,10 @@ AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Vo
         map.extent_[a] = float(n[a] - 1) * map.spacing_[a];
     }
     auto value = [](const Volume* f, std::size_t v) { return f ? f->voxels()[v] : 0.0f; };
-    // Value-initialised in place: the 3D records' padding is zero too (the uniform-block
-    // search compares records byte for byte).
+    // Value-initialised in place: the 3D records' padding is zero too (records are keys
+    // of the uniform-block table, byte for byte).
     map.texels_.resize(map.geometry_.voxel_count());
-    map.roughness_.assign(map.geometry_.voxel_count(), 0.0f);
+    if constexpr (Dim == 2) map.roughness_.assign(map.geometry_.voxel_count(), 0.0f);
     tbb::parallel_for(0, n.y * n.z, [&](int row) {
         const int j = row % n.y, k = row / n.y;
         for (int i = 0; i < n.x; ++i) {
@@ -98,7 +98,10 @@ AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Vo
             t.impedance = impedance.voxels()[v];
             t.attenuation = value(attenuation, v);
             t.backscatter = value(backscatter, v);
-            map.roughness_[v] = value(roughness, v);
+            if constexpr (Dim == 3)
+                t.surface.roughness = value(roughness, v);
+            else
+                map.roughness_[v] = value(roughness, v);
             if (Dim == 2 && i > 0 && i + 1 < n.x && j > 0 && j + 1 < n.y) {
                 // Interior of a slice: the same Sobel weights, straight from the rows.
                 for (const auto& [f, grad] :
@@ -152,7 +155,7 @@ void AcousticMap<Dim>::find_uniform_blocks() {
         }
         IVec i = lo;
         while (true) {
-            if (std::memcmp(&texel(i), &first, sizeof first) != 0) return;
+            if (std::memcmp(&texel(i), &first, kStepRecordBytes<Dim>) != 0) return;
             int a = 0;
             for (; a < Dim; ++a) {
                 if (++i[a] <= hi[a]) break;
@@ -169,7 +172,8 @@ void AcousticMap<Dim>::find_uniform_blocks() {
         if (record < 0) continue;
         const AcousticTexel<Dim>& t = texels_[std::size_t(record)];
         const auto [it, inserted] = index_of.try_emplace(
-            std::string(reinterpret_cast<const char*>(&t), sizeof t), int32_t(index_of.size()));
+            std::string(reinterpret_cast<const char*>(&t), kStepRecordBytes<Dim>),
+            int32_t(index_of.size()));
         if (inserted) uniform_records_.push_back(t);
         record = it->second;
     }

@@ -34,21 +34,38 @@ namespace sonotrace::tissue {
 // Reference speed of sound (m/s): display depth c0*t/2 and refractive index n = c0/c.
 inline constexpr double kReferenceSpeed = 1540.0;
 
-// What a step samples, a whole number of 4-float vectors (the alignment pads 3D's 10
-// floats to 12; 2D has 8). Roughness, read only at interfaces, is a map of its own
-// (sample_roughness): in the record it made 2D texels 48 bytes instead of 32, and the
-// map's cache footprint with them. Z and grad Z come first: they fill the first 4-float
-// vector, all that the interface searches read (sample_impedance).
+// Roughness, read only at interfaces (sample_roughness): in 3D it takes a float of the
+// record's padding, next to the fields just sampled at the plateau ends (a map of its own
+// missed the cache: 1.7 % of a 3D trace). 2D records have no padding, and roughness in
+// them made texels 48 bytes instead of 32, so 2D keeps it in a map of its own.
+template <int Dim>
+struct TexelRoughness {};
+template <>
+struct TexelRoughness<3> {
+    float roughness;  // rms slope of the surface, 0..1
+};
+
+// What a step samples, a whole number of 4-float vectors (the alignment pads 3D's 11
+// floats to 12; 2D has 8). Z and grad Z come first: they fill the first 4-float vector,
+// all that the interface searches read (sample_impedance).
 template <int Dim>
 struct alignas(16) AcousticTexel {
-    float impedance;                   // Z = rho*c, MRayl
-    float grad_impedance[Dim];         // MRayl/mm, along the grid axes
-    float refractive_index;            // n = c0 / c, dimensionless
-    float grad_refractive_index[Dim];  // 1/mm
-    float attenuation;                 // dB/(cm*MHz)
-    float backscatter;                 // relative 0..1
+    float impedance;                                    // Z = rho*c, MRayl
+    float grad_impedance[Dim];                          // MRayl/mm, along the grid axes
+    float refractive_index;                             // n = c0 / c, dimensionless
+    float grad_refractive_index[Dim];                   // 1/mm
+    float attenuation;                                  // dB/(cm*MHz)
+    float backscatter;                                  // relative 0..1
+    [[no_unique_address]] TexelRoughness<Dim> surface;  // 3D only
 };
 static_assert(sizeof(AcousticTexel<2>) == 32 && sizeof(AcousticTexel<3>) == 48);
+
+// The bytes of a record that a step reads: all but 3D's roughness (and padding). Uniform
+// blocks are uniform in these.
+template <int Dim>
+inline constexpr std::size_t kStepRecordBytes = Dim == 3 ? offsetof(AcousticTexel<3>, surface)
+                                                         : sizeof(AcousticTexel<2>);
+static_assert(kStepRecordBytes<3> == 10 * sizeof(float));
 
 // Z and grad Z at a point: the first 4-float vector of sample().
 template <int Dim>
@@ -127,7 +144,7 @@ class AcousticMap {
     Vec inverse_spacing_{};
     Vec extent_{};  // (n - 1) * h per axis: the domain for inside()
     std::vector<AcousticTexel<Dim>, HugePageAllocator<AcousticTexel<Dim>>> texels_;
-    std::vector<float, HugePageAllocator<float>> roughness_;  // per texel
+    std::vector<float, HugePageAllocator<float>> roughness_;  // per texel, 2D only
     IVec block_dims_{};
     // Per block: its record's index in uniform_records_ (distinct records, a handful in
     // practice, so they stay in L1), or -1.
@@ -255,7 +272,13 @@ template <int Dim>
 
 template <int Dim>
 inline float AcousticMap<Dim>::sample_roughness(const Vec& p_mm) const {
-    return sample_field(roughness_.data(), 1, p_mm);
+    if constexpr (Dim == 3) {
+        constexpr std::size_t K = sizeof(AcousticTexel<Dim>) / sizeof(float);
+        constexpr std::size_t n = offsetof(AcousticTexel<Dim>, surface) / sizeof(float);
+        return sample_field(reinterpret_cast<const float*>(texels_.data()) + n, K, p_mm);
+    } else {
+        return sample_field(roughness_.data(), 1, p_mm);
+    }
 }
 
 template <int Dim>
