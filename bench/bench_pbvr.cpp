@@ -158,7 +158,9 @@ int main(int argc, char** argv) {
     if (repetitions_only) {
         RenderSettings settings;
         settings.cut_away = cut;
+        t = Clock::now();
         PbvrRenderer renderer(volume, tf, camera, settings);
+        const double setup_s = seconds_since(t);
         std::vector<double> ms;
         for (int r = 0; r < max_repetitions; ++r) {
             t = Clock::now();
@@ -168,6 +170,7 @@ int main(int argc, char** argv) {
         std::sort(ms.begin(), ms.end());
         std::cout << nlohmann::json{{"image", "512x512"},
                                     {"repetitions", max_repetitions},
+                                    {"setup_s", setup_s},
                                     {"ms_per_repetition_median", ms[ms.size() / 2]},
                                     {"particles_per_repetition",
                                      double(renderer.particles_drawn()) / double(ms.size())}}

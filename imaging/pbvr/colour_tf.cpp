@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "tissue/error.h"
+#include "tissue/fast_math.h"
 #include "tissue/json_util.h"
 
 namespace sonotrace::imaging::pbvr {
@@ -137,8 +138,10 @@ float ColourTransferFunction::max_extinction(float s0, float s1) const {
     if (s1 < s0) std::swap(s0, s1);
     // Linear between entries: the maximum is at an end or at an entry inside.
     float result = std::max(extinction(s0), extinction(s1));
-    const int first = int(std::ceil(glm::clamp(s0, 0.0f, 1.0f) * float(kEntries - 1)));
-    const int last = int(std::floor(glm::clamp(s1, 0.0f, 1.0f) * float(kEntries - 1)));
+    // (integer ceil and floor: std::ceil/std::floor are calls on the x86-64 baseline, and
+    // the renderer's set-up asks this of every cell of the volume)
+    const int first = tissue::ceil_to_int(glm::clamp(s0, 0.0f, 1.0f) * float(kEntries - 1));
+    const int last = tissue::floor_to_int(glm::clamp(s1, 0.0f, 1.0f) * float(kEntries - 1));
     if (last >= first) {
         const int span = last - first + 1;
         int level = 0;

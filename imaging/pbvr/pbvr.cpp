@@ -524,11 +524,15 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
     if (px + pr < 0.0f || py + pr < 0.0f || px - pr > float(camera_.width) ||
         py - pr > float(camera_.height))
         return true;
-    const int tile = kOcclusionTile;
-    const int x0 = std::clamp(int(std::floor((px - pr) / tile)), 0, occlusion_tiles_x_ - 1);
-    const int x1 = std::clamp(int(std::floor((px + pr) / tile)), 0, occlusion_tiles_x_ - 1);
-    const int y0 = std::clamp(int(std::floor((py - pr) / tile)), 0, occlusion_tiles_y_ - 1);
-    const int y1 = std::clamp(int(std::floor((py + pr) / tile)), 0, occlusion_tiles_y_ - 1);
+    // The grid tile holding image coordinate v (integer floor: a call on the baseline),
+    // clamped to the grid; v is clamped first so that the conversion is safe.
+    const float tile = float(kOcclusionTile);
+    auto tile_of = [tile](float v, int tiles) {
+        return std::clamp(tissue::floor_to_int(std::clamp(v / tile, -1.0f, float(tiles))), 0,
+                          tiles - 1);
+    };
+    const int x0 = tile_of(px - pr, occlusion_tiles_x_), x1 = tile_of(px + pr, occlusion_tiles_x_);
+    const int y0 = tile_of(py - pr, occlusion_tiles_y_), y1 = tile_of(py + pr, occlusion_tiles_y_);
     float deepest = 0.0f;
     for (int gy = y0; gy <= y1 + 1; ++gy)
         for (int gx = x0; gx <= x1 + 1; ++gx)
