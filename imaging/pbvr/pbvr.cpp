@@ -272,13 +272,16 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
             }
         }
     });
-    std::size_t total = 0;
-    for (const auto& slab : slabs) total += slab.size();
-    cells_.reserve(total);
-    for (auto& slab : slabs) {
-        cells_.insert(cells_.end(), slab.begin(), slab.end());
-        slab = {};
-    }
+    // One list in slab order, copied on both threads into memory that calloc leaves
+    // untouched, so that its pages fault in on both (one thread's copy was 75 ms of a
+    // 0.28 s set-up: page faults are slow in a virtual machine).
+    std::vector<std::size_t> first(slabs.size() + 1, 0);
+    for (std::size_t k = 0; k < slabs.size(); ++k) first[k + 1] = first[k] + slabs[k].size();
+    cells_.resize(first.back());
+    tbb::parallel_for(std::size_t(0), slabs.size(), [&](std::size_t k) {
+        std::copy(slabs[k].begin(), slabs[k].end(), cells_.begin() + std::ptrdiff_t(first[k]));
+        slabs[k] = {};
+    });
     for (const std::size_t c : culled) culled_cells_ += c;
     occluded_beyond_ = {};
     accumulated_.assign(std::size_t(camera.width) * std::size_t(camera.height), glm::dvec3(0.0));

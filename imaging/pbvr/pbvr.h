@@ -35,6 +35,7 @@
 #include "imaging/pbvr/sampling.h"
 #include "imaging/pbvr/tetra.h"
 #include "tissue/fast_math.h"
+#include "tissue/memory.h"
 #include "tissue/volume.h"
 
 namespace sonotrace::imaging::pbvr {
@@ -297,7 +298,7 @@ class PbvrRenderer {
     float focal_ = 1.0f, centre_x_ = 0.0f, centre_y_ = 0.0f;
     int sub_width_ = 0, sub_height_ = 0;
     float radius_ = 0.0f;
-    std::vector<Cell> cells_;
+    std::vector<Cell, tissue::ZeroedAllocator<Cell>> cells_;  // written once, in parallel
     std::size_t culled_cells_ = 0;
     std::vector<float> occluded_beyond_;  // the occlusion map while cells are listed
     int occlusion_tiles_x_ = 0, occlusion_tiles_y_ = 0;
