@@ -1320,7 +1320,8 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         // the hardware's stream prefetch restarts at each (merge 2.39 -> 2.16 ms, 3D).
         for (const DepositTiles<Dim>* m : maps) {
             const auto* next = t + 1 < tiles ? m->tile(t + 1) : nullptr;
-            for (std::size_t line = 0; next != nullptr && line < sizeof(*next) / 128; ++line)
+            if (next == nullptr) continue;
+            for (std::size_t line = 0; line < sizeof(*next) / 128; ++line)
                 __builtin_prefetch(reinterpret_cast<const char*>(next->data()) + 64 * line);
         }
         const glm::ivec3 origin = maps[0]->tile_origin(t);

@@ -134,6 +134,12 @@ class AcousticMap {
     template <int Chunks>
     void blend_chunks(const Vec& p_mm, float* out) const;
     float sample_field(const float* field, std::size_t stride, const Vec& p_mm) const;
+    // sample_field() of the records' float at byte offset `offset`.
+    float sample_record_float(std::size_t offset, const Vec& p_mm) const {
+        constexpr std::size_t K = sizeof(AcousticTexel<Dim>) / sizeof(float);
+        return sample_field(reinterpret_cast<const float*>(texels_.data()) + offset / sizeof(float),
+                            K, p_mm);
+    }
     static AcousticMap pack(const Volume& refractive_index, const Volume& impedance,
                             const Volume* attenuation, const Volume* backscatter,
                             const Volume* roughness);
@@ -265,20 +271,15 @@ template <int Dim>
 template <int Dim>
 [[gnu::always_inline]] inline float AcousticMap<Dim>::sample_refractive_index(
     const Vec& p_mm) const {
-    constexpr std::size_t K = sizeof(AcousticTexel<Dim>) / sizeof(float);
-    constexpr std::size_t n = offsetof(AcousticTexel<Dim>, refractive_index) / sizeof(float);
-    return sample_field(reinterpret_cast<const float*>(texels_.data()) + n, K, p_mm);
+    return sample_record_float(offsetof(AcousticTexel<Dim>, refractive_index), p_mm);
 }
 
 template <int Dim>
 inline float AcousticMap<Dim>::sample_roughness(const Vec& p_mm) const {
-    if constexpr (Dim == 3) {
-        constexpr std::size_t K = sizeof(AcousticTexel<Dim>) / sizeof(float);
-        constexpr std::size_t n = offsetof(AcousticTexel<Dim>, surface) / sizeof(float);
-        return sample_field(reinterpret_cast<const float*>(texels_.data()) + n, K, p_mm);
-    } else {
+    if constexpr (Dim == 3)
+        return sample_record_float(offsetof(AcousticTexel<Dim>, surface), p_mm);
+    else
         return sample_field(roughness_.data(), 1, p_mm);
-    }
 }
 
 template <int Dim>
