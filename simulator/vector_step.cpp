@@ -147,6 +147,22 @@ template <int Dim>
         // -- locate(): corner i0 and fraction per axis
         vf frac[Dim], w00, w10, w01, w11;
         const vi index = locate_lanes(m, x, frac, w00, w10, w01, w11);
+        // -- where each lane's next step's corner records lie, to prefetch them: in 3D the
+        // records of a new texel come from a 172 MB map (Colin27), and the blends waited
+        // for them. A lane's lines are prefetched before its blend: prefetching all 64
+        // lanes' after the blends filled the miss buffers, and the prefetches stalled.
+        vi ahead = vi{};
+        if (m.prefetch_mm > 0.0f) {
+            for (int a = Dim - 1; a >= 0; --a) {
+                const auto axis = std::size_t(a);
+                const vf d = load<vf>(&b.direction.axis[axis][at]);
+                vf u = (x[a] + m.prefetch_mm * d) * m.inverse_spacing[axis];
+                u = u < 0.0f ? vf{} : u;
+                const float top = float(m.dims[axis] - 2);
+                u = top < u ? vf{} + top : u;
+                ahead = ahead * m.dims[axis] + __builtin_convertvector(u, vi);
+            }
+        }
         // -- each lane's four (eight) corner records, blended
         vf head[kLanes];
         vf4 tail[kLanes];
@@ -154,6 +170,17 @@ template <int Dim>
             head[l] = vf{};
             tail[l] = vf4{};
             if (eligible[l] == 0) continue;
+            if (m.prefetch_mm > 0.0f) {
+                const char* next =
+                    reinterpret_cast<const char*>(m.texels + std::size_t(uint32_t(ahead[l])) * K);
+                // each row's two records: 2 K floats, over two or three cache lines
+                for (const std::size_t row : {std::size_t(0), dy, dz, dz + dy}) {
+                    const char* r = next + row * sizeof(float);
+                    __builtin_prefetch(r);
+                    __builtin_prefetch(r + 64);
+                    __builtin_prefetch(r + 2 * K * sizeof(float) - 1);
+                }
+            }
             const float* t = m.texels + std::size_t(uint32_t(index[l])) * K;
             const float w[4] = {w00[l], w10[l], w01[l], w11[l]};
             head[l] = blend<vf, K>(t, dy, w);
@@ -181,32 +208,6 @@ template <int Dim>
             transpose4x8(tail, rest);
             store(&f.attenuation[at], rest[0]);
             store(&f.backscatter[at], rest[1]);
-        }
-        // -- the next step's corner records, prefetched: in 3D the records of a new texel
-        // come from a 172 MB map (Colin27), and the blends above waited for them
-        if (m.prefetch_mm > 0.0f) {
-            vi ahead = vi{};
-            for (int a = Dim - 1; a >= 0; --a) {
-                const auto axis = std::size_t(a);
-                const vf d = load<vf>(&b.direction.axis[axis][at]);
-                vf u = (x[a] + m.prefetch_mm * d) * m.inverse_spacing[axis];
-                u = u < 0.0f ? vf{} : u;
-                const float top = float(m.dims[axis] - 2);
-                u = top < u ? vf{} + top : u;
-                ahead = ahead * m.dims[axis] + __builtin_convertvector(u, vi);
-            }
-            for (int l = 0; l < kLanes; ++l) {
-                if (eligible[l] == 0) continue;
-                const char* t =
-                    reinterpret_cast<const char*>(m.texels + std::size_t(uint32_t(ahead[l])) * K);
-                // each row's two records: 2 K floats, over two or three cache lines
-                for (const std::size_t row : {std::size_t(0), dy, dz, dz + dy}) {
-                    const char* r = t + row * sizeof(float);
-                    __builtin_prefetch(r);
-                    __builtin_prefetch(r + 64);
-                    __builtin_prefetch(r + 2 * K * sizeof(float) - 1);
-                }
-            }
         }
         // -- the deposit texel: the nearest texel's number in DepositTiles
         if (m.deposit_texels) {
