@@ -212,6 +212,7 @@ int main(int argc, char** argv) {
             {"particle_radius_mm", renderer.particle_radius_mm()},
             {"cells_drawn", renderer.occupied_cells()},
             {"cells_culled", renderer.culled_cells()},
+            {"bricks_skipped", renderer.skipped_bricks()},
             {"particles_per_repetition", double(renderer.particles_drawn()) / double(ms.size())},
             {"volume_prepare_s", prepare_s},
             {"renderer_setup_s", setup_s},

@@ -415,6 +415,51 @@ TEST(Pbvr, ImagesAreByteIdenticalOnOneAndTwoThreads) {
     }
 }
 
+// Brick culling is a bound: a brick is skipped only if each of its cells would be
+// (transparent or hidden), so the cells drawn and the image stay the same, from cameras
+// far, near (cells close to the eye), looking past the volume's edge (cells off the
+// image) and from above.
+TEST(Pbvr, BrickCullingKeepsExactlyTheCellsThatCellCullingKeeps) {
+    BlobScene scene;
+    scene.tf = scene.tf.with_extinction_scaled(8.0);  // a dense blob hides its interior
+    const RenderVolume volume(scene.data, scene.tf);
+    struct View {
+        double distance_mm, azimuth_deg, elevation_deg;
+        glm::dvec3 target;
+    };
+    const View views[] = {{160.0, 30.0, 20.0, {23.5, 23.5, 23.5}},
+                          {45.0, 120.0, 10.0, {23.5, 23.5, 23.5}},
+                          {90.0, 200.0, -30.0, {45.0, 5.0, 23.5}},
+                          {120.0, 300.0, 80.0, {23.5, 23.5, 23.5}}};
+    std::size_t skipped = 0;
+    for (const View& view : views) {
+        OrbitCamera camera = scene.camera;
+        camera.distance_mm = view.distance_mm;
+        camera.azimuth_deg = view.azimuth_deg;
+        camera.elevation_deg = view.elevation_deg;
+        camera.target = view.target;
+        auto render = [&](bool bricks) {
+            RenderSettings settings = scene.settings;
+            settings.brick_culling = bricks;
+            PbvrRenderer renderer(volume, scene.tf, camera, settings);
+            for (int r = 0; r < 2; ++r) renderer.add_repetition();
+            return std::tuple{renderer.occupied_cells(), renderer.image(),
+                              renderer.skipped_bricks()};
+        };
+        const auto [cells_with, image_with, bricks_with] = render(true);
+        const auto [cells_without, image_without, bricks_without] = render(false);
+        EXPECT_EQ(cells_with, cells_without) << "distance " << view.distance_mm;
+        ASSERT_EQ(image_with.pixels.size(), image_without.pixels.size());
+        EXPECT_EQ(std::memcmp(image_with.pixels.data(), image_without.pixels.data(),
+                              image_with.pixels.size() * sizeof(glm::vec3)),
+                  0)
+            << "distance " << view.distance_mm;
+        EXPECT_EQ(bricks_without, 0u);
+        skipped += bricks_with;
+    }
+    EXPECT_GT(skipped, 0u);  // the bound is not vacuous here
+}
+
 TEST(Pbvr, MetropolisConvergesToTheSameImage) {
     const BlobScene scene;
     const RenderVolume volume(scene.data, scene.tf);

@@ -247,11 +247,51 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
     // Eq. 13's radii are unbounded, so its particles are never culled.
     const bool cull = settings.occlusion_culling && !adapt_radius_;
     if (cull) build_occlusion_map();
-    std::vector<std::vector<Cell>> slabs(std::size_t(n.z));
+    // Bricks of cells first: one whose voxels are all transparent holds no particle, and
+    // one hidden over its whole footprint hides each of its cells (brick_hidden), so
+    // their cells are not visited. Most of the head's cells lie in such bricks.
+    const glm::ivec3 bricks = (n + kBrick - 1) / kBrick;
+    std::vector<uint8_t> brick_skipped(std::size_t(bricks.x) * std::size_t(bricks.y) *
+                                       std::size_t(bricks.z));
     std::vector<std::size_t> culled(std::size_t(n.z), 0);
+    tbb::parallel_for(0, bricks.z, [&](int bz) {
+        for (int by = 0; by < bricks.y; ++by) {
+            for (int bx = 0; bx < bricks.x; ++bx) {
+                const glm::ivec3 first = glm::ivec3(bx, by, bz) * kBrick;
+                const glm::ivec3 last = glm::min(first + kBrick, n) - 1;  // cells, inclusive
+                if (!settings.brick_culling) continue;
+                float lo = 1.0f, hi = 0.0f;  // over the voxels of its cells
+                for (int k = first.z; k <= last.z + 1; ++k)
+                    for (int j = first.y; j <= last.y + 1; ++j)
+                        for (int i = first.x; i <= last.x + 1; ++i) {
+                            const float s = volume.value(i, j, k);
+                            lo = std::min(lo, s), hi = std::max(hi, s);
+                        }
+                bool skipped = !(generation_tf_.max_extinction(lo, hi) > 0.0f);
+                if (!skipped && cull && brick_hidden(first, last)) {
+                    skipped = true;
+                    const glm::ivec3 size = last - first + 1;
+                    culled[std::size_t(first.z)] += std::size_t(size.x * size.y * size.z);
+                }
+                brick_skipped[(std::size_t(bz) * std::size_t(bricks.y) + std::size_t(by)) *
+                                  std::size_t(bricks.x) +
+                              std::size_t(bx)] = skipped;
+            }
+        }
+    });
+    skipped_bricks_ = std::size_t(std::count(brick_skipped.begin(), brick_skipped.end(), 1));
+    std::vector<std::vector<Cell>> slabs(std::size_t(n.z));
     tbb::parallel_for(0, n.z, [&](int k) {
         for (int j = 0; j < n.y; ++j) {
+            const uint8_t* skipped_row =
+                &brick_skipped[(std::size_t(k / kBrick) * std::size_t(bricks.y) +
+                                std::size_t(j / kBrick)) *
+                               std::size_t(bricks.x)];
             for (int i = 0; i < n.x; ++i) {
+                if (skipped_row[i / kBrick]) {
+                    i = i / kBrick * kBrick + kBrick - 1;  // to the brick's last cell
+                    continue;
+                }
                 float lo = 1.0f, hi = 0.0f;
                 for (int c = 0; c < 8; ++c) {
                     const float s = volume.value(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2));
@@ -510,6 +550,36 @@ void PbvrRenderer::build_occlusion_map() {
     });
 }
 
+// Whether every cell from `first` to `last` (inclusive) is hidden by cell_hidden: bounds
+// of what cell_hidden computes for each, over the box of their centres (a perspective
+// ratio e.x / e.z over a box in front of the eye is extreme at a corner). Conservative:
+// false where it cannot tell.
+bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last) const {
+    constexpr float kMargin = 2.0f;  // mm, as cell_hidden
+    const glm::vec3 h = volume_.spacing();
+    const float bound = 0.5f * glm::length(h) + radius_;
+    const float L = float(settings_.subpixel_level);
+    float z_min = std::numeric_limits<float>::max();
+    float u_min = z_min, u_max = -z_min, v_min = z_min, v_max = -z_min;
+    for (int c = 0; c < 8; ++c) {
+        const glm::vec3 corner((c & 1 ? last.x : first.x) + 0.5f, (c & 2 ? last.y : first.y) + 0.5f,
+                               (c & 4 ? last.z : first.z) + 0.5f);
+        const glm::vec3 e = to_camera_ * (corner * h) + camera_offset_;
+        if (e.z - bound <= 1e-3f) return false;
+        z_min = std::min(z_min, e.z);
+        u_min = std::min(u_min, e.x / e.z), u_max = std::max(u_max, e.x / e.z);
+        v_min = std::min(v_min, e.y / e.z), v_max = std::max(v_max, e.y / e.z);
+    }
+    const float nearest = z_min - bound;            // no cell's nearest point is nearer
+    const float pr = focal_ * bound / nearest / L;  // no cell's disc is larger
+    const float px0 = (centre_x_ + focal_ * u_min) / L, px1 = (centre_x_ + focal_ * u_max) / L;
+    const float py0 = (centre_y_ + focal_ * v_min) / L, py1 = (centre_y_ + focal_ * v_max) / L;
+    if (px1 + pr < 0.0f || py1 + pr < 0.0f || px0 - pr > float(camera_.width) ||
+        py0 - pr > float(camera_.height))
+        return true;
+    return nearest > deepest_occlusion(px0 - pr, px1 + pr, py0 - pr, py1 + pr) + kMargin;
+}
+
 // A cell is hidden if its nearest point lies beyond the occlusion depth of every grid
 // ray around its projection (with a margin), or off the image.
 bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
@@ -527,6 +597,11 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
     if (px + pr < 0.0f || py + pr < 0.0f || px - pr > float(camera_.width) ||
         py - pr > float(camera_.height))
         return true;
+    return nearest > deepest_occlusion(px - pr, px + pr, py - pr, py + pr) + kMargin;
+}
+
+// The largest occlusion depth of the grid rays around image box [x0, x1] x [y0, y1].
+float PbvrRenderer::deepest_occlusion(float x0, float x1, float y0, float y1) const {
     // The grid tile holding image coordinate v (integer floor: a call on the baseline),
     // clamped to the grid; v is clamped first so that the conversion is safe.
     const float tile = float(kOcclusionTile);
@@ -534,15 +609,15 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
         return std::clamp(tissue::floor_to_int(std::clamp(v / tile, -1.0f, float(tiles))), 0,
                           tiles - 1);
     };
-    const int x0 = tile_of(px - pr, occlusion_tiles_x_), x1 = tile_of(px + pr, occlusion_tiles_x_);
-    const int y0 = tile_of(py - pr, occlusion_tiles_y_), y1 = tile_of(py + pr, occlusion_tiles_y_);
+    const int tx0 = tile_of(x0, occlusion_tiles_x_), tx1 = tile_of(x1, occlusion_tiles_x_);
+    const int ty0 = tile_of(y0, occlusion_tiles_y_), ty1 = tile_of(y1, occlusion_tiles_y_);
     float deepest = 0.0f;
-    for (int gy = y0; gy <= y1 + 1; ++gy)
-        for (int gx = x0; gx <= x1 + 1; ++gx)
+    for (int gy = ty0; gy <= ty1 + 1; ++gy)
+        for (int gx = tx0; gx <= tx1 + 1; ++gx)
             deepest = std::max(
                 deepest, occluded_beyond_[std::size_t(gy) * std::size_t(occlusion_tiles_x_ + 1) +
                                           std::size_t(gx)]);
-    return nearest > deepest + kMargin;
+    return deepest;
 }
 
 void PbvrRenderer::set_overlay(std::vector<uint64_t> layer) {
@@ -553,7 +628,7 @@ void PbvrRenderer::set_overlay(std::vector<uint64_t> layer) {
 
 void PbvrRenderer::add_repetition() {
     const std::size_t subpixels = std::size_t(sub_width_) * std::size_t(sub_height_);
-    if (zbuffer_.size() != subpixels) zbuffer_ = std::vector<std::atomic<uint64_t>>(subpixels);
+    if (zbuffer_.size() != subpixels) zbuffer_ = decltype(zbuffer_)(subpixels);
     tbb::parallel_for(std::size_t(0), subpixels, [&](std::size_t s) {
         zbuffer_[s].store(overlay_.empty() ? kEmptyEntry : overlay_[s], std::memory_order_relaxed);
     });

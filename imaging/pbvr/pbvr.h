@@ -188,6 +188,10 @@ struct RenderSettings {
     // Skip cells hidden behind an optical depth of 5 (transmittance < 0.7 %) along every
     // ray of a grid 4 pixels apart around their projection, and cells off the image.
     bool occlusion_culling = true;
+    // Bricks of 4^3 cells that are transparent or hidden as a whole are skipped before
+    // their cells are classified (the same cells are kept, at half the set-up time; off:
+    // every cell is classified, for the test that checks this).
+    bool brick_culling = true;
 
     // Throws tissue::InputError("render settings", field).
     void validate() const;
@@ -272,13 +276,19 @@ class PbvrRenderer {
     float particle_radius_mm() const { return radius_; }
     uint64_t particles_drawn() const { return particles_; }       // over all repetitions
     std::size_t occupied_cells() const { return cells_.size(); }  // after culling
+    // Cells skipped as hidden: those of hidden bricks (transparent or not), and the
+    // non-transparent cells hidden one by one.
     std::size_t culled_cells() const { return culled_cells_; }
+    std::size_t skipped_bricks() const { return skipped_bricks_; }  // transparent or hidden
 
   private:
     static constexpr int kOcclusionTile = 4;        // pixels between occlusion rays
     static constexpr float kOcclusionDepth = 5.0f;  // transmittance e^-5 < 0.7 % beyond
+    static constexpr int kBrick = 4;                // cells per brick side (set-up culling)
     void build_occlusion_map();
     bool cell_hidden(int i, int j, int k) const;
+    bool brick_hidden(const glm::ivec3& first, const glm::ivec3& last) const;
+    float deepest_occlusion(float x0, float x1, float y0, float y1) const;
     struct Cell {
         uint16_t i, j, k;    // the cell's corner voxel
         uint32_t index;      // linear cell index ((dims - 1) grid): its random stream
@@ -298,11 +308,13 @@ class PbvrRenderer {
     float focal_ = 1.0f, centre_x_ = 0.0f, centre_y_ = 0.0f;
     int sub_width_ = 0, sub_height_ = 0;
     float radius_ = 0.0f;
-    std::vector<Cell, tissue::ZeroedAllocator<Cell>> cells_;  // written once, in parallel
+    std::vector<Cell, tissue::UninitializedHugePageAllocator<Cell>> cells_;  // filled in parallel
     std::size_t culled_cells_ = 0;
+    std::size_t skipped_bricks_ = 0;
     std::vector<float> occluded_beyond_;  // the occlusion map while cells are listed
     int occlusion_tiles_x_ = 0, occlusion_tiles_y_ = 0;
-    std::vector<glm::dvec3> accumulated_;  // per pixel, sum over repetitions of sub-pixel means
+    std::vector<glm::dvec3, tissue::HugePageAllocator<glm::dvec3>>
+        accumulated_;  // per pixel, sum over repetitions of sub-pixel means
     std::vector<std::atomic<uint64_t>> zbuffer_;  // per sub-pixel: depth | RGB8 | id
     std::vector<uint64_t> overlay_;               // its initial content (empty: none)
     struct MeshLayer;
