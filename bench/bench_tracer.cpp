@@ -5,6 +5,9 @@
 //   build/bench/bench_tracer --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include "bench/benchmark_main.h"
 
+#include <tbb/parallel_for.h>
+
+#include <atomic>
 #include <cmath>
 
 #include "probe/pose.h"
@@ -134,6 +137,43 @@ void BM_Trace2D_Colin27(benchmark::State& state) {
     run<2>(state, map, sources);
 }
 BENCHMARK(BM_Trace2D_Colin27)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The yardstick: a bare bilinear stepping loop, the same fan on the same map,
+// both cores. Straight paths in half-texel steps until they leave the map, every field of
+// the texel sampled (summed so that nothing is optimised away), no physics. The tracer's
+// 2D target (100 M) was set against this loop's ~118 M; run beside the tracer, it tells
+// how fast the machine is that hour (bench/README.md).
+void BM_BareBilinearSteps2D_Colin27(benchmark::State& state) {
+    static const auto map = tissue::AcousticMap<2>::build(colin27_maps(0.25, 0.0));
+    static const auto sources = fan_2d(map, 64, 256);
+    const std::size_t lines = 64, per_line = sources.size() / lines;
+    const float step = 0.5f * std::min(map.spacing().x, map.spacing().y);
+    uint64_t steps = 0;
+    for (auto _ : state) {
+        std::atomic<uint64_t> taken{0};
+        std::atomic<double> checksum{0.0};  // keeps the samples live
+        tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
+            uint64_t n = 0;
+            float sum = 0.0f;
+            for (std::size_t p = l * per_line; p < (l + 1) * per_line; ++p) {
+                glm::vec2 x = sources[p].position;
+                const glm::vec2 r = glm::normalize(sources[p].direction);
+                for (; map.inside(x); x += step * r, ++n) {
+                    const auto t = map.sample(x);
+                    sum += t.impedance + t.grad_impedance[0] + t.grad_impedance[1] +
+                           t.refractive_index + t.grad_refractive_index[0] +
+                           t.grad_refractive_index[1] + t.attenuation + t.backscatter;
+                }
+            }
+            taken += n;
+            checksum.fetch_add(double(sum));
+        });
+        steps += taken;
+        benchmark::DoNotOptimize(checksum.load());
+    }
+    state.counters["steps/s"] = benchmark::Counter(double(steps), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_BareBilinearSteps2D_Colin27)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_Trace3D_Colin27(benchmark::State& state) {
     static const auto map = tissue::AcousticMap<3>::build(colin27_maps(0.5, 20.0));
