@@ -420,16 +420,19 @@ class LineTracer {
         for (int k = b.count; k < lanes; ++k) f.eligible[std::size_t(k)] = 0;
         sample_lanes(map_view_, b, f, lanes);
         vector_step(b, f, step_constants_, results_, lanes);
-        // -- the rest, lane by lane in order (the ledger's sums keep one order)
+        // -- the rest, through lane masks (a branch per lane on a lane's flags was taken
+        // at random: deposits about every other step), each kind in lane order, so the
+        // ledger's sums keep one order
         static_assert(Batch<Dim>::kSize <= 64);
-        uint64_t ended = 0;  // bit k: lane k ended
-        uint64_t taken = 0;  // steps the vector stage took
-        const bool profile = profile_enabled_ && scatter_enabled_;
-        // -- deposits of the lanes that left their texel, found by a mask: a branch per
-        // lane on it was taken about every other step, at random
-        uint64_t flushed = 0;
-        for (int k = 0; k < b.count; ++k)
-            flushed |= uint64_t((results_.flags[std::size_t(k)] & kLaneFlush) != 0) << k;
+        uint64_t to_step = 0, flushed = 0, may_end = 0;
+        for (int k = 0; k < b.count; ++k) {
+            const int32_t flags = results_.flags[std::size_t(k)];
+            to_step |= uint64_t((flags & kLaneToStep) != 0) << k;
+            flushed |= uint64_t((flags & kLaneFlush) != 0) << k;
+            may_end |= uint64_t((flags & kLaneMayEnd) != 0) << k;
+        }
+        const uint64_t live = b.count == 64 ? ~uint64_t(0) : (uint64_t(1) << b.count) - 1;
+        const uint64_t vector_stepped = live & ~to_step;
         for (; flushed != 0; flushed &= flushed - 1) {
             const auto i = std::size_t(std::countr_zero(flushed));
             deposit(results_.flush_texel[i], results_.flush_fluence[i], results_.flush_absorbed[i]);
@@ -437,25 +440,35 @@ class LineTracer {
             // its cache miss was 6 % of a 3D trace.
             if (deposit_maps_) deposits_->prefetch(b.pending_texel[i]);
         }
-        for (int k = 0; k < b.count; ++k) {
-            const auto i = std::size_t(k);
-            const int32_t flags = results_.flags[i];
-            if (flags & kLaneToStep) {
-                if (!step(b, k, f.eligible[i] != 0)) ended |= uint64_t(1) << k;
-                continue;
-            }
-            ++taken;
-            if (profile && f.backscatter[i] > 0.0f) {
+        if (profile_enabled_ && scatter_enabled_) {
+            for (uint64_t m = vector_stepped; m != 0; m &= m - 1) {
+                const int k = std::countr_zero(m);
+                const auto i = std::size_t(k);
+                if (!(f.backscatter[i] > 0.0f)) continue;
                 V start;
                 for (std::size_t a = 0; a < Dim; ++a) start[int(a)] = results_.start_position[a][i];
                 add_to_profile(b, k, start, results_.profile_energy[i], f.backscatter[i],
                                results_.start_time[i]);
             }
-            if (b.path[i] >= 0)
-                out_->paths[std::size_t(b.path[i])].vertices.push_back(
-                    {b.position[k], b.energy[i]});
-            if ((flags & kLaneMayEnd) && !continues(b, k, b.position[k])) ended |= uint64_t(1) << k;
         }
+        if (settings_.record_paths > 0) {
+            for (uint64_t m = vector_stepped; m != 0; m &= m - 1) {
+                const int k = std::countr_zero(m);
+                if (b.path[std::size_t(k)] >= 0)
+                    out_->paths[std::size_t(b.path[std::size_t(k)])].vertices.push_back(
+                        {b.position[k], b.energy[std::size_t(k)]});
+            }
+        }
+        uint64_t ended = 0;  // bit k: lane k ended
+        for (uint64_t m = to_step; m != 0; m &= m - 1) {
+            const int k = std::countr_zero(m);
+            if (!step(b, k, f.eligible[std::size_t(k)] != 0)) ended |= uint64_t(1) << k;
+        }
+        for (uint64_t m = may_end; m != 0; m &= m - 1) {  // vector-stepped lanes only
+            const int k = std::countr_zero(m);
+            if (!continues(b, k, b.position[k])) ended |= uint64_t(1) << k;
+        }
+        const auto taken = uint64_t(std::popcount(vector_stepped));  // steps the vector stage took
         out_->stats.steps += taken;
         out_->stats.vector_steps += taken;
         while (ended != 0) {  // from the highest lane down: remove() moves the last lane
