@@ -340,7 +340,7 @@ class LineTracer {
             m.deposit_tiles[axis] = DepositTiles<Dim>::tiles_along(map.dims()[a]);
         }
         m.deposit_texels = deposit_maps_;
-        m.prefetch_mm = Dim == 3 ? step_mm_ : 0.0f;
+        m.prefetch_mm = step_mm_;
         if (uniform_runs_) {
             m.block_records = map.block_records();
             for (int a = 0; a < Dim; ++a) m.block_dims[std::size_t(a)] = map.block_dims()[a];

@@ -173,12 +173,21 @@ template <int Dim>
             if (m.prefetch_mm > 0.0f) {
                 const char* next =
                     reinterpret_cast<const char*>(m.texels + std::size_t(uint32_t(ahead[l])) * K);
-                // each row's two records: 2 K floats, over two or three cache lines
-                for (const std::size_t row : {std::size_t(0), dy, dz, dz + dy}) {
-                    const char* r = next + row * sizeof(float);
-                    __builtin_prefetch(r);
-                    __builtin_prefetch(r + 64);
-                    __builtin_prefetch(r + 2 * K * sizeof(float) - 1);
+                // each row's two records: 2 K floats, over two or three cache lines (2D:
+                // one or two)
+                if constexpr (Dim == 3) {
+                    for (const std::size_t row : {std::size_t(0), dy, dz, dz + dy}) {
+                        const char* r = next + row * sizeof(float);
+                        __builtin_prefetch(r);
+                        __builtin_prefetch(r + 64);
+                        __builtin_prefetch(r + 2 * K * sizeof(float) - 1);
+                    }
+                } else {
+                    for (const std::size_t row : {std::size_t(0), dy}) {
+                        const char* r = next + row * sizeof(float);
+                        __builtin_prefetch(r);
+                        __builtin_prefetch(r + 2 * K * sizeof(float) - 1);
+                    }
                 }
             }
             const float* t = m.texels + std::size_t(uint32_t(index[l])) * K;
