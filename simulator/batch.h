@@ -195,16 +195,15 @@ struct ImpedancePoints {
 void sample_impedance_points(const MapView<2>& map, ImpedancePoints<2>& points, int count);
 void sample_impedance_points(const MapView<3>& map, ImpedancePoints<3>& points, int count);
 
-// What the vector stage leaves to the scalar one, per lane.
-enum LaneFlag : int32_t {
-    kLaneToStep = 1,  // an event or a state the vector stage does not take: step() does it
-    kLaneFlush = 2,   // the particle changed texel: deposit the flush_* sums
-    kLaneMayEnd = 4,  // outside the domain, past a limit or below the roulette energy
-};
+// What the vector stage leaves to the scalar one: lane masks (bit k: lane k; lanes past
+// the batch's count may be set) and the sums to deposit.
 template <int Dim>
 struct LaneResults {
     static constexpr std::size_t N = Batch<Dim>::N;
-    alignas(32) std::array<int32_t, N> flags{};
+    static_assert(N <= 64);
+    uint64_t to_step = 0;  // an event or a state the vector stage does not take: step() does it
+    uint64_t flush = 0;    // the particle changed texel: deposit the flush_* sums
+    uint64_t may_end = 0;  // outside the domain, past a limit or below the roulette energy
     alignas(32) std::array<uint32_t, N> flush_texel{};
     alignas(32) std::array<float, N> flush_fluence{}, flush_absorbed{};
     // For the echo profile (StepConstants::profile): the step's start position and time,
@@ -231,8 +230,8 @@ struct StepConstants {
 
 // Takes the general step (what LineTracer::step does when nothing but absorption,
 // scattering's optical depth, the interface test and refraction happens) for lanes
-// [0, lanes) of the batch, lanes a multiple of 8. Lanes it does not take (flag
-// kLaneToStep) keep their state untouched for step().
+// [0, lanes) of the batch, lanes a multiple of 8. Lanes it does not take (mask
+// LaneResults::to_step) keep their state untouched for step().
 void vector_step(Batch<2>& batch, const LaneFields<2>& fields, const StepConstants<2>& constants,
                  LaneResults<2>& results, int lanes);
 void vector_step(Batch<3>& batch, const LaneFields<3>& fields, const StepConstants<3>& constants,

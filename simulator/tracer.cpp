@@ -420,18 +420,13 @@ class LineTracer {
         for (int k = b.count; k < lanes; ++k) f.eligible[std::size_t(k)] = 0;
         sample_lanes(map_view_, b, f, lanes);
         vector_step(b, f, step_constants_, results_, lanes);
-        // -- the rest, through lane masks (a branch per lane on a lane's flags was taken
-        // at random: deposits about every other step), each kind in lane order, so the
-        // ledger's sums keep one order
+        // -- the rest, through the vector stage's lane masks (a branch per lane on its
+        // flags was taken at random: deposits about every other step), each kind in lane
+        // order, so the ledger's sums keep one order
         static_assert(Batch<Dim>::kSize <= 64);
-        uint64_t to_step = 0, flushed = 0, may_end = 0;
-        for (int k = 0; k < b.count; ++k) {
-            const int32_t flags = results_.flags[std::size_t(k)];
-            to_step |= uint64_t((flags & kLaneToStep) != 0) << k;
-            flushed |= uint64_t((flags & kLaneFlush) != 0) << k;
-            may_end |= uint64_t((flags & kLaneMayEnd) != 0) << k;
-        }
         const uint64_t live = b.count == 64 ? ~uint64_t(0) : (uint64_t(1) << b.count) - 1;
+        const uint64_t to_step = results_.to_step & live, may_end = results_.may_end & live;
+        uint64_t flushed = results_.flush & live;
         const uint64_t vector_stepped = live & ~to_step;
         for (; flushed != 0; flushed &= flushed - 1) {
             const auto i = std::size_t(std::countr_zero(flushed));

@@ -60,6 +60,13 @@ template <class T, class S>
                                    __builtin_convertvector(high, vi4), 0, 1, 2, 3, 4, 5, 6, 7);
 }
 
+// A mask vector's lanes (0 or -1) as bits 0-7.
+[[gnu::always_inline]] inline uint64_t lane_bits(const vi& mask) {
+    uint64_t bits = 0;
+    for (int l = 0; l < kLanes; ++l) bits |= uint64_t(mask[l] < 0) << l;
+    return bits;
+}
+
 // Lanes' records (one 8-float vector each) to fields (one vector of 8 lanes each).
 [[gnu::always_inline]] inline void transpose8(const vf (&rows)[kLanes], vf (&columns)[kLanes]) {
     vf t[kLanes], u[kLanes];
@@ -295,6 +302,7 @@ template <int Dim>
                                               const StepConstants<Dim>& c, LaneResults<Dim>& out,
                                               int lanes) {
     const float s = c.step_mm;
+    out.to_step = out.flush = out.may_end = 0;
     for (int base = 0; base < lanes; base += kLanes) {
         const auto at = std::size_t(base);
         vi to_step = ~load<vi>(&f.eligible[at]);
@@ -458,9 +466,9 @@ template <int Dim>
         commit(&b.previous_index[at], previous_index);
         commit_double(&b.time[at], time);
         commit_double(&b.path_length[at], path);
-        store(&out.flags[at],
-              to_step ? vi{} + int32_t(kLaneToStep)
-                      : (flush & int32_t(kLaneFlush)) | (may_end & int32_t(kLaneMayEnd)));
+        out.to_step |= lane_bits(to_step) << base;
+        out.flush |= lane_bits(~to_step & flush) << base;
+        out.may_end |= lane_bits(~to_step & may_end) << base;
     }
 }
 
