@@ -1,0 +1,55 @@
+#!/usr/bin/env python3
+"""Paired A/B comparison of two Google Benchmark binaries on a noisy machine.
+
+Runs the two binaries back to back, one benchmark each time, swapping the order every
+pair (A B, B A, A B, ...), and prints the per-pair ratio B/A of a rate counter and its
+median. Slow drifts of the machine's speed then cancel within a pair.
+
+    bench/abba.py OLD_BINARY NEW_BINARY PAIRS [FILTER] [--counter steps/s] [--min-time 0.3]
+"""
+import argparse
+import re
+import statistics
+import subprocess
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("a", help="the earlier binary (A)")
+    parser.add_argument("b", help="the later binary (B)")
+    parser.add_argument("pairs", type=int, help="number of pairs")
+    parser.add_argument("filter", nargs="?", default="Trace3D_Colin27",
+                        help="--benchmark_filter (one benchmark)")
+    parser.add_argument("--counter", default="steps/s", help="rate counter to compare")
+    parser.add_argument("--min-time", default="0.3", help="--benchmark_min_time, seconds")
+    args = parser.parse_args()
+    pattern = re.compile(re.escape(args.counter) + r"=([0-9.]+)([kMG]?)")
+    scale = {"": 1.0, "k": 1e3, "M": 1e6, "G": 1e9}
+
+    def rate(binary):
+        out = subprocess.run([binary, "--benchmark_filter=" + args.filter,
+                              "--benchmark_min_time=" + args.min_time],
+                             capture_output=True, text=True, check=True).stdout
+        match = pattern.search(out)
+        if not match:
+            raise SystemExit(f"{binary}: no '{args.counter}' counter for '{args.filter}'")
+        return float(match.group(1)) * scale[match.group(2)]
+
+    a_rates, b_rates, ratios = [], [], []
+    for pair in range(args.pairs):
+        first_a = pair % 2 == 0
+        first = rate(args.a if first_a else args.b)
+        second = rate(args.b if first_a else args.a)
+        a, b = (first, second) if first_a else (second, first)
+        a_rates.append(a)
+        b_rates.append(b)
+        ratios.append(b / a)
+        print(f"{a / 1e6:9.2f} M {b / 1e6:9.2f} M  ratio {b / a:.3f}", flush=True)
+    print(f"median A {statistics.median(a_rates) / 1e6:.2f} M, B {statistics.median(b_rates) / 1e6:.2f} M,"
+          f" median ratio {statistics.median(ratios):.3f} (mean {statistics.mean(ratios):.3f},"
+          f" {min(ratios):.3f}-{max(ratios):.3f}) over {args.pairs} pairs")
+
+
+if __name__ == "__main__":
+    main()
