@@ -154,10 +154,11 @@ template <int Dim>
         // -- locate(): corner i0 and fraction per axis
         vf frac[Dim], w00, w10, w01, w11;
         const vi index = locate_lanes(m, x, frac, w00, w10, w01, w11);
-        // -- where each lane's next step's corner records lie, to prefetch them: in 3D the
-        // records of a new texel come from a 172 MB map (Colin27), and the blends waited
-        // for them. A lane's lines are prefetched before its blend: prefetching all 64
-        // lanes' after the blends filled the miss buffers, and the prefetches stalled.
+        // -- where each lane's next step's corner records lie, to prefetch them: the
+        // records of a new texel come from a map beyond the caches (Colin27: 172 MB in 3D,
+        // 11.5 MB in 2D), and the blends waited for them. A lane's lines are prefetched
+        // before its blend: prefetching all 64 lanes' after the blends filled the miss
+        // buffers, and the prefetches stalled.
         vi ahead = vi{};
         if (m.prefetch_mm > 0.0f) {
             for (int a = Dim - 1; a >= 0; --a) {

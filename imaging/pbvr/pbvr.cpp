@@ -254,31 +254,31 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
     std::vector<uint8_t> brick_skipped(std::size_t(bricks.x) * std::size_t(bricks.y) *
                                        std::size_t(bricks.z));
     std::vector<std::size_t> culled(std::size_t(n.z), 0);
-    tbb::parallel_for(0, bricks.z, [&](int bz) {
-        for (int by = 0; by < bricks.y; ++by) {
-            for (int bx = 0; bx < bricks.x; ++bx) {
-                const glm::ivec3 first = glm::ivec3(bx, by, bz) * kBrick;
-                const glm::ivec3 last = glm::min(first + kBrick, n) - 1;  // cells, inclusive
-                if (!settings.brick_culling) continue;
-                float lo = 1.0f, hi = 0.0f;  // over the voxels of its cells
-                for (int k = first.z; k <= last.z + 1; ++k)
-                    for (int j = first.y; j <= last.y + 1; ++j)
-                        for (int i = first.x; i <= last.x + 1; ++i) {
-                            const float s = volume.value(i, j, k);
-                            lo = std::min(lo, s), hi = std::max(hi, s);
-                        }
-                bool skipped = !(generation_tf_.max_extinction(lo, hi) > 0.0f);
-                if (!skipped && cull && brick_hidden(first, last)) {
-                    skipped = true;
-                    const glm::ivec3 size = last - first + 1;
-                    culled[std::size_t(first.z)] += std::size_t(size.x * size.y * size.z);
+    if (settings.brick_culling)
+        tbb::parallel_for(0, bricks.z, [&](int bz) {
+            for (int by = 0; by < bricks.y; ++by) {
+                for (int bx = 0; bx < bricks.x; ++bx) {
+                    const glm::ivec3 first = glm::ivec3(bx, by, bz) * kBrick;
+                    const glm::ivec3 last = glm::min(first + kBrick, n) - 1;  // cells, inclusive
+                    float lo = 1.0f, hi = 0.0f;  // over the voxels of its cells
+                    for (int k = first.z; k <= last.z + 1; ++k)
+                        for (int j = first.y; j <= last.y + 1; ++j)
+                            for (int i = first.x; i <= last.x + 1; ++i) {
+                                const float s = volume.value(i, j, k);
+                                lo = std::min(lo, s), hi = std::max(hi, s);
+                            }
+                    bool skipped = !(generation_tf_.max_extinction(lo, hi) > 0.0f);
+                    if (!skipped && cull && brick_hidden(first, last)) {
+                        skipped = true;
+                        const glm::ivec3 size = last - first + 1;
+                        culled[std::size_t(first.z)] += std::size_t(size.x * size.y * size.z);
+                    }
+                    brick_skipped[(std::size_t(bz) * std::size_t(bricks.y) + std::size_t(by)) *
+                                      std::size_t(bricks.x) +
+                                  std::size_t(bx)] = skipped;
                 }
-                brick_skipped[(std::size_t(bz) * std::size_t(bricks.y) + std::size_t(by)) *
-                                  std::size_t(bricks.x) +
-                              std::size_t(bx)] = skipped;
             }
-        }
-    });
+        });
     skipped_bricks_ = std::size_t(std::count(brick_skipped.begin(), brick_skipped.end(), 1));
     std::vector<std::vector<Cell>> slabs(std::size_t(n.z));
     tbb::parallel_for(0, n.z, [&](int k) {
@@ -555,7 +555,6 @@ void PbvrRenderer::build_occlusion_map() {
 // ratio e.x / e.z over a box in front of the eye is extreme at a corner). Conservative:
 // false where it cannot tell.
 bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last) const {
-    constexpr float kMargin = 2.0f;  // mm, as cell_hidden
     const glm::vec3 h = volume_.spacing();
     const float bound = 0.5f * glm::length(h) + radius_;
     const float L = float(settings_.subpixel_level);
@@ -577,13 +576,12 @@ bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last)
     if (px1 + pr < 0.0f || py1 + pr < 0.0f || px0 - pr > float(camera_.width) ||
         py0 - pr > float(camera_.height))
         return true;
-    return nearest > deepest_occlusion(px0 - pr, px1 + pr, py0 - pr, py1 + pr) + kMargin;
+    return nearest > deepest_occlusion(px0 - pr, px1 + pr, py0 - pr, py1 + pr) + kHiddenMargin;
 }
 
 // A cell is hidden if its nearest point lies beyond the occlusion depth of every grid
 // ray around its projection (with a margin), or off the image.
 bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
-    constexpr float kMargin = 2.0f;  // mm
     const glm::vec3 h = volume_.spacing();
     const float bound = 0.5f * glm::length(h) + radius_;
     const float L = float(settings_.subpixel_level);
@@ -597,7 +595,7 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
     if (px + pr < 0.0f || py + pr < 0.0f || px - pr > float(camera_.width) ||
         py - pr > float(camera_.height))
         return true;
-    return nearest > deepest_occlusion(px - pr, px + pr, py - pr, py + pr) + kMargin;
+    return nearest > deepest_occlusion(px - pr, px + pr, py - pr, py + pr) + kHiddenMargin;
 }
 
 // The largest occlusion depth of the grid rays around image box [x0, x1] x [y0, y1].

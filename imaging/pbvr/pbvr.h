@@ -284,7 +284,10 @@ class PbvrRenderer {
   private:
     static constexpr int kOcclusionTile = 4;        // pixels between occlusion rays
     static constexpr float kOcclusionDepth = 5.0f;  // transmittance e^-5 < 0.7 % beyond
-    static constexpr int kBrick = 4;                // cells per brick side (set-up culling)
+    // mm a cell must lie behind the occlusion depth to be hidden: guards cells seen
+    // between two occlusion rays at silhouettes
+    static constexpr float kHiddenMargin = 2.0f;
+    static constexpr int kBrick = 4;  // cells per brick side (set-up culling)
     void build_occlusion_map();
     bool cell_hidden(int i, int j, int k) const;
     bool brick_hidden(const glm::ivec3& first, const glm::ivec3& last) const;
