@@ -460,6 +460,19 @@ TEST(Pbvr, BrickCullingKeepsExactlyTheCellsThatCellCullingKeeps) {
     EXPECT_GT(skipped, 0u);  // the bound is not vacuous here
 }
 
+TEST(Pbvr, SpecularPowerIsThePower) {
+    for (const float shininess :
+         {0.0f, 1.0f, 2.0f, 7.0f, 24.0f, 63.0f, 64.0f, 100.0f, 2.5f, 30.7f}) {
+        for (const float facing : {1e-3f, 0.1f, 0.5f, 0.9f, 0.99f, 0.999f, 1.0f}) {
+            const double expected = std::pow(double(facing), double(shininess));
+            // Squaring: relative error below (n - 1) 2^-24 = 3.8e-6 for n <= 64; exp2/log2:
+            // about |shininess log2 facing| ln 2 2^-24 (4e-6 at 0.1^30.7). 1e-5 covers both.
+            EXPECT_NEAR(specular_power(facing, shininess), expected, 1e-5 * expected + 1e-30)
+                << facing << "^" << shininess;
+        }
+    }
+}
+
 TEST(Pbvr, MetropolisConvergesToTheSameImage) {
     const BlobScene scene;
     const RenderVolume volume(scene.data, scene.tf);

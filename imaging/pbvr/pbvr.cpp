@@ -97,6 +97,19 @@ void RenderSettings::validate() const {
     require_in_range(source, "shading.shininess", shading.shininess, 1.0, 1000.0);
 }
 
+float specular_power(float facing, float shininess) {
+    const int whole = int(shininess);
+    if (float(whole) == shininess && whole >= 0 && whole <= 64) {
+        float power = 1.0f, square = facing;
+        for (int e = whole; e > 0; e >>= 1) {
+            if (e & 1) power *= square;
+            square *= square;
+        }
+        return power;
+    }
+    return std::exp2(shininess * std::log2(facing));
+}
+
 glm::vec3 shade(const glm::vec3& colour, const glm::vec3& gradient, const glm::vec3& to_eye,
                 const Shading& shading) {
     if (shading.model == Shading::Model::none) return colour;
@@ -106,7 +119,7 @@ glm::vec3 shade(const glm::vec3& colour, const glm::vec3& gradient, const glm::v
     glm::vec3 c = colour * (shading.ambient + shading.diffuse * facing);
     if (shading.model == Shading::Model::blinn_phong && facing > 0.0f) {
         // headlight: the half vector is the view direction itself
-        c += glm::vec3(shading.specular * std::exp2(shading.shininess * std::log2(facing)));
+        c += glm::vec3(shading.specular * specular_power(facing, shading.shininess));
     }
     return c;
 }
