@@ -34,6 +34,19 @@ void keep_freed_memory();
 void* allocate_huge(std::size_t bytes);
 void free_huge(void* p, std::size_t bytes);
 
+// An allocator's construct() whose value-initialization writes nothing (default-
+// initialization); other constructors as usual.
+struct DefaultInitConstruct {
+    template <class U>
+    void construct(U* p) noexcept {
+        ::new (static_cast<void*>(p)) U;
+    }
+    template <class U, class... Args>
+    void construct(U* p, Args&&... args) {
+        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+};
+
 template <class T>
 struct HugePageAllocator {
     using value_type = T;
@@ -56,19 +69,11 @@ struct HugePageAllocator {
 // parallel right after allocation, so that their pages fault in on every thread (page
 // faults are slow in a virtual machine: a renderer's 28 MB cell list took 55 ms on one).
 template <class T>
-struct UninitializedHugePageAllocator : HugePageAllocator<T> {
+struct UninitializedHugePageAllocator : HugePageAllocator<T>, DefaultInitConstruct {
     using value_type = T;
     UninitializedHugePageAllocator() = default;
     template <class U>
     UninitializedHugePageAllocator(const UninitializedHugePageAllocator<U>&) {}
-    template <class U>
-    void construct(U* p) noexcept {
-        ::new (static_cast<void*>(p)) U;
-    }
-    template <class U, class... Args>
-    void construct(U* p, Args&&... args) {
-        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-    }
 };
 
 // For arrays whose elements start at zero, such as volumes: memory from calloc, which
@@ -79,7 +84,7 @@ struct UninitializedHugePageAllocator : HugePageAllocator<T> {
 // Caveat: a vector shrunk and then grown in place keeps the old values; Volume never
 // resizes its storage.
 template <class T>
-struct ZeroedAllocator {
+struct ZeroedAllocator : DefaultInitConstruct {
     using value_type = T;
     ZeroedAllocator() = default;
     template <class U>
@@ -92,15 +97,7 @@ struct ZeroedAllocator {
         return static_cast<T*>(p);
     }
     void deallocate(T* p, std::size_t) { std::free(p); }
-    // Value-initialization: the bytes are zero already.
-    template <class U>
-    void construct(U* p) noexcept {
-        ::new (static_cast<void*>(p)) U;
-    }
-    template <class U, class... Args>
-    void construct(U* p, Args&&... args) {
-        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-    }
+    // construct(): value-initialization writes nothing, the bytes are zero already.
     template <class U>
     bool operator==(const ZeroedAllocator<U>&) const {
         return true;
