@@ -8,12 +8,16 @@
 //   build/bench/bench_pbvr fusion out/bmode.json [max_repetitions]   # head + sector
 //   build/bench/bench_pbvr repetitions [count]   # the default settings: ms per repetition
 //                                                # only (no reference; for A/B of changes)
+//   build/bench/bench_pbvr noise [seeds]   # one repetition's error split into noise and
+//                                          # bias, and how concentrated the noise is
 #include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -122,6 +126,95 @@ void bench_fusion(const std::string& sidecar, int max_repetitions) {
               << std::endl;
 }
 
+// Where one repetition's error lies, from `seeds` independent one-repetition images of
+// the head preset (different seeds) against the ray-cast reference: the per-pixel
+// variance (the noise the ensemble averages away: MSE after N repetitions ~ noise / N +
+// bias^2 for independent repetitions) and the bias of the ensemble's limit. Also what
+// adaptive sampling could gain: with n_t repetitions in image tile t at a cost
+// proportional to its pixels, the optimal split costs (sum_t sqrt(V_t P_t))^2 / (P V)
+// of uniform repetitions for the same MSE (V_t: tile t's summed variance, P_t: its pixels
+// with non-zero variance; P, V: the totals).
+void bench_noise(const RenderVolume& volume, const ColourTransferFunction& tf,
+                 const OrbitCamera& camera, const RenderSettings& defaults, int seeds) {
+    RenderSettings settings = defaults;
+    const RgbImage reference = raycast(volume, tf, camera, settings, 0.25);
+    const std::size_t pixels = reference.pixels.size();
+    std::vector<glm::dvec3> sum(pixels, glm::dvec3(0.0));
+    std::vector<double> sum_squares(pixels, 0.0);
+    for (int k = 0; k < seeds; ++k) {
+        settings.seed = 1000 + uint64_t(k);
+        PbvrRenderer renderer(volume, tf, camera, settings);
+        renderer.add_repetition();
+        const RgbImage image = renderer.image();
+        for (std::size_t p = 0; p < pixels; ++p) {
+            const glm::dvec3 v = glm::clamp(glm::dvec3(image.pixels[p]), 0.0, 1.0);  // as psnr()
+            sum[p] += v;
+            sum_squares[p] += glm::dot(v, v);
+        }
+    }
+    // per pixel, mean over the three channels
+    std::vector<double> variance(pixels);
+    double noise = 0.0, squared_error_of_mean = 0.0;
+    std::size_t noisy_pixels = 0;
+    for (std::size_t p = 0; p < pixels; ++p) {
+        const glm::dvec3 mean = sum[p] / double(seeds);
+        variance[p] = std::max(
+            0.0, (sum_squares[p] - double(seeds) * glm::dot(mean, mean)) / double(seeds - 1) / 3.0);
+        const glm::dvec3 d = mean - glm::clamp(glm::dvec3(reference.pixels[p]), 0.0, 1.0);
+        squared_error_of_mean += glm::dot(d, d) / 3.0;
+        noise += variance[p];
+        noisy_pixels += variance[p] > 0.0;
+    }
+    noise /= double(pixels);
+    // E[(mean - reference)^2] = bias^2 + noise / seeds
+    const double bias_squared = squared_error_of_mean / double(pixels) - noise / double(seeds);
+    std::vector<double> sorted = variance;
+    std::sort(sorted.begin(), sorted.end(), std::greater<>());
+    nlohmann::json shares = nlohmann::json::object();
+    for (const double share : {0.5, 0.8, 0.9}) {
+        double running = 0.0;
+        std::size_t n = 0;
+        while (n < sorted.size() && running < share * noise * double(pixels))
+            running += sorted[n++];
+        shares[std::to_string(int(share * 100)) + "%"] = double(n) / double(noisy_pixels);
+    }
+    nlohmann::json adaptive = nlohmann::json::object();
+    for (const int tile : {1, 8, 32}) {
+        const int tiles_x = (camera.width + tile - 1) / tile,
+                  tiles_y = (camera.height + tile - 1) / tile;
+        std::vector<double> tile_variance(std::size_t(tiles_x) * std::size_t(tiles_y), 0.0);
+        std::vector<double> tile_pixels(tile_variance.size(), 0.0);
+        for (int y = 0; y < camera.height; ++y)
+            for (int x = 0; x < camera.width; ++x) {
+                const std::size_t p = std::size_t(y) * std::size_t(camera.width) + std::size_t(x);
+                const std::size_t t =
+                    std::size_t(y / tile) * std::size_t(tiles_x) + std::size_t(x / tile);
+                tile_variance[t] += variance[p];
+                tile_pixels[t] += variance[p] > 0.0 ? 1.0 : 0.0;
+            }
+        double root_sum = 0.0;
+        for (std::size_t t = 0; t < tile_variance.size(); ++t)
+            root_sum += std::sqrt(tile_variance[t] * tile_pixels[t]);
+        adaptive[std::to_string(tile) + "px"] =
+            root_sum * root_sum / (double(noisy_pixels) * noise * double(pixels));
+    }
+    const double target_mse = std::pow(10.0, -3.5);  // 35 dB, peak 1
+    std::cout
+        << nlohmann::json{{"image", "512x512"},
+                          {"seeds", seeds},
+                          {"noise_per_repetition", noise},
+                          {"psnr_one_repetition_db", -10.0 * std::log10(noise + bias_squared)},
+                          {"bias_squared", bias_squared},
+                          {"bias_psnr_db", -10.0 * std::log10(std::max(bias_squared, 1e-12))},
+                          {"independent_repetitions_for_35_db",
+                           bias_squared < target_mse ? noise / (target_mse - bias_squared) : -1.0},
+                          {"pixels_with_noise", noisy_pixels},
+                          {"share_of_noisy_pixels_holding", shares},
+                          {"adaptive_cost_ratio_by_tile", adaptive}}
+               .dump()
+        << std::endl;
+}
+
 int main(int argc, char** argv) {
     tissue::keep_freed_memory();  // as the sonotrace program does
     if (argc > 2 && std::string(argv[1]) == "fusion") {
@@ -155,6 +248,12 @@ int main(int argc, char** argv) {
         int subpixel;
         double radius_scale;
     };
+    if (argc > 1 && std::string(argv[1]) == "noise") {
+        RenderSettings settings;
+        settings.cut_away = cut;
+        bench_noise(volume, tf, camera, settings, argc > 2 ? std::max(2, std::atoi(argv[2])) : 16);
+        return 0;
+    }
     if (repetitions_only) {
         RenderSettings settings;
         settings.cut_away = cut;
