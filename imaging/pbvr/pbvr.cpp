@@ -267,9 +267,11 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
     if (glm::any(glm::greaterThan(n, glm::ivec3(65535))))
         throw InputError("volume", "dims", "at most 65536 voxels per axis");
     const float cell_volume = volume.spacing().x * volume.spacing().y * volume.spacing().z;
-    // Eq. 13's radii are unbounded, so its particles are never culled.
-    const bool cull = settings.occlusion_culling && !adapt_radius_;
-    if (cull) build_occlusion_map();
+    // Cells off the view (behind the eye, outside the image) are always culled; hidden
+    // ones with occlusion culling. Eq. 13's radii are unbounded, so its particles never are.
+    const bool cull = !adapt_radius_;
+    const bool occlusion = settings.occlusion_culling && cull;
+    if (occlusion) build_occlusion_map();
     // Bricks of cells first: one whose voxels are all transparent holds no particle, and
     // one hidden over its whole footprint hides each of its cells (brick_hidden), so
     // their cells are not visited. Most of the head's cells lie in such bricks.
@@ -291,7 +293,7 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
                                 lo = std::min(lo, s), hi = std::max(hi, s);
                             }
                     bool skipped = !(generation_tf_.max_extinction(lo, hi) > 0.0f);
-                    if (!skipped && cull && brick_hidden(first, last)) {
+                    if (!skipped && cull && brick_hidden(first, last, occlusion)) {
                         skipped = true;
                         const glm::ivec3 size = last - first + 1;
                         culled[std::size_t(first.z)] += std::size_t(size.x * size.y * size.z);
@@ -321,7 +323,7 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
                     lo = std::min(lo, s), hi = std::max(hi, s);
                 }
                 const float majorant = generation_tf_.max_extinction(lo, hi);
-                if (majorant > 0.0f && cull && cell_hidden(i, j, k)) {
+                if (majorant > 0.0f && cull && cell_hidden(i, j, k, occlusion)) {
                     culled[std::size_t(k)]++;
                 } else if (majorant > 0.0f) {
                     const uint32_t index = uint32_t(
@@ -580,7 +582,8 @@ void PbvrRenderer::build_occlusion_map() {
 // of what cell_hidden computes for each, over the box of their centres (a perspective
 // ratio e.x / e.z over a box in front of the eye is extreme at a corner). Conservative:
 // false where it cannot tell.
-bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last) const {
+bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last,
+                                bool occlusion) const {
     const glm::vec3 h = volume_.spacing();
     const float half_diagonal = 0.5f * glm::length(h);
     const float L = float(settings_.subpixel_level);
@@ -620,12 +623,14 @@ bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last)
     if (px1 + pr < 0.0f || py1 + pr < 0.0f || px0 - pr > float(camera_.width) ||
         py0 - pr > float(camera_.height))
         return true;
-    return nearest > deepest_occlusion(px0 - pr, px1 + pr, py0 - pr, py1 + pr) + kHiddenMargin;
+    return occlusion &&
+           nearest > deepest_occlusion(px0 - pr, px1 + pr, py0 - pr, py1 + pr) + kHiddenMargin;
 }
 
-// A cell is hidden if its nearest point lies beyond the occlusion depth of every grid
-// ray around its projection (with a margin), or off the image.
-bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
+// A cell is hidden if it lies behind the eye or off the image, or (with `occlusion`) if
+// its nearest point lies beyond the occlusion depth of every grid ray around its
+// projection (with a margin).
+bool PbvrRenderer::cell_hidden(int i, int j, int k, bool occlusion) const {
     const glm::vec3 h = volume_.spacing();
     const float L = float(settings_.subpixel_level);
     const glm::vec3 centre = (glm::vec3(float(i), float(j), float(k)) + 0.5f) * h;
@@ -645,7 +650,8 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k) const {
     if (px + pr < 0.0f || py + pr < 0.0f || px - pr > float(camera_.width) ||
         py - pr > float(camera_.height))
         return true;
-    return nearest > deepest_occlusion(px - pr, px + pr, py - pr, py + pr) + kHiddenMargin;
+    return occlusion &&
+           nearest > deepest_occlusion(px - pr, px + pr, py - pr, py + pr) + kHiddenMargin;
 }
 
 // The largest occlusion depth of the grid rays around image box [x0, x1] x [y0, y1].

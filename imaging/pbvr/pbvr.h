@@ -197,7 +197,8 @@ struct RenderSettings {
                (clip_plane && glm::dot(glm::vec3(*clip_plane), q) + clip_plane->w > 0.0f);
     }
     // Skip cells hidden behind an optical depth of 5 (transmittance < 0.7 %) along every
-    // ray of a grid 4 pixels apart around their projection, and cells off the image.
+    // ray of a grid 4 pixels apart around their projection (cells off the image or behind
+    // the eye are always skipped).
     bool occlusion_culling = true;
     // Bricks of 4^3 cells that are transparent or hidden as a whole are skipped before
     // their cells are classified (the same cells are kept, at half the set-up time; off:
@@ -305,8 +306,8 @@ class PbvrRenderer {
     static constexpr float kHiddenMargin = 2.0f;
     static constexpr int kBrick = 4;  // cells per brick side (set-up culling)
     void build_occlusion_map();
-    bool cell_hidden(int i, int j, int k) const;
-    bool brick_hidden(const glm::ivec3& first, const glm::ivec3& last) const;
+    bool cell_hidden(int i, int j, int k, bool occlusion) const;
+    bool brick_hidden(const glm::ivec3& first, const glm::ivec3& last, bool occlusion) const;
     float deepest_occlusion(float x0, float x1, float y0, float y1) const;
     struct Cell {
         uint16_t i, j, k;    // the cell's corner voxel
