@@ -260,6 +260,10 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
                            glm::normalize(glm::vec3(-1.0f, 0.0f, x_high)),
                            glm::normalize(glm::vec3(0.0f, 1.0f, -y_low)),
                            glm::normalize(glm::vec3(0.0f, -1.0f, y_high))};
+        // A disc's stretch (add_repetition) at the image's corner, doubled for particles
+        // just outside it: the plane tests' radius factor.
+        const float x_far = std::max(-x_low, x_high), y_far = std::max(-y_low, y_high);
+        edge_stretch_ = 2.0f * std::sqrt(std::sqrt(1.0f + x_far * x_far + y_far * y_far));
     }
 
     // Cells that can hold particles, with their majorants.
@@ -600,10 +604,12 @@ bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last,
     }
     if (z_max + half_diagonal <= 0.0f) return true;  // wholly behind the eye
     const float bound = half_diagonal + radius;
+    const float plane_bound = half_diagonal + radius * edge_stretch_;
     for (const glm::vec3& plane : frustum_planes_) {  // distances are linear: all corners out
         bool outside = true;
         for (const glm::vec3& corner : corners)
-            outside = outside && glm::dot(plane, to_camera_ * corner + camera_offset_) < -bound;
+            outside =
+                outside && glm::dot(plane, to_camera_ * corner + camera_offset_) < -plane_bound;
         if (outside) return true;
     }
     for (const glm::vec3& corner : corners) {
@@ -637,8 +643,9 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k, bool occlusion) const {
     const glm::vec3 e = to_camera_ * centre + camera_offset_;
     if (e.z + 0.5f * glm::length(h) <= 0.0f) return true;  // wholly behind the eye
     const float bound = 0.5f * glm::length(h) + cell_radius(centre);
+    const float plane_bound = 0.5f * glm::length(h) + cell_radius(centre) * edge_stretch_;
     for (const glm::vec3& plane : frustum_planes_)
-        if (glm::dot(plane, e) < -bound) return true;  // off the image
+        if (glm::dot(plane, e) < -plane_bound) return true;  // off the image
     const float nearest = e.z - bound;
     if (nearest <= 1e-3f) return false;
     const float px = (centre_x_ + focal_ * e.x / e.z) / L,

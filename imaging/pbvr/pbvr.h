@@ -340,6 +340,9 @@ class PbvrRenderer {
     // frame: a sphere of radius b at e is off the image if dot(plane, e) < -b for one.
     // Near the eye plane the projected disc cannot tell (cells there straddle z = 0).
     std::array<glm::vec3, 4> frustum_planes_{};
+    // Particles' discs are stretched off the axis (add_repetition), so the plane tests
+    // take a cell's radius times this bound on the stretch near the image's edges.
+    float edge_stretch_ = 2.0f;
     std::vector<Cell, tissue::UninitializedHugePageAllocator<Cell>> cells_;  // filled in parallel
     std::size_t culled_cells_ = 0;
     std::size_t skipped_bricks_ = 0;
