@@ -591,37 +591,36 @@ bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last,
     const glm::vec3 h = volume_.spacing();
     const float half_diagonal = 0.5f * glm::length(h);
     const float L = float(settings_.subpixel_level);
+    // Over the corner cells' centres (camera frame): depth, distance from the eye and the
+    // radius are extreme at a corner (linear or convex).
     float z_min = std::numeric_limits<float>::max(), z_max = -z_min, radius = 0.0f;
+    float farthest = 0.0f;
     float u_min = z_min, u_max = -z_min, v_min = z_min, v_max = -z_min;
-    glm::vec3 corners[8];
+    glm::vec3 corners[8];  // camera frame
     for (int c = 0; c < 8; ++c) {
-        corners[c] = glm::vec3((c & 1 ? last.x : first.x) + 0.5f, (c & 2 ? last.y : first.y) + 0.5f,
-                               (c & 4 ? last.z : first.z) + 0.5f) *
-                     h;
-        const glm::vec3 e = to_camera_ * corners[c] + camera_offset_;
+        const glm::vec3 q =
+            glm::vec3((c & 1 ? last.x : first.x) + 0.5f, (c & 2 ? last.y : first.y) + 0.5f,
+                      (c & 4 ? last.z : first.z) + 0.5f) *
+            h;
+        const glm::vec3 e = corners[c] = to_camera_ * q + camera_offset_;
         z_min = std::min(z_min, e.z), z_max = std::max(z_max, e.z);
-        radius = std::max(radius, cell_radius(corners[c]));  // depth is linear: extreme at a corner
+        farthest = std::max(farthest, glm::length(e));
+        radius = std::max(radius, cell_radius(q));
     }
     if (z_max + half_diagonal <= 0.0f) return true;  // wholly behind the eye
     const float bound = half_diagonal + radius;
     const float plane_bound = half_diagonal + radius * edge_stretch_;
     for (const glm::vec3& plane : frustum_planes_) {  // distances are linear: all corners out
         bool outside = true;
-        for (const glm::vec3& corner : corners)
-            outside =
-                outside && glm::dot(plane, to_camera_ * corner + camera_offset_) < -plane_bound;
+        for (const glm::vec3& e : corners) outside = outside && glm::dot(plane, e) < -plane_bound;
         if (outside) return true;
     }
-    for (const glm::vec3& corner : corners) {
-        const glm::vec3 e = to_camera_ * corner + camera_offset_;
+    for (const glm::vec3& e : corners) {
         if (e.z - bound <= 1e-3f) return false;
         u_min = std::min(u_min, e.x / e.z), u_max = std::max(u_max, e.x / e.z);
         v_min = std::min(v_min, e.y / e.z), v_max = std::max(v_max, e.y / e.z);
     }
     const float nearest = z_min - bound;  // no cell's nearest point is nearer
-    float farthest = 0.0f;                // from the eye: the norm is extreme at a corner
-    for (const glm::vec3& corner : corners)
-        farthest = std::max(farthest, glm::length(to_camera_ * corner + camera_offset_));
     // no cell's disc is larger (cell_hidden)
     const float pr = focal_ * bound * (farthest + bound) / (nearest * nearest) / L;
     const float px0 = (centre_x_ + focal_ * u_min) / L, px1 = (centre_x_ + focal_ * u_max) / L;
@@ -641,9 +640,10 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k, bool occlusion) const {
     const float L = float(settings_.subpixel_level);
     const glm::vec3 centre = (glm::vec3(float(i), float(j), float(k)) + 0.5f) * h;
     const glm::vec3 e = to_camera_ * centre + camera_offset_;
-    if (e.z + 0.5f * glm::length(h) <= 0.0f) return true;  // wholly behind the eye
-    const float bound = 0.5f * glm::length(h) + cell_radius(centre);
-    const float plane_bound = 0.5f * glm::length(h) + cell_radius(centre) * edge_stretch_;
+    const float half_diagonal = 0.5f * glm::length(h), radius = cell_radius(centre);
+    if (e.z + half_diagonal <= 0.0f) return true;  // wholly behind the eye
+    const float bound = half_diagonal + radius;
+    const float plane_bound = half_diagonal + radius * edge_stretch_;
     for (const glm::vec3& plane : frustum_planes_)
         if (glm::dot(plane, e) < -plane_bound) return true;  // off the image
     const float nearest = e.z - bound;
