@@ -10,7 +10,11 @@
 #include <mutex>
 #include <numbers>
 #include <opencv2/core.hpp>
+#include <optional>
 
+#include "imaging/psf.h"
+#include "probe/aperture.h"
+#include "probe/pulse.h"
 #include "tissue/acoustic_map.h"
 #include "tissue/fast_math.h"
 #include "tissue/hash.h"
@@ -139,79 +143,22 @@ struct SubLineEnds {
     }
 }
 
-// One line's Gaussian sums across its sub-lines, for every sample i at once:
-// sums[i] = sum over |j| <= reach[i] of g_i(j) sub[centre + j][i], norms[i] = sum of
-// g_i(j)^2, with g_i(j) = ratio[i]^(j^2) by recurrence. Sub-line rows outer, samples
-// inner: contiguous rows, loops that vectorise (per sample, an inner loop over j waited
-// for each multiply and add in turn). Terms are added in the same order as one sample at
-// a time would (j = 1, 2, ...; left, then right), so the sums are the same numbers.
-[[gnu::target_clones("avx2", "default")]] void gaussian_sums(
-    const float* __restrict sub, int n, int sub_lines, int centre, const int* __restrict reach,
-    const double* __restrict ratio, double* __restrict sums, double* __restrict norms,
-    double* __restrict g, double* __restrict q) {
-    int max_reach = 0;
-    const float* __restrict middle = sub + std::size_t(centre) * std::size_t(n);
-    for (int i = 0; i < n; ++i) {
-        sums[i] = double(middle[i]), norms[i] = 1.0, g[i] = 1.0, q[i] = ratio[i];
-        max_reach = std::max(max_reach, reach[i]);
-    }
-    for (int j = 1; j <= max_reach; ++j) {
-        const bool has_left = centre - j >= 0, has_right = centre + j < sub_lines;
-        const float* __restrict left =
-            sub + std::size_t(has_left ? centre - j : 0) * std::size_t(n);
-        const float* __restrict right =
-            sub + std::size_t(has_right ? centre + j : 0) * std::size_t(n);
-        for (int i = 0; i < n; ++i) {
-            const double gi = g[i] * q[i];
-            g[i] = gi, q[i] *= ratio[i] * ratio[i];
-            const double on = j <= reach[i] ? gi : 0.0;  // past the reach: adds +0
-            double sum = sums[i], norm = norms[i];
-            if (has_left) sum += on * double(left[i]), norm += on * on;
-            if (has_right) sum += on * double(right[i]), norm += on * on;
-            sums[i] = sum, norms[i] = norm;
-        }
-    }
-}
-
-// What depends on depth only (speckle_lines): the receive PSF's sigma and the sub-line
-// spacing (mm), once per sample rather than per line and sample.
+// What depends on depth only (speckle_lines): the sub-line spacing (mm) and its inverse.
 struct AtDepth {
-    double receive_sigma, d_sub, inverse_d_sub;
+    double d_sub, inverse_d_sub;
 };
-
-// Per sample of a line: the beam's amplitude sigma from its intensity variance across
-// the line, bounded by the receive PSF and the lattice cell; its reach in sub-lines
-// (3 sigma, at most max_reach) and the log of its Gaussian ratio between neighbouring
-// sub-lines. Built for AVX2, where it vectorises (on the SSE2 baseline GCC does not
-// vectorise the three-double records), and the baseline: the same numbers (no FMA).
-// Selects by value, not std::min/max, whose references keep loops scalar.
-[[gnu::target_clones("avx2", "default")]] void beam_terms(const double* __restrict variance,
-                                                          const AtDepth* __restrict at_depth,
-                                                          double cell, int max_reach, int n,
-                                                          int* __restrict reach,
-                                                          double* __restrict log_ratio) {
-    for (int i = 0; i < n; ++i) {
-        const AtDepth& a = at_depth[i];
-        const double width = std::sqrt(2.0 * variance[i]);
-        const double bounded = a.receive_sigma < width ? a.receive_sigma : width;  // min
-        const double sigma_g = bounded < cell ? cell : bounded;                    // max
-        const double span = 3.0 * sigma_g * a.inverse_d_sub;                       // > 0
-        const int whole = int(span);
-        const int ceiling = whole + int(double(whole) < span);
-        reach[i] = max_reach < ceiling ? max_reach : ceiling;
-        log_ratio[i] = -0.5 * (a.d_sub / sigma_g) * (a.d_sub / sigma_g);
-    }
-}
 
 // The speckle term of every line (see the header): the scatter profile smoothed over a
 // pulse length, the scatterer field on sub-lines between the lines' mean positions, and
-// each line's Gaussian sum across its beam.
-void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& profile,
-                   const MapToWorld& to_world, const ImagingSettings& settings, const LineData& rf,
-                   float* speckle) {
+// each line's sum across its beam weighted by the two-way PSF (complex: in-phase and
+// quadrature parts).
+void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
+                   const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
+                   const ImagingSettings& settings, const LineData& rf, float* speckle_i,
+                   float* speckle_q) {
     const int L = rf.lines, N = rf.samples;
     const double fs = rf.fs_hz;
-    const Pulse pulse{t.frequency_mhz * 1e6, t.bandwidth};
+    const probe::PulseEcho pulse(t);
     const probe::ScanGeometry geometry(t);
     const double cell =
         settings.speckle_cell_mm > 0.0 ? settings.speckle_cell_mm : t.wavelength_mm() / 8.0;
@@ -224,14 +171,13 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     std::vector<double> depth(static_cast<std::size_t>(N));  // mm per sample
     for (int i = 0; i < N; ++i) depth[std::size_t(i)] = rf.depth_mm(i);
 
-    // Per line and sample: intensity w, mean position, variance across the line, from
-    // moments S0 = w, S1 = w d, S2 = w (var + d_across^2) smoothed along the line, with
-    // d the offset from the nominal point (small numbers: no cancellation).
+    // Per line and sample: intensity w and mean position, from moments S0 = w, S1 = w d
+    // smoothed along the line, with d the offset from the nominal point (small numbers:
+    // no cancellation). The fourth moment slot is unused (kept: one vector register).
     // Uninitialised: each line's task writes its whole row (zero-filling ~6 MB first
     // was a serial millisecond per frame).
     const std::size_t size = std::size_t(L) * std::size_t(N);
     const auto w = std::make_unique_for_overwrite<double[]>(size);
-    const auto across_var = std::make_unique_for_overwrite<double[]>(size);
     const auto mean = std::make_unique_for_overwrite<glm::dvec2[]>(size);
     // The mean positions in lattice units, where w > 0 (each is an end of two gaps below).
     const auto lattice = std::make_unique_for_overwrite<glm::vec3[]>(size);
@@ -240,11 +186,9 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     tbb::parallel_for(0, L, [&](int l) {
         const std::size_t row = std::size_t(l) * std::size_t(N);
         double* const w_row = w.get() + row;
-        double* const var_row = across_var.get() + row;
         glm::dvec2* const mean_row = mean.get() + row;
         auto no_echo = [&] {
             std::fill_n(w_row, N, 0.0);
-            std::fill_n(var_row, N, 0.0);
             std::fill_n(mean_row, N, glm::dvec2(0.0));
         };
         if (l >= profile_lines) return no_echo();
@@ -267,9 +211,7 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             }
             const glm::dvec2 d = glm::dvec2(profile.position[at]) -
                                  (line.origin + line.direction * depth[std::size_t(i)]);
-            const double da = glm::dot(d, across);
-            const double var = glm::dot(across, glm::dmat2(profile.covariance[at]) * across);
-            m[i] = {wi, wi * d.x, wi * d.y, wi * (std::max(var, 0.0) + da * da)};
+            m[i] = {wi, wi * d.x, wi * d.y, 0.0};
             peak = std::max(peak, wi);
         }
         if (!(peak > 0.0)) return no_echo();  // a line without echo
@@ -279,17 +221,15 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
             const double s0 = mi[0];
             // Running sums leave rounding residues where there was nothing.
             if (!(s0 > 1e-9 * peak)) {
-                w_row[i] = var_row[i] = 0.0;
+                w_row[i] = 0.0;
                 mean_row[i] = glm::dvec2(0.0);
                 continue;
             }
             const double inverse_s0 = 1.0 / s0;
             const glm::dvec2 d(mi[1] * inverse_s0, mi[2] * inverse_s0);
-            const double da = glm::dot(d, across);
             w_row[i] = s0;
             mean_row[i] = (line.origin + line.direction * depth[std::size_t(i)]) + d;
             lattice[row + std::size_t(i)] = glm::vec3(to_lattice(mean_row[i]));
-            var_row[i] = std::max(0.0, mi[3] * inverse_s0 - da * da);
         }
     });
 
@@ -301,7 +241,8 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
     double widest_gap = 0.0;
     for (double d : {0.0, 0.5 * t.depth_mm, t.depth_mm})
         widest_gap = std::max(widest_gap, geometry.line_spacing_mm(d));
-    const double narrowest_sigma = std::max(cell, t.wavelength_mm() * t.f_number / kFwhmPerSigma);
+    const double narrowest_sigma =
+        std::max(cell, t.wavelength_mm() * std::max(t.rx_f_number, 0.5) / kFwhmPerSigma);
     const int K = std::clamp(
         int(std::ceil(widest_gap / (narrowest_sigma * settings.sub_line_sigmas))), 1, 32);
     const int sub_lines = std::max(L - 1, 0) * K + 1;
@@ -350,72 +291,64 @@ void speckle_lines(const probe::Transducer& t, const simulator::EchoProfile<2>& 
         }
     });
 
-    // Each line sums the sub-lines under its two-way beam, amplitude weights g. The
-    // particles give the transmit beam (intensity variance v, so amplitude variance 2v; at
-    // the focus already two-way through the receive weights); dynamic receive focusing
-    // bounds it by the receive PSF, FWHM lambda * max(F, depth / array). Normalised by the
-    // field's mean square over the sum (lattice correlation along the sub-lines and along
-    // the samples included), the mean speckle intensity is the profile's, averaged over
-    // the beam.
+    // Each line sums the sub-lines under its two-way beam, weighted by the line's PSF
+    // H(x, z) at their offsets x = j d_sub. With white field values (lattice correlation
+    // along the sub-lines and the samples divided out), the mean square of the sum is
+    // w sum |H_j|^2 d_sub = w integral |H|^2 dx: the profile's intensity times the lateral
+    // power of the two-way beam, which peaks at the transmit focus. Divided by that power
+    // on the central line at the focus, the level there is the profile's (the scatter
+    // fraction is calibrated at the focus; elsewhere the aperture sets it).
     const double axial_correlation =
         lattice_correlation_sum((rf.depth_mm(1) - rf.depth_mm(0)) / cell);
     // What depends on depth only, once per sample rather than per line and sample.
     std::vector<AtDepth> at_depth(static_cast<std::size_t>(N));
-    std::vector<float> inverse_correlation(static_cast<std::size_t>(N));
+    std::vector<double> scale(static_cast<std::size_t>(N));
     for (int i = 0; i < N; ++i) {
         const double d = depth[std::size_t(i)];
         AtDepth& a = at_depth[std::size_t(i)];
-        a.receive_sigma =
-            t.wavelength_mm() * std::max(t.f_number, d / t.array_length_mm()) / kFwhmPerSigma;
         a.d_sub = std::max(geometry.line_spacing_mm(d), 1e-6) / K;
         a.inverse_d_sub = 1.0 / a.d_sub;
-        inverse_correlation[std::size_t(i)] =
-            float(1.0 / (lattice_correlation_sum(a.d_sub / cell) * axial_correlation));
+        scale[std::size_t(i)] = std::sqrt(a.d_sub / (lattice_correlation_sum(a.d_sub / cell) *
+                                                     axial_correlation * psf.focal_power()));
     }
+    const int max_reach = 8 * K;
     tbb::parallel_for(0, L, [&](int l) {
-        // Per sample: the beam's width, reach and Gaussian ratio in loops without
-        // branches (they vectorise; inline, each sample waited for its root, division and
-        // exponential in turn), then the sums, then the normalisation.
-        const std::size_t n = std::size_t(N), row = std::size_t(l) * n;
-        std::vector<double> sums(n), norms(n), ratio(n), g(n), q(n);
-        std::vector<int> reach(n);
-        beam_terms(across_var.get() + row, at_depth.data(), cell, 8 * K, N, reach.data(),
-                   ratio.data());
-        for (std::size_t i = 0; i < n; ++i) ratio[i] = double(tissue::exp_float(float(ratio[i])));
-        gaussian_sums(sub.get(), N, sub_lines, l * K, reach.data(), ratio.data(), sums.data(),
-                      norms.data(), g.data(), q.data());
-        float* out = speckle + row;
-        for (std::size_t i = 0; i < n; ++i) {  // nothing where the line has no echo
-            // Computed for every sample (norms >= 1), selected after: the loop vectorises.
-            const float value =
-                float(sums[i]) * std::sqrt(inverse_correlation[i] / float(norms[i]));
-            out[i] = w[row + i] > 0.0 ? value : 0.0f;
+        const std::size_t row = std::size_t(l) * std::size_t(N);
+        const int centre = l * K;
+        for (int i = 0; i < N; ++i) {
+            float* out_i = speckle_i + row + std::size_t(i);
+            float* out_q = speckle_q + row + std::size_t(i);
+            if (!(w[row + std::size_t(i)] > 0.0)) {  // nothing where the line has no echo
+                *out_i = *out_q = 0.0f;
+                continue;
+            }
+            const double z = depth[std::size_t(i)], d_sub = at_depth[std::size_t(i)].d_sub;
+            const PsfTable::Row& nearest = psf.row(l, int(std::lround(z / psf.dz())));
+            const int reach = std::min(
+                max_reach, int(std::ceil(nearest.half * nearest.dx * at_depth[std::size_t(i)].inverse_d_sub)));
+            double sum_i = 0.0, sum_q = 0.0;
+            for (int j = std::max(-reach, -centre); j <= reach && centre + j < sub_lines; ++j) {
+                const std::complex<float> h = psf.at(l, j * d_sub, z);
+                const float v = sub[std::size_t(centre + j) * std::size_t(N) + std::size_t(i)];
+                sum_i += double(h.real() * v), sum_q += double(h.imag() * v);
+            }
+            *out_i = float(sum_i * scale[std::size_t(i)]);
+            *out_q = float(sum_q * scale[std::size_t(i)]);
         }
     });
 }
 
-// out[n] += amplitude * pulse((n - at) / fs) for n in [lo, hi], the pulse by recurrences
-// on the uniform sample grid (Gaussian ratio, rotating phasor: a multiply each instead of
-// exp and cos per sample; rounding after 30 taps ~1e-14).
-void add_pulse(const Pulse& pulse, double at, double fs, double amplitude, int lo, int hi,
-               float* out) {
-    if (hi < lo) return;
-    const double s = pulse.sigma_s(), w = 2.0 * std::numbers::pi * pulse.frequency_hz;
-    const double dt = 1.0 / fs, t0 = (lo - at) * dt;
-    const double dc = std::exp(-0.5 * w * w * s * s);  // the DC the pulse does not pass
-    const double k = 0.5 / (s * s);
-    double gauss = amplitude * std::exp(-k * t0 * t0);
-    double ratio = std::exp(-k * (2.0 * t0 * dt + dt * dt));  // gauss(n + 1) / gauss(n)
-    const double ratio_step = std::exp(-2.0 * k * dt * dt);
-    double re = std::cos(w * t0), im = std::sin(w * t0);
-    const double rot_re = std::cos(w * dt), rot_im = std::sin(w * dt);
-    for (int n = lo; n <= hi; ++n) {
-        out[n] += float(gauss * (re - dc));
-        gauss *= ratio;
-        ratio *= ratio_step;
-        const double next_re = re * rot_re - im * rot_im;
-        im = re * rot_im + im * rot_re;
-        re = next_re;
+// out[n] += Re{amplitude (p + i q)((n - at) / fs)} for n in [lo, hi]: the pulse-echo
+// waveform with the echo's phase.
+void add_pulse(const probe::PulseEcho& pulse, double at, double fs, std::complex<double> amplitude,
+               float* out, int n) {
+    const double reach = pulse.half_length_s() * fs;
+    const int lo = std::max(0, int(std::ceil(at - reach))),
+              hi = std::min(n - 1, int(std::floor(at + reach)));
+    for (int i = lo; i <= hi; ++i) {
+        const double tau = (i - at) / fs;
+        out[i] += float(amplitude.real() * pulse.in_phase(tau) -
+                        amplitude.imag() * pulse.quadrature(tau));
     }
 }
 
@@ -434,25 +367,6 @@ float compression_offset(double gain_db, double dynamic_range_db) {
 }
 
 }  // namespace
-
-double Pulse::sigma_s() const {
-    const double sigma_f = bandwidth * frequency_hz / kFwhmPerSigma;
-    return 1.0 / (2.0 * std::numbers::pi * sigma_f);
-}
-double Pulse::envelope_fwhm_s() const {
-    return kFwhmPerSigma * sigma_s();
-}
-double Pulse::axial_fwhm_mm() const {
-    return 0.5 * kC0 * envelope_fwhm_s() * 1e3;
-}
-double Pulse::operator()(double t) const {
-    // Zero mean, as a transducer's pulse is (it passes no DC): the Gaussian-modulated
-    // cosine minus its DC, exp(-(w sigma)^2 / 2) times the Gaussian (Morlet's correction,
-    // 1.3 % at B = 0.8). With DC, the Hilbert envelope grows 1/t tails: a grey haze tens
-    // of dB under a strong echo but over its whole line.
-    const double s = sigma_s(), w = 2.0 * std::numbers::pi * frequency_hz;
-    return std::exp(-0.5 * t * t / (s * s)) * (std::cos(w * t) - std::exp(-0.5 * w * w * s * s));
-}
 
 double tgc_gain_db(const std::vector<TgcPoint>& curve, double depth_mm) {
     if (curve.empty()) return 0.0;
@@ -501,14 +415,14 @@ double reflection_back_fraction(double cos_incidence, double lobe_exponent,
 LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
                        const std::vector<simulator::EchoEvent<2>>& events,
                        const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
-                       const ImagingSettings& settings) {
+                       const ImagingSettings& settings, const std::vector<PointEcho>& points) {
     LineData rf = rf_layout(t, settings);
     const int L = rf.lines, N = rf.samples;
     const double fs = rf.fs_hz;
-    const Pulse pulse{t.frequency_mhz * 1e6, t.bandwidth};
+    const probe::PulseEcho pulse(t);
     const probe::ScanGeometry geometry(t);
 
-    // Particle (line, index within line) -> source, for energies and receive weights.
+    // Particle (line, index within line) -> source, for launch points and energies.
     std::vector<std::vector<uint32_t>> of_line(static_cast<std::size_t>(L));
     for (std::size_t s = 0; s < sources.size(); ++s) {
         if (sources[s].line < uint32_t(L)) of_line[sources[s].line].push_back(uint32_t(s));
@@ -534,77 +448,111 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     // -- speckle (header)
     const bool with_speckle = settings.speckle && profile.lines > 0 && profile.bins == N &&
                               profile.covariance.size() == profile.intensity.size();
+    // The lines' PSF table, where speckle or reflections need it (computed once per probe
+    // set-up; point targets alone do not).
+    const std::shared_ptr<const PsfTable> psf =
+        with_speckle || !event_order.empty() ? PsfTable::of(t) : nullptr;
     const std::size_t size = std::size_t(L) * std::size_t(N);
-    const auto speckle = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
-    if (with_speckle) speckle_lines(t, profile, to_world, settings, rf, speckle.get());
+    const auto speckle_i = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
+    const auto speckle_q = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
+    if (with_speckle)
+        speckle_lines(t, *psf, profile, to_world, settings, rf, speckle_i.get(), speckle_q.get());
 
     // -- RF per line: speckle (*) pulse, plus a pulse at each reflection bin's echo time
-    const int half = int(std::ceil(4.0 * pulse.sigma_s() * fs));
-    std::vector<float> taps(std::size_t(2 * half + 1));
-    for (int i = -half; i <= half; ++i) taps[std::size_t(i + half)] = float(pulse(i / fs));
+    // and at each point target's. Convolution taps: kernel[m + half] = p(-m / fs).
+    const int half = int(std::ceil(pulse.half_length_s() * fs));
+    std::vector<float> taps_i(std::size_t(2 * half + 1)), taps_q(std::size_t(2 * half + 1));
+    for (int m = -half; m <= half; ++m) {
+        taps_i[std::size_t(m + half)] = float(pulse.in_phase(-m / fs));
+        taps_q[std::size_t(m + half)] = float(-pulse.quadrature(-m / fs));  // Re{(a+ib)(p+iq)}
+    }
+    // The point targets through each line's exact two-way field (few targets: no table).
+    std::vector<std::optional<probe::LineFields>> fields(std::size_t(points.empty() ? 0 : L));
+    const double depth_to_samples = 2.0 * 1e-3 / kC0 * fs;
     rf.values.resize(size);
     tbb::parallel_for(0, L, [&](int l) {
-        // Reflections: intensity per sample bin, with its intensity-weighted echo time
-        // (the pulse goes there exactly: a split between samples 1/(4 f0) apart would add
-        // two pulses a quarter period out of phase).
+        // Reflections: per sample bin, the intensity that reached an interface and came
+        // back (energy x R^2 x two-way loss) times the squared plane response of the line
+        // at the reflector's depth and tilt, with the intensity-weighted echo time (the
+        // pulse goes there exactly: a split between samples 1/(4 f0) apart would add two
+        // pulses a quarter period out of phase) and the phase of the plane response.
         std::vector<double> reflected(std::size_t(N), 0.0), reflected_time(std::size_t(N), 0.0);
+        std::vector<std::complex<double>> phase(std::size_t(N), 0.0);
         const auto& line = of_line[std::size_t(l)];
         const ScanLine axis = geometry.line(l);
         for (uint32_t n = event_start[std::size_t(l)]; n < event_start[std::size_t(l) + 1]; ++n) {
             const auto& e = events[event_order[n]];
             if (e.particle >= line.size()) continue;
             const auto& source = sources[line[e.particle]];
-            double intensity = double(e.energy) * e.weight * source.receive_weight;
+            double intensity = double(e.energy) * e.weight;
             double echo_time = e.time_s;  // the particle came back itself: the full round trip
+            std::complex<double> response = 1.0;
             if (e.kind != simulator::EchoKind::returned_to_probe) {
-                echo_time = 2.0 * e.time_s;  // monostatic estimate: twice the one-way time
+                echo_time = 2.0 * e.time_s;  // monostatic: twice the one-way time
                 intensity *= double(e.energy) / std::max(double(source.energy), 1e-30) *
                              double(e.return_weight);
-                // Of the reflected energy, the share that returns into the receive aperture
-                // (dynamic receive at the F-number, at most the array) seen from the event.
+                // The apparent reflector: at the echo's range along the line, tilted from
+                // the line by the interface's normal (the image's receive sees the echo
+                // come back the way the particle left, by reciprocity). A specular plane
+                // answers with the coherent plane response of the two-way field, which
+                // vanishes once the tilt leaves the aperture's angular span; a rough one
+                // scatters its lobe, of which the receive aperture takes its share.
                 const double range_mm = std::max(e.time_s * kC0 * 1e3, 1e-3);
-                const double aperture = std::min(t.array_length_mm(), range_mm / t.f_number);
-                intensity *= reflection_back_fraction(e.cos_incidence, e.lobe_exponent,
-                                                      std::atan(0.5 * aperture / range_mm));
-                // Dynamic receive focusing: the receive beam of the line at the event's
-                // range (intensity FWHM lambda F#_rx, as the speckle's) weights an echo by
-                // how far the event lies across the beam. Without it every line whose wide
-                // transmit beam grazes a strong target would show it: streaks beyond the
-                // focus. By reciprocity the receive beam bends as the transmit beam does,
-                // so it is centred on the transmit beam's centroid at that echo time (the
-                // scatter profile), or on the straight line where the profile is empty.
-                const double bin = echo_time * fs;
-                glm::dvec2 centre = to_world.face_in_map + axis.origin + axis.direction * range_mm;
-                if (l < profile.lines && bin >= 0.0 && bin < double(profile.bins)) {
-                    const std::size_t at =
-                        std::size_t(l) * std::size_t(profile.bins) + std::size_t(bin);
-                    if (profile.intensity[at] > 0.0f) centre = glm::dvec2(profile.position[at]);
+                const glm::dvec2 n_event(e.normal);
+                const double sin_tilt =
+                    glm::dot(n_event, n_event) > 0.0
+                        ? std::min(1.0, std::abs(n_event.x * axis.direction.y -
+                                                 n_event.y * axis.direction.x))
+                        : 0.0;
+                if (e.kind == simulator::EchoKind::diffuse) {
+                    const double aperture = t.receive_aperture_mm(range_mm);
+                    response = psf->plane(l, range_mm, 0.0) *
+                               std::sqrt(reflection_back_fraction(
+                                   std::sqrt(1.0 - sin_tilt * sin_tilt), e.lobe_exponent,
+                                   std::atan(0.5 * aperture / range_mm)));
+                } else {
+                    response = psf->plane(l, range_mm, sin_tilt);
                 }
-                const glm::dvec2 q = glm::dvec2(e.position) - centre;
-                const double across = q.x * axis.direction.y - q.y * axis.direction.x;
-                const double sigma = t.wavelength_mm() * (range_mm / aperture) / kFwhmPerSigma;
-                intensity *= std::exp(-0.5 * across * across / (sigma * sigma));
             }
             const double position = echo_time * fs;
             if (!(position >= 0.0) || position >= double(N - 1)) continue;
-            reflected[std::size_t(position)] += intensity;
-            reflected_time[std::size_t(position)] += intensity * position;
+            const double weighted = intensity * std::norm(response);
+            if (!(weighted > 0.0)) continue;
+            reflected[std::size_t(position)] += weighted;
+            reflected_time[std::size_t(position)] += weighted * position;
+            phase[std::size_t(position)] += intensity * response;
         }
 
         const std::size_t row = std::size_t(l) * std::size_t(N);
         float* out = rf.values.data() + row;
-        if (with_speckle)
-            convolve(speckle.get() + row, N, taps, out);
-        else
+        if (with_speckle) {
+            std::vector<float> quadrature(static_cast<std::size_t>(N));
+            convolve(speckle_i.get() + row, N, taps_i, out);
+            convolve(speckle_q.get() + row, N, taps_q, quadrature.data());
+            for (int i = 0; i < N; ++i) out[i] += quadrature[std::size_t(i)];
+        } else {
             std::fill_n(out, N, 0.0f);
+        }
         for (int i = 0; i < N; ++i) {
             const double intensity = reflected[std::size_t(i)];
             if (!(intensity > 0.0)) continue;
             const double at = reflected_time[std::size_t(i)] / intensity;  // samples
-            const double amplitude = std::sqrt(intensity);
-            const int lo = std::max(0, int(std::ceil(at - half))),
-                      hi = std::min(N - 1, int(std::floor(at + half)));
-            add_pulse(pulse, at, fs, amplitude, lo, hi, out);
+            const std::complex<double> p = phase[std::size_t(i)];
+            const double magnitude = std::abs(p);
+            const std::complex<double> unit = magnitude > 0.0 ? p / magnitude : 1.0;
+            add_pulse(pulse, at, fs, std::sqrt(intensity) * unit, out, N);
+        }
+        if (!points.empty()) {
+            auto& f = fields[std::size_t(l)];
+            if (!f) f.emplace(t, probe::line_array(t, l));
+            const glm::dvec2 across(axis.direction.y, -axis.direction.x);
+            for (const PointEcho& p : points) {
+                const glm::dvec2 d = p.position - to_world.face_in_map - axis.origin;
+                const glm::dvec2 q(glm::dot(d, across), glm::dot(d, axis.direction));
+                if (!(q.y > 0.0) || q.y > t.depth_mm) continue;
+                const std::complex<double> h = f->two_way(q);
+                add_pulse(pulse, q.y * depth_to_samples, fs, p.amplitude * h, out, N);
+            }
         }
     });
     return rf;

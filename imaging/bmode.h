@@ -33,18 +33,6 @@
 
 namespace sonotrace::imaging {
 
-// Pulse-echo response: a Gaussian-modulated sinusoid at f0 whose -6 dB spectrum width is
-// bandwidth * f0. Spectrum sigma_f = B f0 / (2 sqrt(2 ln 2)); time sigma_t = 1/(2 pi sigma_f).
-struct Pulse {
-    double frequency_hz = 3.5e6;
-    double bandwidth = 0.8;
-
-    double sigma_s() const;
-    double envelope_fwhm_s() const;  // 2 sqrt(2 ln 2) sigma_t
-    double axial_fwhm_mm() const;    // c0 / 2 * envelope FWHM
-    double operator()(double t) const;
-};
-
 // A point of the TGC curve: gain (dB) at a depth (mm); linear in between, constant beyond.
 struct TgcPoint {
     double depth_mm = 0.0;
@@ -109,12 +97,21 @@ struct MapToWorld {
     }
 };
 
+// A point target as the image sees it: where it is (mm, map frame) and its echo's
+// amplitude factor sqrt(P sigma lambda / (2 pi)) (probe/aperture.h), the two-way losses
+// of its path included; each line's two-way field H at its position scales it.
+struct PointEcho {
+    glm::dvec2 position{0.0};
+    double amplitude = 0.0;
+};
+
 // The RF lines of a frame. `events` and `profile` come from one trace of `sources`
-// (profile bins must equal the layout's samples at bin width 1/fs).
+// (profile bins must equal the layout's samples at bin width 1/fs); `points` are imaged
+// through each line's two-way field without being traced.
 LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
                        const std::vector<simulator::EchoEvent<2>>& events,
                        const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
-                       const ImagingSettings& settings);
+                       const ImagingSettings& settings, const std::vector<PointEcho>& points = {});
 
 // Envelope of every line: magnitude of the analytic signal (FFT Hilbert transform).
 LineData envelope(const LineData& rf);

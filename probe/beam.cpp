@@ -125,7 +125,6 @@ Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const g
             p.energy = 1.0f / float(n);
             p.line = uint32_t(l);
             p.time_s = float((t.focus_mm - glm::length(focus - element)) * seconds_per_mm);
-            p.receive_weight = float(std::exp(-0.5 * offset * offset / (sigma * sigma)));
             sources.push_back(p);
         }
     }

@@ -4,13 +4,12 @@
 //
 // Each particle leaves a point of the active aperture, drawn from the Hann apodization,
 // and travels straight towards the focal point displaced sideways by an aim offset drawn
-// from a Gaussian: the beam converges to a focal waist and diverges after it. The waist
-// stands in for diffraction, which rays do not have: its width is chosen so that the
-// pulse-echo (two-way) lateral amplitude profile at the focus has a FWHM of
-// lambda * F-number. By reciprocity the receive sensitivity for a particle's echoes is
-// the same profile at its aim offset (SourceParticle::receive_weight), so echo intensity
-// goes as transmit density x receive weight = G(offset; sigma)^2 and the envelope as
-// G(offset; sigma): FWHM = 2.355 sigma = lambda * F-number.
+// from a Gaussian: the beam converges to a focal waist and diverges after it. The
+// particles carry the beam's energy through the tissue (refraction, reflection,
+// attenuation, shadowing); the image's lateral resolution does not come from their
+// spread but from the aperture's two-way field (probe/aperture.h), applied to their
+// echoes by the image formation. The waist only keeps the energy where the beam goes:
+// its width is lambda * F-number (FWHM of the two-way amplitude at the focus).
 //
 // Transmit delays start each particle's clock so that all reach the focus together
 // (focal time = focus / c0); the monostatic echo time 2t then places the focus at its

@@ -18,9 +18,6 @@ struct SourceParticle {
     // elements that fire before the centre one, so the beam's particles reach the focus
     // together. Echo times include it, as the receive delays of a real scanner would.
     float time_s = 0.0f;
-    // Receive sensitivity for echoes this particle causes (0..1): by reciprocity the
-    // beam profile at the particle's own aim point (see probe/beam.h).
-    float receive_weight = 1.0f;
 };
 
 template <int Dim>

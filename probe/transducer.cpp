@@ -21,6 +21,41 @@ std::string to_string(TransducerType type) {
     return "?";
 }
 
+std::string to_string(Apodization a) {
+    switch (a) {
+        case Apodization::rectangular:
+            return "rectangular";
+        case Apodization::hann:
+            return "hann";
+        case Apodization::tukey:
+            return "tukey";
+    }
+    return "?";
+}
+
+Apodization parse_apodization(const std::string& name, const std::string& source,
+                              const std::string& field) {
+    for (Apodization a : {Apodization::rectangular, Apodization::hann, Apodization::tukey})
+        if (to_string(a) == name) return a;
+    throw tissue::InputError(source, field,
+                             "unknown apodization '" + name + "' (rectangular, hann, tukey)");
+}
+
+double apodization_weight(Apodization a, double u) {
+    if (!(u >= 0.0 && u <= 1.0)) return 0.0;
+    switch (a) {
+        case Apodization::rectangular:
+            return 1.0;
+        case Apodization::hann:
+            return 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * u);
+        case Apodization::tukey: {  // alpha = 0.5: tapers over u < 1/4 and u > 3/4
+            const double edge = std::min(u, 1.0 - u);
+            return edge >= 0.25 ? 1.0 : 0.5 - 0.5 * std::cos(std::numbers::pi * edge / 0.25);
+        }
+    }
+    return 0.0;
+}
+
 void Transducer::validate(const std::string& source) const {
     auto in_range = [&](double v, double lo, double hi, const char* field, const char* unit) {
         tissue::require_in_range(source, field, v, lo, hi, unit);
@@ -38,6 +73,17 @@ void Transducer::validate(const std::string& source) const {
                                      std::to_string(depth_mm) + " mm)");
     }
     in_range(f_number, 0.5, 20.0, "f-number", "");
+    if (!(rx_f_number > 0.0))
+        throw tissue::InputError(source, "rx-f-number",
+                                 "the receive F-number must be > 0 (a small value such as 0.1 "
+                                 "receives on the whole array), got " +
+                                     std::to_string(rx_f_number));
+    in_range(rx_f_number, 1e-3, 20.0, "rx-f-number", "");
+    if (!(cycles > 0.0))
+        throw tissue::InputError(source, "cycles",
+                                 "the excitation needs a positive number of cycles, got " +
+                                     std::to_string(cycles));
+    in_range(cycles, 0.01, 64.0, "cycles", "");
     in_range(elevation_focus_mm, 1.0, 1000.0, "elevation-focus", "mm");
     in_range(slice_thickness_mm, 0.01, 50.0, "slice-thickness", "mm");
     in_range(lines, 1, 4096, "lines", "");
@@ -72,6 +118,9 @@ double Transducer::array_length_mm() const {
 double Transducer::active_aperture_mm() const {
     return std::min(focus_mm / f_number, array_length_mm());
 }
+double Transducer::receive_aperture_mm(double range_mm) const {
+    return std::min(std::max(range_mm, 0.0) / rx_f_number, array_length_mm());
+}
 double Transducer::radius_of_lines() const {
     return type == TransducerType::convex ? radius_mm : 0.0;
 }
@@ -86,7 +135,15 @@ const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
         {"frequency", "MHz", "centre frequency of the pulse"},
         {"bandwidth", "", "fractional -6 dB bandwidth of the pulse-echo spectrum"},
         {"focus", "mm", "transmit focus depth"},
-        {"f-number", "", "focus depth / active aperture width"},
+        {"f-number", "", "transmit F-number: focus depth / active transmit aperture width"},
+        {"tx-apodization", "",
+         "weighting of the transmit aperture: rectangular, hann or tukey (cosine tapers over "
+         "the outer quarters)"},
+        {"rx-f-number", "",
+         "receive F-number: the receive aperture expands as depth / F-number (dynamic focus "
+         "at every depth, at most the array); 0.1 = the whole array"},
+        {"rx-apodization", "", "weighting of the receive aperture: rectangular, hann or tukey"},
+        {"cycles", "", "excitation length in cycles of a sine at the centre frequency"},
         {"elevation-focus", "mm", "depth of the fixed elevation (lens) focus"},
         {"slice-thickness", "mm", "elevation beam width (-6 dB) at the elevation focus"},
         {"depth", "mm", "imaging depth from the face along each scan line"},
@@ -102,6 +159,11 @@ const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
 // range, elevation focus and element height. Where a sheet gives an element height h,
 // the slice thickness is the diffraction-limited lambda * elevation focus / h. Transmit
 // focus, F-number, depth and line count are typical scanner settings, not probe data.
+// Every preset keeps the struct's imaging defaults: a one-cycle excitation (the B-mode
+// pulse of research scanners such as the Verasonics Vantage), a Tukey-tapered transmit
+// aperture, and a dynamic receive at F/1.5 with a Hann window: the usual rule of
+// delay-and-sum beamformers, an F-number of 1-2 so that the edge elements still see the
+// focus within their directivity, and a taper against side lobes.
 const std::vector<Transducer>& transducer_presets() {
     static const std::vector<Transducer> presets = [] {
         std::vector<Transducer> p;

@@ -18,6 +18,19 @@ enum class TransducerType { linear, convex, phased };
 
 std::string to_string(TransducerType type);
 
+// Weighting of the elements across an active aperture.
+enum class Apodization {
+    rectangular,  // all elements alike
+    hann,         // raised cosine: lowest side lobes, widest main lobe
+    tukey,        // flat middle, cosine tapers over the outer quarters (alpha 0.5)
+};
+std::string to_string(Apodization a);
+// By name; throws tissue::InputError(source, field) listing the names otherwise.
+Apodization parse_apodization(const std::string& name, const std::string& source,
+                              const std::string& field);
+// Weight of an element at fraction u in [0, 1] across the active aperture (0 outside).
+double apodization_weight(Apodization a, double u);
+
 struct Transducer {
     std::string name = "custom";
     std::string description;
@@ -29,7 +42,13 @@ struct Transducer {
     double frequency_mhz = 3.5;
     double bandwidth = 0.8;  // fractional, -6 dB of the pulse-echo spectrum
     double focus_mm = 50.0;  // transmit focus depth
-    double f_number = 2.0;   // focus depth / active aperture
+    double f_number = 2.0;   // transmit: focus depth / active aperture
+    Apodization tx_apodization = Apodization::tukey;
+    // Receive: dynamic focus at every depth with an aperture expanding as depth / F-number
+    // (at most the array).
+    double rx_f_number = 1.5;
+    Apodization rx_apodization = Apodization::hann;
+    double cycles = 1.0;  // excitation: cycles of a sine at the centre frequency
     double elevation_focus_mm = 60.0;
     double slice_thickness_mm = 3.0;  // elevation beam width (-6 dB) at the elevation focus
     double depth_mm = 80.0;           // imaging depth from the face along each line
@@ -41,7 +60,8 @@ struct Transducer {
 
     double wavelength_mm() const;       // at the centre frequency and 1540 m/s
     double array_length_mm() const;     // elements * pitch (along the face)
-    double active_aperture_mm() const;  // focus / F-number, at most the array
+    double active_aperture_mm() const;  // transmit: focus / F-number, at most the array
+    double receive_aperture_mm(double range_mm) const;  // depth / rx F-number, at most the array
     double radius_of_lines() const;     // radius of the lines' common arc (0 for phased)
     bool is_fan() const { return type != TransducerType::linear; }
 };

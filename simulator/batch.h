@@ -88,7 +88,6 @@ struct Batch {
     static constexpr std::size_t N = kSize;
     LaneVectors<Dim, kSize> position, direction;
     std::array<float, N> energy{}, initial_energy{}, optical_depth{}, scatter_target{};
-    std::array<float, N> receive_weight{};
     // Product of the probabilities of the stochastic choices made so far (R^2 for each
     // reflection taken, 1 - R^2 for each transmission): by reciprocity the echo's way
     // back makes the same crossings, so its two-way intensity carries this factor again.
@@ -113,7 +112,7 @@ struct Batch {
         const auto to = std::size_t(k), from = std::size_t(last);
         position.copy(k, last), direction.copy(k, last), interface_normal.copy(k, last);
         energy[to] = energy[from], initial_energy[to] = initial_energy[from];
-        receive_weight[to] = receive_weight[from], return_factor[to] = return_factor[from];
+        return_factor[to] = return_factor[from];
         optical_depth[to] = optical_depth[from], scatter_target[to] = scatter_target[from];
         previous_index[to] = previous_index[from];
         pending_texel[to] = pending_texel[from];

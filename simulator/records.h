@@ -35,6 +35,9 @@ struct EchoEvent {
     // Monostatic receive: the probabilities of the particle's stochastic choices before
     // the event (tracer.cpp, Batch::return_factor), which the echo's way back repeats.
     float return_weight = 1.0f;
+    // Reflections: the interface's unit normal, facing the side the particle came from
+    // (zero for other kinds): the image's plane response needs the reflector's tilt.
+    glm::vec<Dim, float> normal{0.0f};
     bool operator==(const EchoEvent&) const = default;  // field-wise: padding is indeterminate
 };
 

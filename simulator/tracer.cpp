@@ -490,7 +490,6 @@ class LineTracer {
         b.previous_index[k] = map_.sample_refractive_index(s.position);
         b.pending_texel[k] = uint32_t(texel_index(s.position));
         b.pending_fluence[k] = b.pending_absorbed[k] = 0.0f;
-        b.receive_weight[k] = s.receive_weight;
         b.return_factor[k] = 1.0f;
         b.time[k] = double(s.time_s);
         b.path_length[k] = 0.0;
@@ -518,7 +517,7 @@ class LineTracer {
         // rate * step * echo fraction, each proportional to the backscatter
         const float scattered = profile_scale_ * backscatter * backscatter;
         const float two_way = E / b.initial_energy[k] * b.return_factor[k];
-        const double intensity = double(E * scattered * two_way * b.receive_weight[k]);
+        const double intensity = double(E * scattered * two_way);
         ProfileBin<Dim>& p = out_->profile[std::size_t(bin)];
         p.weight += intensity;
         int pair = 0;
@@ -793,7 +792,8 @@ class LineTracer {
         const double to_middle_s =
             double(to_middle_mm) * seconds_per_mm_ * near_side.refractive_index;
         record_echo(b, k, x + r * to_middle_mm, E, R2,
-                    c < 1e4f ? EchoKind::diffuse : EchoKind::specular, cos_i, c, to_middle_s);
+                    c < 1e4f ? EchoKind::diffuse : EchoKind::specular, cos_i, c, to_middle_s,
+                    -forward);
         if (R2 < follow_reflections_above_) {  // scored, not followed (TraceSettings)
             out_->ledger.recorded += double(E) * R2;
             E -= E * R2;
@@ -824,10 +824,11 @@ class LineTracer {
 
     [[gnu::noinline]] void record_echo(const Batch<Dim>& b, int k, const V& x, float energy,
                                        float weight, EchoKind kind, float cos_incidence = 1.0f,
-                                       float lobe_exponent = 1e6f, double extra_time_s = 0.0) {
+                                       float lobe_exponent = 1e6f, double extra_time_s = 0.0,
+                                       const V& normal = V(0.0f)) {
         out_->echoes.push_back({line_, b.particle[k], float(b.time[k] + extra_time_s), energy,
                                 weight, x, b.bounces[k], kind, cos_incidence, lobe_exponent,
-                                b.return_factor[k]});
+                                b.return_factor[k], normal});
     }
 
     // The diffuse lobe (eq. 11) about the specular direction `mirror`; `forward` points

@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "imaging/bmode.h"
+#include "probe/pulse.h"
 #include "probe/transducer.h"
 
 namespace sonotrace {
@@ -91,15 +92,11 @@ TEST(Bmode, PointEchoHasThePulsesAxialResolution) {
         const LineData env = point_echo_envelope(t, depth_mm * 1e-3 / kC0, t.lines / 2);
         double peak_depth = 0.0;
         const double fwhm = axial_fwhm_mm(env, t.lines / 2, &peak_depth);
-        const double ln2 = std::log(2.0);
-        const double sigma_t = 2.0 * std::sqrt(2.0 * ln2) /
-                               (2.0 * std::numbers::pi * t.bandwidth * t.frequency_mhz * 1e6);
-        const double expected = 0.5 * kC0 * 1e3 * 2.0 * std::sqrt(2.0 * ln2) * sigma_t;
-        EXPECT_NEAR(fwhm, expected, 0.2 * expected) << t.name;
-        // Tighter: the Hilbert envelope of the Gaussian pulse, within 7 %: sampling at 4 f0
-        // and the zero-DC correction of the pulse (a -exp(-(w s)^2/2) Gaussian, 1-3 % of
-        // its amplitude at these bandwidths) widen it by 3-5 %.
-        EXPECT_NEAR(fwhm, expected, 0.07 * expected) << t.name << " (tighter: Hilbert envelope)";
+        // The pulse-echo waveform's envelope (checked against the excitation convolved with
+        // the impulse response from first principles in test_psf), within 7 %: sampling at
+        // 4 f0 and the envelope's linear interpolation between samples.
+        const double expected = probe::PulseEcho(t).axial_fwhm_mm();
+        EXPECT_NEAR(fwhm, expected, 0.07 * expected) << t.name;
         EXPECT_NEAR(peak_depth, depth_mm, env.depth_mm(1)) << t.name;
         // Other lines stay silent: a reflection belongs to the line whose particle made it.
         EXPECT_EQ(env.at(0, env.samples / 2), 0.0f) << t.name;
@@ -107,8 +104,10 @@ TEST(Bmode, PointEchoHasThePulsesAxialResolution) {
 }
 
 // Fully developed speckle: with a constant scattered intensity, the envelope is Rayleigh
-// distributed, mean/std = sqrt(pi / (4 - pi)) = 1.913. The issue asks 1.91 +- 0.15; with
-// 128 lines x ~900 samples the estimate's own spread is far below that.
+// distributed, mean/std = sqrt(pi / (4 - pi)) = 1.913. The issue asks 1.91 +- 0.15 at
+// three depths; with 128 lines x ~60 samples (3 mm) per depth the estimate's own spread
+// (~0.03) is far below that. Depth bands, not the whole line: the mean level follows the
+// two-way beam's focusing, and mixing levels would lower the ratio.
 // Also with the interactive preset's sub-lines 1.5 beam sigmas apart.
 TEST(Bmode, FullyDevelopedSpeckleHasRayleighSnr) {
     for (const double spacing : {1.0, 1.5}) {
@@ -134,18 +133,22 @@ TEST(Bmode, FullyDevelopedSpeckleHasRayleighSnr) {
         const imaging::MapToWorld to_world;  // the map plane is the world's xy plane
         const LineData env =
             imaging::envelope(imaging::synthesize_rf(t, sources, {}, profile, to_world, settings));
-        double sum = 0.0, sum2 = 0.0;
-        int n = 0;
-        for (int l = 0; l < t.lines; ++l) {
-            for (int i = env.samples / 4; i < 3 * env.samples / 4; ++i) {
-                sum += env.at(l, i);
-                sum2 += double(env.at(l, i)) * env.at(l, i);
-                ++n;
+        for (const double depth : {20.0, 40.0, 60.0}) {
+            double sum = 0.0, sum2 = 0.0;
+            int n = 0;
+            const int from = int((depth - 1.5) / env.depth_mm(1)),
+                      to = int((depth + 1.5) / env.depth_mm(1));
+            for (int l = 0; l < t.lines; ++l) {
+                for (int i = from; i < to; ++i) {
+                    sum += env.at(l, i);
+                    sum2 += double(env.at(l, i)) * env.at(l, i);
+                    ++n;
+                }
             }
+            const double mean = sum / n, sd = std::sqrt(sum2 / n - mean * mean);
+            EXPECT_NEAR(mean / sd, std::sqrt(std::numbers::pi / (4.0 - std::numbers::pi)), 0.15)
+                << "sub-lines " << spacing << " sigmas apart, at " << depth << " mm";
         }
-        const double mean = sum / n, sd = std::sqrt(sum2 / n - mean * mean);
-        EXPECT_NEAR(mean / sd, std::sqrt(std::numbers::pi / (4.0 - std::numbers::pi)), 0.15)
-            << "sub-lines " << spacing << " sigmas apart";
     }
 }
 

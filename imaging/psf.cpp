@@ -1,0 +1,162 @@
+#include "imaging/psf.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <numbers>
+
+#include "probe/aperture.h"
+
+namespace sonotrace::imaging {
+
+namespace {
+constexpr int kHalfRow = 24;           // J: +-6 main lobes at a quarter lobe per sample
+constexpr double kSnapFraction = 0.125;  // lines share rows at offsets 1/8 pitch apart
+}  // namespace
+
+struct PsfTableBuilder {
+    static std::shared_ptr<PsfTable> build(const probe::Transducer& t) {
+        auto table = std::make_shared<PsfTable>();
+        const double lambda = t.wavelength_mm();
+        table->k_ = 2.0 * std::numbers::pi / lambda;
+        table->lines_ = t.lines;
+        table->dz_ = std::max(lambda, t.depth_mm / 400.0);
+        table->depths_ = int(std::ceil(t.depth_mm / table->dz_)) + 2;
+        const int depths = table->depths_;
+        std::vector<probe::LineFields> fields;
+        fields.reserve(std::size_t(t.lines));
+        for (int l = 0; l < t.lines; ++l)
+            fields.emplace_back(t, probe::line_array(t, l, kSnapFraction * t.pitch_mm));
+        auto depth_of = [&](int i) { return std::max(i * table->dz_, 0.5 * table->dz_); };
+
+        // Rows by what determines them: the line's sub-element offset and its active
+        // element ranges relative to its centre element (phased lines: the line itself).
+        using Key = std::array<long, 7>;
+        std::map<Key, int> index;
+        struct Job {
+            int line, depth;
+        };
+        std::vector<Job> jobs;
+        table->row_of_.assign(std::size_t(t.lines) * std::size_t(depths), 0);
+        const std::vector<double> tx_any(t.elements, 1.0);
+        for (int l = 0; l < t.lines; ++l) {
+            const probe::LineArray& a = fields[std::size_t(l)].array();
+            int centre = 0;
+            for (int e = 1; e < int(a.along.size()); ++e)
+                if (std::abs(a.along[std::size_t(e)]) < std::abs(a.along[std::size_t(centre)]))
+                    centre = e;
+            auto range = [&](const std::vector<double>& w) {
+                int first = -1, last = -1;
+                for (int e = 0; e < int(w.size()); ++e)
+                    if (w[std::size_t(e)] != 0.0) last = e, first = first < 0 ? e : first;
+                return std::pair<long, long>(first - centre, last - centre);
+            };
+            const auto tx = range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization));
+            const long offset = t.type == probe::TransducerType::phased
+                                    ? 1000000L + l
+                                    : std::lround(a.along[std::size_t(centre)] * 1e4);
+            for (int i = 0; i < depths; ++i) {
+                const auto rx = range(probe::aperture_weights(
+                    a, t.receive_aperture_mm(depth_of(i)), t.rx_apodization));
+                const Key key{offset, tx.first, tx.second, rx.first, rx.second, i, 0};
+                auto [it, added] = index.try_emplace(key, int(jobs.size()));
+                if (added) jobs.push_back({l, i});
+                table->row_of_[std::size_t(l) * std::size_t(depths) + std::size_t(i)] = it->second;
+            }
+        }
+        table->rows_.resize(jobs.size());
+        tbb::parallel_for(0, int(jobs.size()), [&](int n) {
+            const Job& job = jobs[std::size_t(n)];
+            const probe::LineFields& f = fields[std::size_t(job.line)];
+            const double z = depth_of(job.depth);
+            const auto receive = f.receive_aperture(z);
+            PsfTable::Row& row = table->rows_[std::size_t(n)];
+            row.dx = 0.25 * lambda * std::max(z / t.receive_aperture_mm(z), 0.5);
+            row.half = kHalfRow;
+            row.h.resize(std::size_t(2 * kHalfRow + 1));
+            for (int j = -kHalfRow; j <= kHalfRow; ++j) {
+                const glm::dvec2 q(j * row.dx, z);
+                const std::complex<double> h = f.transmit(q) * f.receive(q, receive);
+                row.h[std::size_t(j + kHalfRow)] = std::complex<float>(h);
+                row.power += std::norm(h) * row.dx;
+                row.plane += h * row.dx;
+            }
+        });
+        table->focal_power_ = table->power(t.lines / 2, t.focus_mm);
+        return table;
+    }
+};
+
+std::shared_ptr<const PsfTable> PsfTable::of(const probe::Transducer& t) {
+    const std::array<double, 15> key{double(int(t.type)),    double(t.elements),
+                                     t.pitch_mm,             t.radius_mm,
+                                     t.fov_deg,              t.frequency_mhz,
+                                     t.focus_mm,             t.f_number,
+                                     double(int(t.tx_apodization)), t.rx_f_number,
+                                     double(int(t.rx_apodization)), t.depth_mm,
+                                     double(t.lines),        0.0,
+                                     0.0};
+    static std::mutex mutex;
+    static std::vector<std::pair<std::array<double, 15>, std::shared_ptr<const PsfTable>>> cache;
+    {
+        const std::lock_guard<std::mutex> lock(mutex);
+        for (const auto& [k, table] : cache)
+            if (k == key) return table;
+    }
+    std::shared_ptr<const PsfTable> table = PsfTableBuilder::build(t);
+    const std::lock_guard<std::mutex> lock(mutex);
+    cache.emplace_back(key, table);
+    if (cache.size() > 4) cache.erase(cache.begin());
+    return table;
+}
+
+const PsfTable::Row& PsfTable::row(int l, int i) const {
+    l = std::clamp(l, 0, lines_ - 1);
+    i = std::clamp(i, 0, depths_ - 1);
+    return rows_[std::size_t(row_of_[std::size_t(l) * std::size_t(depths_) + std::size_t(i)])];
+}
+
+namespace {
+std::complex<float> across(const PsfTable::Row& r, double x) {
+    const double u = x / r.dx + r.half;
+    if (!(u >= 0.0) || u >= double(2 * r.half)) return {0.0f, 0.0f};
+    const auto j = std::size_t(u);
+    const float f = float(u - double(j));
+    return r.h[j] + f * (r.h[j + 1] - r.h[j]);
+}
+}  // namespace
+
+std::complex<float> PsfTable::at(int l, double x, double z) const {
+    const double u = std::clamp(z / dz_, 0.0, double(depths_ - 1));
+    const int i = std::min(int(u), depths_ - 2);
+    const float f = float(u - i);
+    return (1.0f - f) * across(row(l, i), x) + f * across(row(l, i + 1), x);
+}
+
+double PsfTable::power(int l, double z) const {
+    const double u = std::clamp(z / dz_, 0.0, double(depths_ - 1));
+    const int i = std::min(int(u), depths_ - 2);
+    const double f = u - i;
+    return (1.0 - f) * row(l, i).power + f * row(l, i + 1).power;
+}
+
+std::complex<double> PsfTable::plane(int l, double z, double sin_tilt) const {
+    const double u = std::clamp(z / dz_, 0.0, double(depths_ - 1));
+    const int i = std::min(int(u), depths_ - 2);
+    const double f = u - i;
+    auto one = [&](const Row& r) {
+        if (sin_tilt == 0.0) return r.plane;
+        std::complex<double> sum = 0.0;
+        const std::complex<double> step = std::polar(1.0, -2.0 * k_ * r.dx * sin_tilt);
+        std::complex<double> phase = std::polar(1.0, 2.0 * k_ * r.dx * sin_tilt * r.half);
+        for (const auto& h : r.h) sum += std::complex<double>(h) * phase, phase *= step;
+        return sum * r.dx;
+    };
+    return (1.0 - f) * one(row(l, i)) + f * one(row(l, i + 1));
+}
+
+}  // namespace sonotrace::imaging

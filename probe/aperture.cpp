@@ -1,0 +1,123 @@
+#include "probe/aperture.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "tissue/fast_math.h"
+
+namespace sonotrace::probe {
+
+LineArray line_array(const Transducer& t, int l, double snap_along) {
+    const ScanGeometry geometry(t);
+    const ScanLine line = geometry.line(l);
+    LineArray a;
+    a.pitch_mm = t.pitch_mm;
+    const double half = 0.5 * t.array_length_mm();
+    // The line's centre on the array (mm along it); phased lines steer the whole array.
+    double centre = 0.0;
+    if (t.type == TransducerType::linear) centre = line.origin.x;
+    if (t.type == TransducerType::convex)
+        centre = std::atan2(line.direction.x, line.direction.y) * t.radius_mm;
+    if (snap_along > 0.0 && t.type != TransducerType::phased) {
+        const double first = -half + 0.5 * t.pitch_mm;  // the first element's centre
+        centre = first + std::round((centre - first) / snap_along) * snap_along;
+    }
+    const glm::dvec2 across(line.direction.y, -line.direction.x);
+    for (int e = 0; e < t.elements; ++e) {
+        const double s = -half + (e + 0.5) * t.pitch_mm;  // along the array
+        const double along = s - centre;
+        glm::dvec2 p, n;
+        if (t.type == TransducerType::convex) {
+            // Rotation about the centre of curvature: the element `along` mm of arc from
+            // the line's foot.
+            const double phi = along / t.radius_mm;
+            p = {t.radius_mm * std::sin(phi), t.radius_mm * (std::cos(phi) - 1.0)};
+            n = {std::sin(phi), std::cos(phi)};
+        } else if (t.type == TransducerType::linear) {
+            p = {along, 0.0}, n = {0.0, 1.0};
+        } else {  // phased: the flat array in the steered line's frame
+            const glm::dvec2 world(s, 0.0), up(0.0, 1.0);
+            p = {glm::dot(world - line.origin, across),
+                 glm::dot(world - line.origin, line.direction)};
+            n = {glm::dot(up, across), glm::dot(up, line.direction)};
+        }
+        a.position.push_back(p);
+        a.normal.push_back(n);
+        a.along.push_back(along);
+    }
+    return a;
+}
+
+std::vector<double> aperture_weights(const LineArray& array, double width_mm, Apodization a) {
+    const std::size_t n = array.along.size();
+    std::vector<double> w(n, 0.0);
+    if (n == 0) return w;
+    // At least two pitches, so that the aperture holds an element wherever it sits.
+    const double half = 0.5 * std::max(width_mm, 2.0 * array.pitch_mm);
+    const double first = array.along.front() - 0.5 * array.pitch_mm,
+                 last = array.along.back() + 0.5 * array.pitch_mm;
+    const double lo = std::max(-half, first), hi = std::min(half, last);
+    double total = 0.0;
+    for (std::size_t e = 0; e < n; ++e) {
+        const double s = array.along[e];
+        if (s < lo || s > hi) continue;
+        w[e] = apodization_weight(a, (s - lo) / std::max(hi - lo, 1e-12));
+        total += w[e];
+    }
+    if (!(total > 0.0)) {  // a window whose only elements sit on its zero edges
+        std::size_t nearest = 0;
+        for (std::size_t e = 1; e < n; ++e)
+            if (std::abs(array.along[e]) < std::abs(array.along[nearest])) nearest = e;
+        w[nearest] = 1.0;
+    }
+    return w;
+}
+
+LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std::move(array)) {
+    tx_weights_ = aperture_weights(array_, t.active_aperture_mm(), t.tx_apodization);
+    double sum2 = 0.0;
+    for (double w : tx_weights_) sum2 += w * w;
+    tx_norm_ = 1.0 / std::sqrt(t.wavelength_mm() / t.pitch_mm * sum2);
+    k_ = 2.0 * std::numbers::pi / t.wavelength_mm();
+    element_width_ = t.pitch_mm;
+}
+
+std::complex<double> LineFields::sum(const glm::dvec2& q, const std::vector<double>& weights,
+                                     const glm::dvec2& focus) const {
+    std::complex<double> total = 0.0;
+    for (std::size_t e = 0; e < weights.size(); ++e) {
+        if (weights[e] == 0.0) continue;
+        const glm::dvec2 d = q - array_.position[e];
+        const double r = std::max(glm::length(d), 1e-6);
+        const glm::dvec2 n = array_.normal[e];
+        const double cos_theta = glm::dot(d, n) / r;
+        if (!(cos_theta > 0.0)) continue;  // behind the element
+        const double sin_theta = (d.x * n.y - d.y * n.x) / r;
+        const double x = std::numbers::pi * element_width_ * sin_theta / t_.wavelength_mm();
+        const double directivity = (std::abs(x) < 1e-9 ? 1.0 : std::sin(x) / x) * cos_theta;
+        const double path = r - glm::length(focus - array_.position[e]) + focus.y - q.y;
+        total += weights[e] * directivity / std::sqrt(r) * std::polar(1.0, -k_ * path);
+    }
+    return total;
+}
+
+std::complex<double> LineFields::transmit(const glm::dvec2& q) const {
+    return tx_norm_ * sum(q, tx_weights_, {0.0, t_.focus_mm});
+}
+
+LineFields::Receive LineFields::receive_aperture(double focus_mm) const {
+    Receive r;
+    r.focus_mm = focus_mm;
+    r.weights = aperture_weights(array_, t_.receive_aperture_mm(focus_mm), t_.rx_apodization);
+    double sum2 = 0.0;
+    for (double v : r.weights) sum2 += v * v;
+    r.norm = 1.0 / std::sqrt(t_.wavelength_mm() / t_.pitch_mm * sum2);
+    return r;
+}
+
+std::complex<double> LineFields::receive(const glm::dvec2& q, const Receive& aperture) const {
+    return aperture.norm * sum(q, aperture.weights, {0.0, aperture.focus_mm});
+}
+
+}  // namespace sonotrace::probe

@@ -1,0 +1,86 @@
+#pragma once
+// The array seen from one scan line, and its narrowband (centre-frequency) fields: the
+// transmit field T of the line's focused, apodized transmit aperture and the receive
+// sensitivity R of its dynamically focused, expanding receive aperture. Their product is
+// the two-way point-spread function H = T R of the line (linear acoustics, 2D).
+//
+// In the line's own frame (x across the line, z along it, origin where the line leaves
+// the face), each element e at p_e with weight a_e contributes
+//
+//   a_e D_e(q) exp(-i k (|q - p_e| - |f - p_e| + z_f - q.z)) / sqrt(|q - p_e|)
+//
+// to T at q: cylindrical spreading (2D), the element's directivity D_e = sinc(pi w sin
+// theta / lambda) cos theta (an element as wide as the pitch, soft baffle; theta from its
+// normal), and the transmit delays that bring every element's wave to the focus
+// f = (0, z_f) at once. The phase is measured against the echo time 2 q.z / c0 at which
+// an image places q, so H at a point on the axis at the focus is real and positive. R is
+// the same sum over the receive aperture with its focus at the depth of q itself (dynamic
+// receive). Each field is normalised to unit lateral power: the main grating order of
+// the aperture carries (lambda / pitch) sum a_e^2 (Parseval, far field), so
+// integral |T|^2 dx = 1 at every depth as energy conservation wants. With T so
+// normalised, |T(x)|^2 is the fraction of the beam's power per mm at x; the same for R
+// by reciprocity. The echo of a point of 2D backscatter width sigma (mm) lit by beam power
+// P then has amplitude sqrt(P sigma lambda / (2 pi)) |T R| and a perpendicular plane
+// reflector of reflection coefficient r has r sqrt(P) |integral T R dx| (<= 1: all of
+// the beam's power comes back when R matches T).
+#include <complex>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "probe/transducer.h"
+
+namespace sonotrace::probe {
+
+// The array in one line's frame.
+struct LineArray {
+    std::vector<glm::dvec2> position;  // element centres (mm, line frame)
+    std::vector<glm::dvec2> normal;    // unit, into the tissue
+    std::vector<double> along;         // mm along the array, relative to the line's centre on it
+    double pitch_mm = 0.0;
+};
+
+// Elements of `t` as seen from line `l`. Linear and convex lines are centred on the
+// array at their own position; `snap_along` (mm, 0 = none) rounds that centre to a grid
+// of the pitch, so lines at the same offset share one geometry (the beam does not change
+// with a sub-element shift). Phased lines all see the whole array, steered.
+LineArray line_array(const Transducer& t, int l, double snap_along = 0.0);
+
+// Active aperture of a line: elements with |along| <= half_width (clipped by the array)
+// weighted by the apodization across the span they occupy.
+std::vector<double> aperture_weights(const LineArray& array, double width_mm, Apodization a);
+
+// Narrowband fields (see the header), each normalised to unit lateral power.
+class LineFields {
+  public:
+    LineFields(const Transducer& t, LineArray array);
+    // T at q (line frame, mm).
+    std::complex<double> transmit(const glm::dvec2& q) const;
+    // The receive aperture focused at depth `focus_mm` on the axis (width focus / rx
+    // F-number, at most the array): weights and their normalisation.
+    struct Receive {
+        std::vector<double> weights;
+        double norm = 1.0, focus_mm = 0.0;
+    };
+    Receive receive_aperture(double focus_mm) const;
+    std::complex<double> receive(const glm::dvec2& q, const Receive& aperture) const;
+    std::complex<double> receive(const glm::dvec2& q, double focus_mm) const {
+        return receive(q, receive_aperture(focus_mm));
+    }
+    // H = T R with the receive focused at q's own depth.
+    std::complex<double> two_way(const glm::dvec2& q) const {
+        return transmit(q) * receive(q, q.y);
+    }
+    const LineArray& array() const { return array_; }
+
+  private:
+    std::complex<double> sum(const glm::dvec2& q, const std::vector<double>& weights,
+                             const glm::dvec2& focus) const;
+    Transducer t_;
+    LineArray array_;
+    std::vector<double> tx_weights_;
+    double tx_norm_ = 1.0;
+    double k_ = 0.0, element_width_ = 0.0;
+};
+
+}  // namespace sonotrace::probe

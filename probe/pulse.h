@@ -1,0 +1,57 @@
+#pragma once
+// The pulse-echo waveform of a transducer: an excitation of n cycles of a sine at the
+// centre frequency, convolved with the transducer's two-way (transmit x receive) impulse
+// response. The impulse response is a Gaussian-modulated cosine whose -6 dB spectrum
+// width is the preset's fractional bandwidth B: spectrum sigma_f = B f0 / (2 sqrt(2 ln 2)),
+// time sigma_t = 1 / (2 pi sigma_f), with its DC removed (a transducer passes none).
+//
+// The axial point-spread function is this waveform's envelope: nothing is chosen for it.
+// One cycle (the default of the presets, as a scanner's B-mode pulse) barely lengthens
+// the impulse response; more cycles narrow the spectrum and lengthen the echo.
+//
+// The waveform is tabulated once, finely (64 samples per period), together with its
+// quadrature (Hilbert transform): echoes with a phase (the complex two-way field of the
+// aperture) are Re{a (p + i q)}. Time zero is the envelope's peak, so an echo placed at
+// time t peaks there.
+#include <complex>
+#include <vector>
+
+namespace sonotrace::probe {
+
+struct Transducer;
+
+class PulseEcho {
+  public:
+    // frequency_hz: centre frequency f0; bandwidth: fractional -6 dB width of the
+    // two-way impulse response; cycles: excitation length in periods (> 0, fractional
+    // allowed).
+    PulseEcho(double frequency_hz, double bandwidth, double cycles);
+    explicit PulseEcho(const Transducer& t);
+
+    double frequency_hz() const { return f0_; }
+    // In-phase and quadrature parts at time t (s) from the envelope peak; 0 outside
+    // [-half_length, half_length].
+    double in_phase(double t) const { return sample(in_phase_, t); }
+    double quadrature(double t) const { return sample(quadrature_, t); }
+    double envelope(double t) const { return std::abs(std::complex<double>(in_phase(t), quadrature(t))); }
+    // Half the support kept (s): where the envelope has fallen below 1e-4 of its peak.
+    double half_length_s() const { return half_length_; }
+    // FWHM of the envelope (s) and the axial resolution it gives, c0/2 times it (mm).
+    double envelope_fwhm_s() const { return fwhm_; }
+    double axial_fwhm_mm() const;
+    // Peak of the envelope: 1 (the waveform is scaled to it).
+
+    // The two-way impulse response alone (no excitation), unit peak, DC removed.
+    static double impulse_response(double t, double frequency_hz, double bandwidth);
+
+  private:
+    double sample(const std::vector<double>& table, double t) const;
+    double f0_;
+    double dt_ = 0.0;           // table spacing (s)
+    double half_length_ = 0.0;  // s
+    double fwhm_ = 0.0;         // s
+    std::vector<double> in_phase_, quadrature_;  // sample k at t = (k - centre) dt
+    int centre_ = 0;
+};
+
+}  // namespace sonotrace::probe

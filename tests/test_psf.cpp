@@ -1,0 +1,267 @@
+// Image formation from linear acoustics: the pulse-echo waveform and the two-way
+// point-spread function of a point target, measured on the simulated image (RF lines ->
+// envelope) and compared with predictions computed here, independently of the image
+// pipeline: the excitation convolved with the impulse response by direct summation and its
+// envelope by a brute-force discrete Fourier transform; the lateral field of the aperture
+// by an element-by-element sum written out in this file; and the closed form of the
+// uniform aperture's two-way focal response, sinc^2.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <complex>
+#include <numbers>
+#include <vector>
+
+#include "imaging/bmode.h"
+#include "probe/aperture.h"
+#include "probe/pulse.h"
+#include "probe/transducer.h"
+
+namespace sonotrace {
+namespace {
+
+constexpr double kC0 = 1540.0;  // m/s
+constexpr double kPi = std::numbers::pi;
+
+// FWHM (in units of the sample spacing) of a sampled unimodal peak, by linear
+// interpolation of the half-maximum crossings around `peak`.
+double fwhm_samples(const std::vector<double>& v, int peak) {
+    const double half = 0.5 * v[std::size_t(peak)];
+    auto crossing = [&](int step) {
+        int i = peak;
+        while (i + step >= 0 && i + step < int(v.size()) && v[std::size_t(i + step)] > half)
+            i += step;
+        const double a = v[std::size_t(i)], b = v[std::size_t(i + step)];
+        return i + step * (a - half) / (a - b);
+    };
+    return crossing(1) - crossing(-1);
+}
+
+int argmax(const std::vector<double>& v) {
+    return int(std::max_element(v.begin(), v.end()) - v.begin());
+}
+
+// The pulse-echo envelope's FWHM (s) from first principles: n cycles of a sine convolved
+// with the Gaussian-modulated cosine of -6 dB bandwidth B (its DC removed), summed
+// directly; the envelope through the analytic signal of a brute-force DFT.
+double reference_pulse_fwhm_s(double f0, double bandwidth, double cycles) {
+    const double dt = 1.0 / (40.0 * f0);
+    const double sigma_t = 2.0 * std::sqrt(2.0 * std::log(2.0)) / (2.0 * kPi * bandwidth * f0);
+    const double w = 2.0 * kPi * f0;
+    const int h_half = int(8.0 * sigma_t / dt), e_len = int(std::lround(cycles * 40.0));
+    const int n = 2 * h_half + e_len + 200;
+    std::vector<double> p(std::size_t(n), 0.0);
+    for (int i = 0; i < e_len; ++i) {
+        for (int k = -h_half; k <= h_half; ++k) {
+            const double t = k * dt;
+            const double h = std::exp(-0.5 * t * t / (sigma_t * sigma_t)) *
+                             (std::cos(w * t) - std::exp(-0.5 * w * w * sigma_t * sigma_t));
+            p[std::size_t(100 + i + k + h_half)] += std::sin(w * (i + 0.5) * dt) * h;
+        }
+    }
+    // Analytic signal: keep the positive frequencies (doubled), drop the negative ones.
+    std::vector<std::complex<double>> spectrum(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k)
+        for (int i = 0; i < n; ++i)
+            spectrum[std::size_t(k)] += p[std::size_t(i)] * std::polar(1.0, -2.0 * kPi * k * i / n);
+    std::vector<double> envelope(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+        std::complex<double> a = 0.0;
+        for (int k = 1; 2 * k < n; ++k)
+            a += 2.0 * spectrum[std::size_t(k)] * std::polar(1.0, 2.0 * kPi * k * i / n);
+        envelope[std::size_t(i)] = std::abs(a) / n;
+    }
+    return fwhm_samples(envelope, argmax(envelope)) * dt;
+}
+
+TEST(Psf, PulseEnvelopeMatchesTheExcitationConvolvedWithTheImpulseResponse) {
+    for (const auto& [f0, b, cycles] :
+         std::vector<std::tuple<double, double, double>>{{7.6e6, 0.79, 1.0}, {3.5e6, 0.86, 1.0},
+                                                         {2.7e6, 0.74, 3.0}}) {
+        const probe::PulseEcho pulse(f0, b, cycles);
+        const double expected = reference_pulse_fwhm_s(f0, b, cycles);
+        EXPECT_NEAR(pulse.envelope_fwhm_s(), expected, 0.02 * expected) << f0 << " " << cycles;
+    }
+    // More cycles: a narrower spectrum, a longer echo.
+    EXPECT_GT(probe::PulseEcho(5e6, 0.8, 4.0).envelope_fwhm_s(),
+              1.5 * probe::PulseEcho(5e6, 0.8, 1.0).envelope_fwhm_s());
+}
+
+// The element sum of probe/aperture.h, written out again for a linear array: line at
+// lateral position x_line (mm), point (x, z); rectangular/Hann/Tukey weights across
+// the clipped active span; elements as wide as the pitch (sinc directivity, cos obliquity).
+struct ReferenceLinear {
+    probe::Transducer t;
+    double weight(probe::Apodization a, double u) const {
+        if (u < 0.0 || u > 1.0) return 0.0;
+        if (a == probe::Apodization::hann) return 0.5 - 0.5 * std::cos(2.0 * kPi * u);
+        if (a == probe::Apodization::tukey) {
+            const double e = std::min(u, 1.0 - u);
+            return e >= 0.25 ? 1.0 : 0.5 - 0.5 * std::cos(kPi * e / 0.25);
+        }
+        return 1.0;
+    }
+    std::complex<double> field(double x_line, double width, probe::Apodization a, double focus,
+                               double x, double z) const {
+        const double lambda = kC0 / (t.frequency_mhz * 1e6) * 1e3, k = 2.0 * kPi / lambda;
+        const double half_array = 0.5 * t.elements * t.pitch_mm;
+        width = std::max(width, 2.0 * t.pitch_mm);
+        const double lo = std::max(x_line - 0.5 * width, -half_array),
+                     hi = std::min(x_line + 0.5 * width, half_array);
+        std::complex<double> sum = 0.0;
+        double power = 0.0;
+        for (int e = 0; e < t.elements; ++e) {
+            const double xe = -half_array + (e + 0.5) * t.pitch_mm;
+            if (xe < lo || xe > hi) continue;
+            const double we = weight(a, (xe - lo) / (hi - lo));
+            power += we * we;
+            const double dx = x - xe, r = std::hypot(dx, z);
+            const double s = kPi * t.pitch_mm * (dx / r) / lambda;
+            const double directivity = (s == 0.0 ? 1.0 : std::sin(s) / s) * (z / r);
+            const double path = r - std::hypot(x_line - xe, focus) + focus - z;
+            sum += we * directivity / std::sqrt(r) * std::polar(1.0, -k * path);
+        }
+        return sum / std::sqrt(lambda / t.pitch_mm * power);
+    }
+    double two_way(double x_line, double x, double z) const {
+        const double tx = std::min(t.focus_mm / t.f_number, t.elements * t.pitch_mm);
+        const double rx = std::min(z / t.rx_f_number, t.elements * t.pitch_mm);
+        return std::abs(field(x_line, tx, t.tx_apodization, t.focus_mm, x, z) *
+                        field(x_line, rx, t.rx_apodization, z, x, z));
+    }
+};
+
+struct PointImage {
+    std::vector<double> line_x, lateral, axial;  // lateral: peak per line; axial: centre line
+    double sample_mm = 0.0;
+};
+
+// A point at (x0, z) imaged by `t` (no tracing: a point target through the RF chain).
+PointImage image_point(const probe::Transducer& t, double x0, double z) {
+    imaging::ImagingSettings settings;
+    settings.speckle = false;
+    imaging::MapToWorld to_world;  // map frame = probe plane
+    const imaging::LineData rf = imaging::synthesize_rf(t, {}, {}, {}, to_world, settings,
+                                                        {{glm::dvec2(x0, z), 1.0}});
+    const imaging::LineData env = imaging::envelope(rf);
+    PointImage out;
+    const probe::ScanGeometry g(t);
+    const int centre_sample = int(std::lround(z / env.depth_mm(1)));
+    int best_line = 0;
+    for (int l = 0; l < env.lines; ++l) {
+        double peak = 0.0;
+        for (int i = std::max(0, centre_sample - 20); i < std::min(env.samples, centre_sample + 20);
+             ++i)
+            peak = std::max(peak, double(env.at(l, i)));
+        out.line_x.push_back(g.point(l, 0.0).x);
+        out.lateral.push_back(peak);
+        if (peak > out.lateral[std::size_t(best_line)]) best_line = l;
+    }
+    for (int i = 0; i < env.samples; ++i) out.axial.push_back(env.at(best_line, i));
+    out.sample_mm = env.depth_mm(1);
+    return out;
+}
+
+// The first side lobe: the highest local maximum beyond the first minimum on either side,
+// relative to the peak (dB).
+double first_side_lobe_db(const std::vector<double>& v) {
+    const int peak = argmax(v);
+    double lobe = 0.0;
+    for (int step : {-1, 1}) {
+        int i = peak;
+        while (i + step > 0 && i + step < int(v.size()) - 1 &&
+               v[std::size_t(i + step)] <= v[std::size_t(i)])
+            i += step;
+        while (i + step > 0 && i + step < int(v.size()) - 1 &&
+               v[std::size_t(i + step)] >= v[std::size_t(i)])
+            i += step;
+        lobe = std::max(lobe, v[std::size_t(i)]);
+    }
+    return 20.0 * std::log10(lobe / v[std::size_t(peak)]);
+}
+
+probe::Transducer linear_for_psf(double rx_f_number) {
+    probe::Transducer t = probe::find_transducer("linear", "test");
+    t.lines = 768;  // 0.05 mm apart: a FWHM of 0.2-0.5 mm spans 4-10 lines
+    t.rx_f_number = rx_f_number;
+    return t;
+}
+
+// Two-way lateral FWHM of a point at 10, 20 and 30 mm (linear preset, transmit focus
+// 20 mm F/2) within 10 % of the aperture's prediction (the element sum above, per line),
+// for a receive at F/2 and on the whole array; the first side lobe within 3 dB of it.
+TEST(Psf, PointTargetLateralResolutionFollowsTheAperture) {
+    for (const double rx_f : {2.0, 0.1}) {
+        const probe::Transducer t = linear_for_psf(rx_f);
+        const ReferenceLinear reference{t};
+        for (const double z : {10.0, 20.0, 30.0}) {
+            const double x0 = 0.013;  // off any line
+            const PointImage image = image_point(t, x0, z);
+            std::vector<double> predicted;
+            for (double xl : image.line_x) predicted.push_back(reference.two_way(xl, x0, z));
+            const double spacing = image.line_x[1] - image.line_x[0];
+            const double measured = fwhm_samples(image.lateral, argmax(image.lateral)) * spacing;
+            const double expected = fwhm_samples(predicted, argmax(predicted)) * spacing;
+            std::printf("rx F/%.1f at %.0f mm: lateral FWHM %.3f mm (aperture %.3f), first side "
+                        "lobe %.1f dB (aperture %.1f)\n",
+                        rx_f, z, measured, expected, first_side_lobe_db(image.lateral),
+                        first_side_lobe_db(predicted));
+            EXPECT_NEAR(measured, expected, 0.1 * expected) << "rx F/" << rx_f << " at " << z;
+            EXPECT_NEAR(first_side_lobe_db(image.lateral), first_side_lobe_db(predicted), 3.0)
+                << "rx F/" << rx_f << " at " << z;
+        }
+    }
+}
+
+// The closed form: a uniform (rectangular) aperture focused at z on transmit and receive
+// has the two-way focal response sinc^2(pi x D / (lambda z)), FWHM 0.886 lambda F (the
+// elements' directivity at F/2 changes it by a few per cent).
+TEST(Psf, UniformApertureAtTheFocusGivesSincSquared) {
+    probe::Transducer t = linear_for_psf(2.0);
+    t.tx_apodization = t.rx_apodization = probe::Apodization::rectangular;
+    const PointImage image = image_point(t, 0.013, t.focus_mm);
+    const double spacing = image.line_x[1] - image.line_x[0];
+    const double measured = fwhm_samples(image.lateral, argmax(image.lateral)) * spacing;
+    const double expected = 0.886 * t.wavelength_mm() * 2.0;
+    EXPECT_NEAR(measured, expected, 0.1 * expected);
+    // sinc^2's first side lobe: (sin(v)/v)^2 at its maximum v = 4.493: -26.5 dB.
+    EXPECT_NEAR(first_side_lobe_db(image.lateral), -26.5, 3.0);
+}
+
+// Axial FWHM of the point's echo within 10 % of the pulse-echo waveform's envelope
+// (computed above from first principles).
+TEST(Psf, PointTargetAxialResolutionIsThePulseEnvelope) {
+    const probe::Transducer t = linear_for_psf(2.0);
+    for (const double z : {10.0, 20.0, 30.0}) {
+        const PointImage image = image_point(t, 0.013, z);
+        const double measured = fwhm_samples(image.axial, argmax(image.axial)) * image.sample_mm;
+        const double expected = 0.5 * kC0 * 1e3 *
+                                reference_pulse_fwhm_s(t.frequency_mhz * 1e6, t.bandwidth, t.cycles);
+        std::printf("axial FWHM at %.0f mm: %.3f mm (pulse envelope %.3f)\n", z, measured, expected);
+        EXPECT_NEAR(measured, expected, 0.1 * expected) << z;
+        EXPECT_NEAR(argmax(image.axial) * image.sample_mm, z, image.sample_mm) << z;
+    }
+}
+
+TEST(Psf, ImpossibleAperturesAreRefusedNamingTheField) {
+    auto refused = [](auto change, const char* field) {
+        probe::Transducer t = probe::find_transducer("linear", "test");
+        change(t);
+        try {
+            t.validate("probe.json");
+            ADD_FAILURE() << field << " accepted";
+        } catch (const std::exception& e) {
+            EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+        }
+    };
+    refused([](probe::Transducer& t) { t.rx_f_number = 0.0; }, "rx-f-number");
+    refused([](probe::Transducer& t) { t.rx_f_number = -1.0; }, "rx-f-number");
+    refused([](probe::Transducer& t) { t.rx_f_number = std::nan(""); }, "rx-f-number");
+    refused([](probe::Transducer& t) { t.cycles = 0.0; }, "cycles");
+    EXPECT_THROW(probe::parse_apodization("gaussian", "probe.json", "rx-apodization"),
+                 std::exception);
+}
+
+}  // namespace
+}  // namespace sonotrace
