@@ -325,7 +325,8 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
             const double z = depth[std::size_t(i)], d_sub = at_depth[std::size_t(i)].d_sub;
             const PsfTable::Row& nearest = psf.row(l, int(std::lround(z / psf.dz())));
             const int reach = std::min(
-                max_reach, int(std::ceil(nearest.half * nearest.dx * at_depth[std::size_t(i)].inverse_d_sub)));
+                max_reach,
+                int(std::ceil(nearest.half * nearest.dx * at_depth[std::size_t(i)].inverse_d_sub)));
             double sum_i = 0.0, sum_q = 0.0;
             for (int j = std::max(-reach, -centre); j <= reach && centre + j < sub_lines; ++j) {
                 const std::complex<float> h = psf.at(l, j * d_sub, z);
@@ -499,11 +500,10 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                 // scatters its lobe, of which the receive aperture takes its share.
                 const double range_mm = std::max(e.time_s * kC0 * 1e3, 1e-3);
                 const glm::dvec2 n_event(e.normal);
-                const double sin_tilt =
-                    glm::dot(n_event, n_event) > 0.0
-                        ? std::min(1.0, std::abs(n_event.x * axis.direction.y -
-                                                 n_event.y * axis.direction.x))
-                        : 0.0;
+                const double sin_tilt = glm::dot(n_event, n_event) > 0.0
+                                            ? std::min(1.0, std::abs(n_event.x * axis.direction.y -
+                                                                     n_event.y * axis.direction.x))
+                                            : 0.0;
                 if (e.kind == simulator::EchoKind::diffuse) {
                     const double aperture = t.receive_aperture_mm(range_mm);
                     response = psf->plane(l, range_mm, 0.0) *

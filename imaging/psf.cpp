@@ -14,7 +14,7 @@
 namespace sonotrace::imaging {
 
 namespace {
-constexpr int kHalfRow = 24;           // J: +-6 main lobes at a quarter lobe per sample
+constexpr int kHalfRow = 24;             // J: +-6 main lobes at a quarter lobe per sample
 constexpr double kSnapFraction = 0.125;  // lines share rows at offsets 1/8 pitch apart
 }  // namespace
 
@@ -55,13 +55,14 @@ struct PsfTableBuilder {
                     if (w[std::size_t(e)] != 0.0) last = e, first = first < 0 ? e : first;
                 return std::pair<long, long>(first - centre, last - centre);
             };
-            const auto tx = range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization));
+            const auto tx =
+                range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization));
             const long offset = t.type == probe::TransducerType::phased
                                     ? 1000000L + l
                                     : std::lround(a.along[std::size_t(centre)] * 1e4);
             for (int i = 0; i < depths; ++i) {
-                const auto rx = range(probe::aperture_weights(
-                    a, t.receive_aperture_mm(depth_of(i)), t.rx_apodization));
+                const auto rx = range(probe::aperture_weights(a, t.receive_aperture_mm(depth_of(i)),
+                                                              t.rx_apodization));
                 const Key key{offset, tx.first, tx.second, rx.first, rx.second, i, 0};
                 auto [it, added] = index.try_emplace(key, int(jobs.size()));
                 if (added) jobs.push_back({l, i});
@@ -92,13 +93,20 @@ struct PsfTableBuilder {
 };
 
 std::shared_ptr<const PsfTable> PsfTable::of(const probe::Transducer& t) {
-    const std::array<double, 15> key{double(int(t.type)),    double(t.elements),
-                                     t.pitch_mm,             t.radius_mm,
-                                     t.fov_deg,              t.frequency_mhz,
-                                     t.focus_mm,             t.f_number,
-                                     double(int(t.tx_apodization)), t.rx_f_number,
-                                     double(int(t.rx_apodization)), t.depth_mm,
-                                     double(t.lines),        0.0,
+    const std::array<double, 15> key{double(int(t.type)),
+                                     double(t.elements),
+                                     t.pitch_mm,
+                                     t.radius_mm,
+                                     t.fov_deg,
+                                     t.frequency_mhz,
+                                     t.focus_mm,
+                                     t.f_number,
+                                     double(int(t.tx_apodization)),
+                                     t.rx_f_number,
+                                     double(int(t.rx_apodization)),
+                                     t.depth_mm,
+                                     double(t.lines),
+                                     0.0,
                                      0.0};
     static std::mutex mutex;
     static std::vector<std::pair<std::array<double, 15>, std::shared_ptr<const PsfTable>>> cache;

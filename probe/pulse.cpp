@@ -63,7 +63,8 @@ PulseEcho::PulseEcho(double frequency_hz, double bandwidth, double cycles) : f0_
 
     // Centre on the envelope's peak, scale it to 1, keep where it exceeds 1e-4.
     std::vector<double> env(static_cast<std::size_t>(n));
-    for (int i = 0; i < n; ++i) env[std::size_t(i)] = std::hypot(p[std::size_t(i)], q[std::size_t(i)]);
+    for (int i = 0; i < n; ++i)
+        env[std::size_t(i)] = std::hypot(p[std::size_t(i)], q[std::size_t(i)]);
     const int peak = int(std::max_element(env.begin(), env.end()) - env.begin());
     const double top = env[std::size_t(peak)];
     int lo = peak, hi = peak;

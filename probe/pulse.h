@@ -33,7 +33,9 @@ class PulseEcho {
     // [-half_length, half_length].
     double in_phase(double t) const { return sample(in_phase_, t); }
     double quadrature(double t) const { return sample(quadrature_, t); }
-    double envelope(double t) const { return std::abs(std::complex<double>(in_phase(t), quadrature(t))); }
+    double envelope(double t) const {
+        return std::abs(std::complex<double>(in_phase(t), quadrature(t)));
+    }
     // Half the support kept (s): where the envelope has fallen below 1e-4 of its peak.
     double half_length_s() const { return half_length_; }
     // FWHM of the envelope (s) and the axial resolution it gives, c0/2 times it (mm).
@@ -47,9 +49,9 @@ class PulseEcho {
   private:
     double sample(const std::vector<double>& table, double t) const;
     double f0_;
-    double dt_ = 0.0;           // table spacing (s)
-    double half_length_ = 0.0;  // s
-    double fwhm_ = 0.0;         // s
+    double dt_ = 0.0;                            // table spacing (s)
+    double half_length_ = 0.0;                   // s
+    double fwhm_ = 0.0;                          // s
     std::vector<double> in_phase_, quadrature_;  // sample k at t = (k - centre) dt
     int centre_ = 0;
 };

@@ -80,9 +80,9 @@ void Transducer::validate(const std::string& source) const {
                                      std::to_string(rx_f_number));
     in_range(rx_f_number, 1e-3, 20.0, "rx-f-number", "");
     if (!(cycles > 0.0))
-        throw tissue::InputError(source, "cycles",
-                                 "the excitation needs a positive number of cycles, got " +
-                                     std::to_string(cycles));
+        throw tissue::InputError(
+            source, "cycles",
+            "the excitation needs a positive number of cycles, got " + std::to_string(cycles));
     in_range(cycles, 0.01, 64.0, "cycles", "");
     in_range(elevation_focus_mm, 1.0, 1000.0, "elevation-focus", "mm");
     in_range(slice_thickness_mm, 0.01, 50.0, "slice-thickness", "mm");

@@ -62,7 +62,7 @@ struct Transducer {
     double array_length_mm() const;     // elements * pitch (along the face)
     double active_aperture_mm() const;  // transmit: focus / F-number, at most the array
     double receive_aperture_mm(double range_mm) const;  // depth / rx F-number, at most the array
-    double radius_of_lines() const;     // radius of the lines' common arc (0 for phased)
+    double radius_of_lines() const;  // radius of the lines' common arc (0 for phased)
     bool is_fan() const { return type != TransducerType::linear; }
 };
 

@@ -8,8 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdio>
 #include <complex>
+#include <cstdio>
 #include <numbers>
 #include <vector>
 
@@ -76,9 +76,8 @@ double reference_pulse_fwhm_s(double f0, double bandwidth, double cycles) {
 }
 
 TEST(Psf, PulseEnvelopeMatchesTheExcitationConvolvedWithTheImpulseResponse) {
-    for (const auto& [f0, b, cycles] :
-         std::vector<std::tuple<double, double, double>>{{7.6e6, 0.79, 1.0}, {3.5e6, 0.86, 1.0},
-                                                         {2.7e6, 0.74, 3.0}}) {
+    for (const auto& [f0, b, cycles] : std::vector<std::tuple<double, double, double>>{
+             {7.6e6, 0.79, 1.0}, {3.5e6, 0.86, 1.0}, {2.7e6, 0.74, 3.0}}) {
         const probe::PulseEcho pulse(f0, b, cycles);
         const double expected = reference_pulse_fwhm_s(f0, b, cycles);
         EXPECT_NEAR(pulse.envelope_fwhm_s(), expected, 0.02 * expected) << f0 << " " << cycles;
@@ -142,8 +141,8 @@ PointImage image_point(const probe::Transducer& t, double x0, double z) {
     imaging::ImagingSettings settings;
     settings.speckle = false;
     imaging::MapToWorld to_world;  // map frame = probe plane
-    const imaging::LineData rf = imaging::synthesize_rf(t, {}, {}, {}, to_world, settings,
-                                                        {{glm::dvec2(x0, z), 1.0}});
+    const imaging::LineData rf =
+        imaging::synthesize_rf(t, {}, {}, {}, to_world, settings, {{glm::dvec2(x0, z), 1.0}});
     const imaging::LineData env = imaging::envelope(rf);
     PointImage out;
     const probe::ScanGeometry g(t);
@@ -203,10 +202,11 @@ TEST(Psf, PointTargetLateralResolutionFollowsTheAperture) {
             const double spacing = image.line_x[1] - image.line_x[0];
             const double measured = fwhm_samples(image.lateral, argmax(image.lateral)) * spacing;
             const double expected = fwhm_samples(predicted, argmax(predicted)) * spacing;
-            std::printf("rx F/%.1f at %.0f mm: lateral FWHM %.3f mm (aperture %.3f), first side "
-                        "lobe %.1f dB (aperture %.1f)\n",
-                        rx_f, z, measured, expected, first_side_lobe_db(image.lateral),
-                        first_side_lobe_db(predicted));
+            std::printf(
+                "rx F/%.1f at %.0f mm: lateral FWHM %.3f mm (aperture %.3f), first side "
+                "lobe %.1f dB (aperture %.1f)\n",
+                rx_f, z, measured, expected, first_side_lobe_db(image.lateral),
+                first_side_lobe_db(predicted));
             EXPECT_NEAR(measured, expected, 0.1 * expected) << "rx F/" << rx_f << " at " << z;
             EXPECT_NEAR(first_side_lobe_db(image.lateral), first_side_lobe_db(predicted), 3.0)
                 << "rx F/" << rx_f << " at " << z;
@@ -236,9 +236,10 @@ TEST(Psf, PointTargetAxialResolutionIsThePulseEnvelope) {
     for (const double z : {10.0, 20.0, 30.0}) {
         const PointImage image = image_point(t, 0.013, z);
         const double measured = fwhm_samples(image.axial, argmax(image.axial)) * image.sample_mm;
-        const double expected = 0.5 * kC0 * 1e3 *
-                                reference_pulse_fwhm_s(t.frequency_mhz * 1e6, t.bandwidth, t.cycles);
-        std::printf("axial FWHM at %.0f mm: %.3f mm (pulse envelope %.3f)\n", z, measured, expected);
+        const double expected =
+            0.5 * kC0 * 1e3 * reference_pulse_fwhm_s(t.frequency_mhz * 1e6, t.bandwidth, t.cycles);
+        std::printf("axial FWHM at %.0f mm: %.3f mm (pulse envelope %.3f)\n", z, measured,
+                    expected);
         EXPECT_NEAR(measured, expected, 0.1 * expected) << z;
         EXPECT_NEAR(argmax(image.axial) * image.sample_mm, z, image.sample_mm) << z;
     }
