@@ -1,22 +1,29 @@
 #pragma once
-// B-mode image formation: from the tracer's echoes to a scan-converted frame.
+// B-mode image formation: from the tracer's echoes to a scan-converted frame, by linear
+// acoustics.
 //
-//   echo events (reflections, probe returns)  --intensity per line and time bin-->
-//   scatter echo profile (track-length)       --x tissue-fixed speckle field, lateral PSF-->
-//   pre-RF --(*) pulse--> RF --analytic signal--> envelope --TGC--> log compression
-//   --scan conversion--> image
+//   reflection events      --plane response of the line's two-way PSF-->  echo per line
+//   scatter echo profile   --x tissue-fixed speckle field, PSF-weighted sum across-->
+//   point targets          --each line's exact two-way field H at the target-->
+//   complex pre-RF --(*) pulse-echo waveform--> RF --analytic signal--> envelope --TGC-->
+//   log compression --scan conversion--> image
 //
+// The tracer carries where the energy goes (refraction, shadowing, multiple reflections,
+// attenuation); the aperture's two-way field H = T R (probe/aperture.h, tabulated per
+// depth in imaging/psf.h) carries the lateral resolution, its side lobes and the focal
+// gain; the pulse-echo waveform (probe/pulse.h: n-cycle excitation (*) impulse response)
+// carries the axial resolution. Each is applied once.
 // Amplitudes: an echo of intensity I (energy units: the particle's energy at the event x
-// the fraction sent back x its two-way loss E/E0 x its receive weight) has amplitude
-// sqrt(I). Reflections add as intensities within an RF sample (particles of one beam
-// meeting one interface are one wavefront); their lateral spread is the beam's particles.
-// Speckle: sub-resolution scatterers are a white random field fixed in world (tissue)
-// coordinates. The scatter profile gives, per line and echo time, the intensity, the
-// mean position and the lateral spread of the energy that scattered; each line sums the
-// field across its beam (weights whose square is the measured beam profile), sampled on
-// sub-lines interpolated between the lines' mean positions, so that neighbouring lines
-// share scatterers where their beams overlap, and mirrored or refracted beams sample the
-// tissue where they really went. The axial PSF is the pulse.
+// the fraction sent back x its two-way loss E/E0) from a reflector whose normal is tilted
+// by theta from the line has amplitude sqrt(I) times the plane response sum H(x)
+// exp(-2ik x sin theta) dx at its apparent depth (the range of the particle's path: a
+// mirrored path images where the mirror puts it). Reflections of one line add as
+// intensities within an RF sample (particles of one beam meeting one interface are one
+// wavefront). Speckle: sub-resolution scatterers are a white random field fixed in world
+// (tissue) coordinates, sampled on sub-lines between the lines' mean scattering positions
+// (so mirrored or refracted beams sample the tissue where they really went); each line
+// sums them weighted by its complex H, so the mean level follows the lateral power
+// integral |H|^2 dx (brightest at the focus) and the grain grows away from it.
 #include <cmath>
 #include <cstdint>
 #include <functional>

@@ -68,29 +68,4 @@ inline float log_float(float x) {
     return float(k) * 1.42860677e-6f + ln_m + float(k) * 0.693145752f;
 }
 
-// sin(x) and cos(x) in single precision for |x| < 1e5, absolute error < 3e-7 near 0 and
-// about an ulp of x elsewhere (the reduction's). x = j pi/2 + r with |r| <= pi/4 (pi/2 in
-// three parts, Cody-Waite), sin r and cos r by their Taylor polynomials to r^9 and r^8
-// (remainders < 1e-8), then the quadrant j swaps and negates them: selects, no branch.
-inline void sincos_float(float x, float* sin_out, float* cos_out) {
-    const int32_t j = floor_to_int(x * 0.636619772f + 0.5f);
-    const float fj = float(j);
-    const float r = ((x - fj * 1.5703125f) - fj * 4.83751297e-4f) - fj * 7.54978995e-8f;
-    const float z = r * r;
-    float sp = 1.0f / 362880.0f;
-    sp = sp * z - 1.0f / 5040.0f;
-    sp = sp * z + 1.0f / 120.0f;
-    sp = sp * z - 1.0f / 6.0f;
-    const float sin_r = r + r * z * sp;
-    float cp = 1.0f / 40320.0f;
-    cp = cp * z - 1.0f / 720.0f;
-    cp = cp * z + 1.0f / 24.0f;
-    cp = cp * z - 0.5f;
-    const float cos_r = 1.0f + z * cp;
-    const bool swap = (j & 1) != 0;
-    const float s = swap ? cos_r : sin_r, c = swap ? sin_r : cos_r;
-    *sin_out = (j & 2) != 0 ? -s : s;
-    *cos_out = ((j + 1) & 2) != 0 ? -c : c;
-}
-
 }  // namespace sonotrace::tissue

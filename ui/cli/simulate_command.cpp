@@ -119,6 +119,12 @@ probe::Transducer make_transducer(const SimulateOptions& o, const std::string& p
     if (o.bandwidth) t.bandwidth = *o.bandwidth;
     if (o.focus) t.focus_mm = *o.focus;
     if (o.f_number) t.f_number = *o.f_number;
+    if (o.rx_f_number) t.rx_f_number = *o.rx_f_number;
+    if (o.cycles) t.cycles = *o.cycles;
+    if (o.tx_apodization)
+        t.tx_apodization = probe::parse_apodization(*o.tx_apodization, "--tx-apodization", "");
+    if (o.rx_apodization)
+        t.rx_apodization = probe::parse_apodization(*o.rx_apodization, "--rx-apodization", "");
     if (o.elevation_focus) t.elevation_focus_mm = *o.elevation_focus;
     if (o.slice_thickness) t.slice_thickness_mm = *o.slice_thickness;
     if (o.depth) t.depth_mm = *o.depth;
@@ -159,6 +165,10 @@ nlohmann::json transducer_json(const probe::Transducer& t) {
             {"bandwidth", t.bandwidth},
             {"focus_mm", t.focus_mm},
             {"f_number", t.f_number},
+            {"tx_apodization", probe::to_string(t.tx_apodization)},
+            {"rx_f_number", t.rx_f_number},
+            {"rx_apodization", probe::to_string(t.rx_apodization)},
+            {"cycles", t.cycles},
             {"elevation_focus_mm", t.elevation_focus_mm},
             {"slice_thickness_mm", t.slice_thickness_mm},
             {"depth_mm", t.depth_mm},
@@ -202,6 +212,14 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
             cmd->add_option(flag, o.focus, help);
         else if (key == "f-number")
             cmd->add_option(flag, o.f_number, help);
+        else if (key == "rx-f-number")
+            cmd->add_option(flag, o.rx_f_number, help);
+        else if (key == "cycles")
+            cmd->add_option(flag, o.cycles, help);
+        else if (key == "tx-apodization")
+            cmd->add_option(flag, o.tx_apodization, help);
+        else if (key == "rx-apodization")
+            cmd->add_option(flag, o.rx_apodization, help);
         else if (key == "elevation-focus")
             cmd->add_option(flag, o.elevation_focus, help);
         else if (key == "slice-thickness")

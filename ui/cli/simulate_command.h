@@ -37,10 +37,10 @@ struct SimulateOptions {
     std::string phantom;  // JSON phantom file instead of a volume
     std::string probe;    // preset; empty = the view's probe
     // Transducer overrides (unset = the preset's value).
-    std::optional<std::string> type;
+    std::optional<std::string> type, tx_apodization, rx_apodization;
     std::optional<int> elements, lines;
-    std::optional<double> pitch, radius, fov, frequency, bandwidth, focus, f_number,
-        elevation_focus, slice_thickness, depth, face_reflectivity;
+    std::optional<double> pitch, radius, fov, frequency, bandwidth, focus, f_number, rx_f_number,
+        cycles, elevation_focus, slice_thickness, depth, face_reflectivity;
     std::string quality = "standard";
     std::string receive = "monostatic";
     double gain_db = 36.0;
