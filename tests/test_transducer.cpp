@@ -159,7 +159,6 @@ TEST(Beams, ConvergeOnTheFocusWithGaussianWaist) {
         const double u = 0.5 * std::erfc(-z / std::numbers::sqrt2);
         counts[std::min(bins - 1, int(u * bins))]++;
         ++n;
-
     }
     // Stratified draws are more even than chance, so this bound is conservative.
     EXPECT_LT(chi_square(counts, std::vector<double>(bins, 1.0 / bins), n), 37.70);  // 15 dof
