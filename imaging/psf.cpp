@@ -42,7 +42,6 @@ struct PsfTableBuilder {
         };
         std::vector<Job> jobs;
         table->row_of_.assign(std::size_t(t.lines) * std::size_t(depths), 0);
-        const std::vector<double> tx_any(t.elements, 1.0);
         for (int l = 0; l < t.lines; ++l) {
             const probe::LineArray& a = fields[std::size_t(l)].array();
             int centre = 0;
