@@ -449,10 +449,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     // -- speckle (header)
     const bool with_speckle = settings.speckle && profile.lines > 0 && profile.bins == N &&
                               profile.covariance.size() == profile.intensity.size();
-    // The lines' PSF table, where speckle or reflections need it (computed once per probe
-    // set-up; point targets alone do not).
-    const std::shared_ptr<const PsfTable> psf =
-        with_speckle || !event_order.empty() ? PsfTable::of(t) : nullptr;
+    // The lines' PSF table, where speckle needs it (computed once per probe set-up).
+    const std::shared_ptr<const PsfTable> psf = with_speckle ? PsfTable::of(t) : nullptr;
     const std::size_t size = std::size_t(L) * std::size_t(N);
     const auto speckle_i = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
     const auto speckle_q = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
@@ -467,9 +465,16 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         taps_i[std::size_t(m + half)] = float(pulse.in_phase(-m / fs));
         taps_q[std::size_t(m + half)] = float(-pulse.quadrature(-m / fs));  // Re{(a+ib)(p+iq)}
     }
-    // The point targets through each line's exact two-way field (few targets: no table).
-    std::vector<std::optional<probe::LineFields>> fields(std::size_t(points.empty() ? 0 : L));
+    // Each line's exact fields, for its reflections' plane echoes and its point targets
+    // (made on first use by the line's own task).
+    std::vector<std::optional<probe::LineFields>> fields{std::size_t(L)};
+    auto line_fields = [&](int l) -> const probe::LineFields& {
+        auto& f = fields[std::size_t(l)];
+        if (!f) f.emplace(t, probe::line_array(t, l));
+        return *f;
+    };
     const double depth_to_samples = 2.0 * 1e-3 / kC0 * fs;
+    const int echo_half_width = std::max(1, int(std::lround(0.5 * pulse.envelope_fwhm_s() * fs)));
     rf.values.resize(size);
     tbb::parallel_for(0, L, [&](int l) {
         // Reflections: per sample bin, the intensity that reached an interface and came
@@ -489,30 +494,46 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             double echo_time = e.time_s;  // the particle came back itself: the full round trip
             std::complex<double> response = 1.0;
             if (e.kind != simulator::EchoKind::returned_to_probe) {
-                echo_time = 2.0 * e.time_s;  // monostatic: twice the one-way time
                 intensity *= double(e.energy) / std::max(double(source.energy), 1e-30) *
                              double(e.return_weight);
-                // The apparent reflector: at the echo's range along the line, tilted from
-                // the line by the interface's normal (the image's receive sees the echo
-                // come back the way the particle left, by reciprocity). A specular plane
-                // answers with the coherent plane response of the two-way field, which
-                // vanishes once the tilt leaves the aperture's angular span; a rough one
-                // scatters its lobe, of which the receive aperture takes its share.
-                const double range_mm = std::max(e.time_s * kC0 * 1e3, 1e-3);
-                const glm::dvec2 n_event(e.normal);
-                const double sin_tilt = glm::dot(n_event, n_event) > 0.0
-                                            ? std::min(1.0, std::abs(n_event.x * axis.direction.y -
-                                                                     n_event.y * axis.direction.x))
-                                            : 0.0;
+                // The apparent reflector: where the particle's path, unfolded at every
+                // mirror and timed at c0, puts the event, measured along the line (the
+                // depth of its image point: a mirrored path images at the mirror position;
+                // a direct one at the event's own depth, whatever the particle's slant),
+                // tilted from the line by the interface's normal (the image's receive sees
+                // the echo come back the way the particle left, by reciprocity). The
+                // aperture's plane echo there is the echo of every particle of the beam
+                // that meets the plane: one pulse at 2 range / c0, not one per slant path
+                // (which would smear the focusing delays over the echo). A rough
+                // interface scatters its lobe, of which the receive aperture takes its
+                // share.
+                const glm::dvec2 launch =
+                    glm::dvec2(source.position) - to_world.face_in_map - axis.origin;
+                const double flight_mm = double(e.time_s - source.time_s) * kC0 * 1e3;
+                const double range_mm = std::max(
+                    glm::dot(launch, axis.direction) +
+                        flight_mm * glm::dot(glm::dvec2(source.direction), axis.direction),
+                    1e-3);
+                echo_time = 2.0 * range_mm * 1e-3 / kC0;
+                // The plane's normal in the line frame, pointing away from the probe.
+                glm::dvec2 away = -glm::dvec2(e.normal);
+                if (glm::dot(away, axis.direction) < 0.0) away = -away;
+                const double sin_tilt =
+                    glm::dot(away, away) > 0.0
+                        ? glm::dot(glm::normalize(away), glm::dvec2(axis.direction.y,
+                                                                     -axis.direction.x))
+                        : 0.0;
+                const probe::LineFields& f = line_fields(l);
                 if (e.kind == simulator::EchoKind::diffuse) {
                     const double aperture = t.receive_aperture_mm(range_mm);
-                    response = psf->plane(l, range_mm, 0.0) *
+                    response = f.plane_echo(range_mm, 0.0) *
                                std::sqrt(reflection_back_fraction(
-                                   std::sqrt(1.0 - sin_tilt * sin_tilt), e.lobe_exponent,
+                                   std::sqrt(std::max(0.0, 1.0 - sin_tilt * sin_tilt)),
+                                   e.lobe_exponent,
                                    std::atan(0.5 * aperture / range_mm)));
                 } else {
-                    response = psf->plane(l, range_mm, sin_tilt);
-                }
+                    response = f.plane_echo(range_mm, sin_tilt);
+                    }
             }
             const double position = echo_time * fs;
             if (!(position >= 0.0) || position >= double(N - 1)) continue;
@@ -533,24 +554,32 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         } else {
             std::fill_n(out, N, 0.0f);
         }
+        // One wavefront meeting one interface is one echo of amplitude sqrt(sum of its
+        // intensities), however its particles fall into bins: bin i's pulse gets I_i /
+        // sqrt(sum of I within the pulse's half width of i), which sums to sqrt(I) over an
+        // isolated echo split across neighbouring bins (sqrt per bin would add up to
+        // sqrt(bins) times too much).
         for (int i = 0; i < N; ++i) {
             const double intensity = reflected[std::size_t(i)];
             if (!(intensity > 0.0)) continue;
             const double at = reflected_time[std::size_t(i)] / intensity;  // samples
+            double local = 0.0;  // summed directly: prefix sums would cancel catastrophically
+            for (int j = std::max(0, i - echo_half_width); j <= std::min(N - 1, i + echo_half_width);
+                 ++j)
+                local += reflected[std::size_t(j)];
             const std::complex<double> p = phase[std::size_t(i)];
             const double magnitude = std::abs(p);
             const std::complex<double> unit = magnitude > 0.0 ? p / magnitude : 1.0;
-            add_pulse(pulse, at, fs, std::sqrt(intensity) * unit, out, N);
+            add_pulse(pulse, at, fs, intensity / std::sqrt(local) * unit, out, N);
         }
         if (!points.empty()) {
-            auto& f = fields[std::size_t(l)];
-            if (!f) f.emplace(t, probe::line_array(t, l));
+            const probe::LineFields& f = line_fields(l);
             const glm::dvec2 across(axis.direction.y, -axis.direction.x);
             for (const PointEcho& p : points) {
                 const glm::dvec2 d = p.position - to_world.face_in_map - axis.origin;
                 const glm::dvec2 q(glm::dot(d, across), glm::dot(d, axis.direction));
                 if (!(q.y > 0.0) || q.y > t.depth_mm) continue;
-                const std::complex<double> h = f->two_way(q);
+                const std::complex<double> h = f.two_way(q);
                 add_pulse(pulse, q.y * depth_to_samples, fs, p.amplitude * h, out, N);
             }
         }

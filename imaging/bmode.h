@@ -110,6 +110,7 @@ struct MapToWorld {
 struct PointEcho {
     glm::dvec2 position{0.0};
     double amplitude = 0.0;
+    double core_radius_mm = 0.0;  // traced echoes this close are the target's own (dropped)
 };
 
 // The RF lines of a frame. `events` and `profile` come from one trace of `sources`

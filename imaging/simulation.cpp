@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <iterator>
+#include <numbers>
 #include <numeric>
 #include <vector>
 
@@ -104,6 +105,76 @@ MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid) {
             grid.to_map};
 }
 
+std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targets,
+                                    const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
+                                    const probe::Pose& pose, const probe::Transducer& t,
+                                    double margin_mm) {
+    const probe::ScanGeometry geometry(t);
+    const glm::dvec3 lateral = pose.lateral(), axial = pose.axial(), normal = pose.elevation();
+    const double lambda = t.wavelength_mm();
+    // Two-way elevation profile: a Gaussian of -6 dB full width = slice thickness, unit
+    // integral (per mm of elevation).
+    const double sigma_e = t.slice_thickness_mm / (2.0 * std::sqrt(2.0 * std::log(2.0)));
+    const double attenuation_per_mm = t.frequency_mhz * 0.1 * std::log(10.0) / 10.0;
+    const double step = 0.5 * std::min(map.spacing().x, map.spacing().y);
+    std::vector<PointEcho> echoes;
+    for (const tissue::PointTarget& target : targets) {
+        glm::dvec3 d = target.at - pose.position;
+        double strength = std::sqrt(target.backscatter_width_mm() * lambda / (2.0 * std::numbers::pi));
+        if (target.type == tissue::PointTarget::Type::wire) {
+            const double across = glm::dot(target.axis, normal);
+            if (std::abs(across) < 1e-3) continue;  // lies in the plane: not a point of it
+            d -= target.axis * (glm::dot(d, normal) / across);
+        } else {
+            const double e = glm::dot(d, normal);
+            strength *= target.diameter_mm * std::exp(-0.5 * e * e / (sigma_e * sigma_e)) /
+                        (sigma_e * std::sqrt(2.0 * std::numbers::pi));
+        }
+        const glm::dvec2 plane(glm::dot(d, lateral), glm::dot(d, axial));
+        const glm::dvec2 line = geometry.line_and_depth(plane);
+        if (!(line.x > -1.0 && line.x < geometry.lines() && line.y > 0.0 &&
+              line.y < geometry.depth_mm()))
+            continue;
+        const glm::dvec2 from = geometry.point(std::clamp(line.x, 0.0, geometry.lines() - 1.0), 0.0) + grid.to_map;
+        const glm::dvec2 to = plane + grid.to_map;
+        // March the straight path up to the core, in double: attenuation and impedance runs.
+        const double length = glm::length(to - from) - 0.5 * target.diameter_mm - margin_mm;
+        const glm::dvec2 direction = glm::normalize(to - from);
+        double optical = 0.0, transmission = 1.0;
+        double run_start = 0.0, previous = 0.0;
+        int run_sign = 0;
+        auto close_run = [&](double z_end) {
+            const double r = (z_end - run_start) / (z_end + run_start);
+            transmission *= 1.0 - r * r;
+        };
+        const int steps = std::max(0, int(std::ceil(length / step)));
+        for (int k = 0; k <= steps; ++k) {
+            const double s = std::min(k * step, std::max(length, 0.0));
+            const glm::vec2 p(from + direction * s);
+            if (!map.inside(p)) continue;
+            const tissue::AcousticTexel<2> texel = map.sample(p);
+            const double z = texel.impedance;
+            if (k == 0) {
+                run_start = previous = z;
+                continue;
+            }
+            optical += attenuation_per_mm * texel.attenuation * step;
+            const double change = z - previous;
+            const int sign = std::abs(change) < 1e-6 * z ? 0 : (change > 0.0 ? 1 : -1);
+            if (sign != 0 && run_sign != 0 && sign != run_sign) {  // the run turned: close it
+                close_run(previous);
+                run_start = previous;
+            }
+            if (sign != 0) run_sign = sign;
+            previous = z;
+        }
+        if (steps > 0) close_run(previous);
+        echoes.push_back({to, strength * transmission * std::exp(-optical),
+                          0.5 * target.diameter_mm + margin_mm});
+    }
+    return echoes;
+}
+
 Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                      const probe::Pose& pose, const SimulationSettings& settings,
                      const FrameProgress& progress) {
@@ -150,18 +221,28 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     frame.absorbed = std::move(traced.absorbed);
     frame.paths = std::move(traced.paths);
 
-    // Which reflections form the image depends on the receive model.
+    // Which reflections form the image depends on the receive model; a target's own
+    // core echoes through point_echoes, not through the tracer.
+    const std::vector<PointEcho> points =
+        point_echoes(settings.targets, map, grid, pose, t, settings.target_margin_mm);
+    auto in_a_core = [&](const glm::vec2& at) {
+        for (std::size_t k = 0; k < points.size(); ++k)
+            if (glm::length(glm::dvec2(at) - points[k].position) <= points[k].core_radius_mm)
+                return true;
+        return false;
+    };
     std::vector<simulator::EchoEvent<2>> echoes;
     for (const auto& e : traced.echoes) {
         const bool returned = e.kind == simulator::EchoKind::returned_to_probe;
-        if (returned == (settings.receive == ReceiveModel::capture)) echoes.push_back(e);
+        if (returned == (settings.receive == ReceiveModel::capture) && !in_a_core(e.position))
+            echoes.push_back(e);
     }
     ImagingSettings imaging = settings.imaging;
     imaging.seed = settings.seed;
     imaging.sub_line_sigmas = quality_level(settings.quality).sub_line_sigmas;
     stage("rf", [&] {
         frame.rf = synthesize_rf(t, sources, echoes, traced.echo_profile, map_to_world(pose, grid),
-                                 imaging);
+                                 imaging, points);
     });
     stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
     stage("compression", [&] { frame.display = compress(frame.envelope, imaging); });

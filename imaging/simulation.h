@@ -13,6 +13,7 @@
 #include "simulator/trace_settings.h"
 #include "simulator/tracer.h"
 #include "tissue/acoustic_map.h"
+#include "tissue/point_target.h"
 #include "tissue/property_maps.h"
 #include "tissue/transfer_function.h"
 
@@ -56,6 +57,11 @@ struct SimulationSettings {
     }();
     uint64_t seed = 1;
     double step_texels = 0.0;  // the tracer's step (texels); 0 = the quality's
+    // Sub-resolution targets (world mm), imaged through the beam's field (point_echoes).
+    // Their cores are painted into the maps by whoever builds them (phantoms/); the
+    // tracer's echoes within a core's radius + `target_margin_mm` are its own and dropped.
+    std::vector<tissue::PointTarget> targets;
+    double target_margin_mm = 0.5;
 
     // Throws tissue::InputError naming the first bad parameter.
     void validate(const std::string& source) const;
@@ -86,6 +92,16 @@ struct Frame {
 };
 
 using FrameProgress = std::function<void(std::size_t done, std::size_t total)>;
+
+// The echoes of the targets that cross this plane (points weighted by the elevation
+// profile of the slice, tissue/point_target.h), at their map-frame positions, with the
+// two-way losses of the straight path from the face to each: attenuation, and 1 - R^2
+// of every impedance step on the way (a smoothed step counts once, as one monotone run).
+// `margin_mm` keeps a target's own painted core out of its path.
+std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targets,
+                                    const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
+                                    const probe::Pose& pose, const probe::Transducer& t,
+                                    double margin_mm);
 
 // Traces and forms one frame on an acoustic map built on plane_grid(...).
 Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,

@@ -186,6 +186,56 @@ bool touches_box(const Shape& s, const glm::dvec3& size) {
     return false;
 }
 
+tissue::PointTarget parse_target(const json& j, const glm::dvec3& size, const std::string& source,
+                                 const std::string& where) {
+    jsonio::require_object(j, source, where);
+    jsonio::require_known_keys(j, {"type", "at", "diameter", "reflectivity", "comment"}, source,
+                               where);
+    tissue::PointTarget t;
+    const std::string type = jsonio::get_string(j, "type", source, where);
+    if (type != "point" && type != "wire")
+        throw tissue::InputError(source, jsonio::join(where, "type"),
+                                 "unknown target '" + type + "' (known: point, wire)");
+    t.type = type == "wire" ? tissue::PointTarget::Type::wire : tissue::PointTarget::Type::point;
+    const json* at = j.contains("at") ? &j.at("at") : nullptr;
+    const std::size_t n = t.type == tissue::PointTarget::Type::wire ? 2 : 3;
+    if (!at || !at->is_array() || at->size() != n ||
+        !std::all_of(at->begin(), at->end(), [](const json& v) { return v.is_number(); }))
+        throw tissue::InputError(source, jsonio::join(where, "at"),
+                                 n == 2 ? "must be [x, y] (mm; a wire runs along z)"
+                                        : "must be [x, y, z] (mm)");
+    t.at = {(*at)[0].get<double>(), (*at)[1].get<double>(),
+            n == 3 ? (*at)[2].get<double>() : 0.5 * size.z};
+    for (std::size_t a = 0; a < n; ++a)
+        if (!(t.at[int(a)] >= 0.0 && t.at[int(a)] <= size[int(a)]))
+            throw tissue::InputError(source, jsonio::join(where, "at"),
+                                     "lies outside the phantom (size " + std::to_string(size.x) +
+                                         " x " + std::to_string(size.y) + " x " +
+                                         std::to_string(size.z) + " mm from the origin)");
+    if (auto d = jsonio::get_optional_number(j, "diameter", source, where, 1e-3, 2.0))
+        t.diameter_mm = *d;
+    if (auto r = jsonio::get_optional_number(j, "reflectivity", source, where, 1e-6, 1.0))
+        t.reflectivity = *r;
+    return t;
+}
+
+// The shape a target paints: the local tissue's speed (no refraction), the impedance that
+// reflects `reflectivity` (Z_t = Z (1 + r) / (1 - r), through the density), no scatterers.
+Shape target_core(const tissue::PointTarget& t, const Phantom& ph) {
+    Shape s;
+    s.type = t.type == tissue::PointTarget::Type::wire ? ShapeType::wire : ShapeType::sphere;
+    s.a = t.at;
+    s.radius = 0.5 * t.diameter_mm;
+    s.properties = ph.at(t.at);
+    const double r = std::min(t.reflectivity, 0.99);
+    float& density = s.properties[tissue::Property::density];
+    density = float(std::min(double(density) * (1.0 + r) / (1.0 - r),
+                             tissue::info(tissue::Property::density).max));
+    s.properties[tissue::Property::backscatter] = 0.0f;
+    s.properties[tissue::Property::scatterer_density] = 0.0f;
+    return s;
+}
+
 }  // namespace
 
 double Shape::signed_distance(const glm::dvec3& p) const {
@@ -288,7 +338,7 @@ Phantom parse_phantom(const json& j, const std::string& source) {
     jsonio::require_known_keys(
         j,
         {"name", "description", "size", "resolution", "smoothing", "background", "shapes", "probe",
-         "comment", "mode", "source", "trace"},
+         "comment", "mode", "source", "trace", "targets"},
         source, "");
     Phantom ph;
     ph.source = source;
@@ -341,6 +391,17 @@ Phantom parse_phantom(const json& j, const std::string& source) {
                                              std::to_string(ph.size.x) + " x " +
                                              std::to_string(ph.size.y) + " x " +
                                              std::to_string(ph.size.z) + " mm from the origin)");
+        }
+    }
+    if (j.contains("targets")) {
+        const json& targets = j.at("targets");
+        if (!targets.is_array()) throw tissue::InputError(source, "targets", "must be an array");
+        if (ph.paper_mode)
+            throw tissue::InputError(source, "targets", "are not imaged in paper mode");
+        for (std::size_t i = 0; i < targets.size(); ++i) {
+            const std::string where = "targets[" + std::to_string(i) + "]";
+            ph.targets.push_back(parse_target(targets[i], ph.size, source, where));
+            ph.shapes.push_back(target_core(ph.targets.back(), ph));
         }
     }
     if (j.contains("source")) {

@@ -18,6 +18,13 @@
 //   half_space  point, normal                     (everything beyond the plane along normal)
 //   layer       point, normal, thickness          (a slab from the plane along normal)
 //   tube        path [[x,y,z], ...], radius       (a bent tube along a polyline)
+//   "targets": [ {"type": "wire", "at": [x, y], "diameter": 0.1, "reflectivity": 0.3},
+//                {"type": "point", "at": [x, y, z], "diameter": 0.1, "reflectivity": 0.3} ]
+// Targets (tissue/point_target.h) are sub-resolution reflectors imaged through the
+// beam's field at their exact position; diameter in (0, 2] mm (default 0.1), reflectivity
+// the amplitude reflection coefficient of their surface in (0, 1] (default 0.3, nylon).
+// Each is also painted into the maps (speed-matched, the impedance that reflects r, no
+// scatterers), so where it is large it shadows and reflects particles like any shape.
 // Later shapes paint over earlier ones. Each shape also takes the property keys of a
 // transfer-function point ("tissue", "speed_of_sound", ...), and optionally
 //   "profile": "parabolic"   weight 1 - (r/R)^2 from the axis (sphere, cylinder, wire,
@@ -41,6 +48,7 @@
 
 #include "probe/pose.h"
 #include "tissue/acoustic_properties.h"
+#include "tissue/point_target.h"
 #include "tissue/property_maps.h"
 #include "tissue/volume.h"
 
@@ -83,7 +91,8 @@ struct Phantom {
     double smoothing_mm = 0.5;          // width over which each interface blends
     tissue::AcousticProperties background;
     int background_label = 0;
-    std::vector<Shape> shapes;
+    std::vector<Shape> shapes;  // including the targets' painted cores
+    std::vector<tissue::PointTarget> targets;
     std::string probe_preset;  // "" = the command's default
     probe::Pose pose;          // default: top centre, beam +y, lateral +x
     bool paper_mode = false;

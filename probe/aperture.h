@@ -71,6 +71,18 @@ class LineFields {
     std::complex<double> two_way(const glm::dvec2& q) const {
         return transmit(q) * receive(q, q.y);
     }
+    // The echo of an infinite planar reflector through (0, z) whose normal, pointing away
+    // from the probe, is (sin_tilt, cos theta) in the line frame: integral of T R over the
+    // plane, phase against the echo time 2 z / c0, receive focused at z. By image
+    // sources: the plane mirrors transmit element e to e', and stationary phase turns the
+    // integral over the plane into
+    //   sum_e sum_r a_e b_r D_e D_r sqrt(lambda) exp(-i pi/4) exp(-ik (L - tau_e - tau_r -
+    //   2z)) / (sqrt(L) cos beta)
+    // with L = |r - e'| the mirrored path, D the directivities along it, tau the focusing
+    // delays and beta the path's angle from the plane's normal (error O(1/(kL))). Exact
+    // for every depth and tilt with no lateral window: a defocused beam's plane echo
+    // gathers from the whole width that both apertures light.
+    std::complex<double> plane_echo(double z, double sin_tilt) const;
     const LineArray& array() const { return array_; }
 
   private:

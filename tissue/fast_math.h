@@ -68,4 +68,29 @@ inline float log_float(float x) {
     return float(k) * 1.42860677e-6f + ln_m + float(k) * 0.693145752f;
 }
 
+// sin and cos of 2 pi t (t in turns, |t| < 2^22), absolute error < 1e-6 beyond the
+// 2 pi ulp(t) that t itself carries: t reduced to
+// [-1/2, 1/2] by its nearest integer; sin and cos of the half angle y = pi t in
+// [-pi/2, pi/2] by their Taylor polynomials to y^11 and y^12 (remainders < 6e-9, 5e-10),
+// then the double-angle formulas. No branches: loops over it vectorise.
+inline void sincos_turns(float t, float& sine, float& cosine) {
+    const float r = t - float(floor_to_int(t + 0.5f));
+    const float y = 3.14159265f * r, y2 = y * y;
+    float s = -1.0f / 39916800.0f;
+    s = s * y2 + 1.0f / 362880.0f;
+    s = s * y2 - 1.0f / 5040.0f;
+    s = s * y2 + 1.0f / 120.0f;
+    s = s * y2 - 1.0f / 6.0f;
+    s = (s * y2 + 1.0f) * y;
+    float c = 1.0f / 479001600.0f;
+    c = c * y2 - 1.0f / 3628800.0f;
+    c = c * y2 + 1.0f / 40320.0f;
+    c = c * y2 - 1.0f / 720.0f;
+    c = c * y2 + 1.0f / 24.0f;
+    c = c * y2 - 0.5f;
+    c = c * y2 + 1.0f;
+    sine = 2.0f * s * c;
+    cosine = (c - s) * (c + s);
+}
+
 }  // namespace sonotrace::tissue

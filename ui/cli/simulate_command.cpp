@@ -480,6 +480,10 @@ int run_simulate_command(const SimulateOptions& o) {
         settings.trace.interface_reach_mm = std::max(2.0 * phantom->smoothing_mm, 1.0);
         scene.pose = pose ? *pose : phantom->pose;
         scene.description = "phantom " + phantom->name + (pose ? ", probe at --pose" : "");
+        settings.targets = phantom->targets;
+        // A painted core blends over the smoothing width, sampled on the map's texels.
+        settings.target_margin_mm =
+            phantom->smoothing_mm + imaging::quality_level(settings.quality).map_pixel_mm;
         mapper = [&phantom](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
             return phantoms::rasterise(*phantom, grid, labels);
         };
