@@ -416,7 +416,8 @@ double reflection_back_fraction(double cos_incidence, double lobe_exponent,
 LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
                        const std::vector<simulator::EchoEvent<2>>& events,
                        const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
-                       const ImagingSettings& settings, const std::vector<PointEcho>& points) {
+                       const ImagingSettings& settings, const std::vector<PointEcho>& points,
+                       std::shared_ptr<const simulator::ReceiveWeights> receive) {
     LineData rf = rf_layout(t, settings);
     const int L = rf.lines, N = rf.samples;
     const double fs = rf.fs_hz;
@@ -451,6 +452,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                               profile.covariance.size() == profile.intensity.size();
     // The lines' PSF table, where speckle needs it (computed once per probe set-up).
     const std::shared_ptr<const PsfTable> psf = with_speckle ? PsfTable::of(t) : nullptr;
+    if (!receive && !event_order.empty()) receive = receive_weights(t, sources, to_world.face_in_map);
     const std::size_t size = std::size_t(L) * std::size_t(N);
     const auto speckle_i = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
     const auto speckle_q = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
@@ -467,7 +469,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     }
     // Each line's exact fields, for its reflections' plane echoes and its point targets
     // (made on first use by the line's own task).
-    std::vector<std::optional<probe::LineFields>> fields{std::size_t(L)};
+    std::vector<std::optional<probe::LineFields>> fields(static_cast<std::size_t>(L));
     auto line_fields = [&](int l) -> const probe::LineFields& {
         auto& f = fields[std::size_t(l)];
         if (!f) f.emplace(t, probe::line_array(t, l));
@@ -486,6 +488,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         std::vector<std::complex<double>> phase(std::size_t(N), 0.0);
         const auto& line = of_line[std::size_t(l)];
         const ScanLine axis = geometry.line(l);
+        const glm::dvec2 across(axis.direction.y, -axis.direction.x);
         for (uint32_t n = event_start[std::size_t(l)]; n < event_start[std::size_t(l) + 1]; ++n) {
             const auto& e = events[event_order[n]];
             if (e.particle >= line.size()) continue;
@@ -519,21 +522,21 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                 glm::dvec2 away = -glm::dvec2(e.normal);
                 if (glm::dot(away, axis.direction) < 0.0) away = -away;
                 const double sin_tilt =
-                    glm::dot(away, away) > 0.0
-                        ? glm::dot(glm::normalize(away), glm::dvec2(axis.direction.y,
-                                                                     -axis.direction.x))
-                        : 0.0;
+                    glm::dot(away, away) > 0.0 ? glm::dot(glm::normalize(away), across) : 0.0;
                 const probe::LineFields& f = line_fields(l);
                 if (e.kind == simulator::EchoKind::diffuse) {
                     const double aperture = t.receive_aperture_mm(range_mm);
                     response = f.plane_echo(range_mm, 0.0) *
                                std::sqrt(reflection_back_fraction(
                                    std::sqrt(std::max(0.0, 1.0 - sin_tilt * sin_tilt)),
-                                   e.lobe_exponent,
-                                   std::atan(0.5 * aperture / range_mm)));
+                                   e.lobe_exponent, std::atan(0.5 * aperture / range_mm)));
                 } else {
                     response = f.plane_echo(range_mm, sin_tilt);
-                    }
+                }
+                // Receive, once (receive_weights): a reflector across the whole beam
+                // averages it to 1, so its plane echo above stays exact; a target smaller
+                // than the beam echoes on the lines whose receive sees it.
+                if (receive) intensity *= receive->at(uint32_t(l), e.particle, e.time_s);
             }
             const double position = echo_time * fs;
             if (!(position >= 0.0) || position >= double(N - 1)) continue;
@@ -574,7 +577,6 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         }
         if (!points.empty()) {
             const probe::LineFields& f = line_fields(l);
-            const glm::dvec2 across(axis.direction.y, -axis.direction.x);
             for (const PointEcho& p : points) {
                 const glm::dvec2 d = p.position - to_world.face_in_map - axis.origin;
                 const glm::dvec2 q(glm::dot(d, across), glm::dot(d, axis.direction));

@@ -27,6 +27,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -35,6 +36,7 @@
 #include "probe/source_particle.h"
 #include "probe/transducer.h"
 #include "simulator/records.h"
+#include "simulator/trace_settings.h"
 #include "tissue/fast_math.h"
 #include "tissue/hash.h"
 
@@ -115,11 +117,13 @@ struct PointEcho {
 
 // The RF lines of a frame. `events` and `profile` come from one trace of `sources`
 // (profile bins must equal the layout's samples at bin width 1/fs); `points` are imaged
-// through each line's two-way field without being traced.
+// through each line's two-way field without being traced. `receive`: the receive
+// weights the trace's profile was made with (imaging/psf.h; made here if null).
 LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
                        const std::vector<simulator::EchoEvent<2>>& events,
                        const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
-                       const ImagingSettings& settings, const std::vector<PointEcho>& points = {});
+                       const ImagingSettings& settings, const std::vector<PointEcho>& points = {},
+                       std::shared_ptr<const simulator::ReceiveWeights> receive = nullptr);
 
 // Envelope of every line: magnitude of the analytic signal (FFT Hilbert transform).
 LineData envelope(const LineData& rf);

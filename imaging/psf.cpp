@@ -6,10 +6,12 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <numbers>
 
 #include "probe/aperture.h"
+#include "tissue/acoustic_map.h"
 
 namespace sonotrace::imaging {
 
@@ -78,12 +80,14 @@ struct PsfTableBuilder {
             row.dx = 0.25 * lambda * std::max(z / t.receive_aperture_mm(z), 0.5);
             row.half = kHalfRow;
             row.h.resize(std::size_t(2 * kHalfRow + 1));
+            row.receive_power.resize(row.h.size());
             for (int j = -kHalfRow; j <= kHalfRow; ++j) {
                 const glm::dvec2 q(j * row.dx, z);
-                const std::complex<double> h = f.transmit(q) * f.receive(q, receive);
+                const std::complex<double> r = f.receive(q, receive);
+                const std::complex<double> h = f.transmit(q) * r;
                 row.h[std::size_t(j + kHalfRow)] = std::complex<float>(h);
+                row.receive_power[std::size_t(j + kHalfRow)] = float(std::norm(r));
                 row.power += std::norm(h) * row.dx;
-                row.plane += h * row.dx;
             }
         });
         table->focal_power_ = table->power(t.lines / 2, t.focus_mm);
@@ -151,19 +155,90 @@ double PsfTable::power(int l, double z) const {
     return (1.0 - f) * row(l, i).power + f * row(l, i + 1).power;
 }
 
-std::complex<double> PsfTable::plane(int l, double z, double sin_tilt) const {
+double PsfTable::receive_power(int l, double x, double z) const {
     const double u = std::clamp(z / dz_, 0.0, double(depths_ - 1));
     const int i = std::min(int(u), depths_ - 2);
     const double f = u - i;
     auto one = [&](const Row& r) {
-        if (sin_tilt == 0.0) return r.plane;
-        std::complex<double> sum = 0.0;
-        const std::complex<double> step = std::polar(1.0, -2.0 * k_ * r.dx * sin_tilt);
-        std::complex<double> phase = std::polar(1.0, 2.0 * k_ * r.dx * sin_tilt * r.half);
-        for (const auto& h : r.h) sum += std::complex<double>(h) * phase, phase *= step;
-        return sum * r.dx;
+        const double v = x / r.dx + r.half;
+        if (!(v >= 0.0) || v >= double(2 * r.half)) return 0.0;
+        const auto j = std::size_t(v);
+        const double g = v - double(j);
+        return double(r.receive_power[j]) * (1.0 - g) + double(r.receive_power[j + 1]) * g;
     };
     return (1.0 - f) * one(row(l, i)) + f * one(row(l, i + 1));
+}
+
+std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
+                                                                 const probe::Sources<2>& sources,
+                                                                 const glm::dvec2& face_in_map) {
+    // Columns 0.25 mm of one-way range apart: |R|^2 of a focused receive changes over
+    // millimetres along the line.
+    const double bin_s = 0.25e-3 / tissue::kReferenceSpeed;
+    const std::shared_ptr<const PsfTable> psf = PsfTable::of(t);
+    const probe::ScanGeometry geometry(t);
+    const int L = t.lines;
+    auto out = std::make_shared<simulator::ReceiveWeights>();
+    out->bin_s = bin_s;
+    // One-way times up to the depth plus the longest focusing delay.
+    out->bins = int(std::ceil(1.5 * t.depth_mm * 1e-3 / tissue::kReferenceSpeed / bin_s)) + 1;
+    std::vector<std::vector<uint32_t>> of_line(static_cast<std::size_t>(L));
+    for (std::size_t s = 0; s < sources.size(); ++s)
+        if (sources[s].line < uint32_t(L)) of_line[sources[s].line].push_back(uint32_t(s));
+    out->first_of_line.assign(std::size_t(L) + 1, 0);
+    for (int l = 0; l < L; ++l)
+        out->first_of_line[std::size_t(l) + 1] =
+            out->first_of_line[std::size_t(l)] + uint32_t(of_line[std::size_t(l)].size());
+    out->weight.assign(std::size_t(out->first_of_line.back()) * std::size_t(out->bins), 1.0f);
+    const double mm_per_s = tissue::kReferenceSpeed * 1e3;
+    tbb::parallel_for(0, L, [&](int l) {
+        const probe::ScanLine axis = geometry.line(l);
+        const glm::dvec2 across(axis.direction.y, -axis.direction.x);
+        const auto& line = of_line[std::size_t(l)];
+        struct Launch {
+            double x, z, dx, dz, t0, energy;  // line frame: across, along
+        };
+        std::vector<Launch> launches;
+        for (const uint32_t index : line) {
+            const auto& s = sources[index];
+            const glm::dvec2 from = glm::dvec2(s.position) - face_in_map - axis.origin;
+            const glm::dvec2 d(s.direction);
+            launches.push_back({glm::dot(from, across), glm::dot(from, axis.direction),
+                                glm::dot(d, across), glm::dot(d, axis.direction), double(s.time_s),
+                                double(s.energy)});
+        }
+        // The mean over the line's particles at a range (0.5 mm apart, as needed).
+        std::map<long, double> mean_at;
+        auto mean = [&](double z) {
+            const long key = std::lround(z / 0.5);
+            auto [it, added] = mean_at.try_emplace(key, 0.0);
+            if (!added) return it->second;
+            const double zk = std::max(0.5 * double(key), 0.25);
+            double sum = 0.0, energy = 0.0;
+            for (const Launch& p : launches) {
+                if (!(p.dz > 1e-3)) continue;
+                sum += p.energy * psf->receive_power(l, p.x + (zk - p.z) * p.dx / p.dz, zk);
+                energy += p.energy;
+            }
+            it->second = energy > 0.0 ? sum / energy : 0.0;
+            return it->second;
+        };
+        for (std::size_t p = 0; p < launches.size(); ++p) {
+            const Launch& a = launches[p];
+            float* row =
+                out->weight.data() + (std::size_t(out->first_of_line[std::size_t(l)]) + p) *
+                                         std::size_t(out->bins);
+            for (int b = 0; b < out->bins; ++b) {
+                const double s = ((b + 0.5) * bin_s - a.t0) * mm_per_s;
+                const double z = a.z + s * a.dz;
+                if (!(z > 0.0)) continue;
+                const double m = mean(z);
+                if (!(m > 0.0)) continue;  // no particle within the receive's reach: as is
+                row[b] = float(psf->receive_power(l, a.x + s * a.dx, z) / m);
+            }
+        }
+    });
+    return out;
 }
 
 }  // namespace sonotrace::imaging

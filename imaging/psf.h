@@ -13,7 +13,9 @@
 #include <memory>
 #include <vector>
 
+#include "probe/source_particle.h"
 #include "probe/transducer.h"
+#include "simulator/trace_settings.h"
 
 namespace sonotrace::imaging {
 
@@ -27,8 +29,8 @@ class PsfTable {
         double dx = 0.0;                       // lateral spacing (mm)
         int half = 0;                          // J: samples j = -J .. J
         std::vector<std::complex<float>> h;    // H at x = (j - J) dx... index j + J
+        std::vector<float> receive_power;      // |R|^2 at the same x
         double power = 0.0;                    // sum |H|^2 dx (1/mm)
-        std::complex<double> plane{0.0, 0.0};  // sum H dx: a perpendicular plane's echo
     };
 
     double dz() const { return dz_; }
@@ -40,10 +42,9 @@ class PsfTable {
     std::complex<float> at(int l, double x, double z) const;
     // Lateral power integral at depth z (1/mm), linear between rows.
     double power(int l, double z) const;
-    // A planar reflector through depth z on line l whose normal is tilted by
-    // theta from the line: sum H(x) exp(-2 i k x sin theta) dx (dimensionless; 1 for a
-    // matched transmit and receive at the focus).
-    std::complex<double> plane(int l, double z, double sin_tilt) const;
+    // The receive sensitivity |R|^2 of line l at (x, z) (1/mm; linear between rows and
+    // samples, 0 beyond a row's reach).
+    double receive_power(int l, double x, double z) const;
     // The lateral power integral on the central line at the transmit focus: speckle is
     // calibrated there (its level at other depths follows the ratio).
     double focal_power() const { return focal_power_; }
@@ -56,5 +57,16 @@ class PsfTable {
     std::vector<Row> rows_;
     std::vector<int> row_of_;  // [line * depths + i] -> rows_
 };
+
+// The receive weight of every particle of `sources` (map frame; the probe face centre at
+// `face_in_map`) by its one-way time: |R|^2 at the point its path
+// reaches at that time if it went on straight from launch (for a reflected or refracted
+// particle, by reciprocity, where its echo seems to come from), over the energy-weighted
+// mean of the same over the line's particles at that range. A reflector or tissue
+// across the whole beam averages the weights to 1; a target smaller than the beam echoes
+// on the lines whose receive sees it.
+std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
+                                                                 const probe::Sources<2>& sources,
+                                                                 const glm::dvec2& face_in_map);
 
 }  // namespace sonotrace::imaging

@@ -9,6 +9,7 @@
 #include <numeric>
 #include <vector>
 
+#include "imaging/psf.h"
 #include "probe/placement.h"
 #include "tissue/error.h"
 #include "tissue/tissue_table.h"
@@ -201,6 +202,9 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     trace.seed = settings.seed;
     trace.record_scatter_echoes = false;
     trace.echo_profile = simulator::EchoProfileSettings{1.0 / layout.fs_hz, layout.samples};
+    // The image's receive, applied once to the scattered and reflected echoes.
+    stage("receive weights",
+          [&] { trace.receive_weights = receive_weights(t, sources, grid.to_map); });
     // The echo window closes at the last sample: monostatic echoes come at twice the
     // one-way time, captured ones at the particle's own time.
     const double window_s = layout.samples / layout.fs_hz;
@@ -242,7 +246,7 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     imaging.sub_line_sigmas = quality_level(settings.quality).sub_line_sigmas;
     stage("rf", [&] {
         frame.rf = synthesize_rf(t, sources, echoes, traced.echo_profile, map_to_world(pose, grid),
-                                 imaging, points);
+                                 imaging, points, trace.receive_weights);
     });
     stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
     stage("compression", [&] { frame.display = compress(frame.envelope, imaging); });

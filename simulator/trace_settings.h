@@ -1,9 +1,12 @@
 #pragma once
 // Parameters of the particle tracer, each documented once (name, unit, default) here;
 // the CLI help and the sidecars use these texts.
+#include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -61,6 +64,24 @@ struct RingDetector {
 struct EchoProfileSettings {
     double bin_s = 5e-8;  // echo-time bin width (s)
     int bins = 0;         // bins per line (echo times beyond are dropped)
+};
+
+// The image's receive sensitivity for each particle's echoes by the particle's one-way
+// time (imaging::receive_weights makes it from the aperture): the profile's scattered
+// intensity is weighted by it, once. Particle p of line l owns row first_of_line[l] + p.
+struct ReceiveWeights {
+    double bin_s = 0.0;  // one-way time per column
+    int bins = 0;
+    std::vector<uint32_t> first_of_line;
+    std::vector<float> weight;  // [row * bins + bin]
+    float at(uint32_t line, uint32_t particle, double time_s) const {
+        if (line + 1 >= first_of_line.size()) return 1.0f;
+        const std::size_t row = std::size_t(first_of_line[line]) + particle;
+        if (row >= first_of_line[line + 1]) return 1.0f;
+        const double u = time_s / bin_s;
+        const int bin = u <= 0.0 ? 0 : std::min(int(u), bins - 1);
+        return weight[row * std::size_t(bins) + std::size_t(bin)];
+    }
 };
 
 struct TraceSettings {
@@ -127,6 +148,7 @@ struct TraceSettings {
     bool record_scatter_echoes = true;
 
     std::optional<EchoProfileSettings> echo_profile;
+    std::shared_ptr<const ReceiveWeights> receive_weights;  // null: every echo counts fully
 
     // Set by the caller in the map frame; optional.
     std::optional<ProbeFace<2>> probe_face_2d;

@@ -18,8 +18,15 @@ constexpr double kC0 = 1540.0;  // m/s
 
 // One reflection event on line `line` at one-way time t, through the whole chain.
 LineData point_echo_envelope(const probe::Transducer& t, double one_way_time_s, int line) {
+    // One particle per line, leaving the face along the line (the echo's range is that of
+    // its unfolded path).
+    const probe::ScanGeometry g(t);
     probe::Sources<2> sources(std::size_t(t.lines));
-    for (int l = 0; l < t.lines; ++l) sources[std::size_t(l)].line = uint32_t(l);
+    for (int l = 0; l < t.lines; ++l) {
+        sources[std::size_t(l)].line = uint32_t(l);
+        sources[std::size_t(l)].position = glm::vec2(g.line(l).origin);
+        sources[std::size_t(l)].direction = glm::vec2(g.line(l).direction);
+    }
     simulator::EchoEvent<2> e;
     e.line = uint32_t(line);
     e.particle = 0;
@@ -27,8 +34,7 @@ LineData point_echo_envelope(const probe::Transducer& t, double one_way_time_s, 
     e.energy = 1.0f;
     e.weight = 0.5f;
     e.kind = simulator::EchoKind::specular;
-    // On the line's axis at its depth (the receive beam weights echoes across the line).
-    e.position = glm::vec2(probe::ScanGeometry(t).point(line, one_way_time_s * kC0 * 1e3));
+    e.position = glm::vec2(g.point(line, one_way_time_s * kC0 * 1e3));
     imaging::ImagingSettings settings;
     settings.speckle = false;
     const LineData rf = imaging::synthesize_rf(t, sources, {e}, {}, {}, settings);

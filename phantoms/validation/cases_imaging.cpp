@@ -875,12 +875,15 @@ CaseResult speckle_and_cysts(const CaseContext& ctx) {
     const double snr = mean(speckle) / stddev(speckle);
     r.measurements.push_back({"speckle SNR (envelope mean / std)", snr,
                               std::sqrt(std::numbers::pi / (4.0 - std::numbers::pi)), 0.15, ""});
-    // Cysts, against a background ring 1.5..4 mm outside each at the same depths.
+    // Cysts, against a background ring 1.5..4 mm outside each at the same depths, on lines
+    // whose transmit aperture the array's ends do not clip (their beams are weaker).
+    const double unclipped = 0.5 * (f.transducer.array_length_mm() - f.transducer.active_aperture_mm());
     auto region = [&](const phantoms::Shape& s, double r0, double r1) {
         const glm::dvec2 c = f.plane(glm::dvec2(s.a));
         return pooled([&](glm::dvec2 p) {
             const double d = glm::length(p - c);
-            return d >= r0 && d <= r1 && std::abs(p.y - c.y) <= s.radius;
+            return d >= r0 && d <= r1 && std::abs(p.y - c.y) <= s.radius &&
+                   std::abs(p.x) <= unclipped;
         });
     };
     // Anechoic (the 6 mm cyst): inside only noise-free silence, so the contrast-to-noise
