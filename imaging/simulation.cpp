@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <iterator>
@@ -46,6 +47,56 @@ QualityLevel quality_level(Quality quality) {
             return {0.125, 128, 0.5, 1.0};
     }
     return {0.25, 32, 0.5, 1.0};
+}
+
+const std::vector<PhysicsSwitchName>& physics_switch_names() {
+    static const std::vector<PhysicsSwitchName> names = {
+        {"refraction", &PhysicsSwitches::refraction, "bending at speed changes (Snell)"},
+        {"specular", &PhysicsSwitches::specular_reflection,
+         "mirror reflection at interfaces (total reflection stays)"},
+        {"diffuse", &PhysicsSwitches::diffuse_reflection, "the rough interfaces' reflection lobes"},
+        {"scattering", &PhysicsSwitches::scattering, "sub-resolution scattering events"},
+        {"attenuation", &PhysicsSwitches::attenuation, "absorption along the paths"},
+        {"bounces", &PhysicsSwitches::multiple_bounces,
+         "paths after the first reflection (reverberation, mirror images)"},
+        {"face", &PhysicsSwitches::face_reflection, "the probe face's reflection (capture model)"},
+        {"speckle", &PhysicsSwitches::speckle, "the scattered echoes' speckle in the image"},
+    };
+    return names;
+}
+
+PhysicsSwitches disabled_physics(const std::string& list, const std::string& source,
+                                 const std::string& field) {
+    PhysicsSwitches out;
+    std::size_t start = 0;
+    while (start <= list.size() && !list.empty()) {
+        const std::size_t comma = std::min(list.find(',', start), list.size());
+        const std::string name = list.substr(start, comma - start);
+        const auto& names = physics_switch_names();
+        const auto found = std::find_if(names.begin(), names.end(),
+                                        [&](const PhysicsSwitchName& n) { return n.name == name; });
+        if (found == names.end()) {
+            std::string known;
+            for (const auto& n : names) known += (known.empty() ? "" : ", ") + std::string(n.name);
+            throw tissue::InputError(source, field,
+                                     "unknown physics '" + name + "' (known: " + known + ")");
+        }
+        out.*(found->member) = false;
+        start = comma + 1;
+    }
+    return out;
+}
+
+void apply(const PhysicsSwitches& physics, SimulationSettings& s) {
+    simulator::TraceSettings& t = s.trace;
+    t.refraction = physics.refraction;
+    t.specular_reflection = physics.specular_reflection;
+    t.diffuse_reflection = physics.diffuse_reflection;
+    t.scattering = physics.scattering;
+    t.absorption = physics.attenuation;
+    t.max_bounces = physics.multiple_bounces ? 64 : 0;  // 0: retired at the first reflection
+    if (!physics.face_reflection) s.transducer.face_reflectivity = 0.0;
+    s.imaging.speckle = physics.speckle;
 }
 
 void SimulationSettings::validate(const std::string& source) const {

@@ -5,6 +5,8 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "imaging/bmode.h"
 #include "probe/beam.h"
@@ -37,6 +39,36 @@ struct QualityLevel {
     double sub_line_sigmas;  // speckle sub-line spacing (ImagingSettings::sub_line_sigmas)
 };
 QualityLevel quality_level(Quality quality);
+
+// The physics a user switches off to take an artifact apart: the GUI's toggles and
+// `simulate --disable`. Every switch on is the simulator's physics.
+struct PhysicsSwitches {
+    bool refraction = true;
+    bool specular_reflection = true;
+    bool diffuse_reflection = true;
+    bool scattering = true;
+    bool attenuation = true;
+    bool multiple_bounces = true;  // off: a particle ends at its first reflection (echo kept)
+    bool face_reflection = true;   // capture receive model: the face reflects part back
+    bool speckle = true;           // the image's sub-resolution scatterer field
+    bool operator==(const PhysicsSwitches&) const = default;
+};
+// Each switch by its command-line name, with what switching it off removes.
+struct PhysicsSwitchName {
+    std::string_view name;
+    bool PhysicsSwitches::*member;
+    std::string_view removes;
+};
+const std::vector<PhysicsSwitchName>& physics_switch_names();
+// "refraction,specular,..." (names above; empty = none) switched off; throws
+// tissue::InputError naming `source` and `field` for an unknown name.
+PhysicsSwitches disabled_physics(const std::string& list, const std::string& source,
+                                 const std::string& field);
+
+struct SimulationSettings;
+// Sets the tracer's and the image's settings from the switches (the transducer's face
+// reflectivity too).
+void apply(const PhysicsSwitches& physics, SimulationSettings& settings);
 
 struct SimulationSettings {
     probe::Transducer transducer;

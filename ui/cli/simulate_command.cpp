@@ -231,6 +231,15 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     }
     add_parameter(*cmd, kQualityDoc, o.quality);
     add_parameter(*cmd, kReceiveDoc, o.receive);
+    {
+        std::string help =
+            "comma list of physics to switch off, to take an artifact apart (as the GUI's "
+            "toggles):";
+        for (const auto& n : imaging::physics_switch_names())
+            help += " " + std::string(n.name) + ": " + std::string(n.removes) + ";";
+        help.back() = '.';
+        cmd->add_option("--disable", o.disable, help);
+    }
     add_parameter(*cmd, kGainDoc, o.gain_db);
     add_parameter(*cmd, kRangeDoc, o.dynamic_range_db);
     add_parameter(*cmd, kTgcDoc, o.tgc);
@@ -440,6 +449,8 @@ int run_simulate_command(const SimulateOptions& o) {
                                           {{"monostatic", imaging::ReceiveModel::monostatic},
                                            {"capture", imaging::ReceiveModel::capture}});
     settings.seed = o.seed;
+    const imaging::PhysicsSwitches physics = imaging::disabled_physics(o.disable, "--disable", "");
+    imaging::apply(physics, settings);
     settings.trace.deposition_maps = o.write_energy;  // the energy map is their only reader
     settings.step_texels = o.step_texels;
     settings.imaging.gain_db = o.gain_db;
@@ -634,6 +645,13 @@ int run_simulate_command(const SimulateOptions& o) {
           {"particles_per_line", level.particles_per_line},
           {"step_texels", settings.step_texels > 0.0 ? settings.step_texels : level.step_texels}}},
         {"receive", imaging::to_string(settings.receive)},
+        {"disabled_physics",
+         [&] {
+             json off = json::array();
+             for (const auto& n : imaging::physics_switch_names())
+                 if (!(physics.*(n.member))) off.push_back(n.name);
+             return off;
+         }()},
         {"craniotomy",
          {{"radius_mm", scene.craniotomy_radius_mm}, {"depth_mm", scene.craniotomy_depth_mm}}},
         {"image",

@@ -43,6 +43,7 @@ struct SimulateOptions {
         cycles, elevation_focus, slice_thickness, depth, face_reflectivity;
     std::string quality = "standard";
     std::string receive = "monostatic";
+    std::string disable;  // physics switched off (imaging::physics_switch_names)
     double gain_db = 36.0;
     double dynamic_range_db = 60.0;
     std::string tgc = "auto";

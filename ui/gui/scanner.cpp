@@ -61,15 +61,8 @@ imaging::SimulationSettings ScanParameters::settings(const Scene& scene) const {
         s.imaging.tgc.push_back({depth, slope * depth + tgc_db[std::size_t(k)]});
     }
     s.imaging.pixel_mm = std::max(0.1, transducer.depth_mm / 400.0);
-    simulator::TraceSettings& t = s.trace;
-    t.refraction = physics.refraction;
-    t.specular_reflection = physics.specular_reflection;
-    t.diffuse_reflection = physics.diffuse_reflection;
-    t.scattering = physics.scattering;
-    t.absorption = physics.attenuation;
-    t.max_bounces = physics.multiple_bounces ? 64 : 0;  // 0: retired at the first reflection
-    t.interface_reach_mm = scene.interface_reach_mm;
-    if (!physics.face_reflection) s.transducer.face_reflectivity = 0.0;
+    imaging::apply(physics, s);
+    s.trace.interface_reach_mm = scene.interface_reach_mm;
     s.validate("gui settings");
     return s;
 }

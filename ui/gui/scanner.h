@@ -23,15 +23,7 @@
 namespace sonotrace::gui {
 
 // The switches a student flips to make an artifact vanish and return.
-struct PhysicsSwitches {
-    bool refraction = true;
-    bool specular_reflection = true;
-    bool diffuse_reflection = true;
-    bool scattering = true;
-    bool attenuation = true;
-    bool multiple_bounces = true;  // off: a particle ends at its first reflection (echo kept)
-    bool face_reflection = true;   // capture receive model: the face reflects part back
-};
+using PhysicsSwitches = imaging::PhysicsSwitches;
 
 inline constexpr int kTgcSliders = 8;  // evenly spaced over the imaging depth
 
