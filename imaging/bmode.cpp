@@ -452,7 +452,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                               profile.covariance.size() == profile.intensity.size();
     // The lines' PSF table, where speckle needs it (computed once per probe set-up).
     const std::shared_ptr<const PsfTable> psf = with_speckle ? PsfTable::of(t) : nullptr;
-    if (!receive && !event_order.empty()) receive = receive_weights(t, sources, to_world.face_in_map);
+    if (!receive && !event_order.empty())
+        receive = receive_weights(t, sources, to_world.face_in_map);
     const std::size_t size = std::size_t(L) * std::size_t(N);
     const auto speckle_i = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
     const auto speckle_q = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
@@ -513,10 +514,10 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                 const glm::dvec2 launch =
                     glm::dvec2(source.position) - to_world.face_in_map - axis.origin;
                 const double flight_mm = double(e.time_s - source.time_s) * kC0 * 1e3;
-                const double range_mm = std::max(
-                    glm::dot(launch, axis.direction) +
-                        flight_mm * glm::dot(glm::dvec2(source.direction), axis.direction),
-                    1e-3);
+                const double range_mm =
+                    std::max(glm::dot(launch, axis.direction) +
+                                 flight_mm * glm::dot(glm::dvec2(source.direction), axis.direction),
+                             1e-3);
                 echo_time = 2.0 * range_mm * 1e-3 / kC0;
                 // The plane's normal in the line frame, pointing away from the probe.
                 glm::dvec2 away = -glm::dvec2(e.normal);
@@ -567,8 +568,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             if (!(intensity > 0.0)) continue;
             const double at = reflected_time[std::size_t(i)] / intensity;  // samples
             double local = 0.0;  // summed directly: prefix sums would cancel catastrophically
-            for (int j = std::max(0, i - echo_half_width); j <= std::min(N - 1, i + echo_half_width);
-                 ++j)
+            for (int j = std::max(0, i - echo_half_width);
+                 j <= std::min(N - 1, i + echo_half_width); ++j)
                 local += reflected[std::size_t(j)];
             const std::complex<double> p = phase[std::size_t(i)];
             const double magnitude = std::abs(p);

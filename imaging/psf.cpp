@@ -226,8 +226,8 @@ std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Tr
         for (std::size_t p = 0; p < launches.size(); ++p) {
             const Launch& a = launches[p];
             float* row =
-                out->weight.data() + (std::size_t(out->first_of_line[std::size_t(l)]) + p) *
-                                         std::size_t(out->bins);
+                out->weight.data() +
+                (std::size_t(out->first_of_line[std::size_t(l)]) + p) * std::size_t(out->bins);
             for (int b = 0; b < out->bins; ++b) {
                 const double s = ((b + 0.5) * bin_s - a.t0) * mm_per_s;
                 const double z = a.z + s * a.dz;

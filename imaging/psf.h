@@ -26,11 +26,11 @@ class PsfTable {
     static std::shared_ptr<const PsfTable> of(const probe::Transducer& t);
 
     struct Row {
-        double dx = 0.0;                       // lateral spacing (mm)
-        int half = 0;                          // J: samples j = -J .. J
-        std::vector<std::complex<float>> h;    // H at x = (j - J) dx... index j + J
-        std::vector<float> receive_power;      // |R|^2 at the same x
-        double power = 0.0;                    // sum |H|^2 dx (1/mm)
+        double dx = 0.0;                     // lateral spacing (mm)
+        int half = 0;                        // J: samples j = -J .. J
+        std::vector<std::complex<float>> h;  // H at x = (j - J) dx... index j + J
+        std::vector<float> receive_power;    // |R|^2 at the same x
+        double power = 0.0;                  // sum |H|^2 dx (1/mm)
     };
 
     double dz() const { return dz_; }

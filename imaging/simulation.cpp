@@ -172,7 +172,8 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
     std::vector<PointEcho> echoes;
     for (const tissue::PointTarget& target : targets) {
         glm::dvec3 d = target.at - pose.position;
-        double strength = std::sqrt(target.backscatter_width_mm() * lambda / (2.0 * std::numbers::pi));
+        double strength =
+            std::sqrt(target.backscatter_width_mm() * lambda / (2.0 * std::numbers::pi));
         if (target.type == tissue::PointTarget::Type::wire) {
             const double across = glm::dot(target.axis, normal);
             if (std::abs(across) < 1e-3) continue;  // lies in the plane: not a point of it
@@ -187,7 +188,8 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
         if (!(line.x > -1.0 && line.x < geometry.lines() && line.y > 0.0 &&
               line.y < geometry.depth_mm()))
             continue;
-        const glm::dvec2 from = geometry.point(std::clamp(line.x, 0.0, geometry.lines() - 1.0), 0.0) + grid.to_map;
+        const glm::dvec2 from =
+            geometry.point(std::clamp(line.x, 0.0, geometry.lines() - 1.0), 0.0) + grid.to_map;
         const glm::dvec2 to = plane + grid.to_map;
         // March the straight path up to the core, in double: attenuation and impedance runs.
         const double length = glm::length(to - from) - 0.5 * target.diameter_mm - margin_mm;

@@ -201,9 +201,9 @@ tissue::PointTarget parse_target(const json& j, const glm::dvec3& size, const st
     const std::size_t n = t.type == tissue::PointTarget::Type::wire ? 2 : 3;
     if (!at || !at->is_array() || at->size() != n ||
         !std::all_of(at->begin(), at->end(), [](const json& v) { return v.is_number(); }))
-        throw tissue::InputError(source, jsonio::join(where, "at"),
-                                 n == 2 ? "must be [x, y] (mm; a wire runs along z)"
-                                        : "must be [x, y, z] (mm)");
+        throw tissue::InputError(
+            source, jsonio::join(where, "at"),
+            n == 2 ? "must be [x, y] (mm; a wire runs along z)" : "must be [x, y, z] (mm)");
     t.at = {(*at)[0].get<double>(), (*at)[1].get<double>(),
             n == 3 ? (*at)[2].get<double>() : 0.5 * size.z};
     for (std::size_t a = 0; a < n; ++a)

@@ -155,8 +155,7 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
         const float enx = float(array_.normal[e].x), eny = float(array_.normal[e].y);
         // Transmit delay and the reference 2z, in wavelengths.
         const float offset =
-            float((glm::length(glm::dvec2(0.0, t_.focus_mm) - p) - t_.focus_mm + 2.0 * z) /
-                  lambda);
+            float((glm::length(glm::dvec2(0.0, t_.focus_mm) - p) - t_.focus_mm + 2.0 * z) / lambda);
         for (std::size_t r = 0; r < n; ++r) {
             // Mirrored path e' -> r; the same length from e to r's mirror image.
             const float dx = rx_x[r] - ex, dy = rx_y[r] - ey;
@@ -178,15 +177,16 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
             const float sinc_r = std::abs(u_r) < 1e-6f ? 1.0f : s_r / (6.28318531f * u_r);
             const float gain = std::max(cos_e, 0.0f) * std::max(cos_r, 0.0f) * sinc_e * sinc_r *
                                weight[r] / (std::sqrt(length) * cos_beta);
-            tissue::sincos_turns(length * inverse_lambda - delay[r] * inverse_lambda - offset,
-                                 s, co);
+            tissue::sincos_turns(length * inverse_lambda - delay[r] * inverse_lambda - offset, s,
+                                 co);
             re[r] = gain * co, im[r] = -gain * s;  // exp(-i 2 pi phase)
         }
         double sum_re = 0.0, sum_im = 0.0;
         for (std::size_t r = 0; r < n; ++r) sum_re += re[r], sum_im += im[r];
         total += tx_weights_[e] * std::complex<double>(sum_re, sum_im);
     }
-    return total * tx_norm_ * rx.norm * std::sqrt(lambda) * std::polar(1.0, -0.25 * std::numbers::pi);
+    return total * tx_norm_ * rx.norm * std::sqrt(lambda) *
+           std::polar(1.0, -0.25 * std::numbers::pi);
 }
 
 }  // namespace sonotrace::probe

@@ -517,9 +517,9 @@ class LineTracer {
         // rate * step * echo fraction, each proportional to the backscatter
         const float scattered = profile_scale_ * backscatter * backscatter;
         const float two_way = E / b.initial_energy[k] * b.return_factor[k];
-        const float receive =
-            settings_.receive_weights ? settings_.receive_weights->at(line_, b.particle[k], time)
-                                      : 1.0f;
+        const float receive = settings_.receive_weights
+                                  ? settings_.receive_weights->at(line_, b.particle[k], time)
+                                  : 1.0f;
         const double intensity = double(E * scattered * two_way * receive);
         ProfileBin<Dim>& p = out_->profile[std::size_t(bin)];
         p.weight += intensity;

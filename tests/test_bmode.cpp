@@ -185,7 +185,8 @@ TEST(Bmode, SpeckleMeanFollowsTheLateralPowerOfTheTwoWayField) {
             profile.position[std::size_t(l) * std::size_t(profile.bins) + std::size_t(i)] =
                 glm::vec2(g.point(l, layout.depth_mm(i)));
     probe::Sources<2> sources(1);
-    const LineData env = imaging::envelope(imaging::synthesize_rf(t, sources, {}, profile, {}, settings));
+    const LineData env =
+        imaging::envelope(imaging::synthesize_rf(t, sources, {}, profile, {}, settings));
     const probe::LineFields f(t, probe::line_array(t, t.lines / 2));
     auto lateral_power = [&](double z) {
         const double dx = t.wavelength_mm() / 8.0;
@@ -203,7 +204,8 @@ TEST(Bmode, SpeckleMeanFollowsTheLateralPowerOfTheTwoWayField) {
             for (int i = from; i < to; ++i) sum += double(env.at(l, i)) * env.at(l, i), ++n;
         return sum / n;
     };
-    const double focus_image = image_mean_square(t.focus_mm), focus_power = lateral_power(t.focus_mm);
+    const double focus_image = image_mean_square(t.focus_mm),
+                 focus_power = lateral_power(t.focus_mm);
     double swing = 0.0;
     for (const double z : {15.0, 25.0, 35.0, 65.0, 75.0}) {
         const double measured = 10.0 * std::log10(image_mean_square(z) / focus_image);

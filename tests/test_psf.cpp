@@ -14,6 +14,8 @@
 #include <vector>
 
 #include "imaging/bmode.h"
+#include "imaging/simulation.h"
+#include "phantoms/phantom.h"
 #include "probe/aperture.h"
 #include "probe/pulse.h"
 #include "probe/transducer.h"
@@ -273,14 +275,82 @@ TEST(Psf, PlaneEchoByImageSourcesEqualsTheIntegralOverThePlane) {
                             std::polar(1.0, 2.0 * k * (z - q.y)) * ds;
             }
             const std::complex<double> image_sources = f.plane_echo(z, sin_tilt);
-            std::printf("plane at %.0f mm, sin tilt %+.1f: image sources %.4f%+.4fi, integral "
-                        "%.4f%+.4fi\n",
-                        z, sin_tilt, image_sources.real(), image_sources.imag(), integral.real(),
-                        integral.imag());
+            std::printf(
+                "plane at %.0f mm, sin tilt %+.1f: image sources %.4f%+.4fi, integral "
+                "%.4f%+.4fi\n",
+                z, sin_tilt, image_sources.real(), image_sources.imag(), integral.real(),
+                integral.imag());
             EXPECT_LT(std::abs(image_sources - integral), 0.03 * std::abs(on_axis))
                 << z << " " << sin_tilt;
         }
     }
+}
+
+// A target's echo strength (imaging::point_echoes) against the closed forms it stands for:
+// the wire's 2D backscatter width pi a r^2 (tissue/point_target.h) through the echo
+// amplitude sqrt(sigma lambda / (2 pi)), the one-way intensity loss alpha f L (dB) of the
+// path to it (two-way in amplitude), 1 - R^2 at a layer crossed on the way, and a point's
+// elevation weight d g(e) (g: the Gaussian of -6 dB width = slice thickness, unit
+// integral). Within 1 % (the path is marched at half-texel steps).
+TEST(Psf, TargetEchoStrengthFollowsItsPathLosses) {
+    constexpr double kAlpha = 0.5, kR = 0.2, kDepth = 30.0, kLayerTop = 10.0;
+    const nlohmann::json j = {
+        {"name", "targets"},
+        {"size", {40, 40, 10}},
+        {"resolution", 0.125},
+        {"smoothing", 0.2},
+        {"background",
+         {{"speed_of_sound", 1540},
+          {"density", 1000},
+          {"attenuation", kAlpha},
+          {"backscatter", 0},
+          {"scatterer_density", 0},
+          {"roughness", 0}}},
+        {"shapes",
+         {{{"type", "half_space"},
+           {"point", {20, kLayerTop, 0}},
+           {"normal", {0, 1, 0}},
+           {"speed_of_sound", 1540},
+           {"density", 1000.0 * (1 + kR) / (1 - kR)},
+           {"attenuation", kAlpha},
+           {"backscatter", 0},
+           {"scatterer_density", 0},
+           {"roughness", 0}}}},
+        {"targets",
+         {{{"type", "wire"}, {"at", {20, kDepth}}, {"diameter", 0.1}, {"reflectivity", 0.3}},
+          {{"type", "point"},
+           {"at", {22, kDepth, 5.4}},
+           {"diameter", 0.2},
+           {"reflectivity", 0.3}}}},
+        {"probe", {{"preset", "linear"}}}};
+    const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
+    const probe::Transducer t = probe::find_transducer("linear", "test");
+    const imaging::PlaneGrid grid = imaging::plane_grid(t, ph.pose, 0.125);
+    const auto map = tissue::AcousticMap<2>::build(phantoms::rasterise(ph, grid.geometry));
+    constexpr double kMargin = 0.3;
+    const std::vector<imaging::PointEcho> echoes =
+        imaging::point_echoes(ph.targets, map, grid, ph.pose, t, kMargin);
+    ASSERT_EQ(echoes.size(), 2u);
+    const double lambda = t.wavelength_mm();
+    auto strength = [&](double d) {
+        const double sigma = kPi * 0.5 * d * 0.3 * 0.3;
+        return std::sqrt(sigma * lambda / (2.0 * kPi));
+    };
+    const double path_cm = 0.1 * (kDepth - 0.05 - kMargin);
+    const double loss =
+        std::pow(10.0, -kAlpha * t.frequency_mhz * path_cm / 10.0) * (1.0 - kR * kR);
+    EXPECT_NEAR(echoes[0].amplitude, strength(0.1) * loss, 0.01 * strength(0.1) * loss);
+    // The point 0.4 mm off the plane: d g(e) more than a wire of its diameter.
+    const double s_e = t.slice_thickness_mm / (2.0 * std::sqrt(2.0 * std::log(2.0)));
+    const double g = std::exp(-0.5 * 0.16 / (s_e * s_e)) / (s_e * std::sqrt(2.0 * kPi));
+    const double path_point_cm = 0.1 * (std::hypot(kDepth, 0.0) - 0.1 - kMargin);
+    const double loss_point =
+        std::pow(10.0, -kAlpha * t.frequency_mhz * path_point_cm / 10.0) * (1.0 - kR * kR);
+    EXPECT_NEAR(echoes[1].amplitude, strength(0.2) * 0.2 * g * loss_point,
+                0.01 * strength(0.2) * 0.2 * g * loss_point);
+    // Where they image: the map frame positions of their centres.
+    EXPECT_NEAR(echoes[0].position.x - echoes[1].position.x, -2.0, 1e-9);
+    EXPECT_NEAR(echoes[0].core_radius_mm, 0.05 + kMargin, 1e-12);
 }
 
 TEST(Psf, ImpossibleAperturesAreRefusedNamingTheField) {

@@ -26,7 +26,8 @@ struct PointTarget {
     glm::dvec3 at{0.0};              // mm: the centre (point), a point on the axis (wire)
     glm::dvec3 axis{0.0, 0.0, 1.0};  // unit direction of a wire
     double diameter_mm = 0.1;
-    double reflectivity = kDefaultTargetReflectivity;  // amplitude reflection coefficient of its surface, (0, 1]
+    double reflectivity =
+        kDefaultTargetReflectivity;  // amplitude reflection coefficient of its surface, (0, 1]
 
     // The wire's 2D backscatter width (mm), see above.
     double backscatter_width_mm() const {

@@ -403,9 +403,9 @@ CaseResult mirror_image(const CaseContext& ctx) {
         }
         const glm::dvec2 found = sum / weight;
         const std::string medium = scattering ? "liver" : "scatter-free liver";
-        r.measurements.push_back({"distance of the mirror image from the mirrored wire front (" +
-                                      medium + ")",
-                                  glm::length(found - image), 1.0, 0.0, "mm", Check::at_most});
+        r.measurements.push_back(
+            {"distance of the mirror image from the mirrored wire front (" + medium + ")",
+             glm::length(found - image), 1.0, 0.0, "mm", Check::at_most});
         if (ctx.pictures)
             r.figures.push_back(frame_figure(
                 f,
@@ -573,9 +573,8 @@ CaseResult flat_reflector(const CaseContext& ctx) {
         plane.properties = denser;
         ph.shapes.push_back(plane);
         ph.pose = probe::Pose::looking({20.0, 0.0, 5.0}, {0, 1, 0}, {1, 0, 0});
-        const PhantomFrame f =
-            image_phantom(ph, {std::max(z, t.focus_mm) + 4.0, 3, imaging::Quality::standard, false},
-                          ctx.seed);
+        const PhantomFrame f = image_phantom(
+            ph, {std::max(z, t.focus_mm) + 4.0, 3, imaging::Quality::standard, false}, ctx.seed);
         depth.push_back(z);
         measured_db.push_back(20.0 * std::log10(line_peak(f.frame.envelope, 1, z - 1.0, z + 1.0)));
         expected_db.push_back(20.0 * std::log10(kReflection * plane_echo_by_image_sources(t, z)));
@@ -604,8 +603,8 @@ CaseResult flat_reflector(const CaseContext& ctx) {
             coef.at<double>(0) + coef.at<double>(1) * u + coef.at<double>(2) * u * u;
         swing = std::max(swing, std::abs(residual[i] - trend));
     }
-    r.measurements.push_back({"mean level against R x the plane echo (unit beam power)", offset,
-                              0.0, 1.0, "dB"});
+    r.measurements.push_back(
+        {"mean level against R x the plane echo (unit beam power)", offset, 0.0, 1.0, "dB"});
     r.measurements.push_back({"largest deviation from the on-axis two-way response (6-40 mm)",
                               worst, 1.0, 0.0, "dB", Check::at_most});
     r.measurements.push_back(
@@ -649,11 +648,11 @@ CaseResult two_layers(const CaseContext& ctx) {
         ph.shapes.push_back(plane);
     }
     ph.pose = probe::Pose::looking({20.0, 0.0, 5.0}, {0, 1, 0}, {1, 0, 0});
-    const PhantomFrame f = image_phantom(ph, {30.0, 65, imaging::Quality::standard, false}, ctx.seed);
+    const PhantomFrame f =
+        image_phantom(ph, {30.0, 65, imaging::Quality::standard, false}, ctx.seed);
     probe::Transducer centre = f.transducer;  // the middle line's apertures
-    const double response2 =
-        std::pow(plane_echo_by_image_sources(centre, kZ2) / plane_echo_by_image_sources(centre, kZ1),
-                 2.0);
+    const double response2 = std::pow(
+        plane_echo_by_image_sources(centre, kZ2) / plane_echo_by_image_sources(centre, kZ1), 2.0);
     const probe::ScanGeometry g(f.transducer);
     double sum = 0.0;
     int lines = 0;
@@ -732,7 +731,8 @@ CaseResult resolution(const CaseContext& ctx) {
         for (double d = -0.5; d <= 0.5; d += 0.01) {
             const double time_s = 2.0 * d * 1e-3 / kC0;
             plot.series[0].x.push_back(d);
-            plot.series[0].y.push_back(std::hypot(pulse.in_phase(time_s), pulse.quadrature(time_s)));
+            plot.series[0].y.push_back(
+                std::hypot(pulse.in_phase(time_s), pulse.quadrature(time_s)));
         }
         r.plots.push_back(plot);
     }
@@ -770,8 +770,7 @@ CaseResult resolution(const CaseContext& ctx) {
         f.phantom = ph;
         f.transducer = t;
         f.frame = imaging::simulate_frame(map, grid, ph.pose, settings);
-        const LateralProfile p =
-            lateral_profile(f, t.focus_mm - 1.0, t.focus_mm + 1.0, -3.0, 3.0);
+        const LateralProfile p = lateral_profile(f, t.focus_mm - 1.0, t.focus_mm + 1.0, -3.0, 3.0);
         const double lambda = t.wavelength_mm();
         const double expected = 0.886 * lambda * t.f_number;
         r.measurements.push_back({"lateral FWHM at the focus (20 mm, F/2, uniform apertures)",
@@ -877,7 +876,8 @@ CaseResult speckle_and_cysts(const CaseContext& ctx) {
                               std::sqrt(std::numbers::pi / (4.0 - std::numbers::pi)), 0.15, ""});
     // Cysts, against a background ring 1.5..4 mm outside each at the same depths, on lines
     // whose transmit aperture the array's ends do not clip (their beams are weaker).
-    const double unclipped = 0.5 * (f.transducer.array_length_mm() - f.transducer.active_aperture_mm());
+    const double unclipped =
+        0.5 * (f.transducer.array_length_mm() - f.transducer.active_aperture_mm());
     auto region = [&](const phantoms::Shape& s, double r0, double r1) {
         const glm::dvec2 c = f.plane(glm::dvec2(s.a));
         return pooled([&](glm::dvec2 p) {

@@ -1,0 +1,15 @@
+#!/bin/sh
+# Renders the README's B-mode pictures into docs/images/: the default frame beside its
+# ground truth, and the point-target grid. Usage: scripts/readme_pictures.sh [build-dir]
+set -eu
+build=${1:-build}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+# The default frame (grey, as three channels) beside the colour preview of its labels.
+"$build/sonotrace" simulate -q --labels --out "$tmp/default"
+oiiotool "$tmp/default/bmode.png" --ch 0,0,0 "$tmp/default/bmode_labels_preview.png" \
+    --mosaic:pad=8 2x1 -o docs/images/bmode-default.png
+# 0.1 mm wires (phantoms/point_grid.json): the two-way PSF across depth and width.
+"$build/sonotrace" simulate -q --phantom phantoms/point_grid.json --quality high --depth 64 \
+    --pixel 0.1 --gain 34 --out "$tmp/points"
+cp "$tmp/points/bmode.png" docs/images/bmode-point-grid.png
