@@ -11,6 +11,7 @@
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <optional>
+#include <unordered_map>
 
 #include "imaging/psf.h"
 #include "probe/aperture.h"
@@ -312,29 +313,54 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
                                                      axial_correlation * psf.focal_power()));
     }
     const int max_reach = 8 * K;
+    // Per line, the samples between two table rows share the rows' weights at the
+    // sub-lines' offsets (evaluated once per row, at its depth's sub-line spacing, which
+    // changes by under a per cent over a row): each sample then blends the two sums
+    // linearly in depth, in loops over samples that vectorise.
+    const double dz = psf.dz();
+    std::vector<int> first_of_row(static_cast<std::size_t>(psf.depths()) + 1, N);
+    for (int i = N - 1; i >= 0; --i) {
+        const int last = std::clamp(int(std::floor(depth[std::size_t(i)] / dz)), 0, psf.depths() - 1);
+        for (int q = 0; q <= last; ++q)
+            first_of_row[std::size_t(q)] = std::min(first_of_row[std::size_t(q)], i);
+    }
     tbb::parallel_for(0, L, [&](int l) {
         const std::size_t row = std::size_t(l) * std::size_t(N);
         const int centre = l * K;
-        for (int i = 0; i < N; ++i) {
-            float* out_i = speckle_i + row + std::size_t(i);
-            float* out_q = speckle_q + row + std::size_t(i);
-            if (!(w[row + std::size_t(i)] > 0.0)) {  // nothing where the line has no echo
-                *out_i = *out_q = 0.0f;
-                continue;
-            }
-            const double z = depth[std::size_t(i)], d_sub = at_depth[std::size_t(i)].d_sub;
-            const PsfTable::Row& nearest = psf.row(l, int(std::lround(z / psf.dz())));
-            const int reach = std::min(
-                max_reach,
-                int(std::ceil(nearest.half * nearest.dx * at_depth[std::size_t(i)].inverse_d_sub)));
-            double sum_i = 0.0, sum_q = 0.0;
+        std::vector<float> sum_i(static_cast<std::size_t>(N), 0.0f),
+            sum_q(static_cast<std::size_t>(N), 0.0f), f(static_cast<std::size_t>(N), 0.0f);
+        for (int k = 0; k < psf.depths(); ++k) {
+            const int begin = first_of_row[std::size_t(k)], end = first_of_row[std::size_t(k) + 1];
+            if (begin >= end) continue;
+            const double z0 = k * dz, z1 = (k + 1) * dz;
+            for (int i = begin; i < end; ++i)
+                f[std::size_t(i)] = float((depth[std::size_t(i)] - z0) / dz);
+            const double d0 = std::max(geometry.line_spacing_mm(z0), 1e-6) / K,
+                         d1 = std::max(geometry.line_spacing_mm(z1), 1e-6) / K;
+            const PsfTable::Row& nearest = psf.row(l, k);
+            const int reach =
+                std::min(max_reach, int(std::ceil(nearest.half * nearest.dx / std::min(d0, d1))));
             for (int j = std::max(-reach, -centre); j <= reach && centre + j < sub_lines; ++j) {
-                const std::complex<float> h = psf.at(l, j * d_sub, z);
-                const float v = sub[std::size_t(centre + j) * std::size_t(N) + std::size_t(i)];
-                sum_i += double(h.real() * v), sum_q += double(h.imag() * v);
+                const std::complex<float> h0 = psf.at_row(l, k, j * d0),
+                                          h1 = psf.at_row(l, k + 1, j * d1);
+                const float a_i = h0.real(), b_i = h1.real() - h0.real();
+                const float a_q = h0.imag(), b_q = h1.imag() - h0.imag();
+                const float* __restrict v = sub.get() + std::size_t(centre + j) * std::size_t(N);
+                float* __restrict si = sum_i.data();
+                float* __restrict sq = sum_q.data();
+                const float* __restrict fi = f.data();
+                for (int i = begin; i < end; ++i) {
+                    si[i] += (a_i + fi[i] * b_i) * v[i];
+                    sq[i] += (a_q + fi[i] * b_q) * v[i];
+                }
             }
-            *out_i = float(sum_i * scale[std::size_t(i)]);
-            *out_q = float(sum_q * scale[std::size_t(i)]);
+        }
+        for (int i = 0; i < N; ++i) {
+            const bool lit = w[row + std::size_t(i)] > 0.0;  // nothing where the line has no echo
+            speckle_i[row + std::size_t(i)] =
+                lit ? float(double(sum_i[std::size_t(i)]) * scale[std::size_t(i)]) : 0.0f;
+            speckle_q[row + std::size_t(i)] =
+                lit ? float(double(sum_q[std::size_t(i)]) * scale[std::size_t(i)]) : 0.0f;
         }
     });
 }
@@ -450,8 +476,10 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     // -- speckle (header)
     const bool with_speckle = settings.speckle && profile.lines > 0 && profile.bins == N &&
                               profile.covariance.size() == profile.intensity.size();
-    // The lines' PSF table, where speckle needs it (computed once per probe set-up).
-    const std::shared_ptr<const PsfTable> psf = with_speckle ? PsfTable::of(t) : nullptr;
+    // The lines' PSF table, where speckle or reflections need it (computed once per probe
+    // set-up).
+    const std::shared_ptr<const PsfTable> psf =
+        with_speckle || !event_order.empty() ? PsfTable::of(t) : nullptr;
     if (!receive && !event_order.empty())
         receive = receive_weights(t, sources, to_world.face_in_map);
     const std::size_t size = std::size_t(L) * std::size_t(N);
@@ -524,15 +552,14 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                 if (glm::dot(away, axis.direction) < 0.0) away = -away;
                 const double sin_tilt =
                     glm::dot(away, away) > 0.0 ? glm::dot(glm::normalize(away), across) : 0.0;
-                const probe::LineFields& f = line_fields(l);
                 if (e.kind == simulator::EchoKind::diffuse) {
                     const double aperture = t.receive_aperture_mm(range_mm);
-                    response = f.plane_echo(range_mm, 0.0) *
+                    response = psf->plane_echo(l, range_mm, 0.0) *
                                std::sqrt(reflection_back_fraction(
                                    std::sqrt(std::max(0.0, 1.0 - sin_tilt * sin_tilt)),
                                    e.lobe_exponent, std::atan(0.5 * aperture / range_mm)));
                 } else {
-                    response = f.plane_echo(range_mm, sin_tilt);
+                    response = psf->plane_echo(l, range_mm, sin_tilt);
                 }
                 // Receive, once (receive_weights): a reflector across the whole beam
                 // averages it to 1, so its plane echo above stays exact; a target smaller

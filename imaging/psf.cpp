@@ -23,6 +23,7 @@ constexpr double kSnapFraction = 0.125;  // lines share rows at offsets 1/8 pitc
 struct PsfTableBuilder {
     static std::shared_ptr<PsfTable> build(const probe::Transducer& t) {
         auto table = std::make_shared<PsfTable>();
+        table->t_ = t;
         const double lambda = t.wavelength_mm();
         table->k_ = 2.0 * std::numbers::pi / lambda;
         table->lines_ = t.lines;
@@ -32,7 +33,7 @@ struct PsfTableBuilder {
         std::vector<probe::LineFields> fields;
         fields.reserve(std::size_t(t.lines));
         for (int l = 0; l < t.lines; ++l)
-            fields.emplace_back(t, probe::line_array(t, l, kSnapFraction * t.pitch_mm));
+            fields.push_back(PsfTable::fields_of_line(t, l));
         auto depth_of = [&](int i) { return std::max(i * table->dz_, 0.5 * table->dz_); };
 
         // Rows by what determines them: the line's sub-element offset and its active
@@ -71,6 +72,7 @@ struct PsfTableBuilder {
             }
         }
         table->rows_.resize(jobs.size());
+        for (const Job& job : jobs) table->row_line_.push_back(job.line);
         tbb::parallel_for(0, int(jobs.size()), [&](int n) {
             const Job& job = jobs[std::size_t(n)];
             const probe::LineFields& f = fields[std::size_t(job.line)];
@@ -125,6 +127,48 @@ std::shared_ptr<const PsfTable> PsfTable::of(const probe::Transducer& t) {
     return table;
 }
 
+probe::LineFields PsfTable::fields_of_line(const probe::Transducer& t, int l) {
+    return probe::LineFields(t, probe::line_array(t, l, kSnapFraction * t.pitch_mm));
+}
+
+double PsfTable::largest_sin_tilt(double z) const {
+    z = std::max(z, 1e-3);
+    const double d_tx = t_.active_aperture_mm(), d_rx = t_.receive_aperture_mm(z);
+    const double theta =
+        0.5 * std::atan(0.25 * (d_tx + d_rx) / z) + t_.wavelength_mm() / std::min(d_tx, d_rx);
+    return std::sin(std::min(2.0 * theta, 0.5 * std::numbers::pi));
+}
+
+std::complex<double> PsfTable::plane_echo(int l, double z, double sin_tilt) const {
+    constexpr double kTiltSteps = 2000.0;
+    if (std::abs(sin_tilt) > largest_sin_tilt(z)) return 0.0;
+    const int i = std::clamp(int(std::lround(z / dz_)), 0, depths_ - 1);
+    const int tilt = int(std::lround(std::clamp(sin_tilt, -1.0, 1.0) * kTiltSteps));
+    const int id = row_id(l, i);
+    const uint64_t key = (uint64_t(uint32_t(id)) << 32) | uint32_t(tilt + 1000000);
+    std::shared_ptr<const probe::LineFields> fields;
+    {
+        const std::lock_guard<std::mutex> lock(cache_mutex_);
+        if (auto it = plane_echoes_.find(key); it != plane_echoes_.end()) return it->second;
+        auto& slot = row_fields_[row_line_[std::size_t(id)]];
+        if (!slot)
+            slot = std::make_shared<probe::LineFields>(fields_of_line(t_, row_line_[std::size_t(id)]));
+        fields = slot;
+    }
+    // Computed outside the lock (two threads may both compute one: the same value).
+    const std::complex<double> value = fields->plane_echo(row_depth_mm(i), tilt / kTiltSteps);
+    const std::lock_guard<std::mutex> lock(cache_mutex_);
+    if (plane_echoes_.size() > (std::size_t(1) << 22)) plane_echoes_.clear();  // ~100 MB
+    plane_echoes_.emplace(key, value);
+    return value;
+}
+
+int PsfTable::row_id(int l, int i) const {
+    l = std::clamp(l, 0, lines_ - 1);
+    i = std::clamp(i, 0, depths_ - 1);
+    return row_of_[std::size_t(l) * std::size_t(depths_) + std::size_t(i)];
+}
+
 const PsfTable::Row& PsfTable::row(int l, int i) const {
     l = std::clamp(l, 0, lines_ - 1);
     i = std::clamp(i, 0, depths_ - 1);
@@ -146,6 +190,10 @@ std::complex<float> PsfTable::at(int l, double x, double z) const {
     const int i = std::min(int(u), depths_ - 2);
     const float f = float(u - i);
     return (1.0f - f) * across(row(l, i), x) + f * across(row(l, i + 1), x);
+}
+
+std::complex<float> PsfTable::at_row(int l, int i, double x) const {
+    return across(row(l, i), x);
 }
 
 double PsfTable::power(int l, double z) const {

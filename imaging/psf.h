@@ -9,10 +9,14 @@
 // The image formation reads from it the lateral weights of the speckle, the response of
 // planar reflectors and the lateral power integral |H|^2 dx that sets the mean speckle
 // level at each depth (brighter at the focus, where the two-way beam is narrowest).
+#include <algorithm>
 #include <complex>
 #include <memory>
+#include <mutex>
+#include <unordered_map>
 #include <vector>
 
+#include "probe/aperture.h"
 #include "probe/source_particle.h"
 #include "probe/transducer.h"
 #include "simulator/trace_settings.h"
@@ -34,17 +38,39 @@ class PsfTable {
     };
 
     double dz() const { return dz_; }
+    // Lines share rows: the row of line l at depth index i, and for a row, the line whose
+    // geometry made it (its fields give the row's other quantities, the plane echo).
+    int row_id(int l, int i) const;
+    int row_line(int id) const { return row_line_[std::size_t(id)]; }
+    double row_depth_mm(int i) const { return std::max(i * dz_, 0.5 * dz_); }
+    // The fields of the line that made a row, with the table's snapping (t: the table's).
+    static probe::LineFields fields_of_line(const probe::Transducer& t, int l);
     int depths() const { return depths_; }
     // The row of line l at depth index i (z = i dz), i clamped to the table.
     const Row& row(int l, int i) const;
     // H of line l at (x, z) (line frame, mm): linear in depth between rows and across
     // within them; 0 beyond a row's reach.
     std::complex<float> at(int l, double x, double z) const;
+    // H of line l on its row at depth index i (z = i dz), linear across.
+    std::complex<float> at_row(int l, int i, double x) const;
     // Lateral power integral at depth z (1/mm), linear between rows.
     double power(int l, double z) const;
     // The receive sensitivity |R|^2 of line l at (x, z) (1/mm; linear between rows and
     // samples, 0 beyond a row's reach).
     double receive_power(int l, double x, double z) const;
+    // The echo of a planar reflector through depth z on line l whose normal, pointing away
+    // from the probe, is tilted by theta from the line (probe::LineFields::plane_echo),
+    // at the nearest of the table's depth rows (lambda or less apart: the echo's phase is
+    // referenced to 2 z / c0, what is left changes over millimetres) and of tilt steps of
+    // 1/2000 in sin(theta) (a tenth of the tilt response's finest lobe, lambda / (2 x
+    // aperture), or finer). 0 beyond the apertures' angular span (largest_sin_tilt).
+    // Kept once computed, for the next events and frames of the same probe set-up.
+    std::complex<double> plane_echo(int l, double z, double sin_tilt) const;
+    // Beyond this tilt a plane at depth z sends its mirror image of the transmit aperture
+    // past the receive aperture: the reflected beam lands 2 z tan(2 theta) aside, so it
+    // misses once that exceeds (D_tx + D_rx) / 2, and diffraction widens the span by
+    // lambda / D; taken twice as wide, what is left is the apertures' side-lobe level.
+    double largest_sin_tilt(double z) const;
     // The lateral power integral on the central line at the transmit focus: speckle is
     // calibrated there (its level at other depths follows the ratio).
     double focal_power() const { return focal_power_; }
@@ -55,7 +81,13 @@ class PsfTable {
     int lines_ = 0, depths_ = 0;
     double focal_power_ = 1.0;
     std::vector<Row> rows_;
-    std::vector<int> row_of_;  // [line * depths + i] -> rows_
+    std::vector<int> row_of_;    // [line * depths + i] -> rows_
+    std::vector<int> row_line_;  // rows_ -> the line that made it
+    probe::Transducer t_;
+    // Plane echoes by row and tilt step, and the fields of the lines that made rows.
+    mutable std::mutex cache_mutex_;
+    mutable std::unordered_map<uint64_t, std::complex<double>> plane_echoes_;
+    mutable std::unordered_map<int, std::shared_ptr<const probe::LineFields>> row_fields_;
 };
 
 // The receive weight of every particle of `sources` (map frame; the probe face centre at

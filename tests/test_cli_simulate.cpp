@@ -99,7 +99,14 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
                   "cannot be combined with --volume"},
                  {"--phantom " + std::string(SONOTRACE_SOURCE_DIR) +
                       "/phantoms/mirror.json --pose 'at=500,0,0 beam=0,1,0'",
-                  "outside the phantom"}};
+                  "outside the phantom"},
+                 {"--disable refraction,gravity", "--disable"},
+                 {"--rx-f-number 0", "rx-f-number"},
+                 {"--rx-apodization blackman", "rx-apodization"},
+                 {"--cycles 0", "cycles"},
+                 {"--phantom " + (dir / "far_target.json"), "targets[0].at"}};
+    std::ofstream(dir / "far_target.json") << R"({"name": "x", "size": [40, 40, 10],
+        "background": {"tissue": "water"}, "targets": [{"type": "wire", "at": [20, 45]}]})";
     for (const auto& c : cases) {
         const auto r =
             run(dir, "simulate -q --quality interactive " + c.args + " --out " + (dir / "out"));
@@ -161,6 +168,31 @@ TEST(CliSimulate, PhantomShowsEnhancementBehindTheCystAndShadowBehindTheStone) {
 }
 
 // The Colin27 scenes of the phantom catalogue (phantoms/scenes/) run as scene files.
+// The point-target grid through the whole command with --disable: the sidecar records
+// the switches, and a 0.1 mm wire target images as the brightest spot of its depth, on its
+// own column (world x = 20 mm: the image's centre).
+TEST(CliSimulate, PointTargetsImageAndDisabledPhysicsAreRecorded) {
+    ScratchDir dir;
+    const auto r = run(dir, "simulate -q --quality interactive --disable speckle,refraction "
+                            "--depth 35 --phantom " +
+                                std::string(SONOTRACE_SOURCE_DIR) +
+                                "/phantoms/point_grid.json --out " + (dir / "o"));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto sidecar = nlohmann::json::parse(std::ifstream(dir / "o/bmode.json"));
+    EXPECT_EQ(sidecar.at("disabled_physics"), nlohmann::json({"refraction", "speckle"}));
+    const Gray g = read_gray(dir / "o/bmode.png");
+    // The row at 30 mm depth (pixel 0.2 mm): its brightest pixel is the wire at x = 20 mm,
+    // the image's middle column.
+    const int row = int(30.0 / 0.2);
+    int brightest = 0;
+    for (int c = 0; c < g.size.x; ++c)
+        if (g.pixels[std::size_t(row * g.size.x + c)] >
+            g.pixels[std::size_t(row * g.size.x + brightest)])
+            brightest = c;
+    EXPECT_NEAR(brightest, g.size.x / 2, 2) << "of " << g.size.x;
+    EXPECT_GT(g.pixels[std::size_t(row * g.size.x + brightest)], 200);
+}
+
 TEST(CliSimulate, CatalogueHeadScenesRun) {
     for (const char* name : {"colin27_craniotomy", "colin27_temporal"}) {
         ScratchDir dir;
