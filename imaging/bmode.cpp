@@ -320,7 +320,8 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     const double dz = psf.dz();
     std::vector<int> first_of_row(static_cast<std::size_t>(psf.depths()) + 1, N);
     for (int i = N - 1; i >= 0; --i) {
-        const int last = std::clamp(int(std::floor(depth[std::size_t(i)] / dz)), 0, psf.depths() - 1);
+        const int last =
+            std::clamp(int(std::floor(depth[std::size_t(i)] / dz)), 0, psf.depths() - 1);
         for (int q = 0; q <= last; ++q)
             first_of_row[std::size_t(q)] = std::min(first_of_row[std::size_t(q)], i);
     }

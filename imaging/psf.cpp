@@ -32,8 +32,7 @@ struct PsfTableBuilder {
         const int depths = table->depths_;
         std::vector<probe::LineFields> fields;
         fields.reserve(std::size_t(t.lines));
-        for (int l = 0; l < t.lines; ++l)
-            fields.push_back(PsfTable::fields_of_line(t, l));
+        for (int l = 0; l < t.lines; ++l) fields.push_back(PsfTable::fields_of_line(t, l));
         auto depth_of = [&](int i) { return std::max(i * table->dz_, 0.5 * table->dz_); };
 
         // Rows by what determines them: the line's sub-element offset and its active
@@ -152,7 +151,8 @@ std::complex<double> PsfTable::plane_echo(int l, double z, double sin_tilt) cons
         if (auto it = plane_echoes_.find(key); it != plane_echoes_.end()) return it->second;
         auto& slot = row_fields_[row_line_[std::size_t(id)]];
         if (!slot)
-            slot = std::make_shared<probe::LineFields>(fields_of_line(t_, row_line_[std::size_t(id)]));
+            slot =
+                std::make_shared<probe::LineFields>(fields_of_line(t_, row_line_[std::size_t(id)]));
         fields = slot;
     }
     // Computed outside the lock (two threads may both compute one: the same value).
@@ -228,8 +228,9 @@ std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Tr
     const int L = t.lines;
     auto out = std::make_shared<simulator::ReceiveWeights>();
     out->bin_s = bin_s;
-    // One-way times up to the depth plus the longest focusing delay.
-    out->bins = int(std::ceil(1.5 * t.depth_mm * 1e-3 / tissue::kReferenceSpeed / bin_s)) + 1;
+    // One-way times up to the echo window's close (half the round trip of the depth):
+    // later events make no echo.
+    out->bins = int(std::ceil(t.depth_mm * 1e-3 / tissue::kReferenceSpeed / bin_s)) + 2;
     std::vector<std::vector<uint32_t>> of_line(static_cast<std::size_t>(L));
     for (std::size_t s = 0; s < sources.size(); ++s)
         if (sources[s].line < uint32_t(L)) of_line[sources[s].line].push_back(uint32_t(s));

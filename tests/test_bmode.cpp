@@ -112,6 +112,26 @@ TEST(Bmode, PointEchoHasThePulsesAxialResolution) {
     }
 }
 
+// A constant scattered intensity on every line and sample, from the line's axis, with a
+// beam of 0.3 mm lateral intensity spread (sigma), isotropic.
+simulator::EchoProfile<2> constant_profile(const probe::Transducer& t,
+                                           const imaging::ImagingSettings& settings) {
+    const LineData layout = imaging::rf_layout(t, settings);
+    simulator::EchoProfile<2> profile;
+    profile.lines = t.lines;
+    profile.bins = layout.samples;
+    profile.bin_s = 1.0 / layout.fs_hz;
+    profile.intensity.assign(std::size_t(t.lines) * std::size_t(profile.bins), 1e-6f);
+    profile.position.resize(profile.intensity.size());
+    profile.covariance.assign(profile.intensity.size(), glm::mat2(0.09f));
+    const probe::ScanGeometry g(t);
+    for (int l = 0; l < t.lines; ++l)
+        for (int i = 0; i < profile.bins; ++i)
+            profile.position[std::size_t(l) * std::size_t(profile.bins) + std::size_t(i)] =
+                glm::vec2(g.point(l, layout.depth_mm(i)));
+    return profile;
+}
+
 // Fully developed speckle: with a constant scattered intensity, the envelope is Rayleigh
 // distributed, mean/std = sqrt(pi / (4 - pi)) = 1.913. The issue asks 1.91 +- 0.15 at
 // three depths; with 128 lines x ~60 samples (3 mm) per depth the estimate's own spread
@@ -123,21 +143,7 @@ TEST(Bmode, FullyDevelopedSpeckleHasRayleighSnr) {
         const probe::Transducer t = probe::find_transducer("convex", "x");
         imaging::ImagingSettings settings;
         settings.sub_line_sigmas = spacing;
-        const LineData layout = imaging::rf_layout(t, settings);
-        simulator::EchoProfile<2> profile;
-        profile.lines = t.lines;
-        profile.bins = layout.samples;
-        profile.bin_s = 1.0 / layout.fs_hz;
-        profile.intensity.assign(std::size_t(t.lines) * std::size_t(profile.bins), 1e-6f);
-        profile.position.resize(profile.intensity.size());
-        // A beam of 0.3 mm lateral intensity spread (sigma), isotropic.
-        profile.covariance.assign(profile.intensity.size(), glm::mat2(0.09f));
-        const probe::ScanGeometry g(t);
-        for (int l = 0; l < t.lines; ++l) {
-            for (int i = 0; i < profile.bins; ++i)
-                profile.position[std::size_t(l) * std::size_t(profile.bins) + std::size_t(i)] =
-                    glm::vec2(g.point(l, layout.depth_mm(i)));
-        }
+        const simulator::EchoProfile<2> profile = constant_profile(t, settings);
         probe::Sources<2> sources(1);
         const imaging::MapToWorld to_world;  // the map plane is the world's xy plane
         const LineData env =
@@ -171,19 +177,7 @@ TEST(Bmode, FullyDevelopedSpeckleHasRayleighSnr) {
 TEST(Bmode, SpeckleMeanFollowsTheLateralPowerOfTheTwoWayField) {
     const probe::Transducer t = probe::find_transducer("convex", "x");
     imaging::ImagingSettings settings;
-    const LineData layout = imaging::rf_layout(t, settings);
-    simulator::EchoProfile<2> profile;
-    profile.lines = t.lines;
-    profile.bins = layout.samples;
-    profile.bin_s = 1.0 / layout.fs_hz;
-    profile.intensity.assign(std::size_t(t.lines) * std::size_t(profile.bins), 1e-6f);
-    profile.position.resize(profile.intensity.size());
-    profile.covariance.assign(profile.intensity.size(), glm::mat2(0.09f));
-    const probe::ScanGeometry g(t);
-    for (int l = 0; l < t.lines; ++l)
-        for (int i = 0; i < profile.bins; ++i)
-            profile.position[std::size_t(l) * std::size_t(profile.bins) + std::size_t(i)] =
-                glm::vec2(g.point(l, layout.depth_mm(i)));
+    const simulator::EchoProfile<2> profile = constant_profile(t, settings);
     probe::Sources<2> sources(1);
     const LineData env =
         imaging::envelope(imaging::synthesize_rf(t, sources, {}, profile, {}, settings));

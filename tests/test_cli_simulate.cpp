@@ -173,10 +173,11 @@ TEST(CliSimulate, PhantomShowsEnhancementBehindTheCystAndShadowBehindTheStone) {
 // own column (world x = 20 mm: the image's centre).
 TEST(CliSimulate, PointTargetsImageAndDisabledPhysicsAreRecorded) {
     ScratchDir dir;
-    const auto r = run(dir, "simulate -q --quality interactive --disable speckle,refraction "
-                            "--depth 35 --phantom " +
-                                std::string(SONOTRACE_SOURCE_DIR) +
-                                "/phantoms/point_grid.json --out " + (dir / "o"));
+    const auto r = run(dir,
+                       "simulate -q --quality interactive --disable speckle,refraction "
+                       "--depth 35 --phantom " +
+                           std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/point_grid.json --out " +
+                           (dir / "o"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const auto sidecar = nlohmann::json::parse(std::ifstream(dir / "o/bmode.json"));
     EXPECT_EQ(sidecar.at("disabled_physics"), nlohmann::json({"refraction", "speckle"}));

@@ -542,6 +542,15 @@ tissue::AcousticProperties lossless_water() {
     w[tissue::Property::density] = 1000.0f;
     return w;
 }
+// Everything deeper than z (a half-space facing the probe) made of `properties`.
+phantoms::Shape plane_below(double z, const tissue::AcousticProperties& properties) {
+    phantoms::Shape plane;
+    plane.type = phantoms::ShapeType::half_space;
+    plane.a = {20.0, z, 0.0}, plane.b = {0.0, 1.0, 0.0};
+    plane.properties = properties;
+    return plane;
+}
+
 tissue::AcousticProperties reflecting(const tissue::AcousticProperties& above, double r) {
     tissue::AcousticProperties p = above;
     p[tissue::Property::density] = float(above[tissue::Property::density] * (1.0 + r) / (1.0 - r));
@@ -567,11 +576,7 @@ CaseResult flat_reflector(const CaseContext& ctx) {
         ph.size = {40.0, std::max(z, t.focus_mm) + 8.0, 10.0};
         ph.smoothing_mm = 0.1;
         ph.background = water;
-        phantoms::Shape plane;
-        plane.type = phantoms::ShapeType::half_space;
-        plane.a = {20.0, z, 0.0}, plane.b = {0.0, 1.0, 0.0};
-        plane.properties = denser;
-        ph.shapes.push_back(plane);
+        ph.shapes.push_back(plane_below(z, denser));
         ph.pose = probe::Pose::looking({20.0, 0.0, 5.0}, {0, 1, 0}, {1, 0, 0});
         const PhantomFrame f = image_phantom(
             ph, {std::max(z, t.focus_mm) + 4.0, 3, imaging::Quality::standard, false}, ctx.seed);
@@ -640,13 +645,7 @@ CaseResult two_layers(const CaseContext& ctx) {
     ph.size = {40.0, 40.0, 10.0};
     ph.smoothing_mm = 0.1;
     ph.background = water;
-    for (const auto& [z, properties] : {std::pair{kZ1, second}, std::pair{kZ2, third}}) {
-        phantoms::Shape plane;
-        plane.type = phantoms::ShapeType::half_space;
-        plane.a = {20.0, z, 0.0}, plane.b = {0.0, 1.0, 0.0};
-        plane.properties = properties;
-        ph.shapes.push_back(plane);
-    }
+    ph.shapes = {plane_below(kZ1, second), plane_below(kZ2, third)};
     ph.pose = probe::Pose::looking({20.0, 0.0, 5.0}, {0, 1, 0}, {1, 0, 0});
     const PhantomFrame f =
         image_phantom(ph, {30.0, 65, imaging::Quality::standard, false}, ctx.seed);
