@@ -91,6 +91,7 @@ class LineFields {
     Transducer t_;
     LineArray array_;
     std::vector<double> tx_weights_;
+    std::vector<float> x_, y_, nx_, ny_;  // the elements in float, for the vectorised sums
     double tx_norm_ = 1.0;
     double k_ = 0.0, element_width_ = 0.0;
 };
