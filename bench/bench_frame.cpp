@@ -1,9 +1,9 @@
-// The standard frame of issue 4: the default scene (Colin27, convex probe on the cortex
-// through the craniotomy, coronal plane through the lateral ventricles, with the falx and
-// choroid plexus the CLI adds), 128 lines, 60 degrees, 8 cm, 3.5 MHz, at the three
-// quality presets. Reports ms per frame once the probe's PSF table is built (the
-// whole frame: plane resampling, map, beams, trace, RF, envelope, compression, scan
-// conversion), the mean time of each stage, and particle steps per second of the trace.
+// The default scene's frame (Colin27, convex probe on the cortex through the craniotomy,
+// coronal plane through the lateral ventricles, with the falx and choroid plexus the CLI
+// adds), 128 lines, 60 degrees, 8 cm, 3.5 MHz, at the three quality presets. Reports the
+// time of a whole frame (plane resampling, map, beams, trace, RF, envelope, compression,
+// scan conversion) with the probe's PSF table already built, the mean time of each
+// stage, and particle steps per second of the trace.
 //   ./build/bench/bench_frame --benchmark_repetitions=20 --benchmark_report_aggregates_only
 #include "bench/benchmark_main.h"
 

@@ -10,7 +10,6 @@
 #include <mutex>
 #include <numbers>
 #include <opencv2/core.hpp>
-#include <optional>
 #include <unordered_map>
 
 #include "imaging/psf.h"
@@ -22,10 +21,11 @@
 
 namespace sonotrace::imaging {
 
+using tissue::kFwhmPerSigma;
+
 namespace {
 
-constexpr double kFwhmPerSigma = 2.3548200450309493;  // 2 sqrt(2 ln 2)
-constexpr double kC0 = tissue::kReferenceSpeed;       // m/s
+constexpr double kC0 = tissue::kReferenceSpeed;  // m/s
 
 using probe::ScanLine;
 using tissue::mix64;
@@ -497,14 +497,6 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         taps_i[std::size_t(m + half)] = float(pulse.in_phase(-m / fs));
         taps_q[std::size_t(m + half)] = float(-pulse.quadrature(-m / fs));  // Re{(a+ib)(p+iq)}
     }
-    // Each line's exact fields, for its reflections' plane echoes and its point targets
-    // (made on first use by the line's own task).
-    std::vector<std::optional<probe::LineFields>> fields(static_cast<std::size_t>(L));
-    auto line_fields = [&](int l) -> const probe::LineFields& {
-        auto& f = fields[std::size_t(l)];
-        if (!f) f.emplace(t, probe::line_array(t, l));
-        return *f;
-    };
     const double depth_to_samples = 2.0 * 1e-3 / kC0 * fs;
     const int echo_half_width = std::max(1, int(std::lround(0.5 * pulse.envelope_fwhm_s() * fs)));
     rf.values.resize(size);
@@ -604,8 +596,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             const std::complex<double> unit = magnitude > 0.0 ? p / magnitude : 1.0;
             add_pulse(pulse, at, fs, intensity / std::sqrt(local) * unit, out, N);
         }
-        if (!points.empty()) {
-            const probe::LineFields& f = line_fields(l);
+        if (!points.empty()) {  // through the line's exact fields (few targets: no table)
+            const probe::LineFields f(t, probe::line_array(t, l));
             for (const PointEcho& p : points) {
                 const glm::dvec2 d = p.position - to_world.face_in_map - axis.origin;
                 const glm::dvec2 q(glm::dot(d, across), glm::dot(d, axis.direction));

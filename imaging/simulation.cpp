@@ -166,8 +166,7 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
     const double lambda = t.wavelength_mm();
     // Two-way elevation profile: a Gaussian of -6 dB full width = slice thickness, unit
     // integral (per mm of elevation).
-    const double sigma_e = t.slice_thickness_mm / (2.0 * std::sqrt(2.0 * std::log(2.0)));
-    const double attenuation_per_mm = t.frequency_mhz * 0.1 * std::log(10.0) / 10.0;
+    const double sigma_e = t.slice_thickness_mm / tissue::kFwhmPerSigma;
     const double step = 0.5 * std::min(map.spacing().x, map.spacing().y);
     std::vector<PointEcho> echoes;
     for (const tissue::PointTarget& target : targets) {
@@ -212,7 +211,7 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
                 run_start = previous = z;
                 continue;
             }
-            optical += attenuation_per_mm * texel.attenuation * step;
+            optical += tissue::attenuation_per_mm(texel.attenuation, t.frequency_mhz) * step;
             const double change = z - previous;
             const int sign = std::abs(change) < 1e-6 * z ? 0 : (change > 0.0 ? 1 : -1);
             if (sign != 0 && run_sign != 0 && sign != run_sign) {  // the run turned: close it

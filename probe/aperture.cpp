@@ -91,9 +91,20 @@ LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std
 
 namespace {
 
-// One field sum's terms per element (LineFields::sum): re + i im = w D / sqrt(r)
-// exp(-i 2 pi path / lambda). Float, branch-free (an element behind q gets D = 0): the
-// loop vectorises, built for AVX2 and the baseline (no FMA in either: the same numbers).
+// An element of width w seen at angle theta from its normal: sinc(pi w sin theta /
+// lambda) cos theta, 0 behind it. The sinc as sin(2 pi u) / (2 pi u) at u = (w / 2 lambda)
+// |sin theta| + 1e-9 (even, and defined at 0 without a branch: loops over it vectorise).
+inline float directivity(float sin_theta, float cos_theta, float half_width_in_lambdas) {
+    const float u = half_width_in_lambdas * std::abs(sin_theta) + 1e-9f;
+    float s, c;
+    tissue::sincos_turns(u, s, c);
+    return s / (6.28318531f * u) * std::max(cos_theta, 0.0f);
+}
+
+// The terms of a field sum (LineFields::sum), element by element: re + i im =
+// w D exp(-i 2 pi path / lambda) / sqrt(r). Float and branch-free (an element behind q
+// gets D = 0) so that the loop vectorises; built for AVX2 and the baseline, with no FMA
+// in either, so both give the same numbers.
 [[gnu::target_clones("avx2", "default")]] void field_terms(
     std::size_t n, const float* __restrict x, const float* __restrict y, const float* __restrict nx,
     const float* __restrict ny, const float* __restrict weight, float qx, float qy, float fx,
@@ -103,13 +114,10 @@ namespace {
         const float r = std::max(std::sqrt(dx * dx + dy * dy), 1e-6f), inverse = 1.0f / r;
         const float cos_theta = (dx * nx[e] + dy * ny[e]) * inverse;
         const float sin_theta = (dx * ny[e] - dy * nx[e]) * inverse;
-        // sinc(pi w sin / lambda) = sin(2 pi u) / (2 pi u) at u = w |sin| / (2 lambda),
-        // + 1e-9 so that the ratio needs no branch at 0.
-        const float u = half_width * std::abs(sin_theta) * inverse_lambda + 1e-9f;
-        float s_u, c_u, s, c;
-        tissue::sincos_turns(u, s_u, c_u);
-        const float gain =
-            weight[e] * s_u / (6.28318531f * u) * std::max(cos_theta, 0.0f) / std::sqrt(r);
+        float s, c;
+        const float gain = weight[e] *
+                           directivity(sin_theta, cos_theta, half_width * inverse_lambda) /
+                           std::sqrt(r);
         const float fdx = fx - x[e], fdy = fy - y[e];
         const float path = r - std::sqrt(fdx * fdx + fdy * fdy) + fy - qy;
         tissue::sincos_turns(path * inverse_lambda, s, c);
@@ -185,16 +193,11 @@ struct ReceiveElements {
         const float cos_e = (ux * enx + uy * eny) * inverse;
         const float sin_e = (ux * eny - uy * enx) * inverse;
         const float cos_beta = std::max(std::abs(dx * mx + dy * my) * inverse, 0.05f);
-        // sinc(pi w sin / lambda) = sin(2 pi u) / (2 pi u), u = w |sin| / (2 lambda), even;
-        // |u| + 1e-9 keeps the ratio defined without a branch (the loop vectorises).
-        float s_e, c_e, s_r, c_r, s, co;
-        const float u_e = half_width * std::abs(sin_e) * inverse_lambda + 1e-9f,
-                    u_r = half_width * std::abs(sin_r) * inverse_lambda + 1e-9f;
-        tissue::sincos_turns(u_e, s_e, c_e);
-        tissue::sincos_turns(u_r, s_r, c_r);
-        const float sinc_e = s_e / (6.28318531f * u_e), sinc_r = s_r / (6.28318531f * u_r);
-        const float gain = std::max(cos_e, 0.0f) * std::max(cos_r, 0.0f) * sinc_e * sinc_r *
-                           weight[r] / (std::sqrt(length) * cos_beta);
+        float s, co;
+        const float half_width_in_lambdas = half_width * inverse_lambda;
+        const float gain = directivity(sin_e, cos_e, half_width_in_lambdas) *
+                           directivity(sin_r, cos_r, half_width_in_lambdas) * weight[r] /
+                           (std::sqrt(length) * cos_beta);
         tissue::sincos_turns(length * inverse_lambda - delay[r] * inverse_lambda - offset, s, co);
         re[r] = gain * co, im[r] = -gain * s;  // exp(-i 2 pi phase)
     }

@@ -7,11 +7,13 @@
 
 #include "probe/transducer.h"
 #include "tissue/acoustic_map.h"
+#include "tissue/fast_math.h"
 
 namespace sonotrace::probe {
 
+using tissue::kFwhmPerSigma;
+
 namespace {
-constexpr double kFwhmPerSigma = 2.3548200450309493;  // 2 sqrt(2 ln 2)
 constexpr int kSamplesPerPeriod = 64;
 }  // namespace
 

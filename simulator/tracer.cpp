@@ -302,7 +302,7 @@ class LineTracer {
                 : 16;
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
         // alpha [dB/(cm MHz)] * f [MHz] / 10 [mm/cm] -> dB/mm; * ln(10)/10 -> Np/mm (intensity).
-        attenuation_per_mm_ = float(settings.frequency_mhz * 0.1 * std::log(10.0) / 10.0);
+        attenuation_per_mm_ = float(tissue::attenuation_per_mm(1.0, settings.frequency_mhz));
         seconds_per_mm_ = float(1e-3 / tissue::kReferenceSpeed);  // times n gives 1/c
         // A map with few uniform blocks (the head: 2-3 %, mostly air the particles never
         // reach) is not searched for them: the lookup for every particle and step cost

@@ -50,6 +50,12 @@ inline const PropertyInfo& info(Property p) {
 // Derived quantity shown alongside the properties.
 inline constexpr std::string_view kImpedanceUnit = "MRayl";  // 1 MRayl = 1e6 kg/(m^2 s)
 
+// Energy loss per mm (natural log) of an attenuation of `db_per_cm_mhz` dB/(cm MHz) at
+// `frequency_mhz`: intensity falls as exp(-this x path).
+inline double attenuation_per_mm(double db_per_cm_mhz, double frequency_mhz) {
+    return db_per_cm_mhz * frequency_mhz * 0.1 * 0.23025850929940458;  // dB -> ln: ln 10 / 10
+}
+
 struct AcousticProperties {
     std::array<float, kPropertyCount> values{};
 

@@ -10,6 +10,9 @@
 
 namespace sonotrace::tissue {
 
+// A Gaussian's full width at half maximum over its sigma: 2 sqrt(2 ln 2).
+inline constexpr double kFwhmPerSigma = 2.3548200450309493;
+
 // floor(x) as an integer, by truncation and a correction; |x| < 2^31.
 template <typename Real>
 inline int32_t floor_to_int(Real x) {
