@@ -1,0 +1,147 @@
+// The default head frame's ventricles against the parenchyma, measured on the envelope,
+// with physics switched off one at a time to take the leak apart (issue 29).
+//
+//   build/bench/ventricle_contrast [--from MM] [--nominal] [--paths FILE.png]
+//
+// Truth: each envelope sample's position is found by walking its scan line through the
+// map's speed of sound (echo time = 2/c0 x the integral of n = c0/c), not at c0 t / 2:
+// brain at 1560 m/s shows the ventricles 0.8 mm shallower than they are at 60 mm, which
+// at c0 would put the floor echoes inside the interior. Interior: CSF samples whose
+// labels within 1 mm are all CSF (the issue's 1 mm erosion), deeper than --from
+// (default 40 mm: the lateral ventricles, not the sulci under the craniotomy).
+// Parenchyma: brain samples 1 mm clear of other tissue. Per 2 mm depth band the interior's
+// mean intensity is divided by the parenchyma's of the same band; the total weighs the
+// bands by their interior samples.
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "imaging/simulation.h"
+#include "tissue/tissue_table.h"
+#include "ui/cli/volume_slice.h"
+
+using namespace sonotrace;
+
+namespace {
+
+struct Options {
+    double from_mm = 40.0;
+    bool nominal = false;  // truth at c0 t / 2 instead of through the speed map
+};
+
+double measure(const ui::VolumeSource& head, const char* what,
+               const imaging::PhysicsSwitches& physics, const Options& o) {
+    const imaging::ScenePlacement scene = imaging::craniotomy_scene(head.loaded.volume, *head.tf);
+    imaging::SimulationSettings s;
+    s.transducer = probe::find_transducer("convex", "ventricle_contrast");
+    s.trace.interface_reach_mm = 3.0;  // as `simulate` on the default volume
+    imaging::apply(physics, s);
+    const imaging::QualityLevel level = imaging::quality_level(s.quality);
+    const imaging::PlaneGrid grid =
+        imaging::plane_grid(s.transducer, scene.pose, level.map_pixel_mm);
+    tissue::Volume labels;
+    tissue::PropertyMaps maps = head.plane_properties(grid.geometry, &labels);
+    imaging::prepare_plane(maps, grid, scene, 5.0, &labels);
+    const auto map = tissue::AcousticMap<2>::build(maps);
+    const imaging::Frame f = imaging::simulate_frame(map, grid, scene.pose, s);
+    const imaging::LineData& env = f.envelope;
+    const probe::ScanGeometry g(s.transducer);
+    const int csf = tissue::tissue_label_of("csf"), brain = tissue::tissue_label_of("brain");
+    const glm::dvec3 h = labels.geometry().spacing;
+    const glm::ivec3 dims = labels.geometry().dims;
+    auto label_at = [&](int i, int j) {
+        return i < 0 || j < 0 || i >= dims.x || j >= dims.y ? -1 : int(labels.at(i, j, 0));
+    };
+    const int r = int(std::ceil(1.0 / h.x));
+    constexpr int kBands = 60;
+    constexpr double kBandMm = 2.0;
+    std::vector<double> in(kBands), out(kBands);
+    std::vector<int> n_in(kBands), n_out(kBands);
+    std::vector<double> depth(std::size_t(env.samples));
+    for (int l = 0; l < env.lines; ++l) {
+        double travelled = 0.0, optical = 0.0;
+        constexpr double ds = 0.02;
+        for (int i = 0; i < env.samples; ++i) {
+            const double displayed = env.depth_mm(i);
+            while (!o.nominal && optical < displayed) {
+                const glm::dvec2 q = g.point(l, travelled + 0.5 * ds) + grid.to_map;
+                optical += ds * map.sample_refractive_index(glm::vec2(q));
+                travelled += ds;
+            }
+            depth[std::size_t(i)] = o.nominal ? displayed : travelled;
+        }
+        for (int i = 0; i < env.samples; ++i) {
+            const double d = depth[std::size_t(i)];
+            const int b = int(d / kBandMm);
+            if (d < o.from_mm || b >= kBands) continue;
+            const glm::dvec2 m = g.point(l, d) + grid.to_map;
+            const int ti = int(std::floor(m.x / h.x + 0.5)), tj = int(std::floor(m.y / h.y + 0.5));
+            const int lab = label_at(ti, tj);
+            if (lab != csf && lab != brain) continue;
+            bool clear = true;
+            for (int dj = -r; dj <= r && clear; ++dj)
+                for (int di = -r; di <= r && clear; ++di)
+                    clear = di * di + dj * dj > r * r || label_at(ti + di, tj + dj) == lab;
+            if (!clear) continue;
+            const double v = double(env.at(l, i)) * env.at(l, i);
+            if (lab == csf) in[std::size_t(b)] += v, ++n_in[std::size_t(b)];
+            if (lab == brain) out[std::size_t(b)] += v, ++n_out[std::size_t(b)];
+        }
+    }
+    double sum_in = 0.0, expected = 0.0;
+    std::printf("%s\n", what);
+    for (int b = 0; b < kBands; ++b) {
+        const std::size_t u = std::size_t(b);
+        if (n_in[u] < 20 || n_out[u] < 20) continue;
+        sum_in += in[u], expected += n_in[u] * out[u] / n_out[u];
+        std::printf("  %3.0f-%3.0f mm: %5d interior, %6d parenchyma samples: %6.1f dB\n",
+                    b * kBandMm, (b + 1) * kBandMm, n_in[u], n_out[u],
+                    10.0 * std::log10(in[u] / n_in[u] / (out[u] / n_out[u]) + 1e-30));
+    }
+    const double total = 10.0 * std::log10(sum_in / expected + 1e-30);
+    std::printf("  interior against parenchyma: %.1f dB\n", total);
+    return total;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    Options o;
+    for (int a = 1; a < argc; ++a) {
+        if (!std::strcmp(argv[a], "--from") && a + 1 < argc) {
+            o.from_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--nominal")) {
+            o.nominal = true;
+        } else {
+            std::fprintf(stderr, "usage: %s [--from MM] [--nominal]\n", argv[0]);
+            return 1;
+        }
+    }
+    ui::SliceOptions options;
+    ui::StageTimer quiet(true);
+    const ui::VolumeSource head = ui::load_volume_source(options, quiet);
+    struct Variant {
+        const char* name;
+        std::vector<bool imaging::PhysicsSwitches::*> off;
+    };
+    using P = imaging::PhysicsSwitches;
+    const Variant variants[] = {
+        {"every physics on", {}},
+        {"--disable refraction", {&P::refraction}},
+        {"--disable specular,diffuse (speckle only)",
+         {&P::specular_reflection, &P::diffuse_reflection}},
+        {"--disable refraction,specular,diffuse",
+         {&P::refraction, &P::specular_reflection, &P::diffuse_reflection}},
+    };
+    std::vector<std::pair<const char*, double>> totals;
+    for (const Variant& v : variants) {
+        P p;
+        for (auto member : v.off) p.*member = false;
+        totals.emplace_back(v.name, measure(head, v.name, p, o));
+    }
+    std::printf("\nsummary (interior against parenchyma, deeper than %.0f mm)\n", o.from_mm);
+    for (const auto& [name, db] : totals) std::printf("  %6.1f dB  %s\n", db, name);
+    return 0;
+}
