@@ -118,15 +118,30 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
     std::ofstream(dir / "bad_key.json") << R"({"probe": "linear", "gian": 30})";
     std::ofstream(dir / "bad_value.json") << R"({"gain": "loud"})";
     std::ofstream(dir / "not_json.json") << "{probe: linear";
+    // Values no parser should pass on: a number beyond any double, and an array nested
+    // 100,000 deep (it overflowed the stack of the code that printed it).
+    std::ofstream(dir / "huge_number.json") << R"({"gain": 1e400})";
+    std::ofstream(dir / "deep.json")
+        << "{\"gain\": " << std::string(100000, '[') << std::string(100000, ']') << "}";
     for (const auto& [file, mention] :
          {std::pair{"bad_key.json", "gian"}, std::pair{"bad_value.json", "gain"},
-          std::pair{"not_json.json", "not valid JSON"}}) {
+          std::pair{"not_json.json", "invalid JSON"},
+          std::pair{"huge_number.json", "number overflow"},
+          std::pair{"deep.json", "levels deep"}}) {
         const auto r = run(dir, "simulate -q --quality interactive --scene " + (dir / file) +
                                     " --out " + (dir / "out"));
         EXPECT_NE(r.exit_code, 0) << file;
         EXPECT_NE(r.err.find(mention), std::string::npos) << file << ": " << r.err;
         EXPECT_NE(r.err.find(file), std::string::npos) << file << ": " << r.err;
         EXPECT_TRUE(files_in(dir / "out").empty()) << file;
+        EXPECT_LT(r.err.size(), 2000u) << file;  // the message, not the input echoed back
+    }
+    // A phantom that is a device never ends: refused before reading.
+    {
+        const auto r = run(dir, "simulate -q --phantom /dev/zero --out " + (dir / "out"));
+        EXPECT_EQ(r.exit_code, 1);
+        EXPECT_NE(r.err.find("/dev/zero: is not a regular file"), std::string::npos) << r.err;
+        EXPECT_TRUE(files_in(dir / "out").empty());
     }
     // An output path that cannot be written: a file where the directory should be.
     std::ofstream(dir / "blocked") << "x";

@@ -1,6 +1,7 @@
 #include "tissue/json_util.h"
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -23,26 +24,55 @@ std::string join(const std::string& where, const std::string& key) {
 }
 
 json read_file(const std::string& path) {
-    if (!std::filesystem::exists(path)) throw InputError(path, "", "file not found");
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    const fs::file_status status = fs::status(path, ec);
+    if (!fs::exists(status)) throw InputError(path, "", "file not found");
+    // A device or pipe (/dev/zero) may never end: only regular files are read.
+    if (!fs::is_regular_file(status)) throw InputError(path, "", "is not a regular file");
+    const std::uintmax_t size = fs::file_size(path, ec);
+    if (ec) throw InputError(path, "", "cannot read the file size (" + ec.message() + ")");
+    if (size > kMaxJsonBytes) {
+        throw InputError(path, "",
+                         "is " + std::to_string(size) + " bytes; JSON inputs are limited to " +
+                             std::to_string(kMaxJsonBytes) + " bytes");
+    }
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path, "", "cannot open file");
-    std::stringstream text;
-    text << in.rdbuf();
-    return parse(text.str(), path);
+    // One byte more than the cap: a file that grows while being read is still caught.
+    std::string text(std::size_t(size) + 1, '\0');
+    in.read(text.data(), std::streamsize(text.size()));
+    text.resize(std::size_t(in.gcount()));
+    if (in.bad()) throw InputError(path, "", "read error");
+    if (text.size() > kMaxJsonBytes) throw InputError(path, "", "grew beyond the JSON size limit");
+    return parse(text, path);
 }
 
 json parse(const std::string& text, const std::string& source) {
+    if (text.size() > kMaxJsonBytes)
+        throw InputError(
+            source, "",
+            "is larger than the JSON size limit of " + std::to_string(kMaxJsonBytes) + " bytes");
     // A key given twice in one object is two definitions of one thing: JSON parsers
     // silently keep one of them, so it is refused here (the path names the key).
     std::vector<std::set<std::string>> keys;  // per open object
     std::string duplicate;
+    int depth = 0;
+    struct TooDeep {};
     const json::parser_callback_t check = [&](int, json::parse_event_t event, json& parsed) {
         switch (event) {
             case json::parse_event_t::object_start:
                 keys.emplace_back();
+                [[fallthrough]];
+            case json::parse_event_t::array_start:
+                // Thrown out of the parser before the value exists.
+                if (++depth > kMaxJsonDepth) throw TooDeep{};
                 break;
             case json::parse_event_t::object_end:
                 if (!keys.empty()) keys.pop_back();
+                [[fallthrough]];
+            case json::parse_event_t::array_end:
+                --depth;
                 break;
             case json::parse_event_t::key: {
                 const std::string key = parsed.get<std::string>();
@@ -61,6 +91,10 @@ json parse(const std::string& text, const std::string& source) {
             throw InputError(source, duplicate,
                              "is given twice in one object (which one is meant?)");
         return result;
+    } catch (const TooDeep&) {
+        throw InputError(
+            source, "",
+            "nests arrays or objects more than " + std::to_string(kMaxJsonDepth) + " levels deep");
     } catch (const json::parse_error& e) {
         // Turn the byte offset into line:column for the message.
         std::size_t line = 1, column = 1;
@@ -75,6 +109,9 @@ json parse(const std::string& text, const std::string& source) {
         throw InputError(source, "",
                          "invalid JSON at line " + std::to_string(line) + ", column " +
                              std::to_string(column) + " (" + e.what() + ")");
+    } catch (const json::exception& e) {
+        // out_of_range.406: a number such as 1e400 that no double holds.
+        throw InputError(source, "", std::string("invalid JSON (") + e.what() + ")");
     }
 }
 

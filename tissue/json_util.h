@@ -1,6 +1,7 @@
 #pragma once
 // Strict reading of JSON inputs: unknown keys, wrong types and out-of-range values are
 // errors that name the file and the JSON path of the field ("points[2].density").
+#include <cstddef>
 #include <initializer_list>
 #include <optional>
 #include <span>
@@ -14,9 +15,19 @@ namespace sonotrace::tissue::jsonio {
 
 using nlohmann::json;
 
-// Parses a file; throws InputError with the line and column of a syntax error.
+// Limits of every JSON input: descriptions (phantoms, scenes, transfer functions,
+// sidecars) are kilobytes and a few levels deep. The size cap keeps an endless or huge
+// file (/dev/zero, a disk image) from being read whole; the depth cap keeps a value
+// nested 100,000 deep from overflowing the stack of the recursive code that later walks
+// or prints it.
+inline constexpr std::size_t kMaxJsonBytes = std::size_t(64) << 20;
+inline constexpr int kMaxJsonDepth = 64;
+
+// Parses a regular file of at most kMaxJsonBytes; throws InputError naming the file
+// with the line and column of a syntax error, or what else is wrong (not a regular
+// file, too large, too deep, a number out of range).
 json read_file(const std::string& path);
-// Parses text from `source` (a file name used in messages).
+// Parses text from `source` (a file name used in messages), with the same checks.
 json parse(const std::string& text, const std::string& source);
 
 // Throws if `object` (at JSON path `where`) has a key not in `known`; lists the known ones.

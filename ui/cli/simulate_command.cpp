@@ -18,6 +18,7 @@
 #include "tissue/atomic_output.h"
 #include "tissue/error.h"
 #include "tissue/image_io.h"
+#include "tissue/json_util.h"
 #include "tissue/property_maps.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
@@ -274,14 +275,7 @@ namespace {
 // Values of a --scene file become the results of the options not given on the command
 // line (the command line wins). Keys are option names without dashes; '_' = '-'.
 void apply_scene_file(CLI::App& command, const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw tissue::InputError(path, "", "cannot open the scene file");
-    json scene;
-    try {
-        in >> scene;
-    } catch (const json::exception& e) {
-        throw tissue::InputError(path, "", std::string("is not valid JSON: ") + e.what());
-    }
+    const json scene = tissue::jsonio::read_file(path);
     if (!scene.is_object()) throw tissue::InputError(path, "", "must be a JSON object");
     for (const auto& [key, value] : scene.items()) {
         if (key == "comment") continue;  // notes for people, as in phantoms

@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <set>
 
 #include "phantoms/phantom.h"
 #include "probe/placement.h"
 #include "tissue/error.h"
+#include "tissue/json_util.h"
 #include "tissue/property_maps.h"
 #include "tissue/tissue_table.h"
 #include "ui/cli/volume_slice.h"
@@ -176,13 +176,7 @@ std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::stri
                                  "phantom:NAME, or a volume or phantom file)");
     if (ends_with(spec, ".json")) {
         // A phantom, unless it is a raw volume's header (which names its data file).
-        std::ifstream in(spec);
-        nlohmann::json j;
-        try {
-            in >> j;
-        } catch (const nlohmann::json::exception& e) {
-            throw tissue::InputError(spec, "", std::string("is not valid JSON: ") + e.what());
-        }
+        const nlohmann::json j = tissue::jsonio::read_file(spec);
         if (j.is_object() && j.contains("shapes")) return phantom_scene(spec);
     }
     return volume_scene(spec, "");
