@@ -3,12 +3,16 @@
 // roulette, echo records), on all cores.
 //
 //   build/bench/bench_tracer --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+//   build/bench/bench_tracer --digest     # one hash per scene: do two builds trace the same bits?
 #include "bench/benchmark_main.h"
 
 #include <tbb/parallel_for.h>
 
 #include <atomic>
 #include <cmath>
+#include <cstdio>
+#include <string_view>
+#include <type_traits>
 
 #include "probe/pose.h"
 #include "simulator/scenes.h"
@@ -182,6 +186,89 @@ void BM_Trace3D_Colin27(benchmark::State& state) {
 }
 BENCHMARK(BM_Trace3D_Colin27)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// --digest: one hash per scene and tracer configuration of everything a trace returns
+// (echoes, energy maps, paths, echo profile, ledger, step counts). Two builds that print
+// the same lines trace the same bits: the check for a change that claims to change no
+// result (bench/README.md).
+class Digest {
+  public:
+    template <class T>
+    void add(const T& value) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        const auto* bytes = reinterpret_cast<const unsigned char*>(&value);
+        for (std::size_t i = 0; i < sizeof value; ++i)
+            hash_ = (hash_ ^ bytes[i]) * 0x100000001b3ull;
+    }
+    template <class Range>
+    void add_all(const Range& values) {
+        for (const auto& v : values) add(v);
+    }
+    uint64_t value() const { return hash_; }
+
+  private:
+    uint64_t hash_ = 0xcbf29ce484222325ull;  // FNV-1a
+};
+
+template <int Dim>
+uint64_t digest_of(const simulator::TraceResult<Dim>& r) {
+    Digest d;
+    for (const auto& e : r.echoes) {  // field by field: the record has padding
+        d.add(e.line), d.add(e.particle), d.add(e.time_s), d.add(e.energy), d.add(e.weight);
+        d.add(e.position), d.add(e.bounces), d.add(e.kind), d.add(e.cos_incidence);
+        d.add(e.lobe_exponent), d.add(e.return_weight), d.add(e.normal);
+    }
+    d.add_all(r.fluence.voxels()), d.add_all(r.absorbed.voxels());
+    for (const auto& p : r.paths) d.add(p.line), d.add(p.particle), d.add_all(p.vertices);
+    d.add_all(r.echo_profile.intensity), d.add_all(r.echo_profile.position);
+    d.add_all(r.echo_profile.covariance);
+    d.add(r.ledger), d.add(r.stats);
+    return d.value();
+}
+
+template <int Dim>
+void print_digests(const char* scene, const tissue::AcousticMap<Dim>& map,
+                   const simulator::Sources<Dim>& sources) {
+    struct Variant {
+        const char* name;
+        bool vector_steps, uniform_runs;
+    };
+    for (const Variant v : {Variant{"vector", true, true}, Variant{"scalar", false, true},
+                            Variant{"no-uniform-runs", true, false}}) {
+        simulator::TraceSettings settings;
+        settings.frequency_mhz = 3.5;
+        settings.vector_steps = v.vector_steps;
+        settings.uniform_runs = v.uniform_runs;
+        settings.record_paths = 4;
+        settings.echo_profile = simulator::EchoProfileSettings{2e-7, 1200};
+        std::printf(
+            "%-12s %-16s %016llx\n", scene, v.name,
+            static_cast<unsigned long long>(digest_of(simulator::trace(map, sources, settings))));
+    }
+}
+
+void print_all_digests() {
+    const auto synthetic = tissue::AcousticMap<2>::build(synthetic_1024());
+    print_digests("synthetic2d", synthetic, fan_2d(synthetic, 64, 64));
+    const auto uniform = tissue::AcousticMap<2>::build(simulator::homogeneous(
+        1024, 1024, 0.1, tissue::find_tissue("soft_tissue", "", "").properties));
+    print_digests("uniform2d", uniform, fan_2d(uniform, 64, 64));
+    const auto colin = tissue::AcousticMap<2>::build(colin27_maps(0.25, 0.0));
+    print_digests("colin27-2d", colin, fan_2d(colin, 64, 64));
+    const auto colin3 = tissue::AcousticMap<3>::build(colin27_maps(0.5, 20.0));
+    print_digests("colin27-3d", colin3, fan_3d(colin3, 16, 64));
+}
+
 }  // namespace
 
-SONOTRACE_BENCHMARK_MAIN()
+int main(int argc, char** argv) {
+    sonotrace::tissue::keep_freed_memory();
+    if (argc == 2 && std::string_view(argv[1]) == "--digest") {
+        print_all_digests();
+        return 0;
+    }
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}
