@@ -38,32 +38,6 @@ constexpr InterfaceState kGraded = InterfaceState::graded;
 // In the graded state the interface search is repeated every this many steep steps.
 constexpr int32_t kGradedRecheckSteps = 8;
 
-// exp(-x) for the per-step attenuation, x >= 0, as two Taylor polynomials: per step
-// x = alpha f s is small (0.005 in soft tissue, 0.2 in skull at 3.5 MHz and 0.125 mm
-// steps). Below 0.03 degree 4 is exact to x^5/5! < 2.1e-10; up to 0.5 degree 7, to
-// x^8/8! < 1.6e-7 relative. Templates: the scalar step and the vector stage evaluate the
-// same operations, so both give the same bits. (The libm call was 14 % of a step.)
-constexpr float kExpSeries4Below = 0.03f, kExpSeries7Below = 0.5f;
-template <class T>
-inline T exp_minus_series4(const T& x) {
-    T p = T{} + 1.0f / 24.0f;
-    p = p * -x + 1.0f / 6.0f;
-    p = p * -x + 0.5f;
-    p = p * -x + 1.0f;
-    return p * -x + 1.0f;
-}
-template <class T>
-inline T exp_minus_series7(const T& x) {
-    T p = T{} + 1.0f / 5040.0f;
-    p = p * -x + 1.0f / 720.0f;
-    p = p * -x + 1.0f / 120.0f;
-    p = p * -x + 1.0f / 24.0f;
-    p = p * -x + 1.0f / 6.0f;
-    p = p * -x + 0.5f;
-    p = p * -x + 1.0f;
-    return p * -x + 1.0f;
-}
-
 // Vectors of N lanes, one array per axis.
 template <int Dim, int N>
 struct LaneVectors {

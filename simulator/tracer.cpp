@@ -17,6 +17,7 @@
 #include "simulator/batch.h"
 #include "simulator/interactions.h"
 #include "simulator/rng.h"
+#include "simulator/step.h"
 #include "tissue/error.h"
 #include "tissue/memory.h"
 
@@ -25,13 +26,6 @@ namespace sonotrace::simulator {
 namespace {
 
 using namespace detail;
-
-// exp(-x) for the per-step attenuation, x >= 0 (the series: batch.h).
-inline float exp_minus(float x) {
-    if (x < kExpSeries4Below) return exp_minus_series4(x);
-    if (x > kExpSeries7Below) return std::exp(-x);
-    return exp_minus_series7(x);
-}
 
 // Deposit maps in 64-bit fixed point: sums are exact and order-independent.
 constexpr double kFixedScale = double(int64_t(1) << 36);
@@ -276,6 +270,7 @@ class LineTracer {
   public:
     using V = Vec<Dim>;
     using Texel = tissue::AcousticTexel<Dim>;
+    using ScalarState = StepState<ScalarLane, Dim>;  // one particle's state (step.h)
 
     // `look_up_blocks`: uniform blocks are worth looking up (trace(): kFewUniformBlocks).
     LineTracer(const tissue::AcousticMap<Dim>& map, const TraceSettings& settings,
@@ -386,6 +381,17 @@ class LineTracer {
     }
 
   private:
+    static V to_vec(const LaneVec<float, Dim>& v) {
+        V out;
+        for (int a = 0; a < Dim; ++a) out[a] = v[std::size_t(a)];
+        return out;
+    }
+    static LaneVec<float, Dim> to_lanes(const V& v) {
+        LaneVec<float, Dim> out;
+        for (int a = 0; a < Dim; ++a) out[std::size_t(a)] = v[a];
+        return out;
+    }
+
     // One lockstep round with the general step in the vector stage (batch.h): uniform
     // runs, then the fields at every lane's position, the vector stage, and what it left
     // (events, deposits, profile, paths, endings) lane by lane in order.
@@ -740,17 +746,16 @@ class LineTracer {
 
     // A particle meets a steep impedance gradient: if the transition is sharp, it is
     // crossed as a whole (patch normal, one reflection decision); otherwise the medium is
-    // graded. Returns true if the particle reflected. Rare: kept out of line.
-    [[gnu::noinline]] bool enter_interface(Batch<Dim>& b, int k, const V& x, const Texel& t, V& r,
-                                           float& E) {
-        InterfaceState& state = b.in_interface[k];
+    // graded. Rare: kept out of line. `t`: the fields at the particle's position, p.x.
+    [[gnu::noinline]] void enter_interface(Batch<Dim>& b, int k, const Texel& t, ScalarState& p) {
+        const V x = to_vec(p.x), r = to_vec(p.r);
         const InterfaceSides<Dim>& sides = sides_at(x, t);
         if (sides.kind != InterfaceSides<Dim>::Kind::sharp) {
-            state = kGraded;  // no plateau within reach: refract step by step only
-            b.graded_steps[k] = 0;
-            return false;
+            p.state = int32_t(kGraded);  // no plateau within reach: refract step by step only
+            p.graded_steps = 0;
+            return;
         }
-        state = kCrossing;
+        p.state = int32_t(kCrossing);
         out_->stats.interface_events++;
         // Which way the particle crosses: by grad Z where it stands.
         V towards(0.0f);
@@ -758,26 +763,27 @@ class LineTracer {
         const bool upwards =
             glm::dot(glm::dot(r, towards) >= 0.0f ? towards : -towards, sides.normal) >= 0.0f;
         const V forward = upwards ? sides.normal : -sides.normal;
-        b.interface_normal.set(k, sides.normal);
+        p.interface_normal = to_lanes(sides.normal);
         const Plateau& near_side = upwards ? sides.low : sides.high;
         const Plateau& far_side = upwards ? sides.high : sides.low;
         const float ahead = glm::dot(sides.middle - x, forward);
         const float to_middle_mm = std::max(ahead, 0.0f) / std::max(glm::dot(r, forward), 0.1f);
         // Without specular reflection only total reflection, which is refraction's
         // (Snell's law between the plateaus has no solution), reflects.
-        return decide_reflection(b, k, x, t, near_side, far_side, sides.roughness, forward,
-                                 to_middle_mm, r, E, settings_.specular_reflection);
+        decide_reflection(b, k, p, t, near_side, far_side, sides.roughness, forward, to_middle_mm,
+                          settings_.specular_reflection);
     }
 
     // The reflection decision at a sharp interface (eq. 10 with the plateau values on
     // both sides). Records the expected echo R^2 and reflects with probability R^2.
-    // `to_middle_mm`: path from x to the middle of the transition, where it reflects.
+    // `to_middle_mm`: path from p.x to the middle of the transition, where it reflects.
     // `partial_reflection` false: only total reflection happens (no decision, no echo
     // otherwise).
-    bool decide_reflection(Batch<Dim>& b, int k, const V& x, const Texel& t,
+    void decide_reflection(Batch<Dim>& b, int k, ScalarState& p, const Texel& t,
                            const Plateau& near_side, const Plateau& far_side, float roughness,
-                           const V& forward, float to_middle_mm, V& r, float& E,
-                           bool partial_reflection) {
+                           const V& forward, float to_middle_mm, bool partial_reflection) {
+        const V x = to_vec(p.x), r = to_vec(p.r);
+        float& E = p.E;
         // The direction the particle had on the near plateau: undo the slight
         // refraction it met in the fringe, using the conserved n sin(theta).
         const float cos_now = glm::dot(r, forward);
@@ -788,7 +794,7 @@ class LineTracer {
         const V incoming = tangential + cos_i * forward;
         const float sin_t = sin_i * near_side.refractive_index / far_side.refractive_index;
         const float cos_t = sin_t >= 1.0f ? 0.0f : std::sqrt(1.0f - sin_t * sin_t);
-        if (!partial_reflection && cos_t > 0.0f) return false;
+        if (!partial_reflection && cos_t > 0.0f) return;
         const float R2 = reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
         const float c =
             settings_.diffuse_reflection ? lobe_exponent(near_side, far_side, roughness) : 1e6f;
@@ -800,29 +806,28 @@ class LineTracer {
         if (R2 < follow_reflections_above_) {  // scored, not followed (TraceSettings)
             out_->ledger.recorded += double(E) * R2;
             E -= E * R2;
-            return false;
+            return;
         }
         if (!(b.random[k].next() < R2)) {
             b.return_factor[k] *= 1.0f - R2;
-            return false;
+            return;
         }
         b.return_factor[k] *= R2;
         const V mirror = reflect<Dim>(incoming, forward);
         float weight = 1.0f;
-        r = c < 1e4f ? diffuse(mirror, forward, c, b, k, &weight) : mirror;
+        p.r = to_lanes(c < 1e4f ? diffuse(mirror, forward, c, b, k, &weight) : mirror);
         if (weight < 1.0f) {  // lossy lobe: the rest becomes heat
             const float lost = E * (1.0f - weight);
             E -= lost;
             deposit(uint32_t(texel_index(x)), 0.0f, lost);
         }
-        b.in_interface[k] = kLeavingAfterReflection;  // leave on the near side, unrefracted
+        p.state = int32_t(kLeavingAfterReflection);  // leave on the near side, unrefracted
         // To the middle and back: the time and path of the reflection where it happens.
-        b.time[k] += 2.0 * to_middle_s;
-        b.path_length[k] += 2.0 * to_middle_mm;
+        p.time += 2.0 * to_middle_s;
+        p.path_length += 2.0 * to_middle_mm;
         b.bounces[k]++;
         out_->stats.reflections++;
         if (cos_t == 0.0f) out_->stats.total_reflections++;
-        return true;
     }
 
     [[gnu::noinline]] void record_echo(const Batch<Dim>& b, int k, const V& x, float energy,
@@ -877,108 +882,121 @@ class LineTracer {
         return 1e6f;
     }
 
-    // Advances particle k by one step; false when it has ended.
+    static ScalarState load_state(const Batch<Dim>& b, int k) {
+        const auto i = std::size_t(k);
+        ScalarState p;
+        for (std::size_t a = 0; a < Dim; ++a) {
+            p.x[a] = b.position.axis[a][i];
+            p.r[a] = b.direction.axis[a][i];
+            p.interface_normal[a] = b.interface_normal.axis[a][i];
+        }
+        p.E = b.energy[i];
+        p.fluence = b.pending_fluence[i], p.absorbed = b.pending_absorbed[i];
+        p.optical_depth = b.optical_depth[i], p.scatter_target = b.scatter_target[i];
+        p.previous_index = b.previous_index[i];
+        p.pending_texel = int32_t(b.pending_texel[i]);
+        p.state = int32_t(b.in_interface[i]);
+        p.graded_steps = b.graded_steps[i];
+        p.time = b.time[i], p.path_length = b.path_length[i];
+        return p;
+    }
+    static void store_state(Batch<Dim>& b, int k, const ScalarState& p) {
+        const auto i = std::size_t(k);
+        for (std::size_t a = 0; a < Dim; ++a) {
+            b.position.axis[a][i] = p.x[a];
+            b.direction.axis[a][i] = p.r[a];
+            b.interface_normal.axis[a][i] = p.interface_normal[a];
+        }
+        b.energy[i] = p.E;
+        b.pending_fluence[i] = p.fluence, b.pending_absorbed[i] = p.absorbed;
+        b.optical_depth[i] = p.optical_depth, b.scatter_target[i] = p.scatter_target;
+        b.previous_index[i] = p.previous_index;
+        b.pending_texel[i] = uint32_t(p.pending_texel);
+        b.in_interface[i] = InterfaceState(p.state);
+        b.graded_steps[i] = p.graded_steps;
+        b.time[i] = p.time, b.path_length[i] = p.path_length;
+    }
+
+    // The fields take_step() reads, from a texel at x.
+    StepFields<ScalarLane, Dim> fields_of(const Texel& t, const V& x) const {
+        StepFields<ScalarLane, Dim> f;
+        f.refractive_index = t.refractive_index;
+        f.impedance = t.impedance;
+        f.attenuation = t.attenuation;
+        f.backscatter = t.backscatter;
+        for (int a = 0; a < Dim; ++a) {
+            f.grad_refractive_index[std::size_t(a)] = t.grad_refractive_index[a];
+            f.grad_impedance[std::size_t(a)] = t.grad_impedance[a];
+        }
+        f.texel = deposit_maps_ ? int32_t(texel_index(x)) : 0;
+        return f;
+    }
+
+    // step.h's events for one particle, handled where they happen.
+    struct ScalarEvents {
+        LineTracer& tracer;
+        Batch<Dim>& b;
+        int k;
+        const Texel& t;  // the fields at the step's start
+        SONOTRACE_LANE_INLINE void flush_deposits(bool changed, const ScalarState& p) {
+            if (changed) tracer.deposit(uint32_t(p.pending_texel), p.fluence, p.absorbed);
+        }
+        SONOTRACE_LANE_INLINE void beyond_series(bool beyond, float optical, float& transmitted) {
+            if (beyond) transmitted = std::exp(-optical);
+        }
+        SONOTRACE_LANE_INLINE void scatter_profile(bool scatters, const ScalarState& p,
+                                                   float backscatter) {
+            if (scatters && tracer.profile_enabled_)
+                tracer.add_to_profile(b, k, to_vec(p.x), p.E, backscatter, p.time);
+        }
+        SONOTRACE_LANE_INLINE void scattering_event(bool happens, ScalarState& p,
+                                                    float backscatter) {
+            if (happens) tracer.scattering_event(b, k, p, backscatter);
+        }
+        SONOTRACE_LANE_INLINE void interface_event(bool happens, ScalarState& p) {
+            if (happens) tracer.enter_interface(b, k, t, p);
+        }
+        SONOTRACE_LANE_INLINE void total_reflection_while_crossing(bool happens) {
+            if (!happens) return;
+            b.bounces[std::size_t(k)]++;
+            tracer.out_->stats.reflections++;
+            tracer.out_->stats.total_reflections++;
+        }
+    };
+
+    // The optical depth reached the particle's draw: a share of its energy is scattered
+    // back as an echo, and the next depth is drawn.
+    [[gnu::noinline]] void scattering_event(Batch<Dim>& b, int k, ScalarState& p,
+                                            float backscatter) {
+        const float fraction = float(settings_.scatter_echo_fraction) * backscatter;
+        if (settings_.record_scatter_echoes)
+            record_echo(b, k, to_vec(p.x), p.E, fraction, EchoKind::scatter);
+        out_->ledger.recorded += double(p.E) * fraction;
+        p.E -= p.E * fraction;
+        out_->stats.scatter_events++;
+        p.optical_depth = 0.0f;
+        p.scatter_target = -std::log(std::max(b.random[k].next(), 1e-12f));
+    }
+
+    // Advances particle k by one step (step.h's take_step, then the probe face and the
+    // ring detector); false when it has ended.
     // `outside_blocks`: uniform_run() found the particle outside every uniform block.
     bool step(Batch<Dim>& b, int k, bool outside_blocks) {
         EnergyLedger& ledger = out_->ledger;
         TraceStats& stats = out_->stats;
-        const float s = step_mm_;
-        V x = b.position[k];
-        V r = b.direction[k];
-        float E = b.energy[k];
+        const V from = b.position[k];
         // -- fields: a uniform block's record as it is, elsewhere interpolated
-        const Texel* uniform = look_up_blocks_ && !outside_blocks ? map_.uniform_block(x) : nullptr;
-        const Texel t = uniform ? *uniform : map_.sample(x);
+        const Texel* uniform =
+            look_up_blocks_ && !outside_blocks ? map_.uniform_block(from) : nullptr;
+        const Texel t = uniform ? *uniform : map_.sample(from);
         stats.steps++;
         stats.uniform_steps += uniform != nullptr;
-
-        // -- deposits of this step go to the texel the particle is in
-        if (deposit_maps_) {
-            const uint32_t texel = uint32_t(texel_index(x));
-            if (texel != b.pending_texel[k]) {
-                flush_deposits(b, k);
-                b.pending_texel[k] = texel;
-            }
-        }
-        // -- absorption along the step
-        if (settings_.absorption && t.attenuation > 0.0f) {
-            const float lost = E * (1.0f - exp_minus(attenuation_per_mm_ * t.attenuation * s));
-            E -= lost;
-            b.pending_absorbed[k] += lost;
-        }
-        b.pending_fluence[k] += E * s;
-
-        // -- sub-resolution scattering: event when the optical depth reaches the draw
-        if (scatter_enabled_ && t.backscatter > 0.0f) {
-            if (profile_enabled_) add_to_profile(b, k, x, E, t.backscatter, b.time[k]);
-            b.optical_depth[k] += float(settings_.scattering_rate_per_mm) * t.backscatter * s;
-            if (b.optical_depth[k] >= b.scatter_target[k]) {
-                const float fraction = float(settings_.scatter_echo_fraction) * t.backscatter;
-                if (settings_.record_scatter_echoes)
-                    record_echo(b, k, x, E, fraction, EchoKind::scatter);
-                ledger.recorded += double(E) * fraction;
-                E -= E * fraction;
-                stats.scatter_events++;
-                b.optical_depth[k] = 0.0f;
-                b.scatter_target[k] = -std::log(std::max(b.random[k].next(), 1e-12f));
-            }
-        }
-
-        // -- interface: a sharp interface is crossed as a whole (one decision, one normal).
-        // Squared comparisons of |grad Z| h / Z: no root or division on the common path.
-        bool reflected = false;
-        InterfaceState& state = b.in_interface[k];
-        float gz2 = 0.0f;
-        for (int a = 0; a < Dim; ++a) gz2 += t.grad_impedance[a] * t.grad_impedance[a];
-        const float scale2 = t.impedance * t.impedance * inverse_texel2_;
-        if (gz2 > threshold2_ * scale2) {
-            if (state == kOutside ||
-                (state == kGraded && ++b.graded_steps[k] >= kGradedRecheckSteps)) {
-                reflected = enter_interface(b, k, x, t, r, E);
-            }
-        } else if (gz2 < 0.25f * threshold2_ * scale2) {
-            state = kOutside;  // hysteresis: the fringe's jitter does not re-trigger
-        }
-
-        // -- continuous refraction (eqs. 4-8 corrected)
-        // Eq. 4 extrapolates the index beyond the step from the gradient, n1 = n0 + s g.r.
-        // Summed over a crossing that drifts from the field: central differences spread
-        // the gradient a texel beyond the sampled change, and the estimate is taken along
-        // the direction before bending. Measured on a 20-degree interface: ~1 degree off
-        // Snell's law; in the graded fibre of figure 4, particles escaped. So the index
-        // is *sampled*: the step just taken went from n0 (sampled at its start) to n1
-        // (sampled here), and Snell's law turns the direction here. The chain n0 -> n1 ->
-        // ... follows the field exactly, at one sample per step. The gradient gives the
-        // normal, as in the paper (at a sharp interface: the patch normal, see above).
-        const float n0 = b.previous_index[k], n1 = t.refractive_index;
-        b.previous_index[k] = n1;
-        if (settings_.refraction && !reflected && state != kLeavingAfterReflection && n0 != n1) {
-            V g;
-            float g2 = 0.0f;
-            for (int a = 0; a < Dim; ++a) g[a] = t.grad_refractive_index[a], g2 += g[a] * g[a];
-            if (state == kCrossing || g2 > 0.0f) {
-                const V normal =
-                    state == kCrossing ? b.interface_normal[k] : g * (1.0f / std::sqrt(g2));
-                const Refraction<Dim> bent = refract<Dim>(r, normal, n0 / n1);
-                r = bent.direction;
-                // Total reflection at a sharp interface is a bounce; in a graded medium it
-                // is the ray's turning point (the fibre's particles turn at every period).
-                if (bent.total_reflection) {
-                    b.previous_index[k] = n0;  // still on the n0 side
-                    if (state == kCrossing) {
-                        b.bounces[k]++;
-                        stats.reflections++;
-                        stats.total_reflections++;
-                    }
-                }
-            }
-        }
-
-        // -- move
-        const V from = x;
-        x += s * r;
-        b.time[k] += double(s) * seconds_per_mm_ * t.refractive_index;
-        b.path_length[k] += s;
+        ScalarState p = load_state(b, k);
+        ScalarEvents events{*this, b, k, t};
+        take_step(p, fields_of(t, from), step_constants_, events);
+        store_state(b, k, p);
+        V x = to_vec(p.x), r = to_vec(p.r);
+        float E = p.E;
 
         // -- the probe face captures what comes back through it
         if (const auto* face = probe_face()) {
@@ -1020,10 +1038,10 @@ class LineTracer {
 
     // The endings after a step to x: the domain boundary, the limits, roulette. False if
     // the particle ended; roulette may raise b.energy[k].
-    bool continues(Batch<Dim>& b, int k, const V& x) {
+    [[gnu::always_inline]] bool continues(Batch<Dim>& b, int k, const V& x) {
         EnergyLedger& ledger = out_->ledger;
         const float E = b.energy[k];
-        if (!map_.inside(x)) {
+        if (!inside_domain<ScalarLane>(to_lanes(x), step_constants_)) {
             ledger.escaped += E;
             return false;
         }
@@ -1069,11 +1087,11 @@ class LineTracer {
     }
 
     // Steps through uniform blocks (AcousticMap::uniform_block) in a tight loop: there a
-    // step is what step() does minus sampling, the interface test and refraction (zero
-    // gradient, n0 == n1), with the absorbed fraction computed once per record, so the
-    // results are the same bit for bit. Stops before a step that scatters, where the
-    // medium varies, or where the particle has not left an interface state; step() takes
-    // those. Says whether the particle ended, or how step() goes on.
+    // step is take_step() minus sampling, the interface test and refraction (zero
+    // gradient, n0 == n1): its stages (step.h), with the absorbed fraction computed once
+    // per record, so the results are the same bit for bit. Stops before a step that scatters, where
+    // the medium varies, or where the particle has not left an interface state; step() takes those.
+    // Says whether the particle ended, or how step() goes on.
     enum class RunEnd { ended, step, step_outside_blocks };
     RunEnd uniform_run(Batch<Dim>& b, int k) {
         if (!uniform_runs_) return RunEnd::step;
@@ -1088,83 +1106,61 @@ class LineTracer {
         if (b.in_interface[k] != kOutside || first->refractive_index != b.previous_index[k])
             return RunEnd::step;
         // The particle's state in locals (registers) for the run, written back at its end.
-        const float s = step_mm_;
-        const V r = b.direction[k];
-        V x = b.position[k];
-        float E = b.energy[k], optical_depth = b.optical_depth[k];
-        float fluence = b.pending_fluence[k], absorbed = b.pending_absorbed[k];
-        uint32_t pending_texel = b.pending_texel[k];
-        double time = b.time[k], path_length = b.path_length[k];
-        const float scatter_target = b.scatter_target[k], n = b.previous_index[k];
-        const float roulette_below = float(settings_.roulette_energy) * b.initial_energy[k];
-        const double max_path = settings_.max_path_mm, max_time = max_time_s_;
+        const StepConstants<Dim>& c = step_constants_;
+        const float s = c.step_mm;
+        ScalarState p = load_state(b, k);
+        const float roulette_below = c.roulette_energy * b.initial_energy[k];
         const bool record_path = b.path[k] >= 0;
+        ScalarEvents events{*this, b, k, *first};
 
         const Texel* record = nullptr;
-        float absorbed_fraction = 0.0f, scatter_increment = 0.0f;
-        double step_time = 0.0;
+        float absorbed = 0.0f, scatter_depth = 0.0f;  // per step, of the record's medium
+        double time = 0.0;
         uint64_t steps = 0;
         int steps_in_block = 0;  // steps known to stay inside the current block
         bool limit_reached = false;
         while (true) {
             const Texel* u = record;
             if (steps_in_block-- <= 0) {  // look the block up again
-                u = map_.uniform_block(x);
-                if (u == nullptr || u->refractive_index != n) break;
-                steps_in_block = steps_to_block_exit(x, r);
+                u = map_.uniform_block(to_vec(p.x));
+                if (u == nullptr || u->refractive_index != p.previous_index) break;
+                steps_in_block = steps_to_block_exit(to_vec(p.x), to_vec(p.r));
             }
-            if (u != record) {  // per-record constants, exactly as step() computes them
+            if (u != record) {  // per-record constants, from take_step()'s stages
                 record = u;
-                absorbed_fraction = settings_.absorption && u->attenuation > 0.0f
-                                        ? 1.0f - exp_minus(attenuation_per_mm_ * u->attenuation * s)
-                                        : 0.0f;
-                scatter_increment =
-                    scatter_enabled_ && u->backscatter > 0.0f
-                        ? float(settings_.scattering_rate_per_mm) * u->backscatter * s
-                        : 0.0f;
-                step_time = double(s) * seconds_per_mm_ * u->refractive_index;
+                absorbed =
+                    c.absorption ? absorbed_fraction<ScalarLane>(u->attenuation, c, events) : 0.0f;
+                scatter_depth =
+                    c.scattering ? scatter_increment<ScalarLane>(u->backscatter, c) : 0.0f;
+                time = step_time<ScalarLane>(u->refractive_index, c);
             }
-            if (scatter_increment > 0.0f && optical_depth + scatter_increment >= scatter_target)
+            if (scatter_depth > 0.0f && p.optical_depth + scatter_depth >= p.scatter_target)
                 break;  // a scattering event: step() records it
             ++steps;
-            // -- deposits to the particle's texel
-            if (deposit_maps_) {
-                const uint32_t texel = uint32_t(texel_index(x));
-                if (texel != pending_texel) {
-                    deposit(pending_texel, fluence, absorbed);
-                    pending_texel = texel, fluence = absorbed = 0.0f;
-                }
-            }
-            // -- absorption, fluence
-            const float lost = E * absorbed_fraction;
-            E -= lost;
-            absorbed += lost;
-            fluence += E * s;
+            if (c.deposition_maps)
+                enter_deposit_texel(p, int32_t(texel_index(to_vec(p.x))), events);
+            absorb(p, absorbed);
+            add_fluence(p, s);
             // -- the scattered echo's track-length estimate
-            if (scatter_increment > 0.0f) {
-                if (profile_enabled_) add_to_profile(b, k, x, E, u->backscatter, time);
-                optical_depth += scatter_increment;
+            if (scatter_depth > 0.0f) {
+                if (profile_enabled_)
+                    add_to_profile(b, k, to_vec(p.x), p.E, u->backscatter, p.time);
+                p.optical_depth = p.optical_depth + scatter_depth;
             }
-            // -- move
-            x += s * r;
-            time += step_time;
-            path_length += s;
-            if (record_path) out_->paths[std::size_t(b.path[k])].vertices.push_back({x, E});
+            move(p, s, time);
+            if (record_path)
+                out_->paths[std::size_t(b.path[k])].vertices.push_back({to_vec(p.x), p.E});
             // -- endings are decided by continues() below
-            if (!map_.inside(x) || path_length > max_path || time > max_time ||
-                E < roulette_below) {
+            if (!inside_domain<ScalarLane>(p.x, c) || p.path_length > c.max_path_mm ||
+                p.time > c.max_time_s || p.E < roulette_below) {
                 limit_reached = true;
                 break;
             }
         }
-        b.position.set(k, x);
-        b.energy[k] = E, b.optical_depth[k] = optical_depth;
-        b.pending_fluence[k] = fluence, b.pending_absorbed[k] = absorbed;
-        b.pending_texel[k] = pending_texel;
-        b.time[k] = time, b.path_length[k] = path_length;
+        store_state(b, k, p);
         out_->stats.steps += steps;
         out_->stats.uniform_steps += steps;
-        return !limit_reached || continues(b, k, x) ? RunEnd::step : RunEnd::ended;
+        return !limit_reached || continues(b, k, to_vec(p.x)) ? RunEnd::step : RunEnd::ended;
     }
 
     const ProbeFace<Dim>* probe_face() const {

@@ -4,20 +4,22 @@
 // nearly every step interpolates and refracts; as scalar code with a branch per physics
 // stage it cost ~270 cycles, while lanes in lockstep share one instruction stream.
 //
-// The arithmetic is LineTracer::step()'s, operation for operation (no FMA contraction:
-// this file is built with -ffp-contract=off), so a particle takes the same path bit for
-// bit whichever stage steps it (test: Tracer.VectorStepsTakeTheScalarStepsPaths).
-// Anything rarer (an interface to search, a scattering event, total reflection while
-// crossing, a large attenuation) goes back to step() untouched. The interface searches'
-// points are sampled here too (sample_impedance_points), eight at a time.
+// The step is step.h's take_step(), the one the scalar step calls, here over eight lanes
+// (no FMA contraction: this file is built with -ffp-contract=off), so a particle takes the
+// same path bit for bit whichever stage steps it (test:
+// Tracer.VectorStepsTakeTheScalarStepsPaths). Anything rarer (an interface to search, a
+// scattering event, total reflection while crossing, a large attenuation) goes back to
+// step() untouched. The interface searches' points are sampled here too
+// (sample_impedance_points), eight at a time.
 #include <cstring>
 #include <type_traits>
 
-// The helpers here (and batch.h's series) return 32-byte vectors by value; they are
+// The helpers here (and step.h's stages) return 32-byte vectors by value; they are
 // inlined, so the ABI warning about AVX vectors in the SSE build does not apply.
 #pragma GCC diagnostic ignored "-Wpsabi"
 
 #include "simulator/batch.h"
+#include "simulator/step.h"
 
 namespace sonotrace::simulator::detail {
 
@@ -298,144 +300,109 @@ template <int Dim>
     }
 }
 
+// Eight particles as one lane type of step.h (lanes.h): GCC vector masks, doubles in two
+// halves of four.
+struct DoubleLanes {
+    vd low, high;
+};
+[[gnu::always_inline]] inline DoubleLanes operator+(const DoubleLanes& a, const DoubleLanes& b) {
+    return {a.low + b.low, a.high + b.high};
+}
+[[gnu::always_inline]] inline DoubleLanes operator+(const DoubleLanes& a, double b) {
+    return {a.low + b, a.high + b};
+}
+[[gnu::always_inline]] inline DoubleLanes operator*(double a, const DoubleLanes& b) {
+    return {a * b.low, a * b.high};
+}
+struct VectorLane {
+    using F = vf;
+    using I = vi;
+    using Mask = vi;
+    using D = DoubleLanes;
+    [[gnu::always_inline]] static F sqrt(const F& v) { return lane_sqrt(v); }
+    [[gnu::always_inline]] static D widen(const F& v) {
+        return {low_to_double(v), high_to_double(v)};
+    }
+    [[gnu::always_inline]] static Mask andnot(const Mask& a, const Mask& b) { return a & ~b; }
+    [[gnu::always_inline]] static Mask greater(const D& a, double b) {
+        return join_masks(a.low > b, a.high > b);
+    }
+    [[gnu::always_inline]] static bool any(const Mask& m) { return lane_bits(m) != 0; }
+};
+
+// The vector stage's events: each marks its lanes for the scalar step (LaneResults::to_step),
+// except the deposits and the echo profile's inputs, which it hands over in LaneResults.
+template <int Dim>
+struct VectorEvents {
+    using State = StepState<VectorLane, Dim>;
+    vi to_step;
+    vi flush = vi{};
+    LaneResults<Dim>& out;
+    std::size_t at;
+    bool profile;
+    [[gnu::always_inline]] void flush_deposits(const vi& changed, const State& p) {
+        flush = changed;
+        store(&out.flush_texel[at], p.pending_texel);
+        store(&out.flush_fluence[at], p.fluence);
+        store(&out.flush_absorbed[at], p.absorbed);
+    }
+    [[gnu::always_inline]] void beyond_series(const vi& m, const vf&, vf&) { to_step |= m; }
+    [[gnu::always_inline]] void scatter_profile(const vi&, const State& p, const vf&) {
+        if (!profile) return;
+        for (std::size_t a = 0; a < Dim; ++a) store(&out.start_position[a][at], p.x[a]);
+        store(&out.profile_energy[at], p.E);
+        store(&out.start_time[at], p.time.low);
+        store(&out.start_time[at + 4], p.time.high);
+    }
+    [[gnu::always_inline]] void scattering_event(const vi& m, State&, const vf&) { to_step |= m; }
+    [[gnu::always_inline]] void interface_event(const vi& m, State&) { to_step |= m; }
+    [[gnu::always_inline]] void total_reflection_while_crossing(const vi& m) { to_step |= m; }
+};
+
+// step.h's take_step() for lanes [0, lanes) in groups of eight, then the endings' masks;
+// the lanes it takes are committed to the batch, the others stay for the scalar step.
 template <int Dim>
 [[gnu::always_inline]] inline void step_lanes(Batch<Dim>& b, const LaneFields<Dim>& f,
                                               const StepConstants<Dim>& c, LaneResults<Dim>& out,
                                               int lanes) {
-    const float s = c.step_mm;
     out.to_step = out.flush = out.may_end = 0;
     for (int base = 0; base < lanes; base += kLanes) {
         const auto at = std::size_t(base);
-        vi to_step = ~load<vi>(&f.eligible[at]);
-        vf E = load<vf>(&b.energy[at]);
-        vf x[Dim], r[Dim];
-        for (int a = 0; a < Dim; ++a) {
-            x[a] = load<vf>(&b.position.axis[std::size_t(a)][at]);
-            r[a] = load<vf>(&b.direction.axis[std::size_t(a)][at]);
+        StepState<VectorLane, Dim> p;
+        StepFields<VectorLane, Dim> fields;
+        for (std::size_t a = 0; a < Dim; ++a) {
+            p.x[a] = load<vf>(&b.position.axis[a][at]);
+            p.r[a] = load<vf>(&b.direction.axis[a][at]);
+            p.interface_normal[a] = load<vf>(&b.interface_normal.axis[a][at]);
+            fields.grad_refractive_index[a] = load<vf>(&f.grad_refractive_index[a][at]);
+            fields.grad_impedance[a] = load<vf>(&f.grad_impedance[a][at]);
         }
-        const vf n1 = load<vf>(&f.refractive_index[at]);
+        p.E = load<vf>(&b.energy[at]);
+        p.fluence = load<vf>(&b.pending_fluence[at]);
+        p.absorbed = load<vf>(&b.pending_absorbed[at]);
+        p.optical_depth = load<vf>(&b.optical_depth[at]);
+        p.scatter_target = load<vf>(&b.scatter_target[at]);
+        p.previous_index = load<vf>(&b.previous_index[at]);
+        p.pending_texel = load<vi>(&b.pending_texel[at]);
+        p.state = load<vi>(&b.in_interface[at]);
+        p.graded_steps = load<vi>(&b.graded_steps[at]);
+        p.time = {load<vd>(&b.time[at]), load<vd>(&b.time[at + 4])};
+        p.path_length = {load<vd>(&b.path_length[at]), load<vd>(&b.path_length[at + 4])};
+        fields.refractive_index = load<vf>(&f.refractive_index[at]);
+        fields.impedance = load<vf>(&f.impedance[at]);
+        fields.attenuation = load<vf>(&f.attenuation[at]);
+        fields.backscatter = load<vf>(&f.backscatter[at]);
+        fields.texel = load<vi>(&f.texel[at]);
 
-        // -- deposits go to the texel the particle is in: hand the old sums over on a change
-        vf fluence = load<vf>(&b.pending_fluence[at]);
-        vf absorbed = load<vf>(&b.pending_absorbed[at]);
-        vi pending_texel = load<vi>(&b.pending_texel[at]);
-        vi flush = vi{};
-        if (c.deposition_maps) {
-            const vi texel = load<vi>(&f.texel[at]);
-            flush = texel != pending_texel;
-            store(&out.flush_texel[at], pending_texel);
-            store(&out.flush_fluence[at], fluence);
-            store(&out.flush_absorbed[at], absorbed);
-            fluence = flush ? vf{} : fluence;
-            absorbed = flush ? vf{} : absorbed;
-            pending_texel = texel;
-        }
-        // -- absorption along the step (exp_minus in tracer.cpp; beyond its series: step())
-        if (c.absorption) {
-            const vf attenuation = load<vf>(&f.attenuation[at]);
-            const vf optical = c.attenuation_per_mm * attenuation * s;
-            const vf transmitted = optical < kExpSeries4Below ? exp_minus_series4(optical)
-                                                              : exp_minus_series7(optical);
-            const vi absorbs = attenuation > 0.0f;
-            to_step |= absorbs & (optical > kExpSeries7Below);
-            const vf lost = absorbs ? E * (1.0f - transmitted) : vf{};
-            E = E - lost;
-            absorbed = absorbed + lost;
-        }
-        fluence = fluence + E * s;
-
-        // -- scattering's optical depth; the event itself is step()'s
-        vf optical_depth = load<vf>(&b.optical_depth[at]);
-        if (c.scattering) {
-            const vf backscatter = load<vf>(&f.backscatter[at]);
-            const vi scatters = backscatter > 0.0f;
-            const vf deeper = optical_depth + c.scattering_rate_per_mm * backscatter * s;
-            optical_depth = scatters ? deeper : optical_depth;
-            to_step |= scatters & (optical_depth >= load<vf>(&b.scatter_target[at]));
-            if (c.profile) {
-                for (int a = 0; a < Dim; ++a) store(&out.start_position[std::size_t(a)][at], x[a]);
-                store(&out.profile_energy[at], E);
-                std::memcpy(&out.start_time[at], &b.time[at], kLanes * sizeof(double));
-            }
-        }
-
-        // -- interface test, squared: a steep gradient met from outside needs step()
-        vf gz2 = vf{};
-        for (int a = 0; a < Dim; ++a) {
-            const vf g = load<vf>(&f.grad_impedance[std::size_t(a)][at]);
-            gz2 = gz2 + g * g;
-        }
-        const vf impedance = load<vf>(&f.impedance[at]);
-        const vf scale2 = impedance * impedance * c.inverse_texel2;
-        const vi steep = gz2 > c.threshold2 * scale2;
-        vi state = load<vi>(&b.in_interface[at]);
-        vi graded_steps = load<vi>(&b.graded_steps[at]);
-        const vi graded = state == int32_t(kGraded);
-        const vi next_graded = graded_steps + 1;
-        to_step |= steep & (state == int32_t(kOutside));
-        to_step |= steep & graded & (next_graded >= kGradedRecheckSteps);
-        graded_steps = steep & graded ? next_graded : graded_steps;
-        const vi calm = ~steep & (gz2 < 0.25f * c.threshold2 * scale2);  // hysteresis
-        state = calm ? int32_t(kOutside) : state;
-
-        // -- continuous refraction by Snell's law (refract() in interactions.h)
-        const vf n0 = load<vf>(&b.previous_index[at]);
-        vf previous_index = n1;
-        if (c.refraction) {
-            const vi crossing = state == int32_t(kCrossing);
-            vf g[Dim], g2 = vf{};
-            for (int a = 0; a < Dim; ++a) {
-                g[a] = load<vf>(&f.grad_refractive_index[std::size_t(a)][at]);
-                g2 = g2 + g[a] * g[a];
-            }
-            const vi bends =
-                (state != int32_t(kLeavingAfterReflection)) & (n0 != n1) & (crossing | (g2 > 0.0f));
-            const vf inverse_length = 1.0f / lane_sqrt(g2);
-            vf normal[Dim];
-            for (int a = 0; a < Dim; ++a) {
-                normal[a] = crossing ? load<vf>(&b.interface_normal.axis[std::size_t(a)][at])
-                                     : g[a] * inverse_length;
-            }
-            vf d = r[0] * normal[0];
-            for (int a = 1; a < Dim; ++a) d = d + r[a] * normal[a];
-            vf facing[Dim];
-            for (int a = 0; a < Dim; ++a) facing[a] = d > 0.0f ? -normal[a] : normal[a];
-            const vf cos_i = d > 0.0f ? d : -d;
-            const vf eta = n0 / n1;
-            const vf k = 1.0f - eta * eta * (1.0f - cos_i * cos_i);
-            const vi total = k < 0.0f;
-            const vf cos_t = lane_sqrt(k);  // NaN where total: not selected
-            vf t[Dim], tt, rf;
-            for (int a = 0; a < Dim; ++a) t[a] = eta * r[a] + (eta * cos_i - cos_t) * facing[a];
-            tt = t[0] * t[0];
-            rf = r[0] * facing[0];
-            for (int a = 1; a < Dim; ++a) tt = tt + t[a] * t[a], rf = rf + r[a] * facing[a];
-            const vf renormalise = 1.5f - 0.5f * tt;
-            const vf twice = 2.0f * rf;
-            for (int a = 0; a < Dim; ++a) {
-                const vf bent = total ? r[a] - twice * facing[a] : t[a] * renormalise;
-                r[a] = bends ? bent : r[a];
-            }
-            // Total reflection: still on the n0 side; while crossing it is a bounce (step()).
-            previous_index = bends & total ? n0 : n1;
-            to_step |= bends & total & crossing;
-        }
-
-        // -- move
-        for (int a = 0; a < Dim; ++a) x[a] = x[a] + s * r[a];
-        vd time[2] = {load<vd>(&b.time[at]), load<vd>(&b.time[at + 4])};
-        vd path[2] = {load<vd>(&b.path_length[at]), load<vd>(&b.path_length[at + 4])};
-        time[0] = time[0] + c.step_time_per_index * low_to_double(n1);
-        time[1] = time[1] + c.step_time_per_index * high_to_double(n1);
-        for (vd& p : path) p = p + double(s);
+        VectorEvents<Dim> events{~load<vi>(&f.eligible[at]), vi{}, out, at, c.profile};
+        take_step(p, fields, c, events);
+        const vi to_step = events.to_step;
 
         // -- endings are continues()'s (bounces do not change in this stage)
-        vi inside = ~vi{};
-        for (int a = 0; a < Dim; ++a) inside &= (x[a] >= 0.0f) & (x[a] <= c.extent[std::size_t(a)]);
-        const vi past_limit = join_masks((path[0] > c.max_path_mm) | (time[0] > c.max_time_s),
-                                         (path[1] > c.max_path_mm) | (time[1] > c.max_time_s));
-        const vi weak = E < c.roulette_energy * load<vf>(&b.initial_energy[at]);
-        const vi may_end = ~inside | past_limit | weak;
+        const vi past_limit = VectorLane::greater(p.path_length, c.max_path_mm) |
+                              VectorLane::greater(p.time, c.max_time_s);
+        const vi weak = p.E < c.roulette_energy * load<vf>(&b.initial_energy[at]);
+        const vi may_end = ~inside_domain<VectorLane>(p.x, c) | past_limit | weak;
 
         // -- commit the lanes taken; the others stay as they were for step()
         auto commit = [&](auto* field, const auto& value) {
@@ -447,28 +414,29 @@ template <int Dim>
             // to_step as two double-lane masks
             __builtin_convertvector(__builtin_shufflevector(to_step, to_step, 0, 1, 2, 3), vl),
             __builtin_convertvector(__builtin_shufflevector(to_step, to_step, 4, 5, 6, 7), vl)};
-        auto commit_double = [&](double* field, const vd(&value)[2]) {
+        auto commit_double = [&](double* field, const DoubleLanes& value) {
+            const vd halves[2] = {value.low, value.high};
             for (int h = 0; h < 2; ++h) {
                 const vd old = load<vd>(field + 4 * h);
-                store(field + 4 * h, keep[h] ? old : value[h]);
+                store(field + 4 * h, keep[h] ? old : halves[h]);
             }
         };
-        commit(&b.energy[at], E);
-        for (int a = 0; a < Dim; ++a) {
-            commit(&b.position.axis[std::size_t(a)][at], x[a]);
-            commit(&b.direction.axis[std::size_t(a)][at], r[a]);
+        commit(&b.energy[at], p.E);
+        for (std::size_t a = 0; a < Dim; ++a) {
+            commit(&b.position.axis[a][at], p.x[a]);
+            commit(&b.direction.axis[a][at], p.r[a]);
         }
-        commit(&b.pending_fluence[at], fluence);
-        commit(&b.pending_absorbed[at], absorbed);
-        commit(reinterpret_cast<int32_t*>(&b.pending_texel[at]), pending_texel);
-        commit(&b.optical_depth[at], optical_depth);
-        commit(reinterpret_cast<int32_t*>(&b.in_interface[at]), state);
-        commit(&b.graded_steps[at], graded_steps);
-        commit(&b.previous_index[at], previous_index);
-        commit_double(&b.time[at], time);
-        commit_double(&b.path_length[at], path);
+        commit(&b.pending_fluence[at], p.fluence);
+        commit(&b.pending_absorbed[at], p.absorbed);
+        commit(reinterpret_cast<int32_t*>(&b.pending_texel[at]), p.pending_texel);
+        commit(&b.optical_depth[at], p.optical_depth);
+        commit(reinterpret_cast<int32_t*>(&b.in_interface[at]), p.state);
+        commit(&b.graded_steps[at], p.graded_steps);
+        commit(&b.previous_index[at], p.previous_index);
+        commit_double(&b.time[at], p.time);
+        commit_double(&b.path_length[at], p.path_length);
         out.to_step |= lane_bits(to_step) << base;
-        out.flush |= lane_bits(~to_step & flush) << base;
+        out.flush |= lane_bits(~to_step & events.flush) << base;
         out.may_end |= lane_bits(~to_step & may_end) << base;
     }
 }
