@@ -43,7 +43,7 @@ struct LaneRefraction {
 
 template <class Lane, int Dim, class F = typename Lane::F>
 SONOTRACE_LANE_INLINE LaneRefraction<Lane, Dim> refract(const LaneVec<F, Dim>& r,
-                                                        const LaneVec<F, Dim>& normal, F eta) {
+                                                        const LaneVec<F, Dim>& normal, const F& eta) {
     // Orient the normal against the travel direction (pointing back to the incident side).
     const F d = dot(r, normal);
     const auto away = d > 0.0f;
