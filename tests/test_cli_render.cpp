@@ -109,6 +109,57 @@ TEST(CliRender, ATransparentTransferFunctionWarnsAndWritesTheBackground) {
     EXPECT_TRUE(std::filesystem::exists(dir / "c.png"));
 }
 
+// A frame of each array type overlays (a linear array has no field of view: 0 in its
+// sidecar), and a sidecar with a field missing or of the wrong type is named, exit 1.
+TEST(CliRender, OverlaysFramesOfEveryProbeTypeAndNamesBadSidecarFields) {
+    ScratchDir dir;
+    const std::string volume = write_sphere(dir);
+    const std::string phantom = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/cyst_and_stone.json";
+    const std::string render = "render -q --volume " + volume +
+                               " --tf ramp --repetitions 1 --width 16 --height 16 --frame ";
+    for (const std::string probe : {"linear", "convex", "phased"}) {
+        const auto sim = run(dir, "simulate -q --quality interactive --phantom " + phantom +
+                                      " --probe " + probe + " --out " + (dir / probe));
+        ASSERT_EQ(sim.exit_code, 0) << probe << ": " << sim.err;
+        const auto r = run(
+            dir, render + (dir / (probe + "/bmode.json")) + " --out " + (dir / (probe + ".png")));
+        EXPECT_EQ(r.exit_code, 0) << probe << ": " << r.err;
+        EXPECT_TRUE(std::filesystem::exists(dir / (probe + ".png"))) << probe;
+    }
+    const auto good = nlohmann::json::parse(slurp(dir / "linear/bmode.json"));
+    struct Mutation {
+        std::string pointer;   // JSON pointer of the field changed
+        nlohmann::json value;  // null: removed
+        std::string message;
+    };
+    const Mutation mutations[] = {
+        {"/image/origin_mm", nullptr, "field 'image.origin_mm'"},
+        {"/image/origin_mm", "x", "field 'image.origin_mm'"},
+        {"/image/pixel_spacing_mm", nlohmann::json::array({1, "a"}),
+         "field 'image.pixel_spacing_mm'"},
+        {"/image", 3, "field 'image'"},
+        {"/probe/fov_deg", -1, "field 'probe.fov_deg'"},
+        {"/pose/axial", nlohmann::json::array({0, 0, 0}), "field 'pose.axial'"},
+    };
+    for (const Mutation& m : mutations) {
+        nlohmann::json j = good;
+        const nlohmann::json::json_pointer at(m.pointer);
+        if (m.value.is_null())
+            j.at(at.parent_pointer()).erase(at.back());
+        else
+            j[at] = m.value;
+        std::filesystem::create_directories(dir / "bad");
+        std::filesystem::copy_file(dir / "linear/bmode.png", dir / "bad/bmode.png",
+                                   std::filesystem::copy_options::overwrite_existing);
+        std::ofstream(dir / "bad/bmode.json") << j.dump();
+        const auto r = run(dir, render + (dir / "bad/bmode.json") + " --out " + (dir / "bad.png"));
+        EXPECT_EQ(r.exit_code, 1) << m.pointer << ": " << r.err;
+        EXPECT_NE(r.err.find("bad/bmode.json"), std::string::npos) << m.pointer << ": " << r.err;
+        EXPECT_NE(r.err.find(m.message), std::string::npos) << m.pointer << ": " << r.err;
+        EXPECT_FALSE(std::filesystem::exists(dir / "bad.png")) << m.pointer;
+    }
+}
+
 TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
@@ -155,7 +206,7 @@ TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {
     // An unwritable output path fails cleanly too.
     const auto r = run(dir, "render -q --tf ramp --repetitions 1 --width 16 --height 16 --volume " +
                                 volume + " --out /proc/forbidden/x.png");
-    EXPECT_NE(r.exit_code, 0);
+    EXPECT_EQ(r.exit_code, 1);
 }
 
 }  // namespace

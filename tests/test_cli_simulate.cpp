@@ -110,7 +110,7 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
     for (const auto& c : cases) {
         const auto r =
             run(dir, "simulate -q --quality interactive " + c.args + " --out " + (dir / "out"));
-        EXPECT_NE(r.exit_code, 0) << c.args;
+        EXPECT_EQ(r.exit_code, 1) << c.args;
         EXPECT_NE(r.err.find(c.mention), std::string::npos) << c.args << ": " << r.err;
         EXPECT_TRUE(files_in(dir / "out").empty()) << c.args;
     }
@@ -130,7 +130,7 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
           std::pair{"deep.json", "levels deep"}}) {
         const auto r = run(dir, "simulate -q --quality interactive --scene " + (dir / file) +
                                     " --out " + (dir / "out"));
-        EXPECT_NE(r.exit_code, 0) << file;
+        EXPECT_EQ(r.exit_code, 1) << file;
         EXPECT_NE(r.err.find(mention), std::string::npos) << file << ": " << r.err;
         EXPECT_NE(r.err.find(file), std::string::npos) << file << ": " << r.err;
         EXPECT_TRUE(files_in(dir / "out").empty()) << file;
@@ -146,7 +146,7 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
     // An output path that cannot be written: a file where the directory should be.
     std::ofstream(dir / "blocked") << "x";
     const auto r = run(dir, "simulate -q --quality interactive --out " + (dir / "blocked/sub"));
-    EXPECT_NE(r.exit_code, 0);
+    EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.err.find("blocked"), std::string::npos) << r.err;
 }
 

@@ -124,7 +124,7 @@ TEST_P(CliTissueBadInput, FailsWithMessageAndLeavesNoOutput) {
     for (std::size_t p; (p = args.find("{dir}")) != std::string::npos;)
         args.replace(p, 5, dir.path().string());
     const RunResult r = run(dir, "tissue " + args + " --out " + (dir / "out"));
-    EXPECT_NE(r.exit_code, 0);
+    EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.err.find(GetParam().must_mention), std::string::npos) << r.err;
     EXPECT_TRUE(files_in(dir / "out").empty()) << "partial output left behind";
 }

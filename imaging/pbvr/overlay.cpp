@@ -4,6 +4,7 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <cmath>
 #include <filesystem>
 #include <limits>
 
@@ -49,33 +50,45 @@ FrameOverlay load_frame_overlay(const std::string& sidecar_path) {
     const nlohmann::json j = jsonio::read_file(sidecar_path);
     const std::string& src = sidecar_path;
     FrameOverlay o;
-    for (const char* key : {"pose", "image", "probe"})
+    for (const char* key : {"pose", "image", "probe"}) {
         if (!j.contains(key))
             throw InputError(src, key, "is required (a sonotrace simulate sidecar)");
+        jsonio::require_object(j[key], src, key);
+    }
     const auto& pose = j["pose"];
     o.position = jsonio::get_vec3(pose, "position_mm", src, "pose");
     o.axial = unit_vector(pose, "axial", src, "pose");
     o.lateral = unit_vector(pose, "lateral", src, "pose");
     o.elevation = unit_vector(pose, "elevation", src, "pose");
     const auto& image = j["image"];
-    const auto origin = image.at("origin_mm"), spacing = image.at("pixel_spacing_mm");
-    if (!origin.is_array() || origin.size() != 2 || !spacing.is_array() || spacing.size() != 2)
-        throw InputError(src, "image.origin_mm", "origin_mm and pixel_spacing_mm need 2 numbers");
-    o.origin_mm = {origin[0].get<double>(), origin[1].get<double>()};
-    o.pixel_mm = {spacing[0].get<double>(), spacing[1].get<double>()};
+    auto pair_mm = [&](const char* key) {
+        const std::string field = jsonio::join("image", key);
+        if (!image.contains(key)) throw InputError(src, field, "is required");
+        const auto& v = image[key];
+        if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number())
+            throw InputError(src, field, "needs 2 numbers [x, y] in mm");
+        const glm::dvec2 out(v[0].get<double>(), v[1].get<double>());
+        if (!(std::isfinite(out.x) && std::isfinite(out.y)))
+            throw InputError(src, field, "must be finite");
+        return out;
+    };
+    o.origin_mm = pair_mm("origin_mm");
+    o.pixel_mm = pair_mm("pixel_spacing_mm");
     if (!(o.pixel_mm.x > 0.0 && o.pixel_mm.y > 0.0))
         throw InputError(src, "image.pixel_spacing_mm", "must be positive");
     const auto& probe_json = j["probe"];
     o.transducer =
         probe::find_transducer(jsonio::get_string(probe_json, "name", src, "probe"), src);
-    // The run's own geometry overrides the preset's.
-    o.transducer.fov_deg = jsonio::get_number(probe_json, "fov_deg", src, "probe", 0.1, 180.0);
+    // The run's own geometry overrides the preset's; the transducer's own check then says
+    // what each array type allows (a linear array has no field of view: 0).
+    o.transducer.fov_deg = jsonio::get_number(probe_json, "fov_deg", src, "probe", 0.0, 180.0);
     o.transducer.depth_mm = jsonio::get_number(probe_json, "depth_mm", src, "probe", 1.0, 1000.0);
     o.transducer.lines = int(jsonio::get_number(probe_json, "lines", src, "probe", 1, 100000));
     o.transducer.radius_mm = jsonio::get_number(probe_json, "radius_mm", src, "probe", 0.0, 1e4);
     o.transducer.elements =
         int(jsonio::get_number(probe_json, "elements", src, "probe", 1, 100000));
     o.transducer.pitch_mm = jsonio::get_number(probe_json, "pitch_mm", src, "probe", 1e-3, 100.0);
+    o.transducer.validate(src);
     std::filesystem::path png(sidecar_path);
     png.replace_extension(".png");
     if (!std::filesystem::exists(png))

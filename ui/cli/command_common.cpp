@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -127,6 +128,21 @@ std::optional<std::string> parse_spacing(const std::string& text, double out[3])
     }
     if (values.size() == 2) out[2] = 1.0;
     return std::nullopt;
+}
+
+void refuse_non_finite_numbers(CLI::App& app) {
+    const CLI::Validator finite(
+        [](std::string& value) -> std::string {
+            char* end = nullptr;
+            const double v = std::strtod(value.c_str(), &end);
+            if (end != value.c_str() && !std::isfinite(v))
+                return "value " + value + " is not a finite number";
+            return {};
+        },
+        "");
+    for (CLI::Option* option : app.get_options())
+        if (option->get_type_name().rfind("FLOAT", 0) == 0) option->check(finite);
+    for (CLI::App* command : app.get_subcommands({})) refuse_non_finite_numbers(*command);
 }
 
 void add_run_options(CLI::App& command, std::string& json_path, int& threads, bool& quiet) {

@@ -37,6 +37,10 @@ inline constexpr ParameterDoc kJsonRecordDoc = {
     "also write the run record (parameters, outputs, timings) to this file; '-' prints it on "
     "stdout"};
 
+// Every floating-point option of `app` and its subcommands refuses NaN and infinities
+// (CLI11's ranges let NaN through: every comparison with it is false).
+void refuse_non_finite_numbers(CLI::App& app);
+
 // The options most commands end with: --json FILE, --threads N, -q/--quiet.
 void add_run_options(CLI::App& command, std::string& json_path, int& threads, bool& quiet);
 

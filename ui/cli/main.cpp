@@ -35,10 +35,14 @@ int main(int argc, char** argv) {
     ui::RenderOptions render_options;
     CLI::App* render_cmd = ui::add_render_command(app, render_options);
 
+    ui::refuse_non_finite_numbers(app);
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);  // prints help/usage; 0 for --help, non-zero for errors
+        // app.exit() prints the help or the message naming the option; an option or value
+        // that does not parse is bad input: 1, as for every other input (not CLI11's codes).
+        return app.exit(e) == 0 ? 0 : 1;
     }
     try {
         if (tissue_cmd->parsed()) return ui::run_tissue_command(tissue_options);
