@@ -180,6 +180,8 @@ TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {
         {"--repetitions 0", "field 'repetitions'"},
         {"--width 0", "camera: field 'width'"},
         {"--subpixel 0", "field 'subpixel_level'"},
+        // each in range, their product (terabytes of sub-pixels) not
+        {"--width 16384 --height 16384 --subpixel 16", "--subpixel^2: would need"},
         {"--sampling best", "--sampling"},
         {"--background 1,2", "--background"},
         {"--cut-away 1,2,3", "--cut-away"},

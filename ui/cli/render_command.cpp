@@ -13,6 +13,7 @@
 #include "sonotrace_version.h"
 #include "tissue/atomic_output.h"
 #include "tissue/error.h"
+#include "tissue/memory.h"
 #include "tissue/volume_io.h"
 
 namespace sonotrace::ui {
@@ -173,6 +174,11 @@ int run_render_command(const RenderOptions& options) {
         check.distance_mm = options.distance_mm > 0.0 ? options.distance_mm : 1.0;
         tissue::require_in_range("--distance", "", options.distance_mm, 0.0, 1e6, "mm");
         check.validate();
+        // Each option may be in range while their product is not: the sub-pixel grid holds a
+        // depth entry, an overlay entry and a reference sample per sub-pixel (8 bytes each).
+        const double subpixels = double(options.width) * double(options.height) *
+                                 double(options.subpixel) * double(options.subpixel);
+        tissue::check_allocation(subpixels * 24.0, "--width x --height x --subpixel^2", "");
     }
     if (options.sector && options.frame.empty())
         throw tissue::InputError("--sector", "", "needs --frame (the frame whose sector to mesh)");
