@@ -120,6 +120,16 @@ TEST_P(CliTissueBadInput, FailsWithMessageAndLeavesNoOutput) {
         << R"({"points": [{"intensity": 0, "tissue": "fat"}, {"intensity": 1, "tissue": "liver", "sped": 1}]})";
     std::ofstream(dir / "decreasing.json")
         << R"({"points": [{"intensity": 1, "tissue": "fat"}, {"intensity": 0, "tissue": "liver"}]})";
+    {  // 67 bytes declaring 65535 x 30000 grey pixels (1.8 GiB): a decompression bomb
+        const unsigned char bomb[] = {
+            0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
+            0x44, 0x52, 0x00, 0x00, 0xff, 0xff, 0x00, 0x00, 0x75, 0x30, 0x08, 0x00, 0x00, 0x00,
+            0x00, 0x5f, 0xb6, 0x9f, 0x51, 0x00, 0x00, 0x00, 0x0a, 0x49, 0x44, 0x41, 0x54, 0x78,
+            0x9c, 0x63, 0x48, 0x01, 0x00, 0x00, 0x66, 0x00, 0x65, 0x7a, 0xa0, 0xc6, 0x92, 0x00,
+            0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+        std::ofstream(dir / "bomb.png", std::ios::binary)
+            .write(reinterpret_cast<const char*>(bomb), sizeof bomb);
+    }
     std::string args = GetParam().args;
     for (std::size_t p; (p = args.find("{dir}")) != std::string::npos;)
         args.replace(p, 5, dir.path().string());
@@ -140,6 +150,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"pose", "--pose 'at=1,2 beam=1,0,0'", "--pose: field 'at'"},
         BadInput{"resolution", "--resolution 0", "--resolution"},
         BadInput{"nan_width", "--width nan", "--width"},
+        BadInput{"one_sample_wide", "--width 1e-308", "field 'width'"},
+        BadInput{"png_bomb", "--volume {dir}/bomb.png --spacing 1,1", "bomb.png: field 'size'"},
         BadInput{"spacing", "--volume {dir}/corrupt.png --spacing 1,-1", "--spacing"},
         BadInput{"unknown_option", "--colour red", "colour"}),
     [](const auto& test_case) { return test_case.param.name; });

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <sstream>
+#include <string_view>
 
 #include "tissue/atomic_output.h"
 #include "tissue/error.h"
@@ -61,6 +63,21 @@ ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* exp
                              "x" + std::to_string(expect->height));
     }
     const std::size_t pixels = std::size_t(slice.width) * slice.height;
+    // A PNG's rows are deflate-compressed, at most 1032:1 (plus a filter byte per row): a
+    // header declaring more than that is truncated, corrupt or a decompression bomb, and
+    // is refused before anything is allocated or decoded.
+    if (std::string_view(in->format_name()) == "png") {
+        const double declared = double(pixels) * slice.channels * spec.format.size();
+        const double bytes = double(fs::file_size(path));
+        if (declared > 1100.0 * bytes + 65536.0) {
+            std::ostringstream s;
+            s.precision(3);
+            s << "declares " << slice.width << " x " << slice.height << " pixels ("
+              << declared / 1048576.0 << " MiB) in " << bytes
+              << " bytes; deflate compresses at most 1032:1, so the file is truncated or corrupt";
+            throw InputError(path, "size", s.str());
+        }
+    }
     check_allocation(double(pixels) * slice.channels * 8.0, path, "size");
 
     // Integers are read raw (no OIIO normalisation to 0..1); floats of any width as float.

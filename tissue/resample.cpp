@@ -36,6 +36,13 @@ VolumeGeometry probe_grid(const ProbeFrame& frame, const GridExtent& extent,
                              "(memory); increase the resolution value");
         }
     }
+    // An acoustic map needs two samples per axis of the plane (gradients, interpolation).
+    if (std::round(extent.width_mm / h) < 2.0 || std::round(extent.depth_mm / h) < 2.0) {
+        throw InputError(source, extent.width_mm < extent.depth_mm ? "width" : "depth",
+                         "the plane needs at least 2 samples along each axis: width and depth "
+                         "at least twice the resolution (" +
+                             std::to_string(h) + " mm)");
+    }
     g.dims = glm::ivec3(std::max(1.0, std::round(extent.width_mm / h)),
                         std::max(1.0, std::round(extent.depth_mm / h)),
                         std::max(1.0, std::round(extent.elevation_mm / h)));
