@@ -145,6 +145,26 @@ TEST(Tetra, VtkLegacyAsciiAndBinaryReadTheSameMesh) {
                              "");
     test::expect_input_error([&] { read_vtk_unstructured(dir / "missing.vtk"); }, "missing.vtk",
                              "");
+    // Counts that are not non-negative integers, or that the file is too short to hold
+    // (each point takes at least 6 bytes of ASCII: 50 M points would need 300 MB), are
+    // named before anything is allocated.
+    const std::string head = "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\n";
+    const struct {
+        std::string body, field, message;
+    } bad_counts[] = {
+        {"POINTS abc float\n0 0 0\n", "POINTS", "count 'abc'"},
+        {"POINTS -5 float\n0 0 0\n", "POINTS", "count '-5'"},
+        {"POINTS 3.5 float\n0 0 0\n", "POINTS", "count '3.5'"},
+        {"POINTS 50000000 float\n0 0 0 1 0 0\n", "POINTS", "declares 50000000 items"},
+        {"POINTS 1 float\n0 0 0\nCELLS 99999999999 5\n4 0 0 0 0\n", "CELLS",
+         "declares 99999999999"},
+        {"POINTS 1 float\n0 0 0\nCELL_TYPES 1e9\n10\n", "CELL_TYPES", "count '1e9'"},
+    };
+    for (const auto& c : bad_counts) {
+        std::ofstream(dir / "counts.vtk") << head << c.body;
+        test::expect_input_error([&] { read_vtk_unstructured(dir / "counts.vtk"); }, "counts.vtk",
+                                 c.field, c.message);
+    }
 }
 
 // A camera looking at the box [0, 1]^3 (or wider) from the front-right.

@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -24,6 +25,32 @@ class VtkStream {
   public:
     VtkStream(const std::string& path) : path_(path), in_(path, std::ios::binary) {
         if (!in_) throw InputError(path, "", "cannot open the file");
+        std::error_code error;
+        file_bytes_ = double(std::filesystem::file_size(path, error));
+        if (error) throw InputError(path, "", "cannot read the file's size: " + error.message());
+    }
+    // A section's item count: a non-negative integer that the rest of the file can hold,
+    // each item taking at least `ascii_bytes` (digits and a space per number) or
+    // `binary_bytes`. A header declaring more is corrupt: refused before allocating.
+    std::size_t count(const std::string& section, double ascii_bytes, double binary_bytes) {
+        const std::string w = word(section);
+        std::size_t used = 0;
+        long long n = -1;
+        try {
+            n = std::stoll(w, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (used != w.size() || n < 0)
+            throw InputError(path_, section, "count '" + w + "' is not a non-negative integer");
+        const double remaining = file_bytes_ - double(in_.tellg());
+        if (double(n) * (binary_ ? binary_bytes : ascii_bytes) > remaining) {
+            throw InputError(path_, section,
+                             "declares " + std::to_string(n) + " items, more than the " +
+                                 std::to_string(std::max(0.0, remaining)) +
+                                 " bytes left in the file hold: truncated or corrupt");
+        }
+        return std::size_t(n);
     }
     std::string line() {
         std::string l;
@@ -71,6 +98,7 @@ class VtkStream {
   private:
     std::string path_;
     std::ifstream in_;
+    double file_bytes_ = 0.0;
     bool binary_ = false, skipped_newline_ = false;
 };
 
@@ -125,17 +153,17 @@ TetMesh read_vtk_unstructured(const std::string& path) {
             if (in.word("DATASET") != "UNSTRUCTURED_GRID")
                 throw InputError(path, "DATASET", "only UNSTRUCTURED_GRID is supported");
         } else if (w == "POINTS") {
-            const auto n = std::stoll(in.word("POINTS"));
+            const std::size_t n = in.count("POINTS", 6.0, 12.0);  // 3 numbers a point
             const std::string type = in.word("POINTS");
-            mesh.points.resize(std::size_t(n));
+            mesh.points.resize(n);
             for (auto& p : mesh.points)
                 for (int a = 0; a < 3; ++a) p[a] = in.number<double>("POINTS", type);
             in.section_done();
         } else if (w == "CELLS") {
-            const auto n = std::stoll(in.word("CELLS"));
-            in.word("CELLS");  // total size
+            const std::size_t n = in.count("CELLS", 4.0, 8.0);  // a count and an index at least
+            in.word("CELLS");                                   // total size
             if (mesh.points.empty()) throw InputError(path, "CELLS", "comes before POINTS");
-            cells.resize(std::size_t(n));
+            cells.resize(n);
             for (auto& c : cells) {
                 const auto count = in.number<int64_t>("CELLS", "int");
                 if (count < 1 || count > 64) throw InputError(path, "CELLS", "bad point count");
@@ -144,8 +172,7 @@ TetMesh read_vtk_unstructured(const std::string& path) {
             }
             in.section_done();
         } else if (w == "CELL_TYPES") {
-            const auto n = std::stoll(in.word("CELL_TYPES"));
-            types.resize(std::size_t(n));
+            types.resize(in.count("CELL_TYPES", 2.0, 4.0));
             for (int& t : types) t = in.number<int>("CELL_TYPES", "int");
             in.section_done();
         } else if (w == "SCALARS" && !have_scalars) {
