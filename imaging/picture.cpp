@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "tissue/error.h"
+#include "tissue/image_io.h"
 
 namespace sonotrace::imaging {
 
@@ -154,15 +155,9 @@ void write_png(const cv::Mat& picture, const std::string& path) {
         cv::cvtColor(picture, rgb, cv::COLOR_BGR2RGB);
     else
         rgb = picture.clone();
-    auto out = OIIO::ImageOutput::create(path);
-    if (!out) throw tissue::InputError(path, "", "no PNG writer: " + OIIO::geterror());
-    OIIO::ImageSpec spec(rgb.cols, rgb.rows, rgb.channels(), OIIO::TypeDesc::UINT8);
-    spec.attribute("DateTime", "");  // no write time: same inputs, same bytes
-    if (!out->open(path, spec) ||
-        !out->write_image(OIIO::TypeDesc::UINT8, rgb.data, OIIO::AutoStride, rgb.step[0]) ||
-        !out->close()) {
-        throw tissue::InputError(path, "", "cannot write PNG: " + out->geterror());
-    }
+    const OIIO::ImageSpec spec(rgb.cols, rgb.rows, rgb.channels(), OIIO::TypeDesc::UINT8);
+    tissue::write_image_file(path, spec, OIIO::TypeDesc::UINT8, rgb.data,
+                             OIIO::stride_t(rgb.step[0]));
 }
 
 }  // namespace sonotrace::imaging

@@ -4,9 +4,11 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <filesystem>
 #include <fstream>
 
 #include "test_util.h"
+#include "tissue/atomic_output.h"
 #include "tissue/image_io.h"
 #include "tissue/volume_io.h"
 
@@ -150,6 +152,35 @@ TEST(ImageIoErrors, NanPixelsInExr) {
     write_oiio(dir / "n.exr", 2, 1, 1, OIIO::TypeDesc::FLOAT,
                std::vector<float>{1.0f, std::nanf("")});
     expect_input_error([&] { read_image(dir / "n.exr", {1, 1, 1}); }, "n.exr", "data", "(1, 0, 0)");
+}
+
+}  // namespace
+}  // namespace sonotrace::tissue
+
+namespace sonotrace::tissue {
+namespace {
+
+// Every output goes through write_file(), which checks each write and the close: on a full
+// disk (/dev/full answers every write with ENOSPC) it throws naming the output, where an
+// unchecked stream left a truncated PNG reported as written. A staged temporary is named
+// by its final path.
+TEST(OutputErrors, AFullDiskIsAnErrorNamingTheOutput) {
+    if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "no /dev/full on this system";
+    test::ScratchDir dir;
+    const std::string bytes(100000, 'x');
+    test::expect_input_error([&] { write_file("/dev/full", bytes.data(), bytes.size()); },
+                             "/dev/full", "", "No space left on device");
+    EXPECT_TRUE(std::filesystem::exists("/dev/full")) << "a device is never removed";
+    // Through the image encoder: the PNG is encoded in memory, then written and checked.
+    std::filesystem::create_symlink("/dev/full", dir / "frame.png");
+    const std::vector<float> pixels(64 * 64, 0.5f);
+    const OIIO::ImageSpec spec(64, 64, 1, OIIO::TypeDesc::UINT8);
+    test::expect_input_error(
+        [&] { write_image_file(dir / "frame.png", spec, OIIO::TypeDesc::FLOAT, pixels.data()); },
+        "frame.png", "", "No space left on device");
+    // A staged name in a message is the final one.
+    EXPECT_EQ(output_name("/out/.partial-123-4-bmode.png"), "/out/bmode.png");
+    EXPECT_EQ(output_name("/out/bmode.png"), "/out/bmode.png");
 }
 
 }  // namespace

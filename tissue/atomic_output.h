@@ -3,11 +3,21 @@
 // hidden temporary name next to their destination and renamed into place together at
 // the end. If the transaction is destroyed without commit(), the staged files are
 // deleted.
+#include <cstddef>
 #include <string>
 #include <utility>
 #include <vector>
 
 namespace sonotrace::tissue {
+
+// The path a message should name: for a staged temporary (OutputTransaction::stage) its
+// final path, otherwise `path` itself. Users never see the hidden names.
+std::string output_name(const std::string& path);
+
+// Writes `size` bytes to `path` (created or truncated) and closes it, checking every call:
+// a full disk or an I/O error throws InputError naming output_name(path) and removes the
+// file, instead of leaving a truncated file reported as written.
+void write_file(const std::string& path, const void* data, std::size_t size);
 
 class OutputTransaction {
   public:

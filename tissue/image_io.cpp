@@ -1,5 +1,6 @@
 #include "tissue/image_io.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -199,12 +200,7 @@ void write_gray_image(const std::string& path, int width, int height,
     const TypeDesc format = bits == 8    ? TypeDesc::UINT8
                             : bits == 16 ? TypeDesc::UINT16
                                          : TypeDesc::FLOAT;
-    OutputTransaction transaction;
-    const std::string temporary = transaction.stage(path);
-    auto out = OIIO::ImageOutput::create(temporary);
-    if (!out) throw InputError(path, "", "no image writer for this extension: " + OIIO::geterror());
     OIIO::ImageSpec spec(width, height, 1, format);
-    spec.attribute("DateTime", "");  // no write time: same inputs, same bytes
     // OIIO converts float -> integer by normalising 0..1; pass raw values as float for
     // float files, otherwise scale so stored integers equal the given values.
     std::vector<float> scaled(pixels);
@@ -212,11 +208,32 @@ void write_gray_image(const std::string& path, int width, int height,
         const float range = bits == 8 ? 255.0f : 65535.0f;
         for (float& v : scaled) v /= range;
     }
-    if (!out->open(temporary, spec) || !out->write_image(TypeDesc::FLOAT, scaled.data()) ||
-        !out->close()) {
-        throw InputError(path, "", "cannot write image: " + out->geterror());
+    if (output_name(path) != path) {  // already staged by the caller's transaction
+        write_image_file(path, spec, TypeDesc::FLOAT, scaled.data());
+        return;
     }
+    OutputTransaction transaction;
+    write_image_file(transaction.stage(path), spec, TypeDesc::FLOAT, scaled.data());
     transaction.commit();
+}
+
+void write_image_file(const std::string& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc given,
+                      const void* pixels, OIIO::stride_t row_bytes) {
+    const std::string shown = output_name(path);
+    auto out = OIIO::ImageOutput::create(path);
+    if (!out)
+        throw InputError(shown, "", "no image writer for this extension: " + OIIO::geterror());
+    OIIO::ImageSpec stamped = spec;
+    stamped.attribute("DateTime", "");  // no write time: same inputs, same bytes
+    std::vector<unsigned char> encoded;
+    OIIO::Filesystem::IOVecOutput memory(encoded);
+    if (!out->supports("ioproxy") || !out->set_ioproxy(&memory))
+        throw InputError(shown, "", "the image writer cannot encode to memory");
+    if (!out->open(path, stamped) ||
+        !out->write_image(given, pixels, OIIO::AutoStride, row_bytes) || !out->close()) {
+        throw InputError(shown, "", "cannot encode the image: " + out->geterror());
+    }
+    write_file(path, encoded.data(), encoded.size());
 }
 
 }  // namespace sonotrace::tissue

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <OpenImageIO/imageio.h>
+
 #include "tissue/volume.h"
 
 namespace sonotrace::tissue {
@@ -27,8 +29,16 @@ Volume read_image(const std::string& path, const glm::dvec3& spacing);
 Volume read_image_stack(const std::vector<std::string>& files, const glm::dvec3& spacing,
                         const std::string& source);
 
+// Encodes an image of `spec` (the file format by `path`'s extension) from `pixels` of type
+// `given` in memory, then writes it with write_file(): a full disk is an error naming the
+// output, never a truncated image reported as written. `row_bytes`: AutoStride when
+// packed.
+void write_image_file(const std::string& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc given,
+                      const void* pixels, OIIO::stride_t row_bytes = OIIO::AutoStride);
+
 // Writes a single-channel image (used by tests and tools); 8- or 16-bit by `bits`,
-// or 32-bit float when bits == 32. Atomic.
+// or 32-bit float when bits == 32. Atomic (staged and renamed, unless `path` is already a
+// staged temporary of the caller's OutputTransaction).
 void write_gray_image(const std::string& path, int width, int height,
                       const std::vector<float>& pixels, int bits);
 

@@ -130,12 +130,7 @@ void write_raw(const Volume& volume, const std::string& raw_path) {
     fs::path sidecar(raw_path);
     sidecar.replace_extension(".json");
     OutputTransaction transaction;
-    {
-        std::ofstream out(transaction.stage(raw_path), std::ios::binary);
-        out.write(reinterpret_cast<const char*>(volume.voxels().data()),
-                  std::streamsize(volume.size() * sizeof(float)));
-        if (!out) throw InputError(raw_path, "", "write error");
-    }
+    write_file(transaction.stage(raw_path), volume.voxels().data(), volume.size() * sizeof(float));
     nlohmann::json j = {
         {"file", fs::path(raw_path).filename().string()},
         {"dims", {g.dims.x, g.dims.y, g.dims.z}},
@@ -148,11 +143,8 @@ void write_raw(const Volume& volume, const std::string& raw_path) {
     for (int c = 0; c < 3; ++c) {
         j["direction"].push_back({g.direction[c].x, g.direction[c].y, g.direction[c].z});
     }
-    {
-        std::ofstream out(transaction.stage(sidecar.string()));
-        out << j.dump(2) << "\n";
-        if (!out) throw InputError(sidecar.string(), "", "write error");
-    }
+    const std::string text = j.dump(2) + "\n";
+    write_file(transaction.stage(sidecar.string()), text.data(), text.size());
     transaction.commit();
 }
 

@@ -9,6 +9,7 @@
 #include "imaging/picture.h"
 #include "phantoms/validation/validation.h"
 #include "sonotrace_version.h"
+#include "tissue/atomic_output.h"
 #include "tissue/error.h"
 
 namespace sonotrace::validation {
@@ -237,10 +238,8 @@ void write_report(const std::string& dir, const std::vector<const Case*>& run,
         for (const Plot& p : r.plots) h << "<figure>" << svg_plot(p) << "</figure>\n";
     }
     h << "</body></html>\n";
-    const std::string path = stage(dir + "/index.html");
-    std::ofstream out(path);
-    out << h.str();
-    if (!out.good()) throw tissue::InputError(dir + "/index.html", "", "could not be written");
+    const std::string text = h.str();
+    tissue::write_file(stage(dir + "/index.html"), text.data(), text.size());
 }
 
 }  // namespace sonotrace::validation

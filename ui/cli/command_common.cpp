@@ -10,6 +10,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "tissue/atomic_output.h"
 #include "tissue/error.h"
 
 namespace sonotrace::ui {
@@ -79,9 +80,8 @@ void write_json(const nlohmann::json& record, const std::string& path) {
         std::cout << record.dump(2) << std::endl;
         return;
     }
-    std::ofstream out(path);
-    out << record.dump(2) << "\n";
-    if (!out) throw tissue::InputError(path, "", "cannot write JSON");
+    const std::string text = record.dump(2) + "\n";
+    tissue::write_file(path, text.data(), text.size());
 }
 
 std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out) {

@@ -195,7 +195,7 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
 }
 
 void write_echoes_csv(const std::vector<simulator::EchoEvent<2>>& echoes, const std::string& path) {
-    std::ofstream out(path);
+    std::ostringstream out;
     out << "line,particle,time_s,energy,weight,x_mm,y_mm,bounces,kind,cos_incidence,lobe_"
            "exponent\n";
     out.precision(9);
@@ -205,7 +205,8 @@ void write_echoes_csv(const std::vector<simulator::EchoEvent<2>>& echoes, const 
             << simulator::to_string(e.kind) << ',' << e.cos_incidence << ',' << e.lobe_exponent
             << '\n';
     }
-    if (!out) throw tissue::InputError(path, "", "cannot write the echo CSV");
+    const std::string text = out.str();
+    tissue::write_file(path, text.data(), text.size());
 }
 
 }  // namespace
@@ -353,10 +354,13 @@ int run_trace_command(const TraceOptions& options) {
                                                   std::to_string(int(ring.radius_mm)) + " mm)",
                                               "angle from the interface [degrees] (specular: 45)",
                                               "energy", {45.0})});
-        std::ofstream csv(transaction.stage((out / "profile.csv").string()));
+        std::ostringstream csv;
         csv << "angle_deg,energy\n";
         for (std::size_t b = 0; b < angles.size(); ++b)
             csv << angles[b] << ',' << result.ring_profile[b] << '\n';
+        const std::string text = csv.str();
+        tissue::write_file(transaction.stage((out / "profile.csv").string()), text.data(),
+                           text.size());
         outputs.push_back({{"name", "profile"}, {"csv", (out / "profile.csv").string()}});
     }
     std::vector<cv::Mat> panels;
