@@ -79,4 +79,20 @@ TEST(CliTrace, BadInputFailsWithoutPartialOutput) {
 }
 
 }  // namespace
+// Two outputs of one name are refused before anything is written (the echo CSV used to
+// be replaced by the record), and a commit that cannot place an output leaves nothing.
+TEST(CliTrace, CollidingOrBlockedOutputsLeaveNothing) {
+    ScratchDir dir;
+    auto r = run(dir, "trace -q --config fig2 --echoes " + (dir / "out/trace.json") + " --out " +
+                          (dir / "out"));
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("two outputs of this run have this name"), std::string::npos) << r.err;
+    EXPECT_TRUE(files_in(dir / "out").empty());
+    std::filesystem::create_directories(dir / "blocked/trace.json");  // the record's name
+    r = run(dir, "trace -q --config fig2 --out " + (dir / "blocked"));
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("blocked/trace.json"), std::string::npos) << r.err;
+    EXPECT_TRUE(files_in(dir / "blocked").empty()) << "no picture placed before the failure";
+}
+
 }  // namespace sonotrace

@@ -1,6 +1,9 @@
 // Volume: index <-> world transforms, interpolation, quantiles, geometry validation,
 // and the atomic output transaction.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <iterator>
 
 #include <cmath>
 #include <fstream>
@@ -155,6 +158,70 @@ TEST(OutputTransaction, UncommittedFilesVanishCommittedOnesAppear) {
     in >> text;
     EXPECT_EQ(text, "a");
     EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir / "sub"), {}), 1);
+}
+
+std::string contents(const std::string& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// A rename that fails part-way (the third output's name is taken by a directory) leaves
+// the directory as it was: the first output is not there, the second's older file is
+// restored, and no temporary or backup remains.
+TEST(OutputTransaction, ACommitIsAllOrNothing) {
+    test::ScratchDir dir;
+    std::ofstream(dir / "b.txt") << "old";
+    std::filesystem::create_directories(dir / "c.txt");
+    {
+        OutputTransaction t;
+        std::ofstream(t.stage(dir / "a.txt")) << "new a";
+        std::ofstream(t.stage(dir / "b.txt")) << "new b";
+        std::ofstream(t.stage(dir / "c.txt")) << "new c";
+        test::expect_input_error([&] { t.commit(); }, "c.txt", "", "cannot move output");
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir / "a.txt"));
+    EXPECT_EQ(contents(dir / "b.txt"), "old");
+    EXPECT_TRUE(std::filesystem::is_directory(dir / "c.txt"));
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 2)
+        << "only b.txt and the directory c.txt";
+    // Without the obstacle the same outputs replace the old file.
+    std::filesystem::remove(dir / "c.txt");
+    OutputTransaction t;
+    std::ofstream(t.stage(dir / "a.txt")) << "new a";
+    std::ofstream(t.stage(dir / "b.txt")) << "new b";
+    t.commit();
+    EXPECT_EQ(contents(dir / "a.txt"), "new a");
+    EXPECT_EQ(contents(dir / "b.txt"), "new b");
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 2);
+}
+
+TEST(OutputTransaction, TwoOutputsOfOneNameAreRefused) {
+    test::ScratchDir dir;
+    OutputTransaction t;
+    t.stage(dir / "out/trace.json");
+    test::expect_input_error([&] { t.stage(dir / "out/../out/trace.json"); }, "trace.json", "",
+                             "two outputs");
+}
+
+// Temporaries of runs that no longer exist (killed) are removed by the next run into the
+// directory; those of live processes are left alone.
+TEST(OutputTransaction, TheNextRunRemovesStaleTemporaries) {
+    test::ScratchDir dir;
+    const pid_t dead = [] {  // a child that has exited and been reaped
+        const pid_t child = fork();
+        if (child == 0) _exit(0);
+        int status = 0;
+        waitpid(child, &status, 0);
+        return child;
+    }();
+    const std::string stale = dir / (".partial-" + std::to_string(dead) + "-0-bmode.png");
+    const std::string live = dir / (".partial-" + std::to_string(getppid()) + "-0-bmode.png");
+    std::ofstream(stale) << "x";
+    std::ofstream(live) << "x";
+    OutputTransaction t;
+    std::ofstream(t.stage(dir / "bmode.png")) << "frame";
+    EXPECT_FALSE(std::filesystem::exists(stale));
+    EXPECT_TRUE(std::filesystem::exists(live));
 }
 
 }  // namespace

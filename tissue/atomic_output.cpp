@@ -1,10 +1,13 @@
 #include "tissue/atomic_output.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <string_view>
@@ -64,26 +67,99 @@ OutputTransaction::~OutputTransaction() {
     }
 }
 
-std::string OutputTransaction::stage(const std::string& final_path) {
+namespace {
+
+// Removes the staged temporaries (and commit backups) that a process no longer running left
+// in `dir`: a run killed mid-way cannot clean up after itself, the next one does.
+void remove_stale_temporaries(const fs::path& dir) {
+    std::error_code ec;
+    for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (name.rfind(kStagedPrefix, 0) != 0) continue;
+        const std::string pid_text = name.substr(
+            kStagedPrefix.size(), name.find('-', kStagedPrefix.size()) - kStagedPrefix.size());
+        char* end_of_pid = nullptr;
+        const long pid = std::strtol(pid_text.c_str(), &end_of_pid, 10);
+        if (pid_text.empty() || *end_of_pid != '\0' || pid <= 0) continue;
+        if (pid == long(getpid())) continue;
+        if (::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;  // alive (or not ours)
+        std::error_code ignored;
+        fs::remove(it->path(), ignored);
+    }
+}
+
+std::string staged_name(const fs::path& dir, const std::string& name) {
     static std::atomic<unsigned> counter{0};
+    return (dir / (std::string(kStagedPrefix) + std::to_string(getpid()) + "-" +
+                   std::to_string(counter++) + "-" + name))
+        .string();
+}
+
+}  // namespace
+
+std::string OutputTransaction::stage(const std::string& final_path) {
     const fs::path target(final_path);
     const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
     std::error_code ec;
     fs::create_directories(dir, ec);
     if (ec) throw InputError(dir.string(), "", "cannot create output directory: " + ec.message());
-    const std::string temporary =
-        (dir / (std::string(kStagedPrefix) + std::to_string(getpid()) + "-" +
-                std::to_string(counter++) + "-" + target.filename().string()))
-            .string();
+    if (std::find(cleaned_.begin(), cleaned_.end(), dir.string()) == cleaned_.end()) {
+        remove_stale_temporaries(dir);
+        cleaned_.push_back(dir.string());
+    }
+    const fs::path normal = fs::weakly_canonical(target, ec);
+    for (const auto& [temporary, other] : staged_) {
+        if (fs::weakly_canonical(fs::path(other), ec) == normal) {
+            throw InputError(final_path, "",
+                             "two outputs of this run have this name; give them different names");
+        }
+    }
+    const std::string temporary = staged_name(dir, target.filename().string());
     staged_.emplace_back(temporary, final_path);
     return temporary;
 }
 
+// All or nothing: the files the outputs replace are moved aside first, then every
+// temporary is renamed into place; if any step fails, what was done is undone (new files
+// removed, old ones restored) and nothing of this run is left.
 void OutputTransaction::commit() {
+    struct Done {
+        std::string final_path, backup;  // backup empty: nothing was there
+    };
+    std::vector<Done> done;
+    auto undo = [&] {
+        for (auto it = done.rbegin(); it != done.rend(); ++it) {
+            std::error_code ignored;
+            fs::remove(it->final_path, ignored);
+            if (!it->backup.empty()) fs::rename(it->backup, it->final_path, ignored);
+        }
+    };
     for (const auto& [temporary, final_path] : staged_) {
         std::error_code ec;
+        std::string backup;
+        if (fs::is_regular_file(fs::symlink_status(final_path, ec))) {
+            const fs::path target(final_path);
+            backup = staged_name(target.has_parent_path() ? target.parent_path() : fs::path("."),
+                                 "previous-" + target.filename().string());
+            fs::rename(final_path, backup, ec);
+            if (ec) {
+                undo();
+                throw InputError(final_path, "",
+                                 "cannot replace the existing file: " + ec.message());
+            }
+        }
         fs::rename(temporary, final_path, ec);
-        if (ec) throw InputError(final_path, "", "cannot move output into place: " + ec.message());
+        if (ec) {
+            std::error_code ignored;
+            if (!backup.empty()) fs::rename(backup, final_path, ignored);
+            undo();
+            throw InputError(final_path, "", "cannot move output into place: " + ec.message());
+        }
+        done.push_back({final_path, backup});
+    }
+    for (const Done& d : done) {
+        std::error_code ignored;
+        if (!d.backup.empty()) fs::remove(d.backup, ignored);
     }
     committed_ = true;
 }

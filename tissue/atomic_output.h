@@ -28,15 +28,19 @@ class OutputTransaction {
 
     // Returns the temporary path to write instead of `final_path`: same directory and
     // file name (so the extension still selects the format), hidden, unique per process.
-    // Creates the directory if needed.
+    // Creates the directory if needed, and removes the temporaries that runs no longer
+    // alive left there. Throws if this transaction already stages `final_path` (two
+    // outputs of one name: one would silently replace the other).
     std::string stage(const std::string& final_path);
-    // Renames every staged file to its final path. Throws if a rename fails.
+    // Renames every staged file to its final path, all or nothing: if a rename fails, the
+    // files already placed are removed and the ones they replaced restored, then it throws.
     void commit();
     // The final paths staged so far.
     std::vector<std::string> final_paths() const;
 
   private:
     std::vector<std::pair<std::string, std::string>> staged_;  // {temporary, final}
+    std::vector<std::string> cleaned_;  // directories whose stale temporaries were removed
     bool committed_ = false;
 };
 
