@@ -104,7 +104,10 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
                  {"--rx-f-number 0", "rx-f-number"},
                  {"--rx-apodization blackman", "rx-apodization"},
                  {"--cycles 0", "cycles"},
-                 {"--phantom " + (dir / "far_target.json"), "targets[0].at"}};
+                 {"--phantom " + (dir / "far_target.json"), "targets[0].at"},
+                 {"--name .", "--name"},
+                 {"--name .hidden", "--name"},
+                 {"--name " + std::string(250, 'a'), "--name"}};
     std::ofstream(dir / "far_target.json") << R"({"name": "x", "size": [40, 40, 10],
         "background": {"tissue": "water"}, "targets": [{"type": "wire", "at": [20, 45]}]})";
     for (const auto& c : cases) {

@@ -1,6 +1,7 @@
 #include "ui/cli/simulate_command.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -468,8 +469,15 @@ int run_simulate_command(const SimulateOptions& o) {
         }
         if (formats.empty()) throw tissue::InputError("--formats", "", "is empty");
     }
-    if (o.name.empty() || o.name.find('/') != std::string::npos)
-        throw tissue::InputError("--name", "", "must be a plain file stem");
+    // A visible file stem that leaves room in a file name (255 bytes) for the frame number,
+    // the suffixes and the staged temporary's prefix.
+    constexpr std::size_t kMaxNameBytes = 200;
+    if (o.name.empty() || o.name.find('/') != std::string::npos || o.name.front() == '.' ||
+        o.name.size() > kMaxNameBytes ||
+        std::any_of(o.name.begin(), o.name.end(), [](char c) { return std::iscntrl(uint8_t(c)); }))
+        throw tissue::InputError("--name", "",
+                                 "must be a plain file stem: no '/', not starting with '.', no "
+                                 "control characters, at most 200 bytes");
     const std::string video_suffix = o.video.empty() ? "" : "." + o.video;
     if (!o.video.empty() && o.video != "mp4" && o.video != "avi")
         throw tissue::InputError("--video", o.video, "must be mp4, avi or empty");
