@@ -209,9 +209,10 @@ tissue::PointTarget parse_target(const json& j, const glm::dvec3& size, const st
     for (std::size_t a = 0; a < n; ++a)
         if (!(t.at[int(a)] >= 0.0 && t.at[int(a)] <= size[int(a)]))
             throw tissue::InputError(source, jsonio::join(where, "at"),
-                                     "lies outside the phantom (size " + std::to_string(size.x) +
-                                         " x " + std::to_string(size.y) + " x " +
-                                         std::to_string(size.z) + " mm from the origin)");
+                                     "lies outside the phantom (size " +
+                                         tissue::number_text(size.x) + " x " +
+                                         tissue::number_text(size.y) + " x " +
+                                         tissue::number_text(size.z) + " mm from the origin)");
     if (auto d = jsonio::get_optional_number(j, "diameter", source, where, 1e-3, 2.0))
         t.diameter_mm = *d;
     if (auto r = jsonio::get_optional_number(j, "reflectivity", source, where, 1e-6, 1.0))
@@ -386,11 +387,11 @@ Phantom parse_phantom(const json& j, const std::string& source) {
             const std::string where = "shapes[" + std::to_string(i) + "]";
             ph.shapes.push_back(parse_shape(shapes[i], source, where, ph.paper_mode));
             if (!touches_box(ph.shapes.back(), ph.size))
-                throw tissue::InputError(source, where,
-                                         "lies entirely outside the phantom (size " +
-                                             std::to_string(ph.size.x) + " x " +
-                                             std::to_string(ph.size.y) + " x " +
-                                             std::to_string(ph.size.z) + " mm from the origin)");
+                throw tissue::InputError(
+                    source, where,
+                    "lies entirely outside the phantom (size " + tissue::number_text(ph.size.x) +
+                        " x " + tissue::number_text(ph.size.y) + " x " +
+                        tissue::number_text(ph.size.z) + " mm from the origin)");
         }
     }
     if (j.contains("targets")) {

@@ -68,21 +68,21 @@ void Transducer::validate(const std::string& source) const {
     in_range(focus_mm, 1e-3, 1e6, "focus", "mm");
     if (focus_mm > depth_mm) {
         throw tissue::InputError(source, "focus",
-                                 "the transmit focus (" + std::to_string(focus_mm) +
+                                 "the transmit focus (" + tissue::number_text(focus_mm) +
                                      " mm) lies beyond the imaging depth (" +
-                                     std::to_string(depth_mm) + " mm)");
+                                     tissue::number_text(depth_mm) + " mm)");
     }
     in_range(f_number, 0.5, 20.0, "f-number", "");
     if (!(rx_f_number > 0.0))
         throw tissue::InputError(source, "rx-f-number",
                                  "the receive F-number must be > 0 (a small value such as 0.1 "
                                  "receives on the whole array), got " +
-                                     std::to_string(rx_f_number));
+                                     tissue::number_text(rx_f_number));
     in_range(rx_f_number, 1e-3, 20.0, "rx-f-number", "");
     if (!(cycles > 0.0))
         throw tissue::InputError(
             source, "cycles",
-            "the excitation needs a positive number of cycles, got " + std::to_string(cycles));
+            "the excitation needs a positive number of cycles, got " + tissue::number_text(cycles));
     in_range(cycles, 0.01, 64.0, "cycles", "");
     in_range(elevation_focus_mm, 1.0, 1000.0, "elevation-focus", "mm");
     in_range(slice_thickness_mm, 0.01, 50.0, "slice-thickness", "mm");
@@ -94,17 +94,17 @@ void Transducer::validate(const std::string& source) const {
         in_range(fov_deg, 1e-3, 180.0, "fov", "degrees");
         if (fov_deg > arc_deg + 1e-9) {
             throw tissue::InputError(source, "fov",
-                                     "the field of view (" + std::to_string(fov_deg) +
+                                     "the field of view (" + tissue::number_text(fov_deg) +
                                          " degrees) is wider than the array's arc (" +
-                                         std::to_string(arc_deg) + " degrees = elements * " +
+                                         tissue::number_text(arc_deg) + " degrees = elements * " +
                                          "pitch / radius)");
         }
     }
     if (type == TransducerType::phased) {
         if (!(std::isfinite(fov_deg) && fov_deg > 0.0 && fov_deg < 180.0)) {
-            throw tissue::InputError(
-                source, "fov",
-                "a phased array steers within (0, 180) degrees, got " + std::to_string(fov_deg));
+            throw tissue::InputError(source, "fov",
+                                     "a phased array steers within (0, 180) degrees, got " +
+                                         tissue::number_text(fov_deg));
         }
     }
 }

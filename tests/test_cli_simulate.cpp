@@ -76,38 +76,41 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
     const struct {
         std::string args;
         const char* mention;
-    } cases[] = {{"--elements 0", "elements"},
-                 {"--focus 200", "beyond the imaging depth"},
-                 {"--probe phased --fov 190", "fov"},
-                 {"--fov 120", "arc"},
-                 {"--probe sector", "unknown transducer preset 'sector'"},
-                 {"--frequency nan", "frequency"},
-                 {"--tgc 10:0,x", "--tgc"},
-                 {"--formats gif", "--formats"},
-                 {"--receive echo", "--receive"},
-                 {"--pose 'at=1,2'", "--pose"},
-                 {"--pose 'at=500,0,0 beam=0,0,-1'", "outside the volume"},
-                 {"--sweep elevation:10", "AXIS:LENGTH:STEP"},
-                 {"--sweep sideways:10:1", "axis"},
-                 {"--sweep elevation:10:0", "step"},
-                 {"--video mkv --sweep elevation:2:1", "--video"},
-                 {"--scene /no/scene.json", "/no/scene.json"},
-                 {"--volume /no/such.nii", "/no/such.nii"},
-                 {"--phantom /no/phantom.json", "/no/phantom.json"},
-                 {"--phantom " + std::string(SONOTRACE_SOURCE_DIR) +
-                      "/phantoms/mirror.json --volume /no/such.nii",
-                  "cannot be combined with --volume"},
-                 {"--phantom " + std::string(SONOTRACE_SOURCE_DIR) +
-                      "/phantoms/mirror.json --pose 'at=500,0,0 beam=0,1,0'",
-                  "outside the phantom"},
-                 {"--disable refraction,gravity", "--disable"},
-                 {"--rx-f-number 0", "rx-f-number"},
-                 {"--rx-apodization blackman", "rx-apodization"},
-                 {"--cycles 0", "cycles"},
-                 {"--phantom " + (dir / "far_target.json"), "targets[0].at"},
-                 {"--name .", "--name"},
-                 {"--name .hidden", "--name"},
-                 {"--name " + std::string(250, 'a'), "--name"}};
+    } cases[] = {
+        {"--elements 0", "elements"},
+        {"--focus 200", "beyond the imaging depth"},
+        {"--probe phased --fov 190", "fov"},
+        {"--fov 120", "arc"},
+        {"--probe sector", "unknown transducer preset 'sector'"},
+        {"--frequency nan", "frequency"},
+        {"--tgc 10:0,x", "--tgc"},
+        {"--formats gif", "--formats"},
+        {"--receive echo", "--receive"},
+        {"--pose 'at=1,2'", "--pose"},
+        {"--pose 'at=500,0,0 beam=0,0,-1'", "outside the volume"},
+        {"--sweep elevation:10", "AXIS:LENGTH:STEP"},
+        {"--sweep sideways:10:1", "axis"},
+        {"--sweep elevation:10:0", "step"},
+        {"--video mkv --sweep elevation:2:1", "--video"},
+        {"--scene /no/scene.json", "/no/scene.json"},
+        {"--volume /no/such.nii", "/no/such.nii"},
+        {"--phantom /no/phantom.json", "/no/phantom.json"},
+        {"--phantom " + std::string(SONOTRACE_SOURCE_DIR) +
+             "/phantoms/mirror.json --volume /no/such.nii",
+         "cannot be combined with --volume"},
+        {"--phantom " + std::string(SONOTRACE_SOURCE_DIR) +
+             "/phantoms/mirror.json --pose 'at=500,0,0 beam=0,1,0'",
+         "outside the phantom"},
+        {"--disable refraction,gravity", "--disable"},
+        {"--rx-f-number 0", "rx-f-number"},
+        {"--rx-apodization blackman", "rx-apodization"},
+        {"--cycles 0", "cycles"},
+        {"--phantom " + (dir / "far_target.json"), "targets[0].at"},
+        {"--name .", "--name"},
+        // numbers in messages are short: not 301 digits
+        {"--probe convex --fov 1e300", "field 'fov': must be in [0.001, 180] degrees, got 1e+300"},
+        {"--name .hidden", "--name"},
+        {"--name " + std::string(250, 'a'), "--name"}};
     std::ofstream(dir / "far_target.json") << R"({"name": "x", "size": [40, 40, 10],
         "background": {"tissue": "water"}, "targets": [{"type": "wire", "at": [20, 45]}]})";
     for (const auto& c : cases) {

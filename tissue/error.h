@@ -2,6 +2,7 @@
 // Errors about user input. Every message names the file (or option) and the field
 // that is wrong, so that the CLI can print it verbatim and exit non-zero.
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -32,13 +33,21 @@ class InputError : public std::runtime_error {
 
 // Throws InputError(source, field) unless lo <= value <= hi (and finite); `unit` is
 // appended to the bounds in the message.
+// A number as messages show it: six significant digits, an exponent when it is large or
+// small (std::to_string prints 1e300 as 301 digits and 1e-9 as 0.000000).
+inline std::string number_text(double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.6g", v);
+    return text;
+}
+
 inline void require_in_range(const std::string& source, const char* field, double value, double lo,
                              double hi, const char* unit = "") {
     if (!(std::isfinite(value) && value >= lo && value <= hi)) {
         throw InputError(source, field,
-                         "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]" +
+                         "must be in [" + number_text(lo) + ", " + number_text(hi) + "]" +
                              (unit[0] ? std::string(" ") + unit : std::string()) + ", got " +
-                             std::to_string(value));
+                             number_text(value));
     }
 }
 

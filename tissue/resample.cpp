@@ -13,7 +13,7 @@ VolumeGeometry probe_grid(const ProbeFrame& frame, const GridExtent& extent,
     auto positive = [&](double v, const char* field) {
         if (!(std::isfinite(v) && v > 0.0)) {
             throw InputError(source, field,
-                             "must be a positive number of mm, got " + std::to_string(v));
+                             "must be a positive number of mm, got " + number_text(v));
         }
     };
     positive(extent.width_mm, "width");
@@ -41,7 +41,7 @@ VolumeGeometry probe_grid(const ProbeFrame& frame, const GridExtent& extent,
         throw InputError(source, extent.width_mm < extent.depth_mm ? "width" : "depth",
                          "the plane needs at least 2 samples along each axis: width and depth "
                          "at least twice the resolution (" +
-                             std::to_string(h) + " mm)");
+                             number_text(h) + " mm)");
     }
     g.dims = glm::ivec3(std::max(1.0, std::round(extent.width_mm / h)),
                         std::max(1.0, std::round(extent.depth_mm / h)),

@@ -96,8 +96,8 @@ std::unique_ptr<TransferFunction> parse_piecewise(const json& j, const std::stri
         if (!points.empty() && !(point.intensity > points.back().intensity)) {
             throw InputError(source, where + ".intensity",
                              "control points must have strictly increasing intensities (" +
-                                 std::to_string(point.intensity) + " follows " +
-                                 std::to_string(points.back().intensity) + ")");
+                                 number_text(point.intensity) + " follows " +
+                                 number_text(points.back().intensity) + ")");
         }
         point.properties = read_properties(p, source, where, &point.tissue);
         points.push_back(std::move(point));

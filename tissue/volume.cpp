@@ -40,7 +40,7 @@ void VolumeGeometry::validate(const std::string& source) const {
     if (!std::isfinite(det) || std::abs(det) < 1e-6) {
         throw InputError(
             source, "direction",
-            "the axis directions are degenerate (determinant " + std::to_string(det) + ")");
+            "the axis directions are degenerate (determinant " + number_text(det) + ")");
     }
     // In double: a corrupt header's dims can overflow size_t.
     check_allocation(double(dims.x) * double(dims.y) * double(dims.z) * sizeof(float), source,

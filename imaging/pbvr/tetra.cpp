@@ -47,7 +47,7 @@ class VtkStream {
         if (double(n) * (binary_ ? binary_bytes : ascii_bytes) > remaining) {
             throw InputError(path_, section,
                              "declares " + std::to_string(n) + " items, more than the " +
-                                 std::to_string(std::max(0.0, remaining)) +
+                                 tissue::number_text(std::max(0.0, remaining)) +
                                  " bytes left in the file hold: truncated or corrupt");
         }
         return std::size_t(n);

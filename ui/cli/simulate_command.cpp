@@ -394,10 +394,10 @@ void require_pose_in_box(const glm::dvec3& in_box, const glm::dvec3& box_size,
         const double margin = 10.0;
         if (!(in_box[a] >= -margin && in_box[a] <= box_size[a] + margin)) {
             throw tissue::InputError(source, "pose",
-                                     "the probe at (" + std::to_string(pose.position.x) + ", " +
-                                         std::to_string(pose.position.y) + ", " +
-                                         std::to_string(pose.position.z) + ") mm is outside the " +
-                                         what);
+                                     "the probe at (" + tissue::number_text(pose.position.x) +
+                                         ", " + tissue::number_text(pose.position.y) + ", " +
+                                         tissue::number_text(pose.position.z) +
+                                         ") mm is outside the " + what);
         }
     }
 }

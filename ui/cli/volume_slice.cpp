@@ -139,8 +139,8 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     // ---- validate every parameter before loading anything heavy ----
     auto nonnegative = [](double v, const char* flag) {
         if (!(std::isfinite(v) && v >= 0.0)) {
-            throw tissue::InputError(flag, "",
-                                     "must be a finite number >= 0 (mm), got " + std::to_string(v));
+            throw tissue::InputError(
+                flag, "", "must be a finite number >= 0 (mm), got " + tissue::number_text(v));
         }
     };
     nonnegative(options.width_mm, "--width");
