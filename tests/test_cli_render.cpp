@@ -2,7 +2,9 @@
 // determinism across thread counts, and bad input (clear message, non-zero exit, no
 // partial files).
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -158,6 +160,29 @@ TEST(CliRender, OverlaysFramesOfEveryProbeTypeAndNamesBadSidecarFields) {
         EXPECT_NE(r.err.find(m.message), std::string::npos) << m.pointer << ": " << r.err;
         EXPECT_FALSE(std::filesystem::exists(dir / "bad.png")) << m.pointer;
     }
+}
+
+// Ctrl-C stops a long render promptly and writes the repetitions done (the record says
+// so); without it, ten million repetitions would take hours.
+TEST(CliRender, CtrlCStopsPromptlyAndWritesTheRepetitionsDone) {
+    ScratchDir dir;
+    const std::string volume = write_sphere(dir);
+    const std::string cmd = "timeout --preserve-status -s INT 3 " + std::string(SONOTRACE_BINARY) +
+                            " render -q --volume " + volume +
+                            " --tf ramp --width 64 --height 64 --repetitions 10000000 --out " +
+                            (dir / "r.png") + " --json " + (dir / "r.json") + " 2> " +
+                            (dir / "err.txt");
+    const auto start = std::chrono::steady_clock::now();
+    const int status = std::system(cmd.c_str());
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 0) << slurp(dir / "err.txt");
+    EXPECT_LT(seconds, 3.0 + 1.0) << "stopped within a second of the signal";
+    EXPECT_TRUE(std::filesystem::exists(dir / "r.png"));
+    const auto record = nlohmann::json::parse(slurp(dir / "r.json"));
+    EXPECT_EQ(record.at("stopped_by"), "interrupt") << record.dump();
+    EXPECT_GT(record.at("repetitions").get<int>(), 0);
 }
 
 TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {

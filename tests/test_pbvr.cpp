@@ -2,7 +2,9 @@
 // (chi-square), the transmittance of a homogeneous slab, convergence to the ray-cast
 // reference, eq. 13's radius adaptation, thread independence, and bad input.
 #include <gtest/gtest.h>
+
 #include <tbb/global_control.h>
+#include <atomic>
 
 #include <bit>
 #include <cmath>
@@ -428,6 +430,27 @@ struct BlobScene {
         settings.radius_scale = 1.0;
     }
 };
+
+// A raised cancel flag (render's Ctrl-C) is seen inside a repetition: it returns false and
+// leaves the ensemble as it was; lowered again, rendering goes on as if nothing happened.
+TEST(Pbvr, ACancelledRepetitionLeavesTheEnsembleUnchanged) {
+    const BlobScene scene;
+    const RenderVolume volume(scene.data, scene.tf);
+    PbvrRenderer renderer(volume, scene.tf, scene.camera, scene.settings);
+    PbvrRenderer uncancelled(volume, scene.tf, scene.camera, scene.settings);
+    ASSERT_TRUE(renderer.add_repetition());
+    ASSERT_TRUE(uncancelled.add_repetition());
+    const RgbImage before = renderer.image();
+    std::atomic<bool> cancel{true};
+    renderer.set_cancel(&cancel);
+    EXPECT_FALSE(renderer.add_repetition());
+    EXPECT_EQ(renderer.repetitions_done(), 1);
+    EXPECT_EQ(renderer.image().pixels, before.pixels);
+    cancel = false;
+    EXPECT_TRUE(renderer.add_repetition());
+    EXPECT_TRUE(uncancelled.add_repetition());
+    EXPECT_EQ(renderer.image().pixels, uncancelled.image().pixels);
+}
 
 TEST(Pbvr, PsnrAgainstTheRayCasterRisesWithRepetitions) {
     const BlobScene scene;

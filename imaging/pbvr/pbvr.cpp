@@ -432,6 +432,7 @@ void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, mesh.tets.size(), 1024),
         [&](const tbb::blocked_range<std::size_t>& range) {
+            if (cancelled()) return;
             std::vector<FaceHits>& hits = scratch.local();
             for (std::size_t t = range.begin(); t != range.end(); ++t) {
                 const auto& tet = mesh.tets[t];
@@ -687,7 +688,7 @@ void PbvrRenderer::set_overlay(std::vector<uint64_t> layer) {
     overlay_ = std::move(layer);
 }
 
-void PbvrRenderer::add_repetition() {
+bool PbvrRenderer::add_repetition() {
     const std::size_t subpixels = std::size_t(sub_width_) * std::size_t(sub_height_);
     if (zbuffer_.size() != subpixels) zbuffer_ = decltype(zbuffer_)(subpixels);
     tbb::parallel_for(std::size_t(0), subpixels, [&](std::size_t s) {
@@ -701,6 +702,7 @@ void PbvrRenderer::add_repetition() {
     tbb::parallel_for(
         tbb::blocked_range<std::size_t>(0, cells_.size(), 2048),
         [&](const tbb::blocked_range<std::size_t>& range) {
+            if (cancelled()) return;  // polled per 2048 cells: a Ctrl-C stops within ms
             uint64_t& drawn = counts.local();
             for (std::size_t c = range.begin(); c != range.end(); ++c) {
                 const Cell& cell = cells_[c];
@@ -805,7 +807,8 @@ void PbvrRenderer::add_repetition() {
             }
         });
 
-    for (std::size_t m = 0; m < meshes_.size(); ++m) rasterize_mesh(*meshes_[m], m);
+    for (std::size_t m = 0; m < meshes_.size() && !cancelled(); ++m) rasterize_mesh(*meshes_[m], m);
+    if (cancelled()) return false;  // the ensemble is left as it was
 
     // -- average the sub-pixels into the ensemble
     for (const uint64_t c : counts) particles_ += c;
@@ -829,6 +832,7 @@ void PbvrRenderer::add_repetition() {
         }
     });
     ++repetitions_;
+    return true;
 }
 
 RgbImage PbvrRenderer::image() const {

@@ -283,8 +283,11 @@ class PbvrRenderer {
     // Opaque surfaces drawn with the particles (overlay.h): one Z-buffer entry per
     // sub-pixel (zbuffer_entry), depth-tested against them in every repetition.
     void set_overlay(std::vector<uint64_t> layer);
-    // Adds one repetition to the ensemble.
-    void add_repetition();
+    // Adds one repetition to the ensemble; false if `cancel` (set_cancel) was raised during
+    // it, which leaves the ensemble as it was before the repetition.
+    bool add_repetition();
+    // A flag add_repetition() polls while it works (a Ctrl-C handler's), or null.
+    void set_cancel(const std::atomic<bool>* cancel) { cancel_ = cancel; }
     int repetitions_done() const { return repetitions_; }
     // The ensemble average so far (background where nothing was ever drawn).
     RgbImage image() const;
@@ -350,6 +353,8 @@ class PbvrRenderer {
     int occlusion_tiles_x_ = 0, occlusion_tiles_y_ = 0;
     std::vector<glm::dvec3, tissue::HugePageAllocator<glm::dvec3>>
         accumulated_;  // per pixel, sum over repetitions of sub-pixel means
+    const std::atomic<bool>* cancel_ = nullptr;
+    bool cancelled() const { return cancel_ && cancel_->load(std::memory_order_relaxed); }
     std::vector<std::atomic<uint64_t>> zbuffer_;  // per sub-pixel: depth | RGB8 | id
     std::vector<uint64_t> overlay_;               // its initial content (empty: none)
     struct MeshLayer;

@@ -1,7 +1,9 @@
 #include "ui/cli/render_command.h"
 
+#include <unistd.h>
 #include <atomic>
 #include <chrono>
+
 #include <csignal>
 #include <filesystem>
 #include <iostream>
@@ -82,9 +84,11 @@ constexpr ParameterDoc kReferenceStepDoc = {"--reference-step", "mm",
                                             "sample spacing of the reference ray caster"};
 constexpr ParameterDoc kOutDoc = {"--out", "", "output PNG"};
 
+// The first Ctrl-C stops the rendering within the repetition in flight (the renderer polls
+// the flag) and the image of the repetitions done is written; a second one exits at once.
 std::atomic<bool> g_interrupted{false};
 extern "C" void on_interrupt(int) {
-    g_interrupted = true;
+    if (g_interrupted.exchange(true)) _exit(130);  // async-signal-safe: nothing is staged yet
 }
 
 }  // namespace
@@ -304,9 +308,13 @@ int run_render_command(const RenderOptions& options) {
     ProgressBar bar("rendering", options.quiet);
     std::vector<double> repetition_ms;
     std::string stopped_by = "repetitions";
+    renderer->set_cancel(&g_interrupted);
     for (int r = 0; r < settings.repetitions; ++r) {
         const auto t0 = std::chrono::steady_clock::now();
-        renderer->add_repetition();
+        if (!renderer->add_repetition()) {
+            stopped_by = "interrupt";
+            break;
+        }
         const auto t1 = std::chrono::steady_clock::now();
         repetition_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
         bar.update(std::size_t(r + 1), std::size_t(settings.repetitions));
@@ -322,6 +330,9 @@ int run_render_command(const RenderOptions& options) {
     }
     bar.finish();
     std::signal(SIGINT, previous_handler);
+    if (renderer->repetitions_done() == 0)
+        throw tissue::InputError("render", "",
+                                 "interrupted before a repetition finished: nothing written");
     const double render_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const pbvr::RgbImage image = renderer->image();
