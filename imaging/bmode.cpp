@@ -685,7 +685,10 @@ struct ScanTable {
 std::shared_ptr<const ScanTable> scan_table(const LineData& data, const probe::Transducer& t,
                                             double pixel_mm) {
     const probe::ScanGeometry geometry(t);
-    const auto [lo, hi] = geometry.bounds();
+    // Not a structured binding: the lambdas below capture lo (clang 14, the fuzz build's
+    // compiler, cannot capture bindings).
+    const std::pair<glm::dvec2, glm::dvec2> bounds = geometry.bounds();
+    const glm::dvec2 lo = bounds.first, hi = bounds.second;
     const std::array<double, 8> key{double(t.is_fan()),
                                     double(data.lines),
                                     double(data.samples),

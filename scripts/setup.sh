@@ -34,6 +34,8 @@ packages=(
   # the embedded default volume: Colin27 T1 head MRI
   mricron-data
 )
+# The test command also fuzzes every input parser (scripts/fuzz.sh: clang's libFuzzer).
+if [ "$mode" = test ]; then packages+=(clang libclang-rt-14-dev); fi
 
 say() { printf '\033[1msonotrace setup:\033[0m %s\n' "$*" >&2; }
 
@@ -79,6 +81,8 @@ case "$mode" in
       -DSONOTRACE_BUILD_BENCH=OFF
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       ctest --test-dir "$build_dir-asan" -j "$jobs" --output-on-failure -LE slow
+    say "fuzzing every input parser for 30 s each (libFuzzer, ASan+UBSan)"
+    SONOTRACE_FUZZ_DIR="$build_dir-fuzz" ./scripts/fuzz.sh 30
     say "all tests passed"
     ;;
   *)

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (tests/fuzz: clang, ASan+UBSan) and runs each for SECONDS
+# (default 30), seeded with tests/fuzz/seeds and the repository's own inputs. Exit status
+# non-zero when a target finds a crash (its reproducer is left in build-fuzz/crashes).
+#
+#   scripts/fuzz.sh          # 30 s per target: what the test command runs
+#   scripts/fuzz.sh 3600     # an hour per target: the figures in README's reliability section
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds="${1:-30}"
+dir="${SONOTRACE_FUZZ_DIR:-build-fuzz}"
+jobs="${SONOTRACE_JOBS:-$(nproc)}"
+say() { printf '\033[1msonotrace fuzz:\033[0m %s\n' "$*" >&2; }
+
+cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang \
+  -DCMAKE_CXX_COMPILER=clang++ -DSONOTRACE_FUZZ=ON -DSONOTRACE_BUILD_TESTS=OFF \
+  -DSONOTRACE_BUILD_BENCH=OFF >/dev/null
+say "building the fuzz targets in $dir"
+cmake --build "$dir" -j "$jobs" --target fuzz_all
+
+seeds() {  # the repository's own files for a target, beside tests/fuzz/seeds/<target>
+  case "$1" in
+    json | phantom) echo phantoms ;;
+    transfer_function) echo tissue/presets ;;
+  esac
+}
+mkdir -p "$dir/crashes"
+status=0
+for target in nifti raw_sidecar image transfer_function json phantom pose vtk frame_sidecar; do
+  corpus="$dir/corpus/$target"
+  mkdir -p "$corpus"
+  inputs=("$corpus")
+  [ -d "tests/fuzz/seeds/$target" ] && inputs+=("tests/fuzz/seeds/$target")
+  extra="$(seeds "$target")"
+  [ -n "$extra" ] && inputs+=("$extra")
+  log="$dir/fuzz_$target.log"
+  if ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=tests/fuzz/lsan.supp \
+      UBSAN_OPTIONS=print_stacktrace=1 "$dir/tests/fuzz/fuzz_$target" \
+      -max_total_time="$seconds" -max_len=65536 -timeout=10 -rss_limit_mb=4096 \
+      -artifact_prefix="$dir/crashes/${target}-" -print_final_stats=1 "${inputs[@]}" >"$log" 2>&1; then
+    runs="$(grep -m1 'stat::number_of_executed_units' "$log" | awk '{print $2}')"
+    cov="$(grep -o 'cov: [0-9]*' "$log" | tail -1)"
+    say "$target: ${runs:-?} runs in ${seconds} s, ${cov:-cov: ?}, no crash"
+  else
+    say "$target: CRASH, see $log and $dir/crashes/"
+    tail -n 30 "$log" >&2
+    status=1
+  fi
+done
+exit "$status"
