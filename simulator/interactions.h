@@ -13,6 +13,7 @@
 //  - eq. 10's R and T are amplitude coefficients; the intensity fractions are R^2 and
 //    1 - R^2 (the paper modulates energy by R and T directly, which does not conserve it).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -43,7 +44,8 @@ struct LaneRefraction {
 
 template <class Lane, int Dim, class F = typename Lane::F>
 SONOTRACE_LANE_INLINE LaneRefraction<Lane, Dim> refract(const LaneVec<F, Dim>& r,
-                                                        const LaneVec<F, Dim>& normal, const F& eta) {
+                                                        const LaneVec<F, Dim>& normal,
+                                                        const F& eta) {
     // Orient the normal against the travel direction (pointing back to the incident side).
     const F d = dot(r, normal);
     const auto away = d > 0.0f;
@@ -98,24 +100,23 @@ inline Refraction<Dim> refract(const Vec<Dim>& r, const Vec<Dim>& normal, float 
 // the library (the vector stage hands such a step to the scalar one). The libm call was
 // 14 % of a step.
 constexpr float kExpSeries4Below = 0.03f, kExpSeries7Below = 0.5f;
+// Taylor polynomial of exp(-x) by Horner's rule: `inverse_factorials` from the highest
+// degree down to 1/0!.
+template <class F, std::size_t N>
+SONOTRACE_LANE_INLINE F exp_minus_taylor(const F& x,
+                                         const std::array<float, N>& inverse_factorials) {
+    F p = F{} + inverse_factorials[0];
+    for (std::size_t i = 1; i < N; ++i) p = p * -x + inverse_factorials[i];
+    return p;
+}
 template <class F>
 SONOTRACE_LANE_INLINE F exp_minus_series4(const F& x) {
-    F p = F{} + 1.0f / 24.0f;
-    p = p * -x + 1.0f / 6.0f;
-    p = p * -x + 0.5f;
-    p = p * -x + 1.0f;
-    return p * -x + 1.0f;
+    return exp_minus_taylor(x, std::array{1.0f / 24.0f, 1.0f / 6.0f, 0.5f, 1.0f, 1.0f});
 }
 template <class F>
 SONOTRACE_LANE_INLINE F exp_minus_series7(const F& x) {
-    F p = F{} + 1.0f / 5040.0f;
-    p = p * -x + 1.0f / 720.0f;
-    p = p * -x + 1.0f / 120.0f;
-    p = p * -x + 1.0f / 24.0f;
-    p = p * -x + 1.0f / 6.0f;
-    p = p * -x + 0.5f;
-    p = p * -x + 1.0f;
-    return p * -x + 1.0f;
+    return exp_minus_taylor(x, std::array{1.0f / 5040.0f, 1.0f / 720.0f, 1.0f / 120.0f,
+                                          1.0f / 24.0f, 1.0f / 6.0f, 0.5f, 1.0f, 1.0f});
 }
 // Both series, x < kExpSeries7Below.
 template <class F>

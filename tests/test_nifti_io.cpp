@@ -298,6 +298,17 @@ TEST(NiftiErrors, TruncatedDataUncompressedAndCompressed) {
     gzwrite(gz, bytes.data(), unsigned(bytes.size()));
     gzclose(gz);
     expect_input_error([&] { read_nifti(dir / "t.nii.gz"); }, "t.nii.gz", "data", "truncated");
+
+    // A header declaring 1000^3 float voxels in an 8.5 kB file is refused before 4 GB are
+    // allocated (dim[1..3] are int16 at bytes 42-47).
+    {
+        std::fstream f(dir / "t.nii", std::ios::binary | std::ios::in | std::ios::out);
+        const int16_t dims[3] = {1000, 1000, 1000};
+        f.seekp(42);
+        f.write(reinterpret_cast<const char*>(dims), sizeof dims);
+    }
+    expect_input_error([&] { read_nifti(dir / "t.nii"); }, "t.nii", "data",
+                       "dim declares 4e+09 voxel bytes");
 }
 
 TEST(NiftiErrors, TruncatedHeaderAndGarbage) {

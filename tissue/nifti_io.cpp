@@ -263,6 +263,23 @@ NiftiReadResult read_nifti(const std::string& path) {
     // Voxels of the first 3D volume. Read here rather than by nifti_image_load, which
     // zero-fills a truncated file with only a warning.
     const std::size_t count = g.voxel_count();
+    {  // the declared voxels must fit in the data file: refused before allocating them
+        const std::string data_file = nim->iname ? nim->iname : path;
+        std::error_code error;
+        const double file_bytes = double(fs::file_size(data_file, error));
+        if (error) throw InputError(data_file, "", "cannot read the voxel data file's size");
+        const bool compressed = data_file.size() > 3 && data_file.ends_with(".gz");
+        // gzip's deflate compresses at most 1032:1
+        const double can_hold =
+            compressed ? 1100.0 * file_bytes + 65536.0 : file_bytes - double(nim->iname_offset);
+        const double declared = double(count) * double(nim->nbyper);
+        if (declared > can_hold) {
+            throw InputError(data_file, "data",
+                             "dim declares " + number_text(declared) +
+                                 " voxel bytes, more than the " + number_text(file_bytes) +
+                                 "-byte file can hold: truncated or corrupt");
+        }
+    }
     std::vector<unsigned char> bytes(count * std::size_t(nim->nbyper));
     read_voxel_bytes(*nim, path, &bytes);
     if (nim->nbyper > 1 && nim->byteorder != nifti_short_order()) {
