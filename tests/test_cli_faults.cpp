@@ -1,0 +1,96 @@
+// Fault injection end to end, without privileges:
+//  - a full disk: a file-size limit (ulimit -f with SIGXFSZ ignored) makes every write past
+//    a few kilobytes fail with EFBIG, as a full file system fails them with ENOSPC;
+//  - a killed run: SIGKILL part-way through a sweep;
+// and what must follow: exit 1 naming the output, no partial or hidden file left, and the
+// next run into the same directory cleaning up after the killed one. (A rename that fails
+// part-way: CliTrace.CollidingOrBlockedOutputsLeaveNothing.)
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
+
+#include "test_util.h"
+
+namespace sonotrace {
+namespace {
+
+using test::files_in;
+using test::ScratchDir;
+using test::slurp;
+
+// Runs `args` under a file-size limit of 8 blocks (4 KiB in sh's 512-byte units, 8 KiB in
+// bash's), SIGXFSZ ignored so that writes fail instead of killing the process.
+test::RunResult run_with_small_disk(const ScratchDir& dir, const std::string& args) {
+    const std::string cmd = "sh -c \"trap '' XFSZ; ulimit -f 8; exec " +
+                            std::string(SONOTRACE_BINARY) + " " + args + "\" > " +
+                            (dir / "stdout.txt") + " 2> " + (dir / "stderr.txt");
+    const int status = std::system(cmd.c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(dir / "stdout.txt"),
+            slurp(dir / "stderr.txt")};
+}
+
+TEST(CliFaults, AFullDiskIsAnErrorAndLeavesNothing) {
+    ScratchDir dir;
+    const std::string phantom = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/cyst_and_stone.json";
+    const std::string commands[] = {
+        "simulate -q --quality interactive --phantom " + phantom + " --out " + (dir / "simulate"),
+        "trace -q --config fig2 --out " + (dir / "trace"),
+        "tissue -q --out " + (dir / "tissue"),
+    };
+    for (const std::string& args : commands) {
+        const auto r = run_with_small_disk(dir, args);
+        EXPECT_EQ(r.exit_code, 1) << args << ": " << r.err;
+        EXPECT_NE(r.err.find("File too large"), std::string::npos) << args << ": " << r.err;
+        EXPECT_EQ(r.err.find(".partial-"), std::string::npos) << "a hidden name: " << r.err;
+        const std::string out = args.substr(args.rfind(' ') + 1);
+        EXPECT_TRUE(files_in(out).empty()) << args;
+    }
+}
+
+TEST(CliFaults, AKilledSweepLeavesCompleteFramesAndTheNextRunCleansUp) {
+    ScratchDir dir;
+    const std::string phantom = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/cyst_and_stone.json";
+    const std::string sweep = std::string(SONOTRACE_BINARY) +
+                              " simulate -q --quality interactive --phantom " + phantom +
+                              " --sweep lateral:20:0.5 --out " + (dir / "sweep");
+    // SIGKILL once it has written three files (or after 60 s): the run cannot clean up
+    // after itself.
+    const std::string out = dir / "sweep";
+    const std::string killed = "(" + sweep + " 2> /dev/null & pid=$!; i=0; while [ $(ls -A " + out +
+                               " 2> /dev/null | wc -l) -lt 3 ] && [ $i -lt 600 ]; do " +
+                               "sleep 0.1; i=$((i+1)); done; kill -9 $pid; wait $pid)";
+    const int status = std::system(("sh -c '" + killed + "'").c_str());
+    ASSERT_TRUE(WIFEXITED(status));
+    ASSERT_EQ(WEXITSTATUS(status), 128 + 9) << "the sweep finished before the kill";
+    // Under final names only complete frames: a staged file is renamed only once written.
+    int frames = 0, partials = 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir / "sweep")) {
+        const std::string name = e.path().filename().string();
+        if (name.rfind(".partial-", 0) == 0) {
+            ++partials;
+            continue;
+        }
+        if (e.path().extension() == ".png") {
+            ++frames;
+            const auto r = test::run(dir, "tissue -q --volume " + e.path().string() +
+                                              " --spacing 0.1,0.1 --out " + (dir / "check"));
+            EXPECT_EQ(r.exit_code, 0) << name << " does not decode: " << r.err;
+        }
+    }
+    EXPECT_GT(partials, 0) << "the kill left no temporaries: nothing to clean up";
+    // The next run into the directory removes the killed run's temporaries.
+    const auto r = test::run(dir, "simulate -q --quality interactive --phantom " + phantom +
+                                      " --out " + (dir / "sweep"));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    for (const auto& e : std::filesystem::directory_iterator(dir / "sweep"))
+        EXPECT_NE(e.path().filename().string().rfind(".partial-", 0), 0u)
+            << "left behind: " << e.path();
+    RecordProperty("frames_before_the_kill", frames);
+}
+
+}  // namespace
+}  // namespace sonotrace
