@@ -13,6 +13,9 @@
 #include <string>
 #include <thread>
 
+#include <nlohmann/json.hpp>
+#include <opencv2/videoio.hpp>
+
 #include "test_util.h"
 
 namespace sonotrace {
@@ -57,11 +60,11 @@ TEST(CliFaults, AKilledSweepLeavesCompleteFramesAndTheNextRunCleansUp) {
     const std::string sweep = std::string(SONOTRACE_BINARY) +
                               " simulate -q --quality interactive --phantom " + phantom +
                               " --sweep lateral:20:0.5 --out " + (dir / "sweep");
-    // SIGKILL once it has written three files (or after 60 s): the run cannot clean up
-    // after itself.
+    // SIGKILL once two frames are under their names (or after 60 s): the run cannot clean
+    // up after itself.
     const std::string out = dir / "sweep";
-    const std::string killed = "(" + sweep + " 2> /dev/null & pid=$!; i=0; while [ $(ls -A " + out +
-                               " 2> /dev/null | wc -l) -lt 3 ] && [ $i -lt 600 ]; do " +
+    const std::string killed = "(" + sweep + " 2> /dev/null & pid=$!; i=0; while [ $(ls " + out +
+                               " 2> /dev/null | grep -c png) -lt 2 ] && [ $i -lt 600 ]; do " +
                                "sleep 0.1; i=$((i+1)); done; kill -9 $pid; wait $pid)";
     const int status = std::system(("sh -c '" + killed + "'").c_str());
     ASSERT_TRUE(WIFEXITED(status));
@@ -81,7 +84,7 @@ TEST(CliFaults, AKilledSweepLeavesCompleteFramesAndTheNextRunCleansUp) {
             EXPECT_EQ(r.exit_code, 0) << name << " does not decode: " << r.err;
         }
     }
-    EXPECT_GT(partials, 0) << "the kill left no temporaries: nothing to clean up";
+    EXPECT_GE(frames, 2) << "each frame is committed when written";
     // The next run into the directory removes the killed run's temporaries.
     const auto r = test::run(dir, "simulate -q --quality interactive --phantom " + phantom +
                                       " --out " + (dir / "sweep"));
@@ -90,6 +93,44 @@ TEST(CliFaults, AKilledSweepLeavesCompleteFramesAndTheNextRunCleansUp) {
         EXPECT_NE(e.path().filename().string().rfind(".partial-", 0), 0u)
             << "left behind: " << e.path();
     RecordProperty("frames_before_the_kill", frames);
+    RecordProperty("temporaries_left_by_the_kill", partials);
+}
+
+// SIGINT (and SIGTERM) finish the frame in flight, write a valid video of the frames so far
+// and the record, and exit 130.
+TEST(CliFaults, AnInterruptedSweepWritesTheFramesSoFarAndAValidVideo) {
+    ScratchDir dir;
+    const std::string phantom = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/cyst_and_stone.json";
+    for (const char* signal_name : {"INT", "TERM"}) {
+        const std::string out = dir / (std::string("sweep_") + signal_name);
+        const std::string sweep = std::string(SONOTRACE_BINARY) +
+                                  " simulate -q --quality interactive --phantom " + phantom +
+                                  " --sweep lateral:20:0.5 --out " + out;
+        const std::string interrupted =
+            "(" + sweep + " 2> /dev/null & pid=$!; i=0; while [ $(ls " + out +
+            " 2> /dev/null | grep -c png) -lt 2 ] && [ $i -lt 600 ]; do sleep 0.1; i=$((i+1)); " +
+            "done; kill -" + signal_name + " $pid; wait $pid)";
+        const int status = std::system(("sh -c '" + interrupted + "'").c_str());
+        ASSERT_TRUE(WIFEXITED(status));
+        EXPECT_EQ(WEXITSTATUS(status), 130) << signal_name;
+        const auto record = nlohmann::json::parse(slurp(out + "/bmode.json"));
+        const auto& sweep_record = record.at("sweep");
+        EXPECT_TRUE(sweep_record.at("interrupted").get<bool>()) << signal_name;
+        const int frames = int(sweep_record.at("frames").size());
+        EXPECT_GE(frames, 2) << signal_name;
+        EXPECT_LT(frames, sweep_record.at("frames_planned").get<int>()) << signal_name;
+        int pngs = 0;
+        for (const auto& e : std::filesystem::directory_iterator(out)) {
+            EXPECT_NE(e.path().filename().string().rfind(".partial-", 0), 0u) << e.path();
+            pngs += e.path().extension() == ".png";
+        }
+        EXPECT_EQ(pngs, frames) << signal_name;
+        cv::VideoCapture video(out + "/bmode.mp4");
+        ASSERT_TRUE(video.isOpened()) << signal_name << ": the video does not open";
+        int decoded = 0;
+        for (cv::Mat image; video.read(image);) ++decoded;
+        EXPECT_EQ(decoded, frames) << signal_name;
+    }
 }
 
 }  // namespace

@@ -1,8 +1,12 @@
 #include "ui/cli/simulate_command.h"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -151,6 +155,14 @@ void write_frame(const cv::Mat& image, const std::string& path, int bits) {
     const float full_scale = bits == 8 ? 255.0f : bits == 16 ? 65535.0f : 1.0f;
     for (float& v : pixels) v = bits == 32 ? v : std::round(v * full_scale);  // stored as integers
     tissue::write_gray_image(path, image.cols, image.rows, pixels, bits);
+}
+
+// A sweep stops cleanly on SIGINT or SIGTERM: the frame in flight is finished, the video
+// of the frames so far written, and the run exits 130. A second signal exits at once
+// (the frame in flight's temporaries are left, and the next run removes them).
+std::atomic<bool> g_stop_sweep{false};
+extern "C" void on_sweep_signal(int) {
+    if (g_stop_sweep.exchange(true)) _exit(130);
 }
 
 }  // namespace
@@ -545,8 +557,16 @@ int run_simulate_command(const SimulateOptions& o) {
     std::string video_path;
     ProgressBar sweep_bar("sweep of " + std::to_string(placements.size()) + " frames", o.quiet);
     imaging::Frame last;
-    for (std::size_t f = 0; f < placements.size(); ++f) {
+    // Each frame of a sweep is committed as soon as it is written: a killed sweep leaves
+    // complete frames under their names. A single frame and its sidecar are one commit.
+    g_stop_sweep = false;
+    const auto previous_int = sweeping ? std::signal(SIGINT, on_sweep_signal) : SIG_DFL;
+    const auto previous_term = sweeping ? std::signal(SIGTERM, on_sweep_signal) : SIG_DFL;
+    std::size_t frames_done = 0;
+    for (std::size_t f = 0; f < placements.size() && !g_stop_sweep; ++f) {
         const Placement& placement = placements[f];
+        tissue::OutputTransaction frame_transaction;
+        tissue::OutputTransaction& frame_files = sweeping ? frame_transaction : transaction;
         char numbered[32];
         std::snprintf(numbered, sizeof numbered, "_%04zu", f);
         const std::string stem = o.name + (sweeping ? numbered : "");
@@ -560,12 +580,12 @@ int run_simulate_command(const SimulateOptions& o) {
 
         for (const auto& [suffix, bits] : formats) {
             const std::string path = (out / (stem + suffix)).string();
-            write_frame(frame.image.image, transaction.stage(path), bits);
+            write_frame(frame.image.image, frame_files.stage(path), bits);
             written.push_back(path);
         }
         auto write_lines = [&](const imaging::LineData& d, const std::string& suffix) {
             const std::string path = (out / (stem + suffix)).string();
-            tissue::write_gray_image(transaction.stage(path), d.samples, d.lines, d.values, 32);
+            tissue::write_gray_image(frame_files.stage(path), d.samples, d.lines, d.values, 32);
             written.push_back(path);
         };
         if (o.write_rf) write_lines(frame.rf, "_rf.exr");
@@ -575,10 +595,10 @@ int run_simulate_command(const SimulateOptions& o) {
             const std::string path = (out / (stem + "_labels.png")).string();
             const std::vector<float> values(label_image.begin<uint8_t>(),
                                             label_image.end<uint8_t>());
-            tissue::write_gray_image(transaction.stage(path), label_image.cols, label_image.rows,
+            tissue::write_gray_image(frame_files.stage(path), label_image.cols, label_image.rows,
                                      values, 8);
             const std::string preview = (out / (stem + "_labels_preview.png")).string();
-            imaging::write_png(imaging::label_picture(label_image), transaction.stage(preview));
+            imaging::write_png(imaging::label_picture(label_image), frame_files.stage(preview));
             written.push_back(path);
             written.push_back(preview);
             json legend = {{"0", "outside the scanned region"}};
@@ -598,7 +618,7 @@ int run_simulate_command(const SimulateOptions& o) {
                                       level.map_pixel_mm};
             const std::string path = (out / (stem + "_energy.png")).string();
             imaging::write_png(imaging::render_field(frame.absorbed, style),
-                               transaction.stage(path));
+                               frame_files.stage(path));
             written.push_back(path);
         }
         if (sweeping && !video_suffix.empty()) {
@@ -622,11 +642,21 @@ int run_simulate_command(const SimulateOptions& o) {
                                  {"offset_mm", placement.offset_mm},
                                  {"pose", pose_json(placement.scene.pose)},
                                  {"timings_s", frame.timings}});
+        if (sweeping) frame_transaction.commit();
+        ++frames_done;
         if (sweeping) sweep_bar.update(f + 1, placements.size());
         last = std::move(simulated.frame);
     }
-    if (sweeping) sweep_bar.finish();
+    if (sweeping) {
+        sweep_bar.finish();
+        std::signal(SIGINT, previous_int);
+        std::signal(SIGTERM, previous_term);
+    }
     if (video) video->release();
+    const bool interrupted = frames_done < placements.size();
+    if (frames_done == 0)
+        throw tissue::InputError("--sweep", "",
+                                 "interrupted before the first frame: nothing written");
 
     const imaging::Frame& frame = last;
     json record = {
@@ -682,7 +712,10 @@ int run_simulate_command(const SimulateOptions& o) {
         {"outputs", written},
     };
     if (sweeping) {
-        record["sweep"] = {{"spec", o.sweep}, {"frames", frames_record}};
+        record["sweep"] = {{"spec", o.sweep},
+                           {"frames", frames_record},
+                           {"frames_planned", placements.size()},
+                           {"interrupted", interrupted}};
         if (video) record["sweep"]["video"] = {{"file", video_path}, {"fps", o.fps}};
     }
     if (!o.scene.empty()) record["scene_file"] = o.scene;
@@ -692,6 +725,11 @@ int run_simulate_command(const SimulateOptions& o) {
         write_json(record, transaction.stage(o.json_path));
     transaction.commit();
     if (o.json_path == "-") write_json(record, "-");
+    if (interrupted) {
+        std::cerr << "sonotrace: interrupted after " << frames_done << " of " << placements.size()
+                  << " frames; wrote them, the video so far and " << sidecar << "\n";
+        return 130;
+    }
     if (!o.quiet) std::cerr << "sonotrace: wrote " << written.front() << " and " << sidecar << "\n";
     return 0;
 }
