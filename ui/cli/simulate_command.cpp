@@ -150,6 +150,16 @@ E parse_enum(const std::string& text, const char* flag,
 }
 
 // Frame (0..1, scan converted) as an image file of the requested format.
+// The 8-bit pixels of a frame as write_frame() stores them in png8.
+cv::Mat frame_png8(const cv::Mat& image) {
+    cv::Mat grey(image.size(), CV_8U);
+    for (int y = 0; y < image.rows; ++y)
+        for (int x = 0; x < image.cols; ++x)
+            grey.at<uint8_t>(y, x) =
+                uint8_t(std::clamp(std::round(image.at<float>(y, x) * 255.0f), 0.0f, 255.0f));
+    return grey;
+}
+
 void write_frame(const cv::Mat& image, const std::string& path, int bits) {
     std::vector<float> pixels(image.begin<float>(), image.end<float>());
     const float full_scale = bits == 8 ? 255.0f : bits == 16 ? 65535.0f : 1.0f;
@@ -275,6 +285,10 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     add_parameter(*cmd, kJsonDoc, o.json_path);
     add_parameter(*cmd, kThreadsDoc, o.threads)->check(CLI::Range(0, 1024));
     add_parameter(*cmd, kSweepDoc, o.sweep);
+    cmd->add_flag("--resume", o.resume,
+                  "continue a stopped sweep into the same --out: frames whose files are all "
+                  "there are kept (not simulated again; the last frame always is), the video is "
+                  "rebuilt from their png8 frames. The frames are those of an uninterrupted run");
     add_parameter(*cmd, kVideoDoc, o.video);
     add_parameter(*cmd, kFpsDoc, o.fps);
     add_parameter(*cmd, kSceneDoc, o.scene);
@@ -493,6 +507,12 @@ int run_simulate_command(const SimulateOptions& o) {
     const std::string video_suffix = o.video.empty() ? "" : "." + o.video;
     if (!o.video.empty() && o.video != "mp4" && o.video != "avi")
         throw tissue::InputError("--video", o.video, "must be mp4, avi or empty");
+    if (o.resume && o.sweep.empty()) throw tissue::InputError("--resume", "", "needs --sweep");
+    if (o.resume && !o.video.empty() &&
+        std::none_of(formats.begin(), formats.end(), [](const auto& f) { return f.second == 8; }))
+        throw tissue::InputError("--resume", "",
+                                 "rebuilds the video from the png8 frames: add png8 to --formats "
+                                 "or give --video ''");
     std::optional<probe::Pose> pose;
     if (o.volume.pose != "default") pose = probe::parse_pose(o.volume.pose, "--pose");
 
@@ -559,17 +579,68 @@ int run_simulate_command(const SimulateOptions& o) {
     imaging::Frame last;
     // Each frame of a sweep is committed as soon as it is written: a killed sweep leaves
     // complete frames under their names. A single frame and its sidecar are one commit.
+    // The video's frames are the png8 frames' pixels, so that a resumed sweep, which reads
+    // them back, makes the same video.
+    auto add_video_frame = [&](const cv::Mat& grey) {
+        cv::Mat bgr;
+        cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+        if (!video) {
+            video_path = (out / (o.name + video_suffix)).string();
+            const int fourcc = o.video == "mp4" ? cv::VideoWriter::fourcc('m', 'p', '4', 'v')
+                                                : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+            video.emplace(transaction.stage(video_path), fourcc, o.fps, bgr.size(), true);
+            if (!video->isOpened())
+                throw tissue::InputError(video_path, "",
+                                         "OpenCV cannot write this video format here");
+            written.push_back(video_path);
+        }
+        video->write(bgr);
+    };
     g_stop_sweep = false;
     const auto previous_int = sweeping ? std::signal(SIGINT, on_sweep_signal) : SIG_DFL;
     const auto previous_term = sweeping ? std::signal(SIGTERM, on_sweep_signal) : SIG_DFL;
     std::size_t frames_done = 0;
     for (std::size_t f = 0; f < placements.size() && !g_stop_sweep; ++f) {
         const Placement& placement = placements[f];
-        tissue::OutputTransaction frame_transaction;
-        tissue::OutputTransaction& frame_files = sweeping ? frame_transaction : transaction;
         char numbered[32];
         std::snprintf(numbered, sizeof numbered, "_%04zu", f);
         const std::string stem = o.name + (sweeping ? numbered : "");
+        tissue::OutputTransaction frame_transaction;
+        tissue::OutputTransaction& frame_files = sweeping ? frame_transaction : transaction;
+        // -- --resume: a frame whose files are all there is kept as it is
+        std::vector<std::string> frame_paths;
+        for (const auto& [suffix, bits] : formats)
+            frame_paths.push_back((out / (stem + suffix)).string());
+        if (o.write_rf) frame_paths.push_back((out / (stem + "_rf.exr")).string());
+        if (o.write_envelope) frame_paths.push_back((out / (stem + "_envelope.exr")).string());
+        if (o.write_labels) {
+            frame_paths.push_back((out / (stem + "_labels.png")).string());
+            frame_paths.push_back((out / (stem + "_labels_preview.png")).string());
+        }
+        if (o.write_energy) frame_paths.push_back((out / (stem + "_energy.png")).string());
+        if (o.resume && f + 1 < placements.size() &&
+            std::all_of(frame_paths.begin(), frame_paths.end(),
+                        [](const std::string& p) { return std::filesystem::exists(p); })) {
+            if (!video_suffix.empty()) {
+                const auto png8 = std::find_if(formats.begin(), formats.end(),
+                                               [](const auto& fm) { return fm.second == 8; });
+                const tissue::Volume kept =
+                    tissue::read_image((out / (stem + png8->first)).string(), glm::dvec3(1.0));
+                cv::Mat grey(kept.dims().y, kept.dims().x, CV_8U);
+                for (int y = 0; y < grey.rows; ++y)
+                    for (int x = 0; x < grey.cols; ++x)
+                        grey.at<uint8_t>(y, x) = uint8_t(kept.at(x, y, 0));
+                add_video_frame(grey);
+            }
+            written.insert(written.end(), frame_paths.begin(), frame_paths.end());
+            frames_record.push_back({{"index", f},
+                                     {"offset_mm", placement.offset_mm},
+                                     {"pose", pose_json(placement.scene.pose)},
+                                     {"resumed", true}});
+            ++frames_done;
+            if (sweeping) sweep_bar.update(f + 1, placements.size());
+            continue;
+        }
         ProgressBar bar("simulating " + std::to_string(particles) + " particles",
                         o.quiet || sweeping);
         imaging::SimulatedFrame simulated = imaging::simulate_plane(
@@ -621,23 +692,7 @@ int run_simulate_command(const SimulateOptions& o) {
                                frame_files.stage(path));
             written.push_back(path);
         }
-        if (sweeping && !video_suffix.empty()) {
-            cv::Mat grey;
-            frame.image.image.convertTo(grey, CV_8U, 255.0);
-            cv::Mat bgr;
-            cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
-            if (!video) {
-                video_path = (out / (o.name + video_suffix)).string();
-                const int fourcc = o.video == "mp4" ? cv::VideoWriter::fourcc('m', 'p', '4', 'v')
-                                                    : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
-                video.emplace(transaction.stage(video_path), fourcc, o.fps, bgr.size(), true);
-                if (!video->isOpened())
-                    throw tissue::InputError(video_path, "",
-                                             "OpenCV cannot write this video format here");
-                written.push_back(video_path);
-            }
-            video->write(bgr);
-        }
+        if (sweeping && !video_suffix.empty()) add_video_frame(frame_png8(frame.image.image));
         frames_record.push_back({{"index", f},
                                  {"offset_mm", placement.offset_mm},
                                  {"pose", pose_json(placement.scene.pose)},

@@ -53,6 +53,7 @@ struct SimulateOptions {
     std::string formats = "png8";
     bool write_rf = false, write_envelope = false, write_labels = false, write_energy = false;
     std::string sweep;
+    bool resume = false;  // keep the frames a stopped sweep already wrote
     std::string video = "mp4";
     double fps = 10.0;
     std::string scene;            // --scene JSON file
