@@ -159,6 +159,9 @@ TEST(Tetra, VtkLegacyAsciiAndBinaryReadTheSameMesh) {
         {"POINTS 1 float\n0 0 0\nCELLS 99999999999 5\n4 0 0 0 0\n", "CELLS",
          "declares 99999999999"},
         {"POINTS 1 float\n0 0 0\nCELL_TYPES 1e9\n10\n", "CELL_TYPES", "count '1e9'"},
+        // found by fuzz_vtk: an index beyond int64 (its conversion was undefined)
+        {"POINTS 1 float\n0 0 0\nCELLS 1 5\n4 1.7e20 0 0 0\n", "CELLS",
+         "integer 1.7e+20 is out of range"},
     };
     for (const auto& c : bad_counts) {
         std::ofstream(dir / "counts.vtk") << head << c.body;

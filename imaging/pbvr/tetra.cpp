@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <type_traits>
 
 #include "tissue/error.h"
 
@@ -68,6 +69,13 @@ class VtkStream {
         if (!binary_) {
             double v;
             if (!(in_ >> v)) throw InputError(path_, section, "expected a number");
+            if constexpr (std::is_integral_v<T>) {  // converting beyond T's range is undefined
+                const double low = double(std::numeric_limits<T>::min());
+                const double past_high = 2.0 * (double(std::numeric_limits<T>::max() / 2) + 1.0);
+                if (!(v >= low && v < past_high))
+                    throw InputError(path_, section,
+                                     "integer " + tissue::number_text(v) + " is out of range");
+            }
             return T(v);
         }
         if (!skipped_newline_) {  // binary data starts after the header line's newline
