@@ -581,6 +581,8 @@ int run_simulate_command(const SimulateOptions& o) {
     // complete frames under their names. A single frame and its sidecar are one commit.
     // The video's frames are the png8 frames' pixels, so that a resumed sweep, which reads
     // them back, makes the same video.
+    std::string video_staged;
+    int video_frames = 0;
     auto add_video_frame = [&](const cv::Mat& grey) {
         cv::Mat bgr;
         cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
@@ -588,13 +590,15 @@ int run_simulate_command(const SimulateOptions& o) {
             video_path = (out / (o.name + video_suffix)).string();
             const int fourcc = o.video == "mp4" ? cv::VideoWriter::fourcc('m', 'p', '4', 'v')
                                                 : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
-            video.emplace(transaction.stage(video_path), fourcc, o.fps, bgr.size(), true);
+            video_staged = transaction.stage(video_path);
+            video.emplace(video_staged, fourcc, o.fps, bgr.size(), true);
             if (!video->isOpened())
                 throw tissue::InputError(video_path, "",
                                          "OpenCV cannot write this video format here");
             written.push_back(video_path);
         }
         video->write(bgr);
+        ++video_frames;
     };
     g_stop_sweep = false;
     const auto previous_int = sweeping ? std::signal(SIGINT, on_sweep_signal) : SIG_DFL;
@@ -707,7 +711,19 @@ int run_simulate_command(const SimulateOptions& o) {
         std::signal(SIGINT, previous_int);
         std::signal(SIGTERM, previous_term);
     }
-    if (video) video->release();
+    if (video) {
+        // OpenCV reports no write errors: the video is read back, and a short one (a full
+        // disk) is an error naming it, not a truncated file reported as written.
+        video->release();
+        cv::VideoCapture check(video_staged, cv::CAP_FFMPEG);
+        int decoded = 0;
+        for (cv::Mat image; check.isOpened() && check.read(image);) ++decoded;
+        if (decoded != video_frames)
+            throw tissue::InputError(
+                video_path, "",
+                "the video could not be written completely (" + std::to_string(decoded) + " of " +
+                    std::to_string(video_frames) + " frames read back): is the disk full?");
+    }
     const bool interrupted = frames_done < placements.size();
     if (frames_done == 0)
         throw tissue::InputError("--sweep", "",
