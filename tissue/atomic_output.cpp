@@ -107,12 +107,9 @@ std::string OutputTransaction::stage(const std::string& final_path) {
         remove_stale_temporaries(dir);
         cleaned_.push_back(dir.string());
     }
-    const fs::path normal = fs::weakly_canonical(target, ec);
-    for (const auto& [temporary, other] : staged_) {
-        if (fs::weakly_canonical(fs::path(other), ec) == normal) {
-            throw InputError(final_path, "",
-                             "two outputs of this run have this name; give them different names");
-        }
+    if (!canonical_finals_.insert(fs::weakly_canonical(target, ec).string()).second) {
+        throw InputError(final_path, "",
+                         "two outputs of this run have this name; give them different names");
     }
     const std::string temporary = staged_name(dir, target.filename().string());
     staged_.emplace_back(temporary, final_path);

@@ -4,6 +4,7 @@
 // the end. If the transaction is destroyed without commit(), the staged files are
 // deleted.
 #include <cstddef>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -40,7 +41,8 @@ class OutputTransaction {
 
   private:
     std::vector<std::pair<std::string, std::string>> staged_;  // {temporary, final}
-    std::vector<std::string> cleaned_;  // directories whose stale temporaries were removed
+    std::vector<std::string> cleaned_;        // directories whose stale temporaries were removed
+    std::set<std::string> canonical_finals_;  // the final paths staged, canonical
     bool committed_ = false;
 };
 
