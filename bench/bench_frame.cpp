@@ -67,7 +67,7 @@ void frame(benchmark::State& state, imaging::Quality quality) {
         // The default scene's falx and choroid plexus, as `sonotrace simulate` adds them.
         imaging::add_colin27_membranes(s.head.volume, *s.tf, s.outside, grid.geometry, maps);
         imaging::prepare_plane(maps, grid, s.placement);
-        const auto map = tissue::AcousticMap<2>::build(maps);
+        const auto map = imaging::frame_map(maps, settings);
         plane_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const imaging::Frame f = imaging::simulate_frame(map, grid, s.placement.pose, settings);
         steps += f.stats.steps;

@@ -1,7 +1,10 @@
 // The default head frame's ventricles against the parenchyma, measured on the envelope,
 // with physics switched off one at a time to take the leak apart (issue 29).
 //
-//   build/bench/ventricle_contrast [--from MM] [--nominal] [--paths FILE.png]
+//   build/bench/ventricle_contrast [--from MM] [--nominal] [--seeds N] [--smoothing MM]
+//
+// --seeds N sums the frames of seeds 1..N (one frame is dominated by a few rays);
+// --smoothing sets SimulationSettings::refraction_smoothing_mm (default: the probe's).
 //
 // Truth: each envelope sample's position is found by walking its scan line through the
 // map's speed of sound (echo time = 2/c0 x the integral of n = c0/c), not at c0 t / 2:
@@ -12,9 +15,11 @@
 // Parenchyma: brain samples 1 mm clear of other tissue. Per 2 mm depth band the interior's
 // mean intensity is divided by the parenchyma's of the same band; the total weighs the
 // bands by their interior samples.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,7 +33,9 @@ namespace {
 
 struct Options {
     double from_mm = 40.0;
-    bool nominal = false;  // truth at c0 t / 2 instead of through the speed map
+    bool nominal = false;                // truth at c0 t / 2 instead of through the speed map
+    std::optional<double> smoothing_mm;  // the refraction smoothing; unset: the probe's
+    int seeds = 1;                       // frames of seeds 1..seeds, their intensities summed
 };
 
 double measure(const ui::VolumeSource& head, const char* what,
@@ -38,56 +45,61 @@ double measure(const ui::VolumeSource& head, const char* what,
     s.transducer = probe::find_transducer("convex", "ventricle_contrast");
     s.trace.interface_reach_mm = 3.0;  // as `simulate` on the default volume
     imaging::apply(physics, s);
-    const imaging::QualityLevel level = imaging::quality_level(s.quality);
-    const imaging::PlaneGrid grid =
-        imaging::plane_grid(s.transducer, scene.pose, level.map_pixel_mm);
-    tissue::Volume labels;
-    tissue::PropertyMaps maps = head.plane_properties(grid.geometry, &labels);
-    imaging::prepare_plane(maps, grid, scene, 5.0, &labels);
-    const auto map = tissue::AcousticMap<2>::build(maps);
-    const imaging::Frame f = imaging::simulate_frame(map, grid, scene.pose, s);
-    const imaging::LineData& env = f.envelope;
-    const probe::ScanGeometry g(s.transducer);
-    const int csf = tissue::tissue_label_of("csf"), brain = tissue::tissue_label_of("brain");
-    const glm::dvec3 h = labels.geometry().spacing;
-    const glm::ivec3 dims = labels.geometry().dims;
-    auto label_at = [&](int i, int j) {
-        return i < 0 || j < 0 || i >= dims.x || j >= dims.y ? -1 : int(labels.at(i, j, 0));
-    };
-    const int r = int(std::ceil(1.0 / h.x));
+    s.refraction_smoothing_mm = o.smoothing_mm;
     constexpr int kBands = 60;
     constexpr double kBandMm = 2.0;
     std::vector<double> in(kBands), out(kBands);
     std::vector<int> n_in(kBands), n_out(kBands);
-    std::vector<double> depth(std::size_t(env.samples));
-    for (int l = 0; l < env.lines; ++l) {
-        double travelled = 0.0, optical = 0.0;
-        constexpr double ds = 0.02;
-        for (int i = 0; i < env.samples; ++i) {
-            const double displayed = env.depth_mm(i);
-            while (!o.nominal && optical < displayed) {
-                const glm::dvec2 q = g.point(l, travelled + 0.5 * ds) + grid.to_map;
-                optical += ds * map.sample_refractive_index(glm::vec2(q));
-                travelled += ds;
+    for (int seed = 1; seed <= o.seeds; ++seed) {
+        s.seed = uint64_t(seed);
+        const imaging::QualityLevel level = imaging::quality_level(s.quality);
+        const imaging::PlaneGrid grid =
+            imaging::plane_grid(s.transducer, scene.pose, level.map_pixel_mm);
+        tissue::Volume labels;
+        tissue::PropertyMaps maps = head.plane_properties(grid.geometry, &labels);
+        imaging::prepare_plane(maps, grid, scene, 5.0, &labels);
+        const auto map = imaging::frame_map(maps, s);
+        const imaging::Frame f = imaging::simulate_frame(map, grid, scene.pose, s);
+        const imaging::LineData& env = f.envelope;
+        const probe::ScanGeometry g(s.transducer);
+        const int csf = tissue::tissue_label_of("csf"), brain = tissue::tissue_label_of("brain");
+        const glm::dvec3 h = labels.geometry().spacing;
+        const glm::ivec3 dims = labels.geometry().dims;
+        auto label_at = [&](int i, int j) {
+            return i < 0 || j < 0 || i >= dims.x || j >= dims.y ? -1 : int(labels.at(i, j, 0));
+        };
+        const int r = int(std::ceil(1.0 / h.x));
+        std::vector<double> depth(std::size_t(env.samples));
+        for (int l = 0; l < env.lines; ++l) {
+            double travelled = 0.0, optical = 0.0;
+            constexpr double ds = 0.02;
+            for (int i = 0; i < env.samples; ++i) {
+                const double displayed = env.depth_mm(i);
+                while (!o.nominal && optical < displayed) {
+                    const glm::dvec2 q = g.point(l, travelled + 0.5 * ds) + grid.to_map;
+                    optical += ds * map.sample_refractive_index(glm::vec2(q));
+                    travelled += ds;
+                }
+                depth[std::size_t(i)] = o.nominal ? displayed : travelled;
             }
-            depth[std::size_t(i)] = o.nominal ? displayed : travelled;
-        }
-        for (int i = 0; i < env.samples; ++i) {
-            const double d = depth[std::size_t(i)];
-            const int b = int(d / kBandMm);
-            if (d < o.from_mm || b >= kBands) continue;
-            const glm::dvec2 m = g.point(l, d) + grid.to_map;
-            const int ti = int(std::floor(m.x / h.x + 0.5)), tj = int(std::floor(m.y / h.y + 0.5));
-            const int lab = label_at(ti, tj);
-            if (lab != csf && lab != brain) continue;
-            bool clear = true;
-            for (int dj = -r; dj <= r && clear; ++dj)
-                for (int di = -r; di <= r && clear; ++di)
-                    clear = di * di + dj * dj > r * r || label_at(ti + di, tj + dj) == lab;
-            if (!clear) continue;
-            const double v = double(env.at(l, i)) * env.at(l, i);
-            if (lab == csf) in[std::size_t(b)] += v, ++n_in[std::size_t(b)];
-            if (lab == brain) out[std::size_t(b)] += v, ++n_out[std::size_t(b)];
+            for (int i = 0; i < env.samples; ++i) {
+                const double d = depth[std::size_t(i)];
+                const int b = int(d / kBandMm);
+                if (d < o.from_mm || b >= kBands) continue;
+                const glm::dvec2 m = g.point(l, d) + grid.to_map;
+                const int ti = int(std::floor(m.x / h.x + 0.5)),
+                          tj = int(std::floor(m.y / h.y + 0.5));
+                const int lab = label_at(ti, tj);
+                if (lab != csf && lab != brain) continue;
+                bool clear = true;
+                for (int dj = -r; dj <= r && clear; ++dj)
+                    for (int di = -r; di <= r && clear; ++di)
+                        clear = di * di + dj * dj > r * r || label_at(ti + di, tj + dj) == lab;
+                if (!clear) continue;
+                const double v = double(env.at(l, i)) * env.at(l, i);
+                if (lab == csf) in[std::size_t(b)] += v, ++n_in[std::size_t(b)];
+                if (lab == brain) out[std::size_t(b)] += v, ++n_out[std::size_t(b)];
+            }
         }
     }
     double sum_in = 0.0, expected = 0.0;
@@ -112,10 +124,15 @@ int main(int argc, char** argv) {
     for (int a = 1; a < argc; ++a) {
         if (!std::strcmp(argv[a], "--from") && a + 1 < argc) {
             o.from_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--smoothing") && a + 1 < argc) {
+            o.smoothing_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--seeds") && a + 1 < argc) {
+            o.seeds = std::max(1, std::atoi(argv[++a]));
         } else if (!std::strcmp(argv[a], "--nominal")) {
             o.nominal = true;
         } else {
-            std::fprintf(stderr, "usage: %s [--from MM] [--nominal]\n", argv[0]);
+            std::fprintf(stderr, "usage: %s [--from MM] [--nominal] [--seeds N] [--smoothing MM]\n",
+                         argv[0]);
             return 1;
         }
     }

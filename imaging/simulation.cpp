@@ -106,6 +106,8 @@ void SimulationSettings::validate(const std::string& source) const {
         tissue::require_in_range(source, field, v, lo, hi);
     };
     in_range(step_texels, 0.0, 100.0, "step");
+    if (refraction_smoothing_mm)
+        in_range(*refraction_smoothing_mm, 0.0, 20.0, "refraction-smoothing");
     in_range(imaging.sampling_mhz, 0.0, 1000.0, "sampling");
     if (imaging.sampling_mhz > 0.0 &&
         imaging.sampling_mhz <
@@ -491,6 +493,18 @@ cv::Mat label_picture(const cv::Mat& labels) {
     return out;
 }
 
+double fresnel_smoothing_mm(const probe::Transducer& t) {
+    return 0.5 * std::sqrt(t.wavelength_mm() * t.depth_mm);
+}
+
+double refraction_smoothing_mm(const SimulationSettings& s) {
+    return s.refraction_smoothing_mm.value_or(fresnel_smoothing_mm(s.transducer));
+}
+
+tissue::AcousticMap<2> frame_map(const tissue::PropertyMaps& maps, const SimulationSettings& s) {
+    return tissue::AcousticMap<2>::build(maps, refraction_smoothing_mm(s));
+}
+
 SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
                               const SimulationSettings& settings, bool with_labels,
                               const FrameProgress& progress) {
@@ -500,7 +514,7 @@ SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& s
     if (with_labels) labels.emplace();
     tissue::PropertyMaps maps = mapper(grid.geometry, labels ? &*labels : nullptr);
     prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
-    const auto map = tissue::AcousticMap<2>::build(maps);
+    const auto map = frame_map(maps, settings);
     SimulatedFrame out;
     out.frame = simulate_frame(map, grid, scene.pose, settings, progress);
     if (labels) out.labels = scan_convert_labels(*labels, grid, out.frame.image);

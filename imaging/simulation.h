@@ -89,6 +89,10 @@ struct SimulationSettings {
     }();
     uint64_t seed = 1;
     double step_texels = 0.0;  // the tracer's step (texels); 0 = the quality's
+    // Gaussian sigma (mm) of the soft-tissue refractive index the rays bend in
+    // (tissue::soft_tissue_smoothed_index); unset: fresnel_smoothing_mm of the
+    // transducer; 0: the map's own index, texel by texel.
+    std::optional<double> refraction_smoothing_mm;
     // Sub-resolution targets (world mm), imaged through the beam's field (point_echoes).
     // Their cores are painted into the maps by whoever builds them (phantoms/); the
     // tracer's echoes within a core's radius + `target_margin_mm` are its own and dropped.
@@ -98,6 +102,16 @@ struct SimulationSettings {
     // Throws tissue::InputError naming the first bad parameter.
     void validate(const std::string& source) const;
 };
+
+// The Fresnel scale of a probe's image: sigma = sqrt(lambda D) / 2, the Gaussian whose 1/e
+// radius (sqrt(2) sigma) is the first Fresnel zone's radius sqrt(lambda D / 2) at half the
+// image depth D. Convex preset: 3.0 mm; linear 1.4 mm; phased 4.1 mm.
+double fresnel_smoothing_mm(const probe::Transducer& t);
+// The refraction smoothing a frame uses: the settings' or the transducer's Fresnel scale.
+double refraction_smoothing_mm(const SimulationSettings& s);
+// The acoustic map a frame is traced in: the property maps packed with the settings'
+// refraction smoothing.
+tissue::AcousticMap<2> frame_map(const tissue::PropertyMaps& maps, const SimulationSettings& s);
 
 // The probe-aligned grid that holds a transducer's scanned region plus margins, and the
 // offset from probe-plane coordinates to the map frame (map = plane + to_map).

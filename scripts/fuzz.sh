@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (tests/fuzz: clang, ASan+UBSan) and runs each for SECONDS
-# (default 30), seeded with tests/fuzz/seeds and the repository's own inputs. Exit status
+# (default 10), seeded with tests/fuzz/seeds and the repository's own inputs. Exit status
 # non-zero when a target finds a crash (its reproducer is left in build-fuzz/crashes).
 #
-#   scripts/fuzz.sh          # 30 s per target: what the test command runs
+#   scripts/fuzz.sh          # 10 s per target: what the test command runs
 #   scripts/fuzz.sh 3600     # an hour per target: the figures in README's reliability section
 set -euo pipefail
 cd "$(dirname "$0")/.."
-seconds="${1:-30}"
+seconds="${1:-10}"
 # A fixed seed: the test command's run is the same every time (a finding reproduces);
 # SONOTRACE_FUZZ_SEED=0 draws one.
 seed="${SONOTRACE_FUZZ_SEED:-1}"

@@ -236,5 +236,61 @@ TEST(HugePageAllocator, LargeArraysStartOnHugePageBoundaries) {
     EXPECT_EQ(grown[123456], 123456.0);
 }
 
+// A speed map along x only (ny rows alike): speed(x in mm).
+template <class Speed>
+Volume speed_profile(int nx, int ny, double h, Speed speed) {
+    VolumeGeometry g;
+    g.dims = {nx, ny, 1};
+    g.spacing = glm::dvec3(h);
+    Volume v(g);
+    for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) v.at(i, j) = float(speed(i * h));
+    return v;
+}
+
+TEST(SoftTissueSmoothedIndex, ASheetThinnerThanSigmaKeepsTheGaussianBlurOfItsContrast) {
+    // A CSF sheet (1500 m/s) of width w in brain (1560 m/s): the smoothed index at its
+    // centre is n_brain + (n_csf - n_brain) erf(w / (2 sqrt(2) sigma)), the Gaussian
+    // integral over the sheet; far from it, brain's own index.
+    const double h = 0.05, w = 1.0, sigma = 2.0, centre = 15.0;
+    const Volume speed = speed_profile(
+        601, 3, h, [&](double x) { return std::abs(x - centre) < 0.5 * w ? 1500.0 : 1560.0; });
+    const Volume n = soft_tissue_smoothed_index(speed, sigma);
+    const double n_brain = kReferenceSpeed / 1560.0, n_csf = kReferenceSpeed / 1500.0;
+    // The sheet's width on the grid: its texels times h.
+    int texels = 0;
+    for (int i = 0; i < 601; ++i) texels += speed.at(i, 1) == 1500.0f;
+    const double expected =
+        n_brain + (n_csf - n_brain) * std::erf(texels * h / (2.0 * std::sqrt(2.0) * sigma));
+    EXPECT_NEAR(n.at(300, 1), expected, 2e-4);  // the Gaussian's sampling at h = sigma / 40
+    EXPECT_LT(n.at(300, 1) - n_brain, 0.25 * (n_csf - n_brain));  // a quarter of the jump
+    EXPECT_NEAR(n.at(0, 1), n_brain, 1e-6);                       // 7.5 sigma away
+}
+
+TEST(SoftTissueSmoothedIndex, BoneAndAirKeepTheirIndexAndDoNotPullTheirNeighbours) {
+    // Brain, then bone (3000 m/s) from 10 mm, then air (343 m/s) from 20 mm: outside the
+    // soft band both keep c0 / c exactly, and the brain next to the bone keeps brain's
+    // index (the normalised convolution leaves the bone out of its average).
+    const double h = 0.25;
+    const Volume speed = speed_profile(121, 3, h, [](double x) {
+        return x < 10.0 ? 1560.0 : x < 20.0 ? 3000.0 : 343.0;
+    });
+    const Volume n = soft_tissue_smoothed_index(speed, 3.0);
+    for (int i = 0; i < 121; ++i) {
+        const double expected = kReferenceSpeed / speed.at(i, 1);
+        EXPECT_NEAR(n.at(i, 1), expected, 1e-6 * expected) << "x = " << i * h << " mm";
+    }
+}
+
+TEST(SoftTissueSmoothedIndex, ZeroSigmaOrAUniformMediumChangesNothing) {
+    const Volume speed = speed_profile(64, 32, 0.25, [](double x) { return 1540.0 + x; });
+    const Volume kept = soft_tissue_smoothed_index(speed, 0.0);
+    for (std::size_t v = 0; v < speed.size(); ++v)
+        ASSERT_EQ(kept.voxels()[v], float(kReferenceSpeed / speed.voxels()[v]));
+    const Volume uniform = speed_profile(64, 32, 0.25, [](double) { return 1560.0; });
+    const Volume smoothed = soft_tissue_smoothed_index(uniform, 2.0);
+    for (float v : smoothed.voxels()) ASSERT_NEAR(v, kReferenceSpeed / 1560.0, 1e-6);
+}
+
 }  // namespace
 }  // namespace sonotrace::tissue

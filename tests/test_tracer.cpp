@@ -556,6 +556,39 @@ TEST(Tracer3D, RefractionFollowsSnellWithinHalfADegree) {
     }
 }
 
+TEST(Tracer, RefractionThroughASmoothedSoftInterfaceFollowsSnell) {
+    // An extended soft-tissue interface (1480 -> 1650 m/s, tilted 20 degrees to the grid)
+    // with the index smoothed at sigma = 2 mm (tissue::soft_tissue_smoothed_index): n
+    // sin(theta) is conserved through a graded planar layer, so the ray leaves the
+    // transition at Snell's angle, as at the sharp interface.
+    const double h = 0.125, sigma = 2.0;
+    const int n = 401;
+    const glm::dvec2 normal =
+        glm::normalize(glm::dvec2(std::sin(glm::radians(20.0)), std::cos(glm::radians(20.0))));
+    const glm::dvec2 centre(0.5 * (n - 1) * h);
+    const tissue::PropertyMaps maps = planar_interface(
+        n, n, h, centre, normal, lossless_medium(1480, 1000), lossless_medium(1650, 1000), 1.0);
+    const auto map = tissue::AcousticMap<2>::build(maps, sigma);
+    TraceSettings s = interfaces_only_settings();
+    s.specular_reflection = false;
+    s.record_paths = 1;
+    s.max_path_mm = 44.0;
+    const glm::dvec2 tangent(normal.y, -normal.x);
+    for (double incidence = 10.0; incidence <= 50.0; incidence += 20.0) {
+        const double a = glm::radians(incidence);
+        const glm::dvec2 dir = std::cos(a) * normal + std::sin(a) * tangent;
+        const Sources<2> src = {{glm::vec2(centre - 22.0 * dir), glm::vec2(dir), 1.0f, 0}};
+        const auto result = trace(map, src, s);
+        const auto& v = result.paths.at(0).vertices;
+        // The last 2 mm, beyond 4 sigma of the transition.
+        const glm::dvec2 out =
+            glm::normalize(glm::dvec2(v.back().position - v[v.size() - 17].position));
+        const double measured = glm::degrees(std::acos(std::abs(glm::dot(out, normal))));
+        const double expected = glm::degrees(std::asin(std::sin(a) * 1650.0 / 1480.0));
+        EXPECT_NEAR(measured, expected, 0.5) << "incidence " << incidence;
+    }
+}
+
 TEST(Tracer3D, LedgerBalancesAndThreadsAgree) {
     const auto map = interface_map_3d(1540, 2200, glm::dvec3(0.2, 1.0, 0.1), 0.5, 48);
     TraceSettings s;  // all physics

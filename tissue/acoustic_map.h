@@ -74,6 +74,22 @@ struct ImpedanceSample {
     float grad_impedance[Dim];
 };
 
+// Speeds of sound (m/s) of the soft-tissue band that soft_tissue_smoothed_index averages:
+// every soft tissue and fluid of the tissue table (fat 1450 to dura 1620), not bone or air.
+inline constexpr double kSoftTissueSpeedMin = 1400.0, kSoftTissueSpeedMax = 1700.0;
+
+// The refractive index n = c0 / c of `speed`, averaged over the soft tissue around each
+// soft-tissue texel by a Gaussian of sigma_mm (bone and air keep their own, and take no
+// part in their neighbours' average). A ray stands for a beam whose wavefront spans its
+// Fresnel zone (sqrt(lambda z), millimetres), so it bends with the medium averaged over
+// that zone: a sulcus or a partial-volume fringe thinner than the zone aberrates the
+// wavefront a little, where as a ray it would deflect by up to twice its grazing angle
+// (total reflection beyond 74-76 degrees at CSF/brain). An extended soft-tissue interface
+// keeps its refraction (n sin(theta) is conserved across a graded planar layer: the ray
+// leaves at Snell's angle), spread over a few sigma; at bone or air the index jumps as
+// before. Reflections come from the impedance, which is not smoothed.
+Volume soft_tissue_smoothed_index(const Volume& speed, double sigma_mm);
+
 template <int Dim>
 class AcousticMap {
   public:
@@ -83,8 +99,9 @@ class AcousticMap {
 
     AcousticMap() = default;
     // Packs property maps (nz must be 1 for Dim == 2; at least 2 texels per used axis)
-    // and computes the gradients.
-    static AcousticMap build(const PropertyMaps& maps);
+    // and computes the gradients. refraction_smoothing_mm > 0: the refractive index is
+    // soft_tissue_smoothed_index's at that scale; 0 keeps the maps' own.
+    static AcousticMap build(const PropertyMaps& maps, double refraction_smoothing_mm = 0.0);
     // The paper's medium: one scalar density d acting as refractive index and impedance
     // (n = Z = d); no attenuation or scattering.
     static AcousticMap build_paper(const Volume& density);

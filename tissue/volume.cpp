@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <vector>
+
+#include <tbb/parallel_for.h>
 
 #include "tissue/error.h"
 #include "tissue/memory.h"
@@ -129,6 +132,59 @@ float Volume::quantile(double q) const {
         cumulative += counts[b];
     }
     return hi;
+}
+
+Volume gaussian_smoothed(const Volume& volume, double sigma_mm) {
+    Volume out = volume;
+    const glm::ivec3 dims = volume.dims();
+    const std::size_t nx = std::size_t(dims.x),
+                      row_count = std::size_t(dims.y) * std::size_t(dims.z);
+    for (int axis = 0; axis < 3; ++axis) {
+        const int n = dims[axis];
+        const double sigma = sigma_mm / volume.geometry().spacing[axis];
+        if (n < 2 || !(sigma > 0.0)) continue;
+        const int radius = std::max(1, int(std::ceil(3.0 * sigma)));
+        std::vector<float> kernel(std::size_t(2 * radius + 1));
+        double total = 0.0;
+        for (int o = -radius; o <= radius; ++o) total += std::exp(-0.5 * o * o / (sigma * sigma));
+        for (int o = -radius; o <= radius; ++o)
+            kernel[std::size_t(o + radius)] =
+                float(std::exp(-0.5 * o * o / (sigma * sigma)) / total);
+        const Volume in = out;
+        // Each output row (along x) is one task's, summed tap by tap over whole rows: the
+        // inner loops run along x, contiguous and branch-free, and vectorise; the order of
+        // the sums is fixed, so the result does not depend on the threads.
+        tbb::parallel_for(std::size_t(0), row_count, [&](std::size_t row) {
+            float* target = out.voxels().data() + row * nx;
+            std::fill_n(target, nx, 0.0f);
+            if (axis == 0) {
+                // Along x: the row padded with its edge values.
+                std::vector<float> padded(nx + 2 * std::size_t(radius));
+                const float* source = in.voxels().data() + row * nx;
+                std::fill_n(padded.begin(), radius, source[0]);
+                std::copy_n(source, nx, padded.begin() + radius);
+                std::fill_n(padded.begin() + radius + std::ptrdiff_t(nx), radius, source[nx - 1]);
+                for (int o = 0; o <= 2 * radius; ++o) {
+                    const float w = kernel[std::size_t(o)];
+                    const float* shifted = padded.data() + o;
+                    for (std::size_t i = 0; i < nx; ++i) target[i] += w * shifted[i];
+                }
+                return;
+            }
+            // Along y or z: whole rows at clamped offsets along the axis.
+            const std::size_t j = row % std::size_t(dims.y), k = row / std::size_t(dims.y);
+            const int at = int(axis == 1 ? j : k);
+            for (int o = -radius; o <= radius; ++o) {
+                const std::size_t q = std::size_t(std::clamp(at + o, 0, n - 1));
+                const std::size_t source_row =
+                    axis == 1 ? k * std::size_t(dims.y) + q : q * std::size_t(dims.y) + j;
+                const float w = kernel[std::size_t(o + radius)];
+                const float* source = in.voxels().data() + source_row * nx;
+                for (std::size_t i = 0; i < nx; ++i) target[i] += w * source[i];
+            }
+        });
+    }
+    return out;
 }
 
 }  // namespace sonotrace::tissue

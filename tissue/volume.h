@@ -85,4 +85,8 @@ class Volume {
     Voxels voxels_;
 };
 
+// The volume convolved with a Gaussian of standard deviation sigma_mm along every axis of
+// more than one voxel (separable, truncated at 3 sigma, edges replicated).
+Volume gaussian_smoothed(const Volume& volume, double sigma_mm);
+
 }  // namespace sonotrace::tissue

@@ -48,7 +48,8 @@ struct SimulateOptions {
     double dynamic_range_db = 60.0;
     std::string tgc = "auto";
     double pixel_mm = 0.2;
-    double step_texels = 0.0;  // 0 = the quality's
+    double step_texels = 0.0;               // 0 = the quality's
+    double refraction_smoothing_mm = -1.0;  // -1 = the probe's Fresnel scale
     uint64_t seed = 1;
     std::string formats = "png8";
     bool write_rf = false, write_envelope = false, write_labels = false, write_energy = false;

@@ -96,7 +96,7 @@ std::optional<ScanFrame> simulate_request(const ScanRequest& request, imaging::Q
     tissue::PropertyMaps maps = scene.mapper(out.grid.geometry, &labels);
     imaging::prepare_plane(maps, out.grid, placement, 5.0, &labels);
     out.slice = slice_picture(labels, maps);
-    const auto map = tissue::AcousticMap<2>::build(maps);
+    const auto map = imaging::frame_map(maps, out.settings);
     try {
         out.frame = imaging::simulate_frame(map, out.grid, out.pose, out.settings,
                                             [&](std::size_t, std::size_t) {
