@@ -147,6 +147,8 @@ int main(int argc, char** argv) {
     const Variant variants[] = {
         {"every physics on", {}},
         {"--disable refraction", {&P::refraction}},
+        {"--disable specular", {&P::specular_reflection}},
+        {"--disable diffuse", {&P::diffuse_reflection}},
         {"--disable specular,diffuse (speckle only)",
          {&P::specular_reflection, &P::diffuse_reflection}},
         {"--disable refraction,specular,diffuse",
