@@ -40,17 +40,21 @@ test::RunResult run_with_small_disk(const ScratchDir& dir, const std::string& ar
 TEST(CliFaults, AFullDiskIsAnErrorAndLeavesNothing) {
     ScratchDir dir;
     const std::string phantom = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/cyst_and_stone.json";
-    const std::string commands[] = {
-        "simulate -q --quality interactive --phantom " + phantom + " --out " + (dir / "simulate"),
-        "trace -q --config fig2 --out " + (dir / "trace"),
-        "tissue -q --out " + (dir / "tissue"),
+    const std::pair<std::string, std::string> commands[] = {  // arguments, output directory
+        {"simulate -q --quality interactive --phantom " + phantom + " --out " + (dir / "simulate"),
+         dir / "simulate"},
+        {"trace -q --config fig2 --out " + (dir / "trace"), dir / "trace"},
+        {"tissue -q --out " + (dir / "tissue"), dir / "tissue"},
+        // The render and its reference: a PNG each, written only if both fit.
+        {"render -q --width 160 --height 128 --repetitions 2 --reference " +
+             (dir / "render/reference.png") + " --out " + (dir / "render/render.png"),
+         dir / "render"},
     };
-    for (const std::string& args : commands) {
+    for (const auto& [args, out] : commands) {
         const auto r = run_with_small_disk(dir, args);
         EXPECT_EQ(r.exit_code, 1) << args << ": " << r.err;
         EXPECT_NE(r.err.find("File too large"), std::string::npos) << args << ": " << r.err;
         EXPECT_EQ(r.err.find(".partial-"), std::string::npos) << "a hidden name: " << r.err;
-        const std::string out = args.substr(args.rfind(' ') + 1);
         EXPECT_TRUE(files_in(out).empty()) << args;
     }
     // Room for each frame (28 kB) but not for the sweep's video (80 kB): OpenCV reports no

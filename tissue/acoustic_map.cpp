@@ -49,17 +49,26 @@ float derivative(const Volume& f, const glm::ivec3& i, int axis) {
     return float(sum / weight);
 }
 
+// n = c0 / c.
+Volume refractive_index_of(const Volume& speed) {
+    Volume index(speed.geometry());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, speed.size(), 4096), [&](const auto& r) {
+        for (std::size_t v = r.begin(); v != r.end(); ++v)
+            index.voxels()[v] = float(kReferenceSpeed / speed.voxels()[v]);
+    });
+    return index;
+}
+
 }  // namespace
 
 Volume soft_tissue_smoothed_index(const Volume& speed, double sigma_mm) {
     // Normalised convolution over the soft-tissue texels: G * (w n) / G * w with w = 1 in
     // the band, so bone, air or a metal wire neither pull their neighbours' average nor
     // are averaged themselves.
-    Volume index(speed.geometry()), weighted(speed.geometry()), weight(speed.geometry());
+    Volume index = refractive_index_of(speed), weighted(speed.geometry()), weight(speed.geometry());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, speed.size(), 4096), [&](const auto& r) {
         for (std::size_t v = r.begin(); v != r.end(); ++v) {
             const float c = speed.voxels()[v];
-            index.voxels()[v] = float(kReferenceSpeed / c);
             const bool soft = c >= kSoftTissueSpeedMin && c <= kSoftTissueSpeedMax;
             weight.voxels()[v] = soft ? 1.0f : 0.0f;
             weighted.voxels()[v] = soft ? index.voxels()[v] : 0.0f;
@@ -77,17 +86,11 @@ Volume soft_tissue_smoothed_index(const Volume& speed, double sigma_mm) {
 template <int Dim>
 AcousticMap<Dim> AcousticMap<Dim>::build(const PropertyMaps& maps, double refraction_smoothing_mm) {
     const Volume& speed = maps[Property::speed_of_sound];
-    if (refraction_smoothing_mm > 0.0)
-        return pack(soft_tissue_smoothed_index(speed, refraction_smoothing_mm), maps.impedance(),
-                    &maps[Property::attenuation], &maps[Property::backscatter],
-                    &maps[Property::roughness]);
-    Volume refractive_index(maps.geometry());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, speed.size(), 4096), [&](const auto& r) {
-        for (std::size_t v = r.begin(); v != r.end(); ++v)
-            refractive_index.voxels()[v] = float(kReferenceSpeed / speed.voxels()[v]);
-    });
-    return pack(refractive_index, maps.impedance(), &maps[Property::attenuation],
-                &maps[Property::backscatter], &maps[Property::roughness]);
+    return pack(refraction_smoothing_mm > 0.0
+                    ? soft_tissue_smoothed_index(speed, refraction_smoothing_mm)
+                    : refractive_index_of(speed),
+                maps.impedance(), &maps[Property::attenuation], &maps[Property::backscatter],
+                &maps[Property::roughness]);
 }
 
 template <int Dim>
