@@ -40,7 +40,8 @@ test::RunResult run_with_small_disk(const ScratchDir& dir, const std::string& ar
 TEST(CliFaults, AFullDiskIsAnErrorAndLeavesNothing) {
     ScratchDir dir;
     const std::string phantom = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/cyst_and_stone.json";
-    const std::pair<std::string, std::string> commands[] = {  // arguments, output directory
+    const std::pair<std::string, std::string> commands[] = {
+        // arguments, output directory
         {"simulate -q --quality interactive --phantom " + phantom + " --out " + (dir / "simulate"),
          dir / "simulate"},
         {"trace -q --config fig2 --out " + (dir / "trace"), dir / "trace"},
