@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "imaging/simulation.h"
+#include "tissue/image_io.h"
 #include "tissue/tissue_table.h"
 #include "ui/cli/volume_slice.h"
 
@@ -36,6 +37,8 @@ struct Options {
     bool nominal = false;                // truth at c0 t / 2 instead of through the speed map
     std::optional<double> smoothing_mm;  // the refraction smoothing; unset: the probe's
     int seeds = 1;                       // frames of seeds 1..seeds, their intensities summed
+    int variant = -1;                    // only this variant (index into the list in main), -1: all
+    std::string picture;  // a PNG of the first variant's envelope (dB), interior samples marked
 };
 
 double measure(const ui::VolumeSource& head, const char* what,
@@ -50,6 +53,8 @@ double measure(const ui::VolumeSource& head, const char* what,
     constexpr double kBandMm = 2.0;
     std::vector<double> in(kBands), out(kBands);
     std::vector<int> n_in(kBands), n_out(kBands);
+    std::vector<std::size_t> interior;  // line * samples + sample, of the last seed
+    imaging::LineData picture;
     for (int seed = 1; seed <= o.seeds; ++seed) {
         s.seed = uint64_t(seed);
         const imaging::QualityLevel level = imaging::quality_level(s.quality);
@@ -61,6 +66,8 @@ double measure(const ui::VolumeSource& head, const char* what,
         const auto map = imaging::frame_map(maps, s);
         const imaging::Frame f = imaging::simulate_frame(map, grid, scene.pose, s);
         const imaging::LineData& env = f.envelope;
+        picture = env;
+        interior.clear();
         const probe::ScanGeometry g(s.transducer);
         const int csf = tissue::tissue_label_of("csf"), brain = tissue::tissue_label_of("brain");
         const glm::dvec3 h = labels.geometry().spacing;
@@ -97,10 +104,29 @@ double measure(const ui::VolumeSource& head, const char* what,
                         clear = di * di + dj * dj > r * r || label_at(ti + di, tj + dj) == lab;
                 if (!clear) continue;
                 const double v = double(env.at(l, i)) * env.at(l, i);
+                if (lab == csf) interior.push_back(std::size_t(l) * env.samples + i);
                 if (lab == csf) in[std::size_t(b)] += v, ++n_in[std::size_t(b)];
                 if (lab == brain) out[std::size_t(b)] += v, ++n_out[std::size_t(b)];
             }
         }
+    }
+    if (!o.picture.empty()) {  // lines across, depth down; 60 dB; interior samples odd-marked
+        std::vector<float> sorted = picture.values;  // 0 dB at the 99.5th percentile
+        std::nth_element(sorted.begin(),
+                         sorted.begin() + std::ptrdiff_t(sorted.size() * 995 / 1000), sorted.end());
+        const float peak = sorted[sorted.size() * 995 / 1000];
+        std::vector<float> pixels(picture.values.size());
+        for (int l = 0; l < picture.lines; ++l)
+            for (int i = 0; i < picture.samples; ++i)
+                pixels[std::size_t(i) * picture.lines + l] = std::clamp(
+                    255.0f * (1.0f + 20.0f * std::log10(picture.at(l, i) / peak + 1e-9f) / 60.0f),
+                    0.0f, 255.0f);
+        for (std::size_t at : interior) {
+            const std::size_t l = at / picture.samples, i = at % picture.samples;
+            if (i % 4 == 0) pixels[i * picture.lines + l] = 255.0f;
+        }
+        tissue::write_gray_image(o.picture, picture.lines, picture.samples, pixels, 8);
+        const_cast<Options&>(o).picture.clear();
     }
     double sum_in = 0.0, expected = 0.0;
     std::printf("%s\n", what);
@@ -128,6 +154,10 @@ int main(int argc, char** argv) {
             o.smoothing_mm = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--seeds") && a + 1 < argc) {
             o.seeds = std::max(1, std::atoi(argv[++a]));
+        } else if (!std::strcmp(argv[a], "--variant") && a + 1 < argc) {
+            o.variant = std::atoi(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--picture") && a + 1 < argc) {
+            o.picture = argv[++a];
         } else if (!std::strcmp(argv[a], "--nominal")) {
             o.nominal = true;
         } else {
@@ -156,6 +186,7 @@ int main(int argc, char** argv) {
     };
     std::vector<std::pair<const char*, double>> totals;
     for (const Variant& v : variants) {
+        if (o.variant >= 0 && &v != &variants[o.variant]) continue;
         P p;
         for (auto member : v.off) p.*member = false;
         totals.emplace_back(v.name, measure(head, v.name, p, o));

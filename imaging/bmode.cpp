@@ -115,16 +115,18 @@ using Moments = std::array<double, 4>;
 }
 
 // One sub-line of the speckle: the point a fraction f of the way from line a's mean
-// position to line b's (lattice units), lit by the blend of their intensities;
-// out[i] = sqrt(lit) * the field there. The hot loop of the speckle: built for AVX2 and
-// for the baseline, picked at load time (IEEE operations in the same order, no FMA in
-// either: the same numbers either way).
+// position to line b's (lattice units), lit by the blend of their illuminations times
+// the backscatter^2 there (`scatter`); out[i] = sqrt(lit) * the field there. The hot loop of the
+// speckle: built for AVX2 and for the baseline, picked at load time (IEEE operations in the same
+// order, no FMA in either: the same numbers either way).
 struct SubLineEnds {
     const float *ax, *ay, *az, *bx, *by, *bz;  // lattice positions on lines a and b
-    const float *lit_a, *lit_b;                // intensities of lines a and b
+    const float *lit_a, *lit_b;                // illuminations of lines a and b
 };
 [[gnu::target_clones("avx2", "default")]] void field_values(uint32_t seed, const SubLineEnds& e,
-                                                            float f, int n, float* __restrict out) {
+                                                            float f,
+                                                            const float* __restrict scatter, int n,
+                                                            float* __restrict out) {
     // Restrict-qualified locals: with eight inputs GCC gives up checking overlaps at run
     // time and leaves the loop scalar.
     const float* __restrict ax = e.ax;
@@ -139,7 +141,7 @@ struct SubLineEnds {
         const float x = ax[i] + f * (bx[i] - ax[i]);
         const float y = ay[i] + f * (by[i] - ay[i]);
         const float z = az[i] + f * (bz[i] - az[i]);
-        const float amplitude = std::sqrt((1.0f - f) * lit_a[i] + f * lit_b[i]);
+        const float amplitude = std::sqrt(((1.0f - f) * lit_a[i] + f * lit_b[i]) * scatter[i]);
         out[i] = amplitude * ScattererField::at_lattice_float(seed, x, y, z);
     }
 }
@@ -155,8 +157,8 @@ struct AtDepth {
 // quadrature parts).
 void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
                    const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
-                   const ImagingSettings& settings, const LineData& rf, float* speckle_i,
-                   float* speckle_q) {
+                   const ImagingSettings& settings, const LineData& rf,
+                   const tissue::AcousticMap<2>* map, float* speckle_i, float* speckle_q) {
     const int L = rf.lines, N = rf.samples;
     const double fs = rf.fs_hz;
     const probe::PulseEcho pulse(t);
@@ -172,13 +174,19 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     std::vector<double> depth(static_cast<std::size_t>(N));  // mm per sample
     for (int i = 0; i < N; ++i) depth[std::size_t(i)] = rf.depth_mm(i);
 
-    // Per line and sample: intensity w and mean position, from moments S0 = w, S1 = w d
-    // smoothed along the line, with d the offset from the nominal point (small numbers:
-    // no cancellation). The fourth moment slot is unused (kept: one vector register).
+    // Per line and sample: the light v that lights the sub-lines and its mean position,
+    // from moments S0 = v, S1 = v d smoothed along the line, with d the offset from the
+    // nominal point (small numbers: no cancellation); the fourth slot is unused (kept: one
+    // vector register). Lit point by point (the profile's illumination and the map): v is
+    // the illumination, which the map's backscatter^2 at each point turns into scattered
+    // intensity; otherwise v is the scattered intensity itself, d the scattering's mean.
     // Uninitialised: each line's task writes its whole row (zero-filling ~6 MB first
     // was a serial millisecond per frame).
+    const bool lit_by_map = map != nullptr &&
+                            profile.illumination.size() == profile.intensity.size() &&
+                            profile.illuminated_position.size() == profile.intensity.size();
     const std::size_t size = std::size_t(L) * std::size_t(N);
-    const auto w = std::make_unique_for_overwrite<double[]>(size);
+    const auto light = std::make_unique_for_overwrite<double[]>(size);
     const auto mean = std::make_unique_for_overwrite<glm::dvec2[]>(size);
     // The mean positions in lattice units, where w > 0 (each is an end of two gaps below).
     const auto lattice = std::make_unique_for_overwrite<glm::vec3[]>(size);
@@ -186,10 +194,10 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     const int r = box3_radius(smooth_sigma);
     tbb::parallel_for(0, L, [&](int l) {
         const std::size_t row = std::size_t(l) * std::size_t(N);
-        double* const w_row = w.get() + row;
+        double* const light_row = light.get() + row;
         glm::dvec2* const mean_row = mean.get() + row;
         auto no_echo = [&] {
-            std::fill_n(w_row, N, 0.0);
+            std::fill_n(light_row, N, 0.0);
             std::fill_n(mean_row, N, glm::dvec2(0.0));
         };
         if (l >= profile_lines) return no_echo();
@@ -202,33 +210,35 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
         Moments* const scratch = buffer.get() + padded;
         for (Moments* padding : {buffer.get(), m + N, scratch, scratch + N + r})
             std::fill_n(padding, r, Moments{});
-        double peak = 0.0;
+        double peak = 0.0;  // of v
         for (int i = 0; i < N; ++i) {
             const std::size_t at = row + std::size_t(i);
-            const double wi = profile.intensity[at];
-            if (!(wi > 0.0)) {
+            const double vi =
+                lit_by_map ? double(profile.illumination[at]) : double(profile.intensity[at]);
+            if (!(vi > 0.0)) {
                 m[i] = Moments{};
                 continue;
             }
-            const glm::dvec2 d = glm::dvec2(profile.position[at]) -
-                                 (line.origin + line.direction * depth[std::size_t(i)]);
-            m[i] = {wi, wi * d.x, wi * d.y, 0.0};
-            peak = std::max(peak, wi);
+            const glm::dvec2 d =
+                glm::dvec2(lit_by_map ? profile.illuminated_position[at] : profile.position[at]) -
+                (line.origin + line.direction * depth[std::size_t(i)]);
+            m[i] = {vi, vi * d.x, vi * d.y, 0.0};
+            peak = std::max(peak, vi);
         }
         if (!(peak > 0.0)) return no_echo();  // a line without echo
         const Moments* smoothed = smooth_box3(m - r, scratch, N, r);
         for (int i = 0; i < N; ++i) {
             const Moments& mi = smoothed[i];
-            const double s0 = mi[0];
+            const double v = mi[0];
             // Running sums leave rounding residues where there was nothing.
-            if (!(s0 > 1e-9 * peak)) {
-                w_row[i] = 0.0;
+            if (!(v > 1e-9 * peak)) {
+                light_row[i] = 0.0;
                 mean_row[i] = glm::dvec2(0.0);
                 continue;
             }
-            const double inverse_s0 = 1.0 / s0;
-            const glm::dvec2 d(mi[1] * inverse_s0, mi[2] * inverse_s0);
-            w_row[i] = s0;
+            const double inverse_v = 1.0 / v;
+            const glm::dvec2 d(mi[1] * inverse_v, mi[2] * inverse_v);
+            light_row[i] = v;
             mean_row[i] = (line.origin + line.direction * depth[std::size_t(i)]) + d;
             lattice[row + std::size_t(i)] = glm::vec3(to_lattice(mean_row[i]));
         }
@@ -237,8 +247,11 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     // The scatterer field on K sub-lines per gap between lines, interpolated between the
     // lines' mean positions (the nominal line spacing where a line has no echo), so that
     // neighbouring lines see the same scatterers where their beams overlap; each scaled by
-    // the square root of the intensity that lights it. Sub-lines at most the narrowest
-    // beam's sigma (the receive PSF at the F-number) apart: every line sums >= 7 of them.
+    // the square root of the intensity that lights it: the lines' illumination times the
+    // map's backscatter^2 at the sub-line's point (so tissue lights only where it is, not
+    // across the whole beam that reached it), or without a map the lines' intensity. Sub-lines at
+    // most the narrowest beam's sigma (the receive PSF at the F-number) apart: every line sums >= 7
+    // of them.
     double widest_gap = 0.0;
     for (double d : {0.0, 0.5 * t.depth_mm, t.depth_mm})
         widest_gap = std::max(widest_gap, geometry.line_spacing_mm(d));
@@ -258,27 +271,30 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
         const std::size_t n = std::size_t(N);
         std::vector<float> ends[6];  // x, y, z at line l, then at line l + 1
         for (auto& e : ends) e.assign(n, 0.0f);
-        std::vector<float> lit_a(n, 0.0f), lit_b(n, 0.0f);
+        std::vector<float> lit_a(n, 0.0f), lit_b(n, 0.0f), scatter(n, lit_by_map ? 0.0f : 1.0f);
+        std::vector<glm::dvec2> map_a(lit_by_map ? n : 0), map_b(lit_by_map ? n : 0);
         const int other = L == 1 ? l : l + 1;
         for (int i = 0; i < N; ++i) {
             const std::size_t at = std::size_t(l) * n + std::size_t(i);
             const std::size_t next = std::size_t(other) * n + std::size_t(i);
-            if (!(w[at] > 0.0) && !(w[next] > 0.0)) continue;
+            const bool placed_a = light[at] > 0.0, placed_b = light[next] > 0.0;
+            if (!placed_a && !placed_b) continue;
+            glm::dvec2 a = mean[at], b = mean[next];
             glm::vec3 pa, pb;
-            if (w[at] > 0.0 && w[next] > 0.0) {
+            if (placed_a && placed_b) {
                 pa = lattice[at], pb = lattice[next];
             } else {  // a line without echo: the nominal gap from the other end
-                glm::dvec2 a = mean[at], b = mean[next];
                 const glm::dvec2 nominal = geometry.point(other, depth[std::size_t(i)]) -
                                            geometry.point(l, depth[std::size_t(i)]);
-                if (!(w[at] > 0.0)) a = b - nominal;
-                if (!(w[next] > 0.0)) b = a + nominal;
+                if (!placed_a) a = b - nominal;
+                if (!placed_b) b = a + nominal;
                 pa = glm::vec3(to_lattice(a)), pb = glm::vec3(to_lattice(b));
             }
             const std::size_t u = std::size_t(i);
             ends[0][u] = pa.x, ends[1][u] = pa.y, ends[2][u] = pa.z;
             ends[3][u] = pb.x, ends[4][u] = pb.y, ends[5][u] = pb.z;
-            lit_a[u] = float(w[at]), lit_b[u] = float(w[next]);
+            lit_a[u] = float(light[at]), lit_b[u] = float(light[next]);
+            if (lit_by_map) map_a[u] = a, map_b[u] = b;
         }
         const SubLineEnds sub_line_ends{ends[0].data(), ends[1].data(), ends[2].data(),
                                         ends[3].data(), ends[4].data(), ends[5].data(),
@@ -288,7 +304,16 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
         for (int k = 0; k <= last_k; ++k) {
             const int s = std::min(l * K + k, sub_lines - 1);
             const float f = float(k) / float(K);
-            field_values(field.seed(), sub_line_ends, f, N, sub.get() + std::size_t(s) * n);
+            if (lit_by_map) {  // the backscatter^2 where this sub-line crosses each depth
+                for (std::size_t u = 0; u < n; ++u) {
+                    if (!(lit_a[u] > 0.0f) && !(lit_b[u] > 0.0f)) continue;
+                    const glm::dvec2 p = map_a[u] + double(f) * (map_b[u] - map_a[u]);
+                    const float b = map->sample_backscatter(glm::vec2(p));
+                    scatter[u] = b * b;
+                }
+            }
+            field_values(field.seed(), sub_line_ends, f, scatter.data(), N,
+                         sub.get() + std::size_t(s) * n);
         }
     });
 
@@ -357,7 +382,7 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
             }
         }
         for (int i = 0; i < N; ++i) {
-            const bool lit = w[row + std::size_t(i)] > 0.0;  // nothing where the line has no echo
+            const bool lit = light[row + std::size_t(i)] > 0.0;  // nothing where nothing is lit
             speckle_i[row + std::size_t(i)] =
                 lit ? float(double(sum_i[std::size_t(i)]) * scale[std::size_t(i)]) : 0.0f;
             speckle_q[row + std::size_t(i)] =
@@ -444,7 +469,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                        const std::vector<simulator::EchoEvent<2>>& events,
                        const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
                        const ImagingSettings& settings, const std::vector<PointEcho>& points,
-                       std::shared_ptr<const simulator::ReceiveWeights> receive) {
+                       std::shared_ptr<const simulator::ReceiveWeights> receive,
+                       const tissue::AcousticMap<2>* map) {
     LineData rf = rf_layout(t, settings);
     const int L = rf.lines, N = rf.samples;
     const double fs = rf.fs_hz;
@@ -487,7 +513,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     const auto speckle_i = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
     const auto speckle_q = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
     if (with_speckle)
-        speckle_lines(t, *psf, profile, to_world, settings, rf, speckle_i.get(), speckle_q.get());
+        speckle_lines(t, *psf, profile, to_world, settings, rf, map, speckle_i.get(),
+                      speckle_q.get());
 
     // -- RF per line: speckle (*) pulse, plus a pulse at each reflection bin's echo time
     // and at each point target's. Convolution taps: kernel[m + half] = p(-m / fs).

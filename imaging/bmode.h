@@ -21,7 +21,9 @@
 // intensities within an RF sample (particles of one beam meeting one interface are one
 // wavefront). Speckle: sub-resolution scatterers are a white random field fixed in world
 // (tissue) coordinates, sampled on sub-lines between the lines' mean scattering positions
-// (so mirrored or refracted beams sample the tissue where they really went); each line
+// (so mirrored or refracted beams sample the tissue where they really went), each lit by
+// the lines' illumination times the map's backscatter^2 at the sub-line's own point (so
+// an anechoic region between lines whose beams graze tissue stays dark); each line
 // sums them weighted by its complex H, so the mean level follows the lateral power
 // integral |H|^2 dx (brightest at the focus) and the grain grows away from it.
 #include <cmath>
@@ -37,6 +39,7 @@
 #include "probe/transducer.h"
 #include "simulator/records.h"
 #include "simulator/trace_settings.h"
+#include "tissue/acoustic_map.h"
 #include "tissue/fast_math.h"
 #include "tissue/hash.h"
 
@@ -118,12 +121,16 @@ struct PointEcho {
 // The RF lines of a frame. `events` and `profile` come from one trace of `sources`
 // (profile bins must equal the layout's samples at bin width 1/fs); `points` are imaged
 // through each line's two-way field without being traced. `receive`: the receive
-// weights the trace's profile was made with (imaging/psf.h; made here if null).
+// weights the trace's profile was made with (imaging/psf.h; made here if null). `map`:
+// the traced map, whose backscatter lights the speckle point by point (with the
+// profile's illumination); without it, or without illumination, each sub-line is lit by
+// the lines' scattered intensity.
 LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
                        const std::vector<simulator::EchoEvent<2>>& events,
                        const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
                        const ImagingSettings& settings, const std::vector<PointEcho>& points = {},
-                       std::shared_ptr<const simulator::ReceiveWeights> receive = nullptr);
+                       std::shared_ptr<const simulator::ReceiveWeights> receive = nullptr,
+                       const tissue::AcousticMap<2>* map = nullptr);
 
 // Envelope of every line: magnitude of the analytic signal (FFT Hilbert transform).
 LineData envelope(const LineData& rf);

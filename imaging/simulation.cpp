@@ -300,7 +300,7 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     imaging.sub_line_sigmas = quality_level(settings.quality).sub_line_sigmas;
     stage("rf", [&] {
         frame.rf = synthesize_rf(t, sources, echoes, traced.echo_profile, map_to_world(pose, grid),
-                                 imaging, points, trace.receive_weights);
+                                 imaging, points, trace.receive_weights, &map);
     });
     stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
     stage("compression", [&] { frame.display = compress(frame.envelope, imaging); });

@@ -92,7 +92,12 @@ template <int Dim>
 struct EchoProfile {
     int lines = 0, bins = 0;
     double bin_s = 0.0;
-    std::vector<float> intensity;                // [line * bins + bin], energy units
+    std::vector<float> intensity;  // [line * bins + bin], energy units
+    // The same sum without the backscatter^2, over every step: the energy that lights the
+    // bin's tissue, whatever scatters it (the image lights each point of the beam by it
+    // times the backscatter^2 there). Empty if the trace did not make it.
+    std::vector<float> illumination;
+    std::vector<glm::vec<Dim, float>> illuminated_position;  // illumination-weighted mean
     std::vector<glm::vec<Dim, float>> position;  // intensity-weighted mean position (mm, map)
     // Intensity-weighted covariance of the positions (mm^2): the beam's spread.
     std::vector<glm::mat<Dim, Dim, float>> covariance;

@@ -11,7 +11,7 @@
 //
 //   flush_deposits(Mask changed, const StepState& p)   the particle left its deposit texel
 //   beyond_series(Mask m, F optical, F& transmitted)   exp(-optical) beyond the series
-//   scatter_profile(Mask scatters, const StepState&, F backscatter)  track-length echo
+//   scatter_profile(const StepState&, F backscatter)   track-length echo and illumination
 //   scattering_event(Mask m, StepState&, F backscatter)   the optical depth reached its draw
 //   interface_event(Mask m, StepState&)                a steep gradient to search
 //   total_reflection_while_crossing(Mask m)            a bounce at a sharp interface
@@ -148,7 +148,7 @@ SONOTRACE_LANE_INLINE void take_step(StepState<Lane, Dim>& p, const StepFields<L
 
     // -- sub-resolution scattering: an event when the optical depth reaches the draw
     if (c.scattering) {
-        events.scatter_profile(f.backscatter > 0.0f, p, f.backscatter);
+        events.scatter_profile(p, f.backscatter);
         p.optical_depth = p.optical_depth + scatter_increment<Lane>(f.backscatter, c);
         events.scattering_event((f.backscatter > 0.0f) & (p.optical_depth >= p.scatter_target), p,
                                 f.backscatter);

@@ -243,6 +243,8 @@ template <int Dim>
 struct ProfileBin {
     static constexpr int kPairs = Dim * (Dim + 1) / 2;  // the upper triangle of x x^T
     double weight;
+    double illumination;                // the same without the backscatter^2 (EchoProfile)
+    std::array<double, Dim> lit_first;  // sum of illumination x
     std::array<double, Dim> first;      // sum of w x
     std::array<double, kPairs> second;  // sum of w x_a x_b, a <= b
 };
@@ -445,7 +447,6 @@ class LineTracer {
             for (uint64_t m = vector_stepped; m != 0; m &= m - 1) {
                 const int k = std::countr_zero(m);
                 const auto i = std::size_t(k);
-                if (!(f.backscatter[i] > 0.0f)) continue;
                 V start;
                 for (std::size_t a = 0; a < Dim; ++a) start[int(a)] = results_.start_position[a][i];
                 add_to_profile(b, k, start, results_.profile_energy[i], f.backscatter[i],
@@ -513,7 +514,9 @@ class LineTracer {
         }
     }
 
-    // Track-length estimate of the scattered echo of this step (EchoProfileSettings).
+    // Track-length estimate of the scattered echo of this step and of its illumination
+    // (EchoProfileSettings); every step adds to the illumination, those that scatter to
+    // the echo.
     void add_to_profile(const Batch<Dim>& b, int k, const V& x, float E, float backscatter,
                         double time) {
         const double echo_time = 2.0 * time;
@@ -526,8 +529,12 @@ class LineTracer {
         const float receive = settings_.receive_weights
                                   ? settings_.receive_weights->at(line_, b.particle[k], time)
                                   : 1.0f;
-        const double intensity = double(E * scattered * two_way * receive);
         ProfileBin<Dim>& p = out_->profile[std::size_t(bin)];
+        const double lit = double(E * profile_scale_ * two_way * receive);
+        p.illumination += lit;
+        for (int a = 0; a < Dim; ++a) p.lit_first[std::size_t(a)] += lit * double(x[a]);
+        if (!(backscatter > 0.0f)) return;
+        const double intensity = double(E * scattered * two_way * receive);
         p.weight += intensity;
         int pair = 0;
         for (int a = 0; a < Dim; ++a) {
@@ -944,9 +951,8 @@ class LineTracer {
         SONOTRACE_LANE_INLINE void beyond_series(bool beyond, float optical, float& transmitted) {
             if (beyond) transmitted = std::exp(-optical);
         }
-        SONOTRACE_LANE_INLINE void scatter_profile(bool scatters, const ScalarState& p,
-                                                   float backscatter) {
-            if (scatters && tracer.profile_enabled_)
+        SONOTRACE_LANE_INLINE void scatter_profile(const ScalarState& p, float backscatter) {
+            if (tracer.profile_enabled_)
                 tracer.add_to_profile(b, k, to_vec(p.x), p.E, backscatter, p.time);
         }
         SONOTRACE_LANE_INLINE void scattering_event(bool happens, ScalarState& p,
@@ -1141,12 +1147,10 @@ class LineTracer {
                 enter_deposit_texel(p, int32_t(texel_index(to_vec(p.x))), events);
             absorb(p, absorbed);
             add_fluence(p, s);
-            // -- the scattered echo's track-length estimate
-            if (scatter_depth > 0.0f) {
-                if (profile_enabled_)
-                    add_to_profile(b, k, to_vec(p.x), p.E, u->backscatter, p.time);
-                p.optical_depth = p.optical_depth + scatter_depth;
-            }
+            // -- the scattered echo's track-length estimate and the illumination
+            if (profile_enabled_ && c.scattering)
+                add_to_profile(b, k, to_vec(p.x), p.E, u->backscatter, p.time);
+            if (scatter_depth > 0.0f) p.optical_depth = p.optical_depth + scatter_depth;
             move(p, s, time);
             if (record_path)
                 out_->paths[std::size_t(b.path[k])].vertices.push_back({to_vec(p.x), p.E});
@@ -1371,6 +1375,8 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         p.bins = settings.echo_profile->bins;
         p.bin_s = settings.echo_profile->bin_s;
         p.intensity.assign(std::size_t(p.lines) * std::size_t(p.bins), 0.0f);
+        p.illumination.assign(p.intensity.size(), 0.0f);
+        p.illuminated_position.assign(p.intensity.size(), Vec<Dim>(0.0f));
         p.position.assign(p.intensity.size(), Vec<Dim>(0.0f));
         p.covariance.assign(p.intensity.size(), glm::mat<Dim, Dim, float>(0.0f));
         tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
@@ -1380,6 +1386,11 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
                 const ProfileBin<Dim>& bin = outputs[l].profile[std::size_t(i)];
                 const std::size_t at = row + std::size_t(i);
                 p.intensity[at] = float(bin.weight);
+                p.illumination[at] = float(bin.illumination);
+                if (bin.illumination > 0.0)
+                    for (int a = 0; a < Dim; ++a)
+                        p.illuminated_position[at][a] =
+                            float(bin.lit_first[std::size_t(a)] / bin.illumination);
                 if (!(bin.weight > 0.0)) continue;
                 const double inverse_w = 1.0 / bin.weight;
                 glm::vec<Dim, double> mean;

@@ -347,7 +347,7 @@ struct VectorEvents {
         store(&out.flush_absorbed[at], p.absorbed);
     }
     [[gnu::always_inline]] void beyond_series(const vi& m, const vf&, vf&) { to_step |= m; }
-    [[gnu::always_inline]] void scatter_profile(const vi&, const State& p, const vf&) {
+    [[gnu::always_inline]] void scatter_profile(const State& p, const vf&) {
         if (!profile) return;
         for (std::size_t a = 0; a < Dim; ++a) store(&out.start_position[a][at], p.x[a]);
         store(&out.profile_energy[at], p.E);

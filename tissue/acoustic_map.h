@@ -128,6 +128,10 @@ class AcousticMap {
     float sample_refractive_index(const Vec& p_mm) const;
     // Roughness (0..1), same interpolation.
     float sample_roughness(const Vec& p_mm) const;
+    // The backscatter alone, the value sample() gives.
+    float sample_backscatter(const Vec& p_mm) const {
+        return sample_record_float(offsetof(AcousticTexel<Dim>, backscatter), p_mm);
+    }
 
     // Uniform blocks: kBlock^Dim texels that, with a one-texel margin on every side,
     // hold one record with zero gradients. Anywhere in such a block sample() returns
