@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "imaging/simulation.h"
+#include "probe/aperture.h"
 #include "tissue/image_io.h"
 #include "tissue/tissue_table.h"
 #include "ui/cli/volume_slice.h"
@@ -38,7 +39,11 @@ struct Options {
     std::optional<double> smoothing_mm;  // the refraction smoothing; unset: the probe's
     int seeds = 1;                       // frames of seeds 1..seeds, their intensities summed
     int variant = -1;                    // only this variant (index into the list in main), -1: all
-    std::string picture;  // a PNG of the first variant's envelope (dB), interior samples marked
+    std::string picture;
+    int brightest = 0;  // print the brightest interior samples
+    double clear_mm = 1.0;  // the interior's and the parenchyma's distance from other labels
+    int probe_line = -1;  // print labels and map fields along this line
+    double probe_from = 0.0, probe_to = 0.0;  // a PNG of the first variant's envelope (dB), interior samples marked
 };
 
 double measure(const ui::VolumeSource& head, const char* what,
@@ -54,6 +59,12 @@ double measure(const ui::VolumeSource& head, const char* what,
     std::vector<double> in(kBands), out(kBands);
     std::vector<int> n_in(kBands), n_out(kBands);
     std::vector<std::size_t> interior;  // line * samples + sample, of the last seed
+    struct Sample {
+        double intensity;
+        int seed, line;
+        double depth_mm;
+    };
+    std::vector<Sample> brightest;  // interior samples, for --brightest
     imaging::LineData picture;
     for (int seed = 1; seed <= o.seeds; ++seed) {
         s.seed = uint64_t(seed);
@@ -75,7 +86,29 @@ double measure(const ui::VolumeSource& head, const char* what,
         auto label_at = [&](int i, int j) {
             return i < 0 || j < 0 || i >= dims.x || j >= dims.y ? -1 : int(labels.at(i, j, 0));
         };
-        const int r = int(std::ceil(1.0 / h.x));
+        const int r = int(std::ceil(o.clear_mm / h.x));
+        if (o.probe_line >= 0 && seed == 1) {  // labels and the map along one line
+            for (double d = o.probe_from; d <= o.probe_to; d += 0.25) {
+                const glm::dvec2 m = g.point(o.probe_line, d) + grid.to_map;
+                const auto tx = map.sample(glm::vec2(m));
+                std::printf("  line %d at %.2f mm (map %.2f %.2f): label %d  Z %.4f  n %.4f  "
+                            "b %.3f\n",
+                            o.probe_line, d, m.x, m.y,
+                            label_at(int(std::floor(m.x / labels.geometry().spacing.x + 0.5)),
+                                     int(std::floor(m.y / labels.geometry().spacing.y + 0.5))),
+                            tx.impedance, tx.refractive_index, tx.backscatter);
+            }
+        }
+        if (o.probe_line >= 0 && seed == 1) {  // the line's two-way PSF across, mid-range
+            const probe::LineFields fields(s.transducer,
+                                           probe::line_array(s.transducer, o.probe_line));
+            const double z = 0.5 * (o.probe_from + o.probe_to);
+            const double h0 = std::norm(fields.two_way({0.0, z}));
+            for (double x = 0.25; x <= 2.01; x += 0.25)
+                std::printf("  |H|^2 at %.2f mm across, %.1f mm deep: %6.1f / %6.1f dB\n", x, z,
+                            10.0 * std::log10(std::norm(fields.two_way({x, z})) / h0),
+                            10.0 * std::log10(std::norm(fields.two_way({-x, z})) / h0));
+        }
         std::vector<double> depth(std::size_t(env.samples));
         for (int l = 0; l < env.lines; ++l) {
             double travelled = 0.0, optical = 0.0;
@@ -106,6 +139,7 @@ double measure(const ui::VolumeSource& head, const char* what,
                 const double v = double(env.at(l, i)) * env.at(l, i);
                 if (lab == csf) interior.push_back(std::size_t(l) * env.samples + i);
                 if (lab == csf) in[std::size_t(b)] += v, ++n_in[std::size_t(b)];
+                if (lab == csf && o.brightest > 0) brightest.push_back({v, seed, l, d});
                 if (lab == brain) out[std::size_t(b)] += v, ++n_out[std::size_t(b)];
             }
         }
@@ -130,6 +164,15 @@ double measure(const ui::VolumeSource& head, const char* what,
     }
     double sum_in = 0.0, expected = 0.0;
     std::printf("%s\n", what);
+    std::sort(brightest.begin(), brightest.end(),
+              [](const Sample& a, const Sample& b) { return a.intensity > b.intensity; });
+    for (int k = 0; k < std::min<int>(o.brightest, int(brightest.size())); ++k) {
+        const Sample& x = brightest[std::size_t(k)];
+        const std::size_t u = std::size_t(x.depth_mm / kBandMm);
+        std::printf("  bright: seed %d line %3d at %5.1f mm: %5.1f dB over the band's parenchyma\n",
+                    x.seed, x.line, x.depth_mm,
+                    10.0 * std::log10(x.intensity / (out[u] / n_out[u])));
+    }
     for (int b = 0; b < kBands; ++b) {
         const std::size_t u = std::size_t(b);
         if (n_in[u] < 20 || n_out[u] < 20) continue;
@@ -156,6 +199,14 @@ int main(int argc, char** argv) {
             o.seeds = std::max(1, std::atoi(argv[++a]));
         } else if (!std::strcmp(argv[a], "--variant") && a + 1 < argc) {
             o.variant = std::atoi(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--line") && a + 3 < argc) {
+            o.probe_line = std::atoi(argv[++a]);
+            o.probe_from = std::atof(argv[++a]);
+            o.probe_to = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--clear") && a + 1 < argc) {
+            o.clear_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--brightest") && a + 1 < argc) {
+            o.brightest = std::atoi(argv[++a]);
         } else if (!std::strcmp(argv[a], "--picture") && a + 1 < argc) {
             o.picture = argv[++a];
         } else if (!std::strcmp(argv[a], "--nominal")) {
