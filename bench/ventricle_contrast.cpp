@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "imaging/psf.h"
 #include "imaging/simulation.h"
 #include "probe/aperture.h"
 #include "tissue/image_io.h"
@@ -40,17 +41,27 @@ struct Options {
     int seeds = 1;                       // frames of seeds 1..seeds, their intensities summed
     int variant = -1;                    // only this variant (index into the list in main), -1: all
     std::string picture;
-    int brightest = 0;  // print the brightest interior samples
+    int brightest = 0;               // print the brightest interior samples
+    std::vector<glm::dvec2> points;  // print the map's fields there (map frame, mm)
+    double to_mm = 1e9;              // the deepest sample counted
+    bool temporal = false;
+    bool ideal = false;     // also the interior as linear acoustics alone would image it  // the
+                            // temporal view (phased probe through the skull)
+    double depth_mm = 0.0;  // imaging depth; 0: the preset's
     double clear_mm = 1.0;  // the interior's and the parenchyma's distance from other labels
-    int probe_line = -1;  // print labels and map fields along this line
-    double probe_from = 0.0, probe_to = 0.0;  // a PNG of the first variant's envelope (dB), interior samples marked
+    int probe_line = -1;    // print labels and map fields along this line
+    double probe_from = 0.0,
+           probe_to = 0.0;  // a PNG of the first variant's envelope (dB), interior samples marked
 };
 
 double measure(const ui::VolumeSource& head, const char* what,
                const imaging::PhysicsSwitches& physics, const Options& o) {
-    const imaging::ScenePlacement scene = imaging::craniotomy_scene(head.loaded.volume, *head.tf);
+    const imaging::ScenePlacement scene =
+        o.temporal ? imaging::temporal_scene(head.loaded.volume, *head.tf)
+                   : imaging::craniotomy_scene(head.loaded.volume, *head.tf);
     imaging::SimulationSettings s;
-    s.transducer = probe::find_transducer("convex", "ventricle_contrast");
+    s.transducer = probe::find_transducer(o.temporal ? "phased" : "convex", "ventricle_contrast");
+    if (o.depth_mm > 0.0) s.transducer.depth_mm = o.depth_mm;
     s.trace.interface_reach_mm = 3.0;  // as `simulate` on the default volume
     imaging::apply(physics, s);
     s.refraction_smoothing_mm = o.smoothing_mm;
@@ -58,6 +69,7 @@ double measure(const ui::VolumeSource& head, const char* what,
     constexpr double kBandMm = 2.0;
     std::vector<double> in(kBands), out(kBands);
     std::vector<int> n_in(kBands), n_out(kBands);
+    std::vector<double> in_ideal(kBands), out_ideal(kBands);  // --ideal
     std::vector<std::size_t> interior;  // line * samples + sample, of the last seed
     struct Sample {
         double intensity;
@@ -75,6 +87,7 @@ double measure(const ui::VolumeSource& head, const char* what,
         tissue::PropertyMaps maps = head.plane_properties(grid.geometry, &labels);
         imaging::prepare_plane(maps, grid, scene, 5.0, &labels);
         const auto map = imaging::frame_map(maps, s);
+        const auto psf = imaging::PsfTable::of(s.transducer);
         const imaging::Frame f = imaging::simulate_frame(map, grid, scene.pose, s);
         const imaging::LineData& env = f.envelope;
         picture = env;
@@ -87,16 +100,22 @@ double measure(const ui::VolumeSource& head, const char* what,
             return i < 0 || j < 0 || i >= dims.x || j >= dims.y ? -1 : int(labels.at(i, j, 0));
         };
         const int r = int(std::ceil(o.clear_mm / h.x));
+        for (const glm::dvec2& m : o.points) {  // the map at given points
+            const auto tx = map.sample(glm::vec2(m));
+            std::printf("  map (%.2f %.2f): Z %.4f  n %.4f  b %.3f  att %.2f\n", m.x, m.y,
+                        tx.impedance, tx.refractive_index, tx.backscatter, tx.attenuation);
+        }
         if (o.probe_line >= 0 && seed == 1) {  // labels and the map along one line
             for (double d = o.probe_from; d <= o.probe_to; d += 0.25) {
                 const glm::dvec2 m = g.point(o.probe_line, d) + grid.to_map;
                 const auto tx = map.sample(glm::vec2(m));
-                std::printf("  line %d at %.2f mm (map %.2f %.2f): label %d  Z %.4f  n %.4f  "
-                            "b %.3f\n",
-                            o.probe_line, d, m.x, m.y,
-                            label_at(int(std::floor(m.x / labels.geometry().spacing.x + 0.5)),
-                                     int(std::floor(m.y / labels.geometry().spacing.y + 0.5))),
-                            tx.impedance, tx.refractive_index, tx.backscatter);
+                std::printf(
+                    "  line %d at %.2f mm (map %.2f %.2f): label %d  Z %.4f  n %.4f  "
+                    "b %.3f  att %.2f\n",
+                    o.probe_line, d, m.x, m.y,
+                    label_at(int(std::floor(m.x / labels.geometry().spacing.x + 0.5)),
+                             int(std::floor(m.y / labels.geometry().spacing.y + 0.5))),
+                    tx.impedance, tx.refractive_index, tx.backscatter, tx.attenuation);
             }
         }
         if (o.probe_line >= 0 && seed == 1) {  // the line's two-way PSF across, mid-range
@@ -125,7 +144,7 @@ double measure(const ui::VolumeSource& head, const char* what,
             for (int i = 0; i < env.samples; ++i) {
                 const double d = depth[std::size_t(i)];
                 const int b = int(d / kBandMm);
-                if (d < o.from_mm || b >= kBands) continue;
+                if (d < o.from_mm || d > o.to_mm || b >= kBands) continue;
                 const glm::dvec2 m = g.point(l, d) + grid.to_map;
                 const int ti = int(std::floor(m.x / h.x + 0.5)),
                           tj = int(std::floor(m.y / h.y + 0.5));
@@ -137,6 +156,16 @@ double measure(const ui::VolumeSource& head, const char* what,
                         clear = di * di + dj * dj > r * r || label_at(ti + di, tj + dj) == lab;
                 if (!clear) continue;
                 const double v = double(env.at(l, i)) * env.at(l, i);
+                if (o.ideal) {  // linear acoustics alone: the map's b^2 seen through |H|^2
+                    const glm::dvec2 dir = g.line(l).direction, across(dir.y, -dir.x);
+                    double ideal = 0.0;
+                    for (double x = -10.0; x <= 10.0; x += 0.05) {
+                        const float bs = map.sample_backscatter(glm::vec2(m + x * across));
+                        ideal += std::norm(psf->at(l, x, env.depth_mm(i))) * double(bs * bs);
+                    }
+                    if (lab == csf) in_ideal[std::size_t(b)] += ideal;
+                    if (lab == brain) out_ideal[std::size_t(b)] += ideal;
+                }
                 if (lab == csf) interior.push_back(std::size_t(l) * env.samples + i);
                 if (lab == csf) in[std::size_t(b)] += v, ++n_in[std::size_t(b)];
                 if (lab == csf && o.brightest > 0) brightest.push_back({v, seed, l, d});
@@ -177,12 +206,27 @@ double measure(const ui::VolumeSource& head, const char* what,
         const std::size_t u = std::size_t(b);
         if (n_in[u] < 20 || n_out[u] < 20) continue;
         sum_in += in[u], expected += n_in[u] * out[u] / n_out[u];
-        std::printf("  %3.0f-%3.0f mm: %5d interior, %6d parenchyma samples: %6.1f dB\n",
-                    b * kBandMm, (b + 1) * kBandMm, n_in[u], n_out[u],
+        std::printf("  %3.0f-%3.0f mm: %5d interior, %6d parenchyma samples: %6.1f dB", b * kBandMm,
+                    (b + 1) * kBandMm, n_in[u], n_out[u],
                     10.0 * std::log10(in[u] / n_in[u] / (out[u] / n_out[u]) + 1e-30));
+        if (o.ideal)
+            std::printf(
+                " (linear acoustics alone %6.1f dB)",
+                10.0 * std::log10(in_ideal[u] / n_in[u] / (out_ideal[u] / n_out[u]) + 1e-30));
+        std::printf("\n");
     }
     const double total = 10.0 * std::log10(sum_in / expected + 1e-30);
     std::printf("  interior against parenchyma: %.1f dB\n", total);
+    if (o.ideal) {
+        double ideal_in = 0.0, ideal_expected = 0.0;
+        for (int b = 0; b < kBands; ++b) {
+            const std::size_t u = std::size_t(b);
+            if (n_in[u] < 20 || n_out[u] < 20) continue;
+            ideal_in += in_ideal[u], ideal_expected += n_in[u] * out_ideal[u] / n_out[u];
+        }
+        std::printf("  linear acoustics alone (the map's backscatter^2 through |H|^2): %.1f dB\n",
+                    10.0 * std::log10(ideal_in / ideal_expected + 1e-30));
+    }
     return total;
 }
 
@@ -205,6 +249,17 @@ int main(int argc, char** argv) {
             o.probe_to = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--clear") && a + 1 < argc) {
             o.clear_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--at") && a + 2 < argc) {
+            const double x = std::atof(argv[++a]);
+            o.points.emplace_back(x, std::atof(argv[++a]));
+        } else if (!std::strcmp(argv[a], "--to") && a + 1 < argc) {
+            o.to_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--ideal")) {
+            o.ideal = true;
+        } else if (!std::strcmp(argv[a], "--temporal")) {
+            o.temporal = true;
+        } else if (!std::strcmp(argv[a], "--depth") && a + 1 < argc) {
+            o.depth_mm = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--brightest") && a + 1 < argc) {
             o.brightest = std::atoi(argv[++a]);
         } else if (!std::strcmp(argv[a], "--picture") && a + 1 < argc) {
@@ -234,6 +289,9 @@ int main(int argc, char** argv) {
          {&P::specular_reflection, &P::diffuse_reflection}},
         {"--disable refraction,specular,diffuse",
          {&P::refraction, &P::specular_reflection, &P::diffuse_reflection}},
+        {"--disable refraction,specular,diffuse,bounces",
+         {&P::refraction, &P::specular_reflection, &P::diffuse_reflection, &P::multiple_bounces}},
+        {"--disable bounces", {&P::multiple_bounces}},
     };
     std::vector<std::pair<const char*, double>> totals;
     for (const Variant& v : variants) {
@@ -242,7 +300,7 @@ int main(int argc, char** argv) {
         for (auto member : v.off) p.*member = false;
         totals.emplace_back(v.name, measure(head, v.name, p, o));
     }
-    std::printf("\nsummary (interior against parenchyma, deeper than %.0f mm)\n", o.from_mm);
+    std::printf("\nsummary (interior against parenchyma, %.0f mm deep and more)\n", o.from_mm);
     for (const auto& [name, db] : totals) std::printf("  %6.1f dB  %s\n", db, name);
     return 0;
 }

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <mutex>
@@ -567,17 +569,38 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                                  flight_mm * glm::dot(glm::dvec2(source.direction), axis.direction),
                              1e-3);
                 echo_time = 2.0 * range_mm * 1e-3 / kC0;
-                // The plane's normal in the line frame, pointing away from the probe.
+                // The plane's tilt as the aperture sees it: its normal against the way the
+                // particle arrives, carried to the line's frame by the angle the particle
+                // was launched at. The plane sends the particle's piece of the wavefront
+                // back the way it came, and by reciprocity to the aperture, only if it
+                // faces it: for a direct echo of an unturned beam this is the plane's
+                // tilt from the line; a piece turned by refraction (the skull) or by
+                // mirrors (a particle guided inside the bone) echoes from the planes that
+                // face it, not from those that face the probe.
+                glm::dvec2 arriving(e.direction);
+                if (!(glm::dot(arriving, arriving) > 0.0)) arriving = axis.direction;  // unknown
                 glm::dvec2 away = -glm::dvec2(e.normal);
-                if (glm::dot(away, axis.direction) < 0.0) away = -away;
+                if (glm::dot(away, arriving) < 0.0) away = -away;
+                auto angle_from = [](const glm::dvec2& v, const glm::dvec2& from) {
+                    return std::atan2(glm::dot(v, glm::dvec2(from.y, -from.x)), glm::dot(v, from));
+                };
                 const double sin_tilt =
-                    glm::dot(away, away) > 0.0 ? glm::dot(glm::normalize(away), across) : 0.0;
+                    glm::dot(away, away) > 0.0
+                        ? std::sin(angle_from(away, arriving) +
+                                   (glm::dot(e.direction, e.direction) > 0.0f
+                                        ? angle_from(glm::dvec2(source.direction), axis.direction)
+                                        : 0.0))
+                        : 0.0;
                 if (e.kind == simulator::EchoKind::diffuse) {
+                    // The share of the lobe that heads back the way the particle came (by
+                    // reciprocity, to the aperture): by its own incidence, so a particle
+                    // guided along the skull by total reflection at grazing incidence
+                    // sends next to nothing back, whatever the plane's tilt to the line.
                     const double aperture = t.receive_aperture_mm(range_mm);
-                    response = psf->plane_echo(l, range_mm, 0.0) *
-                               std::sqrt(reflection_back_fraction(
-                                   std::sqrt(std::max(0.0, 1.0 - sin_tilt * sin_tilt)),
-                                   e.lobe_exponent, std::atan(0.5 * aperture / range_mm)));
+                    response =
+                        psf->plane_echo(l, range_mm, 0.0) *
+                        std::sqrt(reflection_back_fraction(e.cos_incidence, e.lobe_exponent,
+                                                           std::atan(0.5 * aperture / range_mm)));
                 } else {
                     response = psf->plane_echo(l, range_mm, sin_tilt);
                 }
@@ -589,6 +612,16 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             const double position = echo_time * fs;
             if (!(position >= 0.0) || position >= double(N - 1)) continue;
             const double weighted = intensity * std::norm(response);
+            if (std::getenv("ST_LINE") && l == std::atoi(std::getenv("ST_LINE")))
+                std::fprintf(
+                    stderr,
+                    "W %.3g kind %d p %u at (%.1f %.1f) range %.2f E %.3g E0 %.3g w %.3g rw %.3g "
+                    "recv %.3g b %d resp2 %.3g dir (%.2f %.2f) n (%.2f %.2f) cos %.2f lobe %.3g\n",
+                    weighted, int(e.kind), e.particle, e.position.x, e.position.y,
+                    echo_time * kC0 * 500.0, e.energy, source.energy, e.weight, e.return_weight,
+                    receive ? receive->at(uint32_t(l), e.particle, e.time_s) : -1.0f,
+                    int(e.bounces), std::norm(response), e.direction.x, e.direction.y, e.normal.x,
+                    e.normal.y, e.cos_incidence, e.lobe_exponent);
             if (!(weighted > 0.0)) continue;
             reflected[std::size_t(position)] += weighted;
             reflected_time[std::size_t(position)] += weighted * position;

@@ -63,8 +63,9 @@ struct Batch {
     LaneVectors<Dim, kSize> position, direction;
     std::array<float, N> energy{}, initial_energy{}, optical_depth{}, scatter_target{};
     // Product of the probabilities of the stochastic choices made so far (R^2 for each
-    // reflection taken, 1 - R^2 for each transmission): by reciprocity the echo's way
-    // back makes the same crossings, so its two-way intensity carries this factor again.
+    // reflection taken, 1 - R^2 for each transmission, the survival of each roulette):
+    // by reciprocity the echo's way back makes the same crossings, so its two-way
+    // intensity carries this factor again.
     std::array<float, N> return_factor{};
     std::array<float, N> previous_index{};  // n sampled at the previous step's position
     // Deposits gather per particle while it stays in one texel (2-3 steps at the default

@@ -38,6 +38,9 @@ struct EchoEvent {
     // Reflections: the interface's unit normal, facing the side the particle came from
     // (zero for other kinds): the image's plane response needs the reflector's tilt.
     glm::vec<Dim, float> normal{0.0f};
+    // The particle's unit direction arriving at the event (zero if unknown): against its
+    // launch direction, how far refraction has turned its piece of the beam.
+    glm::vec<Dim, float> direction{0.0f};
     bool operator==(const EchoEvent&) const = default;  // field-wise: padding is indeterminate
 };
 

@@ -807,7 +807,7 @@ class LineTracer {
             settings_.diffuse_reflection ? lobe_exponent(near_side, far_side, roughness) : 1e6f;
         const double to_middle_s =
             double(to_middle_mm) * seconds_per_mm_ * near_side.refractive_index;
-        record_echo(b, k, x + r * to_middle_mm, E, R2,
+        record_echo(b, k, x + r * to_middle_mm, incoming, E, R2,
                     c < 1e4f ? EchoKind::diffuse : EchoKind::specular, cos_i, c, to_middle_s,
                     -forward);
         if (R2 < follow_reflections_above_) {  // scored, not followed (TraceSettings)
@@ -837,13 +837,13 @@ class LineTracer {
         if (cos_t == 0.0f) out_->stats.total_reflections++;
     }
 
-    [[gnu::noinline]] void record_echo(const Batch<Dim>& b, int k, const V& x, float energy,
-                                       float weight, EchoKind kind, float cos_incidence = 1.0f,
-                                       float lobe_exponent = 1e6f, double extra_time_s = 0.0,
-                                       const V& normal = V(0.0f)) {
+    [[gnu::noinline]] void record_echo(const Batch<Dim>& b, int k, const V& x, const V& direction,
+                                       float energy, float weight, EchoKind kind,
+                                       float cos_incidence = 1.0f, float lobe_exponent = 1e6f,
+                                       double extra_time_s = 0.0, const V& normal = V(0.0f)) {
         out_->echoes.push_back({line_, b.particle[k], float(b.time[k] + extra_time_s), energy,
                                 weight, x, b.bounces[k], kind, cos_incidence, lobe_exponent,
-                                b.return_factor[k], normal});
+                                b.return_factor[k], normal, direction});
     }
 
     // The diffuse lobe (eq. 11) about the specular direction `mirror`; `forward` points
@@ -976,7 +976,7 @@ class LineTracer {
                                             float backscatter) {
         const float fraction = float(settings_.scatter_echo_fraction) * backscatter;
         if (settings_.record_scatter_echoes)
-            record_echo(b, k, to_vec(p.x), p.E, fraction, EchoKind::scatter);
+            record_echo(b, k, to_vec(p.x), to_vec(p.r), p.E, fraction, EchoKind::scatter);
         out_->ledger.recorded += double(p.E) * fraction;
         p.E -= p.E * fraction;
         out_->stats.scatter_events++;
@@ -1009,7 +1009,7 @@ class LineTracer {
             if (crosses_face(*face, from, x)) {
                 stats.captured++;
                 const float kept = E * face->reflectivity;
-                record_echo(b, k, x, E, 1.0f - face->reflectivity, EchoKind::returned_to_probe);
+                record_echo(b, k, x, r, E, 1.0f - face->reflectivity, EchoKind::returned_to_probe);
                 ledger.recorded += double(E) - kept;
                 E = kept;
                 r = reflect<Dim>(r, face_normal_at(*face, x));
@@ -1066,6 +1066,11 @@ class LineTracer {
             if (b.random[k].next() < survive) {
                 ledger.roulette_added += double(restart) - E;
                 b.energy[k] = restart;
+                // The echo's way back loses what the way out lost, E / E0 before the
+                // restart: unbiased energy times deterministic loss, not the restart squared
+                // (echoes and the profile go as E^2 / E0: through the skull every survivor's
+                // 1 / survive made a bright dot).
+                b.return_factor[k] *= survive;
             } else {
                 ledger.roulette_killed += E;
                 return false;

@@ -141,6 +141,50 @@ TEST(Tracer, RussianRouletteIsUnbiased) {
     EXPECT_NEAR(result.ledger.relative_error(), 0.0, 1e-6);
 }
 
+TEST(Tracer, RouletteKeepsTheTwoWayEchoUnbiased) {
+    // The scattered echo of a step goes as E^2 / E0 (the energy that arrives times the
+    // same loss on the way back). Roulette raises a survivor's E by 1 / (its survival
+    // probability); the echo stays unbiased only if the way back keeps the loss before the
+    // raise (the survival probability joins the return factor). Homogeneous scattering
+    // and absorbing column: the echo profile beyond 30 mm (where every particle has met
+    // roulette at 0.3: exp(-0.576 / cm x 21 mm) = 0.3) against the same trace without
+    // roulette, over 20000 particles: within 5 % (the standard error of the mean of
+    // per-particle sums of relative spread about 1 is 0.7 %); with a roulette-raised E^2
+    // it read 4.06 times as much.
+    AcousticProperties p = lossless_medium(1540, 1000);
+    p[Property::attenuation] = 0.5f;
+    p[Property::backscatter] = 1.0f;
+    const auto map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
+    TraceSettings s = interfaces_only_settings();
+    s.mode = PhysicsMode::acoustic;
+    s.absorption = true;
+    s.scattering = true;
+    s.scatter_echo_fraction = 1e-6;  // scattering events take next to nothing
+    s.record_paths = 0;
+    const double bin_s = 1e-7;
+    s.echo_profile = EchoProfileSettings{bin_s, 1000};
+    Sources<2> src;
+    for (int line = 0; line < 40; ++line) {
+        auto beam = parallel_beam({5.0f, 0.0f}, {0.0f, 1.0f}, 4.0f, 500, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    auto late_echo = [&](double roulette) {
+        s.roulette_energy = roulette;
+        const auto r = trace(map, src, s);
+        const int first = int(2.0 * 30e-3 / 1540.0 / bin_s);  // echo time of 30 mm
+        double sum = 0.0;
+        for (int l = 0; l < r.echo_profile.lines; ++l)
+            for (int i = first; i < r.echo_profile.bins; ++i) sum += r.echo_profile.at(l, i);
+        return std::pair{sum, r.ledger.roulette_killed};
+    };
+    const auto [exact, none_killed] = late_echo(1e-12);
+    const auto [with_roulette, killed] = late_echo(0.3);
+    EXPECT_EQ(none_killed, 0.0);
+    EXPECT_GT(killed, 0.0) << "the test must exercise roulette";
+    ASSERT_GT(exact, 0.0);
+    EXPECT_NEAR(with_roulette / exact, 1.0, 0.05);
+}
+
 TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
     Scene2D scene = phantoms::trace_scene(
         phantoms::load_phantom(std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/paper_fig6.json"),
