@@ -612,37 +612,41 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                                  flight_mm * glm::dot(glm::dvec2(source.direction), axis.direction),
                              1e-3);
                 echo_time = 2.0 * range_mm * 1e-3 / kC0;
-                // The plane's tilt as the aperture sees it: its normal against the way the
-                // particle arrives, carried to the line's frame by the angle the particle
-                // was launched at. The plane sends the particle's piece of the wavefront
-                // back the way it came, and by reciprocity to the aperture, only if it
-                // faces it: for a direct echo of an unturned beam this is the plane's
-                // tilt from the line; a piece turned by refraction (the skull) or by
-                // mirrors (a particle guided inside the bone) echoes from the planes that
-                // face it, not from those that face the probe.
-                glm::dvec2 arriving(e.direction);
-                if (!(glm::dot(arriving, arriving) > 0.0)) arriving = axis.direction;  // unknown
+                // The plane's tilt as the aperture sees it. A direct echo (no reflection
+                // before it): the plane's normal against the way the particle arrives,
+                // carried to the line's frame by the angle it was launched at; the plane
+                // sends the particle's piece of the wavefront back the way it came, and by
+                // reciprocity to the aperture, only if it faces it. For an unturned beam
+                // this is the plane's tilt from the line; a piece turned by refraction
+                // (the skull) echoes from the planes that face it, not from those that
+                // face the probe. Echoes after reflections keep the plane's tilt from the
+                // line: judged in the particle's frame, paths between a mirror and a wire
+                // outshone the mirror image (mirror_image, seed 3: 6.7 mm off).
+                const bool direct = e.bounces == 0 && glm::dot(e.direction, e.direction) > 0.0f;
+                const glm::dvec2 arriving = direct ? glm::dvec2(e.direction) : axis.direction;
                 glm::dvec2 away = -glm::dvec2(e.normal);
                 if (glm::dot(away, arriving) < 0.0) away = -away;
                 auto angle_from = [](const glm::dvec2& v, const glm::dvec2& from) {
                     return std::atan2(glm::dot(v, glm::dvec2(from.y, -from.x)), glm::dot(v, from));
                 };
-                const double sin_tilt =
+                const double tilt =
                     glm::dot(away, away) > 0.0
-                        ? std::sin(angle_from(away, arriving) +
-                                   (glm::dot(e.direction, e.direction) > 0.0f
-                                        ? angle_from(glm::dvec2(source.direction), axis.direction)
-                                        : 0.0))
+                        ? angle_from(away, arriving) +
+                              (direct ? angle_from(glm::dvec2(source.direction), axis.direction)
+                                      : 0.0)
                         : 0.0;
+                const double sin_tilt = std::sin(tilt);
                 if (e.kind == simulator::EchoKind::diffuse) {
                     // The share of the lobe that heads back the way the particle came (by
-                    // reciprocity, to the aperture): by its own incidence, so a particle
-                    // guided along the skull by total reflection at grazing incidence
-                    // sends next to nothing back, whatever the plane's tilt to the line.
+                    // reciprocity, to the aperture): a direct echo by the particle's own
+                    // incidence, so a piece of the beam meeting a rough surface at grazing
+                    // incidence sends next to nothing back, whatever the plane's tilt to
+                    // the line.
                     const double aperture = t.receive_aperture_mm(range_mm);
+                    const double cos_incidence = direct ? double(e.cos_incidence) : std::cos(tilt);
                     response =
                         psf->plane_echo(l, range_mm, 0.0) *
-                        std::sqrt(reflection_back_fraction(e.cos_incidence, e.lobe_exponent,
+                        std::sqrt(reflection_back_fraction(cos_incidence, e.lobe_exponent,
                                                            std::atan(0.5 * aperture / range_mm)));
                 } else {
                     response = psf->plane_echo(l, range_mm, sin_tilt);

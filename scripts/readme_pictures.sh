@@ -1,6 +1,6 @@
 #!/bin/sh
-# Renders the README's B-mode pictures into docs/images/: the default frame beside its
-# ground truth, and the point-target grid. Usage: scripts/readme_pictures.sh [build-dir]
+# Renders the README's B-mode pictures into docs/images/: the default frame and the
+# temporal view (through the skull) beside their ground truth, and the point-target grid. Usage: scripts/readme_pictures.sh [build-dir]
 set -eu
 build=${1:-build}
 tmp=$(mktemp -d)
@@ -9,6 +9,10 @@ trap 'rm -rf "$tmp"' EXIT
 "$build/sonotrace" simulate -q --labels --out "$tmp/default"
 oiiotool "$tmp/default/bmode.png" --ch 0,0,0 "$tmp/default/bmode_labels_preview.png" \
     --mosaic:pad=8 2x1 -o docs/images/bmode-default.png
+# The temporal view: the phased probe on the right temple, imaging through the skull.
+"$build/sonotrace" simulate -q --labels --view temporal --out "$tmp/temporal"
+oiiotool "$tmp/temporal/bmode.png" --ch 0,0,0 "$tmp/temporal/bmode_labels_preview.png" \
+    --mosaic:pad=8 2x1 -o docs/images/bmode-temporal.png
 # 0.1 mm wires (phantoms/point_grid.json): the two-way PSF across depth and width.
 "$build/sonotrace" simulate -q --phantom phantoms/point_grid.json --quality high --depth 64 \
     --pixel 0.1 --gain 34 --out "$tmp/points"
