@@ -18,6 +18,7 @@
 #include "imaging/psf.h"
 #include "probe/aperture.h"
 #include "probe/pulse.h"
+#include "simulator/interactions.h"
 #include "tissue/acoustic_map.h"
 #include "tissue/fast_math.h"
 #include "tissue/hash.h"
@@ -503,11 +504,9 @@ ScattererField::ScattererField(uint64_t seed, double cell_mm)
 
 double reflection_back_fraction(double cos_incidence, double lobe_exponent,
                                 double half_acceptance_rad) {
-    const double off_axis = 2.0 * std::acos(std::clamp(cos_incidence, -1.0, 1.0));
-    const double sigma = 1.0 / std::sqrt(std::max(lobe_exponent, 1.0));
-    auto cdf = [](double z) { return 0.5 * std::erfc(-z / std::numbers::sqrt2); };
-    return cdf((half_acceptance_rad - off_axis) / sigma) -
-           cdf((-half_acceptance_rad - off_axis) / sigma);
+    // The way back lies twice the incidence from the mirror direction.
+    return simulator::lobe_share(2.0 * std::acos(std::clamp(cos_incidence, -1.0, 1.0)),
+                                 lobe_exponent, half_acceptance_rad);
 }
 
 LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,

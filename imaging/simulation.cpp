@@ -263,6 +263,11 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     // one-way time, captured ones at the particle's own time.
     const double window_s = layout.samples / layout.fs_hz;
     trace.max_time_s = settings.receive == ReceiveModel::capture ? window_s : 0.5 * window_s;
+    // Echoes through rough reflections come back within the receive's half-angle (at the
+    // transmit focus: the dynamic receive keeps it at every depth until the array ends).
+    if (settings.receive == ReceiveModel::monostatic)
+        trace.diffuse_return_half_angle_rad =
+            std::atan(0.5 * t.receive_aperture_mm(t.focus_mm) / std::max(t.focus_mm, 1.0));
     if (settings.receive == ReceiveModel::capture) {
         simulator::ProbeFace<2> face;
         face.centre = glm::vec2(grid.to_map);

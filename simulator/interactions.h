@@ -180,6 +180,17 @@ float sample_cos_power_angle_2d(float c, Uniform&& uniform) {
     }
 }
 
+// Share of a reflected lobe cos^c about the mirror direction that a receiver subtending
+// +-half_acceptance (rad) about a direction `off_axis` (rad) from the mirror takes: the
+// lobe as a Gaussian of sigma 1 / sqrt(c) (its small-angle form, in the plane of
+// incidence), integrated over the acceptance. A mirror (c large) sends everything or
+// nothing; a rough surface (bone: c ~ 3) a share at most angles.
+inline double lobe_share(double off_axis, double lobe_exponent, double half_acceptance) {
+    const double sigma = 1.0 / std::sqrt(std::max(lobe_exponent, 1.0));
+    auto cdf = [](double z) { return 0.5 * std::erfc(-z / std::numbers::sqrt2); };
+    return cdf((half_acceptance - off_axis) / sigma) - cdf((-half_acceptance - off_axis) / sigma);
+}
+
 // Direction about `axis` with solid-angle density proportional to cos^c(theta) on the
 // hemisphere (eq. 11 in 3D): cos(theta) = u^(1/(c+1)), azimuth uniform.
 inline Vec<3> sample_cos_power_direction_3d(const Vec<3>& axis, float c, float u1, float u2) {

@@ -118,6 +118,12 @@ struct TraceSettings {
     // isolated bright dots. The bias is the neglected multi-path through weak
     // reflectors, of relative order R^2. 0 = every reflection stochastic (unbiased).
     double follow_reflections_above = 0.0;
+    // The echo of a path goes back the way it came: through a rough (diffuse) reflection
+    // taken, only the share of the reversed lobe that heads back along the incoming way,
+    // within this half-angle (rad: the receive aperture's, as the beam sees it), returns
+    // (simulator::lobe_share of the sampled direction's angle from the mirror). It joins
+    // the return factor; 0 = not applied (traces without an image).
+    double diffuse_return_half_angle_rad = 0.0;
     double max_path_mm = 2000.0;  // paths end (energy "remaining") beyond this length
     // Paths end (energy "remaining") once their time of flight passes this (s); 0 = never.
     // An image's echo window: nothing a particle does later lands in it.

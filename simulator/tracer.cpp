@@ -822,7 +822,16 @@ class LineTracer {
         b.return_factor[k] *= R2;
         const V mirror = reflect<Dim>(incoming, forward);
         float weight = 1.0f;
-        p.r = to_lanes(c < 1e4f ? diffuse(mirror, forward, c, b, k, &weight) : mirror);
+        const V leaving = c < 1e4f ? diffuse(mirror, forward, c, b, k, &weight) : mirror;
+        p.r = to_lanes(leaving);
+        if (c < 1e4f && settings_.diffuse_return_half_angle_rad > 0.0) {
+            // The echo's way back through this lobe (TraceSettings): by reciprocity the
+            // reversed lobe lies as far from the way back as this one from `leaving`.
+            const double off_mirror =
+                std::acos(std::clamp(double(glm::dot(leaving, mirror)), -1.0, 1.0));
+            b.return_factor[k] *=
+                float(lobe_share(off_mirror, c, settings_.diffuse_return_half_angle_rad));
+        }
         if (weight < 1.0f) {  // lossy lobe: the rest becomes heat
             const float lost = E * (1.0f - weight);
             E -= lost;

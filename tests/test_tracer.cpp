@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <numeric>
 #include <random>
 
@@ -183,6 +184,56 @@ TEST(Tracer, RouletteKeepsTheTwoWayEchoUnbiased) {
     EXPECT_GT(killed, 0.0) << "the test must exercise roulette";
     ASSERT_GT(exact, 0.0);
     EXPECT_NEAR(with_roulette / exact, 1.0, 0.05);
+}
+
+TEST(Tracer, AnEchoThroughARoughReflectionReturnsTheLobesShare) {
+    // Particles run down onto a rough horizontal interface (roughness 0.5: lobe cos^3),
+    // reflect with probability R^2 into the lobe and scatter in the medium above. By
+    // reciprocity those echoes go back through the same reflection, which sends towards
+    // the way the particle came only the share of its lobe within the receive's
+    // half-angle delta: for a particle leaving at phi from the mirror direction (straight
+    // up), the Gaussian form of the lobe, sigma = 1 / sqrt(3), integrated over
+    // [phi - delta, phi + delta], written out here with erfc. Each scatter echo after the
+    // reflection must carry R^2 (the reflection's own echo weight) times that share in
+    // its return weight; without the setting, R^2 alone.
+    tissue::PropertyMaps maps = homogeneous(80, 161, kH, lossless_medium(1540, 1000));
+    for (int j = 80; j < 161; ++j)
+        for (int i = 0; i < 80; ++i) {
+            maps[Property::speed_of_sound].at(i, j) = 3000.0f;
+            maps[Property::density].at(i, j) = 1900.0f;
+        }
+    for (float& r : maps[Property::roughness].voxels()) r = 0.5f;
+    for (float& b : maps[Property::backscatter].voxels()) b = 0.5f;
+    const auto map = tissue::AcousticMap<2>::build(maps);
+    TraceSettings s;
+    s.absorption = false;
+    s.roulette_energy = 0.0;
+    s.record_paths = 0;
+    constexpr double kDelta = 0.2;
+    const Sources<2> src = parallel_beam({10.0f, 0.5f}, {0.0f, 1.0f}, 4.0f, 400);
+    for (const double delta : {0.0, kDelta}) {
+        s.diffuse_return_half_angle_rad = delta;
+        const auto r = trace(map, src, s);
+        std::map<uint32_t, const EchoEvent<2>*> reflection;  // by particle
+        for (const auto& e : r.echoes)
+            if (e.kind == EchoKind::diffuse && e.bounces == 0) reflection[e.particle] = &e;
+        int checked = 0;
+        for (const auto& e : r.echoes) {
+            if (e.kind != EchoKind::scatter || e.bounces != 1 || !reflection.count(e.particle))
+                continue;
+            const EchoEvent<2>& at = *reflection[e.particle];
+            ASSERT_NEAR(at.lobe_exponent, 3.0f, 1e-4f);
+            const double phi = std::acos(std::clamp(double(-e.direction.y), -1.0, 1.0));
+            const double sigma = 1.0 / std::sqrt(3.0);
+            auto cdf = [](double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); };
+            const double share =
+                delta > 0.0 ? cdf((delta - phi) / sigma) - cdf((-delta - phi) / sigma) : 1.0;
+            EXPECT_NEAR(e.return_weight, double(at.weight) * share, 1e-4 * at.weight)
+                << "phi " << phi;
+            ++checked;
+        }
+        EXPECT_GT(checked, 20) << "delta " << delta;
+    }
 }
 
 TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
