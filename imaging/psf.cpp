@@ -217,9 +217,10 @@ double PsfTable::receive_power(int l, double x, double z) const {
     return (1.0 - f) * one(row(l, i)) + f * one(row(l, i + 1));
 }
 
-std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
-                                                                 const probe::Sources<2>& sources,
-                                                                 const glm::dvec2& face_in_map) {
+namespace {
+
+std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
+    const probe::Transducer& t, const probe::Sources<2>& sources, const glm::dvec2& face_in_map) {
     // Columns 0.25 mm of one-way range apart: |R|^2 of a focused receive changes over
     // millimetres along the line.
     const double bin_s = 0.25e-3 / tissue::kReferenceSpeed;
@@ -288,6 +289,44 @@ std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Tr
         }
     });
     return out;
+}
+
+}  // namespace
+
+std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
+                                                                 const probe::Sources<2>& sources,
+                                                                 const glm::dvec2& face_in_map) {
+    // The weights are a pure function of the probe set-up (its PSF table) and of each
+    // particle's line, launch point relative to the face, direction, start time and
+    // energy, exactly the values the computation reads: frames of one probe set-up and
+    // seed (a sweep, the GUI, repeated views) launch the same particles wherever the probe
+    // stands, so their weights are kept (the last four) rather than made again (a fifth
+    // of a standard frame).
+    const std::shared_ptr<const PsfTable> psf = PsfTable::of(t);
+    std::vector<double> key;
+    key.reserve(sources.size() * 7 + 1);
+    key.push_back(double(t.lines));
+    for (const auto& s : sources)
+        key.insert(key.end(), {double(s.line), double(s.position.x) - face_in_map.x,
+                               double(s.position.y) - face_in_map.y, double(s.direction.x),
+                               double(s.direction.y), double(s.time_s), double(s.energy)});
+    struct Kept {
+        std::shared_ptr<const PsfTable> psf;
+        std::vector<double> key;
+        std::shared_ptr<const simulator::ReceiveWeights> weights;
+    };
+    static std::mutex mutex;
+    static std::vector<Kept> kept;  // most recent last
+    {
+        const std::lock_guard<std::mutex> lock(mutex);
+        for (const Kept& k : kept)
+            if (k.psf == psf && k.key == key) return k.weights;
+    }
+    auto weights = compute_receive_weights(t, sources, face_in_map);
+    const std::lock_guard<std::mutex> lock(mutex);
+    kept.push_back({psf, std::move(key), weights});
+    if (kept.size() > 4) kept.erase(kept.begin());
+    return weights;
 }
 
 }  // namespace sonotrace::imaging

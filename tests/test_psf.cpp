@@ -14,9 +14,11 @@
 #include <vector>
 
 #include "imaging/bmode.h"
+#include "imaging/psf.h"
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
 #include "probe/aperture.h"
+#include "probe/beam.h"
 #include "probe/pulse.h"
 #include "probe/transducer.h"
 
@@ -370,6 +372,61 @@ TEST(Psf, ImpossibleAperturesAreRefusedNamingTheField) {
     refused([](probe::Transducer& t) { t.cycles = 0.0; }, "cycles");
     EXPECT_THROW(probe::parse_apodization("gaussian", "probe.json", "rx-apodization"),
                  std::exception);
+}
+
+}  // namespace
+}  // namespace sonotrace
+
+namespace sonotrace {
+namespace {
+
+// receive_weights keeps the weights of the particles it last saw: the same particles
+// (relative to the face) give the same weights wherever the probe stands, and a change of
+// any value the weights are made from makes them again, with the change in them.
+TEST(Psf, ReceiveWeightsAreKeptForTheSameParticlesOnly) {
+    const probe::Transducer t = probe::find_transducer("linear", "test");
+    const glm::dvec2 face(30.0, 2.0);
+    const probe::Sources<2> sources = probe::make_beams(t, {16, 7}, face);
+    const auto first = imaging::receive_weights(t, sources, face);
+    EXPECT_EQ(imaging::receive_weights(t, sources, face), first) << "kept";
+    // Rows follow the particles within their lines; make_beams emits line by line.
+    for (std::size_t q = 1; q < sources.size(); ++q)
+        ASSERT_LE(sources[q - 1].line, sources[q].line);
+    const std::size_t p = sources.size() / 2, row = p;  // a particle of a central line
+    using Change = void (*)(probe::SourceParticle<2>&);
+    const Change changes[] = {
+        [](probe::SourceParticle<2>& s) { s.position.x += 0.3f; },
+        [](probe::SourceParticle<2>& s) {
+            s.direction = glm::normalize(s.direction + glm::vec2(0.05f, 0.0f));
+        },
+        [](probe::SourceParticle<2>& s) { s.time_s += 2e-7f; },
+        [](probe::SourceParticle<2>& s) { s.energy *= 3.0f; },
+    };
+    for (std::size_t c = 0; c < std::size(changes); ++c) {
+        probe::Sources<2> changed = sources;
+        changes[c](changed[p]);
+        const auto again = imaging::receive_weights(t, changed, face);
+        ASSERT_NE(again, first) << "change " << c;
+        // The changed particle's weights (or, for its energy, the line mean and so every
+        // particle's) differ somewhere along its row.
+        bool differs = false;
+        for (int b = 0; b < first->bins; ++b)
+            differs |= again->weight[row * std::size_t(first->bins) + std::size_t(b)] !=
+                       first->weight[row * std::size_t(first->bins) + std::size_t(b)];
+        if (c == 3) {
+            for (std::size_t q = 0; q < first->weight.size() && !differs; ++q)
+                differs = again->weight[q] != first->weight[q];
+        }
+        EXPECT_TRUE(differs) << "change " << c;
+    }
+    // The whole frame moved by 4 mm: the same particles relative to the face up to the
+    // floats' rounding of the moved positions (1e-6 mm), so the same weights within it.
+    probe::Sources<2> moved = sources;
+    for (auto& s : moved) s.position += glm::vec2(4.0f, 0.0f);
+    const auto shifted = imaging::receive_weights(t, moved, face + glm::dvec2(4.0, 0.0));
+    ASSERT_EQ(shifted->weight.size(), first->weight.size());
+    for (std::size_t q = 0; q < first->weight.size(); ++q)
+        ASSERT_NEAR(shifted->weight[q], first->weight[q], 1e-3f * (1.0f + first->weight[q])) << q;
 }
 
 }  // namespace
