@@ -25,19 +25,27 @@ struct Contrast {
     int inside = 0, beside = 0;
 };
 
-Contrast cylinder_contrast(const imaging::PhysicsSwitches& physics) {
-    const nlohmann::json j = {
-        {"name", "csf cylinder"},
-        {"size", {100, 90, 20}},
-        {"resolution", 0.25},
-        {"smoothing", 0.3},
-        {"background", {{"tissue", "brain"}}},
-        {"shapes", {{{"type", "wire"}, {"at", {50, 50}}, {"radius", 4}, {"tissue", "csf"}}}},
-        {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}}};
+// The default frame's convex probe at 10 mm above a brain phantom of 100 x 90 mm with
+// `shapes`, at 0.25 mm; the frame and its settings.
+struct BrainFrame {
+    imaging::SimulationSettings settings;
+    imaging::Frame frame;
+};
+BrainFrame brain_phantom_frame(const nlohmann::json& shapes,
+                               const imaging::PhysicsSwitches& physics, uint64_t seed = 1) {
+    nlohmann::json j = {{"name", "brain"},
+                        {"size", {100, 90, 20}},
+                        {"resolution", 0.25},
+                        {"smoothing", 0.3},
+                        {"background", {{"tissue", "brain"}}},
+                        {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}}};
+    if (!shapes.empty()) j["shapes"] = shapes;
     const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
-    imaging::SimulationSettings s;
+    BrainFrame out;
+    imaging::SimulationSettings& s = out.settings;
     s.transducer = probe::find_transducer("convex", "test");
     s.trace.interface_reach_mm = 1.0;
+    s.seed = seed;
     imaging::apply(physics, s);
     imaging::ScenePlacement scene;
     scene.pose = ph.pose;
@@ -45,9 +53,16 @@ Contrast cylinder_contrast(const imaging::PhysicsSwitches& physics) {
                                               tissue::Volume* labels) {
         return phantoms::rasterise(ph, grid, labels);
     };
-    const imaging::Frame f = imaging::simulate_plane(mapper, scene, s, false).frame;
+    out.frame = imaging::simulate_plane(mapper, scene, s, false).frame;
+    return out;
+}
+
+Contrast cylinder_contrast(const imaging::PhysicsSwitches& physics) {
+    const BrainFrame b = brain_phantom_frame(
+        {{{"type", "wire"}, {"at", {50, 50}}, {"radius", 4}, {"tissue", "csf"}}}, physics);
+    const imaging::Frame& f = b.frame;
     // The cylinder's centre in the probe plane: 50 mm straight down the central line.
-    const probe::ScanGeometry g(s.transducer);
+    const probe::ScanGeometry g(b.settings.transducer);
     const glm::dvec2 centre(0.0, 50.0);
     double in = 0.0, out = 0.0;
     Contrast c;
@@ -82,32 +97,15 @@ TEST(Anechoic, CsfCylinderInBrainStaysDarkWithEveryPhysicsOn) {
 // int |H|^2 dx, H = T R from the element positions (probe::LineFields, not the image
 // pipeline). Lit by the whole beam's scattered energy instead, the slit read -9 dB.
 TEST(Anechoic, SlitNarrowerThanTheBeamIsAsDarkAsThePsfAllows) {
-    const nlohmann::json j = {
-        {"name", "csf slit"},
-        {"size", {100, 90, 20}},
-        {"resolution", 0.25},
-        {"background", {{"tissue", "brain"}}},
-        {"shapes",
-         {{{"type", "box"}, {"min", {48.5, 55, 0}}, {"max", {51.5, 80, 20}}, {"tissue", "csf"}}}},
-        {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}}};
-    const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
-    imaging::SimulationSettings s;
-    s.transducer = probe::find_transducer("convex", "test");
-    s.trace.interface_reach_mm = 1.0;
+    const nlohmann::json slit = {
+        {{"type", "box"}, {"min", {48.5, 55, 0}}, {"max", {51.5, 80, 20}}, {"tissue", "csf"}}};
     imaging::PhysicsSwitches physics;
     physics.refraction = physics.specular_reflection = physics.diffuse_reflection = false;
-    imaging::apply(physics, s);
-    imaging::ScenePlacement scene;
-    scene.pose = ph.pose;
-    const imaging::PlaneMapper mapper = [&ph](const tissue::VolumeGeometry& grid,
-                                              tissue::Volume* labels) {
-        return phantoms::rasterise(ph, grid, labels);
-    };
+    const probe::Transducer t = probe::find_transducer("convex", "test");
     double in = 0.0, out = 0.0, predicted = 0.0;
     int n_in = 0, n_out = 0, n_predicted = 0;
-    const probe::ScanGeometry g(s.transducer);
-    const int central = s.transducer.lines / 2;
-    const probe::LineFields fields(s.transducer, probe::line_array(s.transducer, central));
+    const probe::ScanGeometry g(t);
+    const probe::LineFields fields(t, probe::line_array(t, t.lines / 2));
     auto power = [&](double z, double x0, bool brain_only) {  // int |H(x - x0)|^2 over brain
         double sum = 0.0;
         for (double x = -12.0; x <= 12.0; x += 0.02)
@@ -115,8 +113,7 @@ TEST(Anechoic, SlitNarrowerThanTheBeamIsAsDarkAsThePsfAllows) {
         return sum;
     };
     for (uint64_t seed = 1; seed <= 2; ++seed) {  // two frames: ~40 speckle cells inside
-        s.seed = seed;
-        const imaging::Frame f = imaging::simulate_plane(mapper, scene, s, false).frame;
+        const imaging::Frame f = brain_phantom_frame(slit, physics, seed).frame;
         for (int l = 0; l < f.envelope.lines; ++l) {
             for (int i = 0; i < f.envelope.samples; ++i) {
                 const glm::dvec2 p = g.point(l, f.envelope.depth_mm(i));
@@ -190,22 +187,7 @@ TEST(Anechoic, SpeckleOffSilencesHomogeneousBrain) {
 // apertures), in bands of 10 mm at 20-30, 40-50 and 60-70 mm. 64 lines estimate the
 // spread within ~9 % (1 sigma); seeds 1-4 read 0.51-1.07 of the allowance.
 TEST(Anechoic, PerLineMeansVaryAsSpeckleAllows) {
-    const nlohmann::json j = {{"name", "brain"},
-                              {"size", {100, 90, 20}},
-                              {"resolution", 0.25},
-                              {"background", {{"tissue", "brain"}}},
-                              {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}}};
-    const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
-    imaging::SimulationSettings s;
-    s.transducer = probe::find_transducer("convex", "test");
-    s.trace.interface_reach_mm = 1.0;
-    imaging::ScenePlacement scene;
-    scene.pose = ph.pose;
-    const imaging::PlaneMapper mapper = [&ph](const tissue::VolumeGeometry& grid,
-                                              tissue::Volume* labels) {
-        return phantoms::rasterise(ph, grid, labels);
-    };
-    const imaging::LineData env = imaging::simulate_plane(mapper, scene, s, false).frame.envelope;
+    const imaging::LineData env = brain_phantom_frame({}, {}).frame.envelope;
     for (const double from : {20.0, 40.0, 60.0}) {
         const int i0 = int(from / env.depth_mm(1)), i1 = int((from + 10.0) / env.depth_mm(1));
         const int n = i1 - i0;

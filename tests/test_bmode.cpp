@@ -20,10 +20,9 @@ using imaging::LineData;
 
 constexpr double kC0 = 1540.0;  // m/s
 
-// One reflection event on line `line` at one-way time t, through the whole chain.
-LineData point_echo_envelope(const probe::Transducer& t, double one_way_time_s, int line) {
-    // One particle per line, leaving the face along the line (the echo's range is that of
-    // its unfolded path).
+// One particle per line, leaving the face along the line (an echo's range is that of its
+// unfolded path).
+probe::Sources<2> one_particle_per_line(const probe::Transducer& t) {
     const probe::ScanGeometry g(t);
     probe::Sources<2> sources(std::size_t(t.lines));
     for (int l = 0; l < t.lines; ++l) {
@@ -31,6 +30,13 @@ LineData point_echo_envelope(const probe::Transducer& t, double one_way_time_s, 
         sources[std::size_t(l)].position = glm::vec2(g.line(l).origin);
         sources[std::size_t(l)].direction = glm::vec2(g.line(l).direction);
     }
+    return sources;
+}
+
+// One reflection event on line `line` at one-way time t, through the whole chain.
+LineData point_echo_envelope(const probe::Transducer& t, double one_way_time_s, int line) {
+    const probe::ScanGeometry g(t);
+    const probe::Sources<2> sources = one_particle_per_line(t);
     simulator::EchoEvent<2> e;
     e.line = uint32_t(line);
     e.particle = 0;
@@ -51,12 +57,7 @@ double reflection_peak(const std::function<void(simulator::EchoEvent<2>&)>& shap
     const probe::Transducer t = probe::find_transducer("linear", "test");
     const probe::ScanGeometry g(t);
     const int line = t.lines / 2;
-    probe::Sources<2> sources(std::size_t(t.lines));
-    for (int l = 0; l < t.lines; ++l) {
-        sources[std::size_t(l)].line = uint32_t(l);
-        sources[std::size_t(l)].position = glm::vec2(g.line(l).origin);
-        sources[std::size_t(l)].direction = glm::vec2(g.line(l).direction);
-    }
+    const probe::Sources<2> sources = one_particle_per_line(t);
     simulator::EchoEvent<2> e;
     e.line = uint32_t(line);
     e.time_s = float(20e-3 / kC0);
