@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <iterator>
@@ -385,6 +386,35 @@ std::size_t prepare_plane(tissue::PropertyMaps& maps, const PlaneGrid& grid,
             }
         }
     }
+    // Skin, not bone: in T1 the air/skin edge passes through the skull's dark intensities,
+    // so the edge under the probe reads as a film of bone (R^2 = 0.37 against tissue, a
+    // reverberating cavity with the real skull below). Bone-fast samples within 1.5 mm of
+    // the gel, in the gel's rows, are the skin's partial volume: soft tissue.
+    const tissue::AcousticProperties skin = tissue::find_tissue("soft_tissue", "", "").properties;
+    const int reach = std::max(1, int(std::ceil(1.5 / g.spacing.x)));
+    std::vector<std::array<int, 3>> to_skin;
+    for (int k = 0; k < g.dims.z; ++k) {
+        for (int j = 0; j < rows; ++j) {
+            for (int i = 0; i < g.dims.x; ++i) {
+                if (maps[tissue::Property::speed_of_sound].at(i, j, k) <= 1800.0f) continue;
+                bool near_gel = false;
+                for (int dj = -reach; dj <= reach && !near_gel; ++dj)
+                    for (int di = -reach; di <= reach && !near_gel; ++di) {
+                        const int a = i + di, b = j + dj;
+                        if (a < 0 || b < 0 || a >= g.dims.x || b >= g.dims.y) continue;
+                        near_gel = maps[tissue::Property::density].at(a, b, k) ==
+                                       gel[tissue::Property::density] &&
+                                   maps[tissue::Property::speed_of_sound].at(a, b, k) ==
+                                       gel[tissue::Property::speed_of_sound];
+                    }
+                if (near_gel) to_skin.push_back({i, j, k});
+            }
+        }
+    }
+    for (const auto& [i, j, k] : to_skin)
+        for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
+            maps.fields[f].at(i, j, k) = skin.values[f];
+    changed += to_skin.size();
     if (scene.craniotomy_radius_mm > 0.0) {
         changed += probe::open_craniotomy(maps, grid.to_map.x, scene.craniotomy_radius_mm,
                                           grid.top_margin_mm + scene.craniotomy_depth_mm, gel);
