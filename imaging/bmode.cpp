@@ -658,16 +658,6 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             const double position = echo_time * fs;
             if (!(position >= 0.0) || position >= double(N - 1)) continue;
             const double weighted = intensity * std::norm(response);
-            if (std::getenv("ST_LINE") && l == std::atoi(std::getenv("ST_LINE")))
-                std::fprintf(
-                    stderr,
-                    "W %.3g kind %d p %u at (%.1f %.1f) range %.2f E %.3g E0 %.3g w %.3g rw %.3g "
-                    "recv %.3g b %d resp2 %.3g dir (%.2f %.2f) n (%.2f %.2f) cos %.2f lobe %.3g\n",
-                    weighted, int(e.kind), e.particle, e.position.x, e.position.y,
-                    echo_time * kC0 * 500.0, e.energy, source.energy, e.weight, e.return_weight,
-                    receive ? receive->at(uint32_t(l), e.particle, e.time_s) : -1.0f,
-                    int(e.bounces), std::norm(response), e.direction.x, e.direction.y, e.normal.x,
-                    e.normal.y, e.cos_incidence, e.lobe_exponent);
             if (!(weighted > 0.0)) continue;
             reflected[std::size_t(position)] += weighted;
             reflected_time[std::size_t(position)] += weighted * position;
