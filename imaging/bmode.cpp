@@ -229,7 +229,7 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     const std::size_t size = std::size_t(L) * std::size_t(N);
     const auto light = std::make_unique_for_overwrite<double[]>(size);
     const auto mean = std::make_unique_for_overwrite<glm::dvec2[]>(size);
-    // The mean positions in lattice units, where w > 0 (each is an end of two gaps below).
+    // The mean positions in lattice units, where lit (each is an end of two gaps below).
     const auto lattice = std::make_unique_for_overwrite<glm::vec3[]>(size);
     const int profile_lines = std::min(L, profile.lines);
     const int r = box3_radius(smooth_sigma);
