@@ -1,10 +1,25 @@
 // The default head frame's ventricles against the parenchyma, measured on the envelope,
 // with physics switched off one at a time to take the leak apart (issue 29).
 //
-//   build/bench/ventricle_contrast [--from MM] [--nominal] [--seeds N] [--smoothing MM]
+//   build/bench/ventricle_contrast [OPTIONS]
 //
-// --seeds N sums the frames of seeds 1..N (one frame is dominated by a few rays);
-// --smoothing sets SimulationSettings::refraction_smoothing_mm (default: the probe's).
+// What is measured:
+//   --seeds N, --first-seed S  sum the frames of seeds S..S+N-1 (default 1, 1: one frame
+//                              is dominated by a few rays)
+//   --from MM, --to MM         the depths counted (default 40 mm and deeper)
+//   --clear MM                 how far from other labels the interior and parenchyma lie (1)
+//   --temporal, --depth MM     the temporal view (phased probe through the skull), its depth
+//   --smoothing MM             SimulationSettings::refraction_smoothing_mm (the probe's)
+//   --nominal                  the truth at c0 t / 2 instead of through the speed map
+//   --variant K                only the K-th variant of the list in main()
+// What is shown besides:
+//   --ideal                    the interior as linear acoustics alone images it (the map's
+//                              backscatter^2 through each line's two-way |H|^2)
+//   --brightest N              the N brightest interior samples (seed, line, depth)
+//   --picture FILE             the first variant's envelope by line and depth (PNG, 60 dB
+//                              below the 99.5th percentile), interior samples marked
+//   --line L FROM TO           labels and map fields along line L, and its |H|^2 across
+//   --at X Y                   the map's fields at a point of the map frame (repeatable)
 //
 // Truth: each envelope sample's position is found by walking its scan line through the
 // map's speed of sound (echo time = 2/c0 x the integral of n = c0/c), not at c0 t / 2:
@@ -38,7 +53,8 @@ struct Options {
     double from_mm = 40.0;
     bool nominal = false;                // truth at c0 t / 2 instead of through the speed map
     std::optional<double> smoothing_mm;  // the refraction smoothing; unset: the probe's
-    int seeds = 1;                       // frames of seeds 1..seeds, their intensities summed
+    int seeds = 1;                       // frames of seeds first_seed.., their intensities summed
+    int first_seed = 1;                  // --first-seed
     int variant = -1;                    // only this variant (index into the list in main), -1: all
     std::string picture;
     int brightest = 0;               // print the brightest interior samples
@@ -78,7 +94,7 @@ double measure(const ui::VolumeSource& head, const char* what,
     };
     std::vector<Sample> brightest;  // interior samples, for --brightest
     imaging::LineData picture;
-    for (int seed = 1; seed <= o.seeds; ++seed) {
+    for (int seed = o.first_seed; seed < o.first_seed + o.seeds; ++seed) {
         s.seed = uint64_t(seed);
         const imaging::QualityLevel level = imaging::quality_level(s.quality);
         const imaging::PlaneGrid grid =
@@ -105,7 +121,7 @@ double measure(const ui::VolumeSource& head, const char* what,
             std::printf("  map (%.2f %.2f): Z %.4f  n %.4f  b %.3f  att %.2f\n", m.x, m.y,
                         tx.impedance, tx.refractive_index, tx.backscatter, tx.attenuation);
         }
-        if (o.probe_line >= 0 && seed == 1) {  // labels and the map along one line
+        if (o.probe_line >= 0 && seed == o.first_seed) {  // labels and the map along one line
             for (double d = o.probe_from; d <= o.probe_to; d += 0.25) {
                 const glm::dvec2 m = g.point(o.probe_line, d) + grid.to_map;
                 const auto tx = map.sample(glm::vec2(m));
@@ -118,7 +134,8 @@ double measure(const ui::VolumeSource& head, const char* what,
                     tx.impedance, tx.refractive_index, tx.backscatter, tx.attenuation);
             }
         }
-        if (o.probe_line >= 0 && seed == 1) {  // the line's two-way PSF across, mid-range
+        if (o.probe_line >= 0 &&
+            seed == o.first_seed) {  // the line's two-way PSF across, mid-range
             const probe::LineFields fields(s.transducer,
                                            probe::line_array(s.transducer, o.probe_line));
             const double z = 0.5 * (o.probe_from + o.probe_to);
@@ -239,6 +256,8 @@ int main(int argc, char** argv) {
             o.from_mm = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--smoothing") && a + 1 < argc) {
             o.smoothing_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--first-seed") && a + 1 < argc) {
+            o.first_seed = std::max(1, std::atoi(argv[++a]));
         } else if (!std::strcmp(argv[a], "--seeds") && a + 1 < argc) {
             o.seeds = std::max(1, std::atoi(argv[++a]));
         } else if (!std::strcmp(argv[a], "--variant") && a + 1 < argc) {
@@ -267,8 +286,8 @@ int main(int argc, char** argv) {
         } else if (!std::strcmp(argv[a], "--nominal")) {
             o.nominal = true;
         } else {
-            std::fprintf(stderr, "usage: %s [--from MM] [--nominal] [--seeds N] [--smoothing MM]\n",
-                         argv[0]);
+            std::fprintf(stderr, "usage: %s [OPTIONS] (the options are listed in %s)\n", argv[0],
+                         __FILE__);
             return 1;
         }
     }
