@@ -46,6 +46,7 @@ class PsfTable {
     // The fields of the line that made a row, with the table's snapping (t: the table's).
     static probe::LineFields fields_of_line(const probe::Transducer& t, int l);
     int depths() const { return depths_; }
+    int row_count() const { return int(rows_.size()); }
     // The row of line l at depth index i (z = i dz), i clamped to the table.
     const Row& row(int l, int i) const;
     // H of line l at (x, z) (line frame, mm): linear in depth between rows and across
