@@ -381,7 +381,9 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
         scale[std::size_t(i)] = std::sqrt(a.d_sub / (lattice_correlation_sum(a.d_sub / cell) *
                                                      axial_correlation * psf.focal_power()));
     }
-    const int max_reach = 8 * K;
+    // H at the sub-lines' offsets, per table row (once per probe set-up and K).
+    const std::shared_ptr<const PsfTable::SubLineWeights> weights = psf.sub_line_weights(K);
+    const int max_reach = weights->reach;
     // Per line, the samples between two table rows share the rows' weights at the
     // sub-lines' offsets (evaluated once per row, at its depth's sub-line spacing, which
     // changes by under a per cent over a row): each sample then blends the two sums
@@ -394,32 +396,6 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
         for (int q = 0; q <= last; ++q)
             first_of_row[std::size_t(q)] = std::min(first_of_row[std::size_t(q)], i);
     }
-    // H at the sub-lines' offsets j d(z_i), |j| <= max_reach, for every depth index i
-    // (0 ..depths: at_row clamps the last) and every table row the lines use there: lines
-    // share rows, so each weight is evaluated once per frame rather than once per line
-    // (and the spacing d(z_i) is the same whether row i is a gap's upper or lower end).
-    const int depths = psf.depths(), width = 2 * max_reach + 1;
-    std::vector<int> slot_of(std::size_t(L) * std::size_t(depths + 1));
-    std::vector<std::pair<int, int>> slots;  // (a line, depth index) of each slot's row
-    {
-        std::vector<int> slot_of_row(std::size_t(psf.row_count()), -1);
-        for (int i = 0; i <= depths; ++i) {
-            const std::size_t first_slot = slots.size();
-            for (int l = 0; l < L; ++l) {
-                int& slot = slot_of_row[std::size_t(psf.row_id(l, i))];
-                if (slot < int(first_slot)) slot = int(slots.size()), slots.emplace_back(l, i);
-                slot_of[std::size_t(l) * std::size_t(depths + 1) + std::size_t(i)] = slot;
-            }
-        }
-    }
-    const auto weights =
-        std::make_unique_for_overwrite<std::complex<float>[]>(slots.size() * std::size_t(width));
-    tbb::parallel_for(0, int(slots.size()), [&](int s) {
-        const auto [l, i] = slots[std::size_t(s)];
-        const double d = std::max(geometry.line_spacing_mm(i * dz), 1e-6) / K;
-        std::complex<float>* w = weights.get() + std::size_t(s) * std::size_t(width) + max_reach;
-        for (int j = -max_reach; j <= max_reach; ++j) w[j] = psf.at_row(l, i, j * d);
-    });
     tbb::parallel_for(0, L, [&](int l) {
         const std::size_t row = std::size_t(l) * std::size_t(N);
         const int centre = l * K;
@@ -436,13 +412,7 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
             const PsfTable::Row& nearest = psf.row(l, k);
             const int reach =
                 std::min(max_reach, int(std::ceil(nearest.half * nearest.dx / std::min(d0, d1))));
-            const std::size_t slots_of_line = std::size_t(l) * std::size_t(depths + 1);
-            const std::complex<float>* w0 =
-                weights.get() + std::size_t(slot_of[slots_of_line + std::size_t(k)]) * width +
-                max_reach;
-            const std::complex<float>* w1 =
-                weights.get() + std::size_t(slot_of[slots_of_line + std::size_t(k) + 1]) * width +
-                max_reach;
+            const std::complex<float>*w0 = weights->at(l, k), *w1 = weights->at(l, k + 1);
             for (int j = std::max(-reach, -centre); j <= reach && centre + j < sub_lines; ++j) {
                 const std::complex<float> h0 = w0[j], h1 = w1[j];
                 const float a_i = h0.real(), b_i = h1.real() - h0.real();

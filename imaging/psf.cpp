@@ -196,6 +196,38 @@ std::complex<float> PsfTable::at_row(int l, int i, double x) const {
     return across(row(l, i), x);
 }
 
+std::shared_ptr<const PsfTable::SubLineWeights> PsfTable::sub_line_weights(int K) const {
+    {
+        const std::lock_guard<std::mutex> lock(cache_mutex_);
+        if (auto it = sub_line_weights_.find(K); it != sub_line_weights_.end()) return it->second;
+    }
+    auto w = std::make_shared<SubLineWeights>();
+    w->reach = 8 * K;
+    w->depths = depths_;
+    const int width = 2 * w->reach + 1;
+    w->slot_of.resize(std::size_t(lines_) * std::size_t(depths_ + 1));
+    std::vector<std::pair<int, int>> slots;  // (a line, depth index) of each slot's row
+    std::vector<int> slot_of_row(rows_.size(), -1);
+    for (int i = 0; i <= depths_; ++i) {
+        const std::size_t first_slot = slots.size();
+        for (int l = 0; l < lines_; ++l) {
+            int& slot = slot_of_row[std::size_t(row_id(l, i))];
+            if (slot < int(first_slot)) slot = int(slots.size()), slots.emplace_back(l, i);
+            w->slot_of[std::size_t(l) * std::size_t(depths_ + 1) + std::size_t(i)] = slot;
+        }
+    }
+    w->values.resize(slots.size() * std::size_t(width));
+    const probe::ScanGeometry geometry(t_);
+    tbb::parallel_for(0, int(slots.size()), [&](int s) {
+        const auto [l, i] = slots[std::size_t(s)];
+        const double d = std::max(geometry.line_spacing_mm(i * dz_), 1e-6) / K;
+        std::complex<float>* row = w->values.data() + std::size_t(s) * std::size_t(width);
+        for (int j = -w->reach; j <= w->reach; ++j) row[j + w->reach] = at_row(l, i, j * d);
+    });
+    const std::lock_guard<std::mutex> lock(cache_mutex_);
+    return sub_line_weights_.try_emplace(K, std::move(w)).first->second;
+}
+
 double PsfTable::power(int l, double z) const {
     const double u = std::clamp(z / dz_, 0.0, double(depths_ - 1));
     const int i = std::min(int(u), depths_ - 2);

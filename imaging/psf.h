@@ -72,6 +72,21 @@ class PsfTable {
     // misses once that exceeds (D_tx + D_rx) / 2, and diffraction widens the span by
     // lambda / D; taken twice as wide, what is left is the apertures' side-lobe level.
     double largest_sin_tilt(double z) const;
+    // H at the speckle's sub-lines: for sub-lines K per line gap (spacing d_i = the line
+    // spacing at z_i = i dz over K), at(l, i)[j] = at_row(l, i, j d_i) for |j| <= reach =
+    // 8 K and i = 0 .. depths (the last clamped to the table). Lines share rows, so each
+    // is evaluated once per row; kept for the next frames of the same set-up and K.
+    struct SubLineWeights {
+        int reach = 0, depths = 0;
+        std::vector<int> slot_of;                 // [l * (depths + 1) + i] -> slot
+        std::vector<std::complex<float>> values;  // [slot * (2 reach + 1) + j + reach]
+        const std::complex<float>* at(int l, int i) const {
+            const auto slot =
+                std::size_t(slot_of[std::size_t(l) * std::size_t(depths + 1) + std::size_t(i)]);
+            return values.data() + slot * std::size_t(2 * reach + 1) + std::size_t(reach);
+        }
+    };
+    std::shared_ptr<const SubLineWeights> sub_line_weights(int K) const;
     // The lateral power integral on the central line at the transmit focus: speckle is
     // calibrated there (its level at other depths follows the ratio).
     double focal_power() const { return focal_power_; }
@@ -89,6 +104,7 @@ class PsfTable {
     mutable std::mutex cache_mutex_;
     mutable std::unordered_map<uint64_t, std::complex<double>> plane_echoes_;
     mutable std::unordered_map<int, std::shared_ptr<const probe::LineFields>> row_fields_;
+    mutable std::unordered_map<int, std::shared_ptr<const SubLineWeights>> sub_line_weights_;
 };
 
 // The receive weight of every particle of `sources` (map frame; the probe face centre at
