@@ -220,7 +220,7 @@ uint64_t digest_of(const simulator::TraceResult<Dim>& r) {
     d.add_all(r.fluence.voxels()), d.add_all(r.absorbed.voxels());
     for (const auto& p : r.paths) d.add(p.line), d.add(p.particle), d.add_all(p.vertices);
     d.add_all(r.echo_profile.intensity), d.add_all(r.echo_profile.position);
-    d.add_all(r.echo_profile.covariance), d.add_all(r.echo_profile.illumination);
+    d.add_all(r.echo_profile.illumination);
     d.add_all(r.echo_profile.illuminated_position);
     d.add(r.ledger), d.add(r.stats);
     return d.value();

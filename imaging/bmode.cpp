@@ -546,7 +546,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
 
     // -- speckle (header)
     const bool with_speckle = settings.speckle && profile.lines > 0 && profile.bins == N &&
-                              profile.covariance.size() == profile.intensity.size();
+                              profile.position.size() == profile.intensity.size();
     // The lines' PSF table, where speckle or reflections need it (computed once per probe
     // set-up).
     const std::shared_ptr<const PsfTable> psf =

@@ -102,8 +102,6 @@ struct EchoProfile {
     std::vector<float> illumination;
     std::vector<glm::vec<Dim, float>> illuminated_position;  // illumination-weighted mean
     std::vector<glm::vec<Dim, float>> position;  // intensity-weighted mean position (mm, map)
-    // Intensity-weighted covariance of the positions (mm^2): the beam's spread.
-    std::vector<glm::mat<Dim, Dim, float>> covariance;
     float at(int line, int bin) const { return intensity[std::size_t(line) * bins + bin]; }
 };
 

@@ -236,17 +236,15 @@ class InterfaceCache {
     InterfaceSides<Dim>* entries_ = nullptr;
 };
 
-// One bin of a line's echo profile: intensity w and its moments, in double (the spread
-// across the beam is a small difference of large second moments). One record per bin: a
-// step updates one cache line, not three.
+// One bin of a line's echo profile: intensity w, the illumination and their first
+// moments, in double (sums of millions of small steps). One record per bin: a step
+// updates one cache line, not several.
 template <int Dim>
 struct ProfileBin {
-    static constexpr int kPairs = Dim * (Dim + 1) / 2;  // the upper triangle of x x^T
     double weight;
     double illumination;                // the same without the backscatter^2 (EchoProfile)
     std::array<double, Dim> lit_first;  // sum of illumination x
     std::array<double, Dim> first;      // sum of w x
-    std::array<double, kPairs> second;  // sum of w x_a x_b, a <= b
 };
 
 // Everything one scan line produces; lines are merged in order afterwards.
@@ -536,12 +534,7 @@ class LineTracer {
         if (!(backscatter > 0.0f)) return;
         const double intensity = double(E * scattered * two_way * receive);
         p.weight += intensity;
-        int pair = 0;
-        for (int a = 0; a < Dim; ++a) {
-            const double wx = intensity * double(x[a]);
-            p.first[std::size_t(a)] += wx;
-            for (int c = a; c < Dim; ++c) p.second[std::size_t(pair++)] += wx * double(x[c]);
-        }
+        for (int a = 0; a < Dim; ++a) p.first[std::size_t(a)] += intensity * double(x[a]);
     }
 
     void flush_deposits(Batch<Dim>& b, int k) {
@@ -1392,7 +1385,6 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         p.illumination.assign(p.intensity.size(), 0.0f);
         p.illuminated_position.assign(p.intensity.size(), Vec<Dim>(0.0f));
         p.position.assign(p.intensity.size(), Vec<Dim>(0.0f));
-        p.covariance.assign(p.intensity.size(), glm::mat<Dim, Dim, float>(0.0f));
         tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
             const std::size_t row =
                 std::size_t(sources[order[starts[l]]].line) * std::size_t(p.bins);
@@ -1407,17 +1399,8 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
                             float(bin.lit_first[std::size_t(a)] / bin.illumination);
                 if (!(bin.weight > 0.0)) continue;
                 const double inverse_w = 1.0 / bin.weight;
-                glm::vec<Dim, double> mean;
-                for (int a = 0; a < Dim; ++a) mean[a] = bin.first[std::size_t(a)] * inverse_w;
-                p.position[at] = Vec<Dim>(mean);
-                int pair = 0;
-                for (int a = 0; a < Dim; ++a) {
-                    for (int c = a; c < Dim; ++c) {
-                        const float v =
-                            float(bin.second[std::size_t(pair++)] * inverse_w - mean[a] * mean[c]);
-                        p.covariance[at][a][c] = p.covariance[at][c][a] = v;
-                    }
-                }
+                for (int a = 0; a < Dim; ++a)
+                    p.position[at][a] = float(bin.first[std::size_t(a)] * inverse_w);
             }
         });
     }

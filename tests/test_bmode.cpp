@@ -187,8 +187,7 @@ TEST(Bmode, PointEchoHasThePulsesAxialResolution) {
     }
 }
 
-// A constant scattered intensity on every line and sample, from the line's axis, with a
-// beam of 0.3 mm lateral intensity spread (sigma), isotropic.
+// A constant scattered intensity on every line and sample, from the line's axis.
 simulator::EchoProfile<2> constant_profile(const probe::Transducer& t,
                                            const imaging::ImagingSettings& settings) {
     const LineData layout = imaging::rf_layout(t, settings);
@@ -198,7 +197,6 @@ simulator::EchoProfile<2> constant_profile(const probe::Transducer& t,
     profile.bin_s = 1.0 / layout.fs_hz;
     profile.intensity.assign(std::size_t(t.lines) * std::size_t(profile.bins), 1e-6f);
     profile.position.resize(profile.intensity.size());
-    profile.covariance.assign(profile.intensity.size(), glm::mat2(0.09f));
     const probe::ScanGeometry g(t);
     for (int l = 0; l < t.lines; ++l)
         for (int i = 0; i < profile.bins; ++i)
