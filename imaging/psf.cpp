@@ -260,7 +260,7 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
     const probe::ScanGeometry geometry(t);
     const int L = t.lines;
     auto out = std::make_shared<simulator::ReceiveWeights>();
-    out->bin_s = bin_s;
+    out->set_bin_s(bin_s);
     // One-way times up to the echo window's close (half the round trip of the depth):
     // later events make no echo.
     out->bins = int(std::ceil(t.depth_mm * 1e-3 / tissue::kReferenceSpeed / bin_s)) + 2;

@@ -70,17 +70,29 @@ struct EchoProfileSettings {
 // time (imaging::receive_weights makes it from the aperture): the profile's scattered
 // intensity is weighted by it, once. Particle p of line l owns row first_of_line[l] + p.
 struct ReceiveWeights {
-    double bin_s = 0.0;  // one-way time per column
+    double bin_s = 0.0;          // one-way time per column (set_bin_s)
+    double inverse_bin_s = 0.0;  // 1 / bin_s
     int bins = 0;
     std::vector<uint32_t> first_of_line;
     std::vector<float> weight;  // [row * bins + bin]
+    void set_bin_s(double s) { bin_s = s, inverse_bin_s = 1.0 / s; }
     float at(uint32_t line, uint32_t particle, double time_s) const {
         if (line + 1 >= first_of_line.size()) return 1.0f;
         const std::size_t row = std::size_t(first_of_line[line]) + particle;
         if (row >= first_of_line[line + 1]) return 1.0f;
-        const double u = time_s / bin_s;
-        const int bin = u <= 0.0 ? 0 : std::min(int(u), bins - 1);
-        return weight[row * std::size_t(bins) + std::size_t(bin)];
+        return weight[row * std::size_t(bins) + std::size_t(column(time_s))];
+    }
+    // floor(time_s / bin_s), clamped to the columns. Every step of a frame's trace asks
+    // (the division was a fifth of the trace): by a multiply, and by the division only
+    // where the product lies within 1e-6 of a column's edge, which the two roundings
+    // (<= 3 ulp apart) cannot cross otherwise: the column is always the division's.
+    int column(double time_s) const {
+        double u = time_s * inverse_bin_s;
+        if (u > 0.0 && u < double(bins)) {
+            const double fraction = u - double(int(u));
+            if (fraction < 1e-6 || fraction > 1.0 - 1e-6) u = time_s / bin_s;
+        }
+        return u <= 0.0 ? 0 : (u >= double(bins) ? bins - 1 : std::min(int(u), bins - 1));
     }
 };
 

@@ -236,6 +236,37 @@ TEST(Tracer, AnEchoThroughARoughReflectionReturnsTheLobesShare) {
     }
 }
 
+// The receive weights' column is found by a multiply (an optimisation that claims to
+// change nothing): it must equal floor(t / bin_s), clamped, the division's, everywhere,
+// and above all at the columns' edges, where the two roundings could disagree.
+TEST(ReceiveWeights, ColumnIsTheDivisionsFloor) {
+    auto by_division = [](const ReceiveWeights& w, double t) {
+        const double u = t / w.bin_s;
+        return u <= 0.0 ? 0 : (u >= double(w.bins) ? w.bins - 1 : int(u));
+    };
+    std::mt19937_64 rng(7);
+    long checked = 0;
+    for (double bin_s : {0.25e-3 / 1540.0, 1e-7, 3.3e-8, 1.0 / 3.0}) {
+        ReceiveWeights w;
+        w.set_bin_s(bin_s);
+        w.bins = 400;
+        std::uniform_real_distribution<double> anywhere(-bin_s, 410.0 * bin_s);
+        for (int n = 0; n < 200000; ++n, ++checked) {
+            const double t = anywhere(rng);
+            ASSERT_EQ(w.column(t), by_division(w, t)) << "t = " << t;
+        }
+        for (int k = 0; k <= 401; ++k) {  // each edge k bin_s and its neighbours
+            double t = double(k) * bin_s;
+            for (int ulp = 0; ulp < 4; ++ulp) t = std::nextafter(t, 0.0);
+            for (int step = 0; step < 9; ++step, ++checked) {
+                ASSERT_EQ(w.column(t), by_division(w, t)) << "edge " << k << ", t = " << t;
+                t = std::nextafter(t, 1.0);
+            }
+        }
+    }
+    EXPECT_GT(checked, 800000);
+}
+
 TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
     Scene2D scene = phantoms::trace_scene(
         phantoms::load_phantom(std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/paper_fig6.json"),
