@@ -25,6 +25,58 @@ namespace sonotrace::imaging {
 
 using tissue::kFwhmPerSigma;
 
+namespace detail {
+
+// One line's speckle sums over the samples [begin, end) between two table rows: for each
+// sub-line j in [j_first, j_last] (offset from the line's own), sum += (h0_j + f (h1_j -
+// h0_j)) v_j, in-phase and quadrature, in order of j. Four sub-lines per pass over the
+// samples (each sample's sums stay in registers: the rows are ~16 samples, and one pass
+// per sub-line was mostly loop overhead); the additions keep their order, so the sums are
+// the same bits as one sub-line at a time. Built for AVX2 too (no FMA: the same numbers).
+[[gnu::target_clones("avx2", "default")]] void add_weighted_sub_lines(
+    const std::complex<float>* w0, const std::complex<float>* w1, int j_first, int j_last,
+    const float* first_sub_line, int N, const float* __restrict f, int begin, int end,
+    float* __restrict sum_i, float* __restrict sum_q) {
+    auto sub_line = [&](int j) { return first_sub_line + std::ptrdiff_t(j) * N; };
+    int j = j_first;
+    for (; j + 3 <= j_last; j += 4) {
+        float a_i[4], b_i[4], a_q[4], b_q[4];
+        for (int u = 0; u < 4; ++u) {
+            const std::complex<float> h0 = w0[j + u], h1 = w1[j + u];
+            a_i[u] = h0.real(), b_i[u] = h1.real() - h0.real();
+            a_q[u] = h0.imag(), b_q[u] = h1.imag() - h0.imag();
+        }
+        const float* __restrict v0 = sub_line(j);
+        const float* __restrict v1 = sub_line(j + 1);
+        const float* __restrict v2 = sub_line(j + 2);
+        const float* __restrict v3 = sub_line(j + 3);
+        for (int i = begin; i < end; ++i) {
+            float si = sum_i[i], sq = sum_q[i];
+            si += (a_i[0] + f[i] * b_i[0]) * v0[i];
+            sq += (a_q[0] + f[i] * b_q[0]) * v0[i];
+            si += (a_i[1] + f[i] * b_i[1]) * v1[i];
+            sq += (a_q[1] + f[i] * b_q[1]) * v1[i];
+            si += (a_i[2] + f[i] * b_i[2]) * v2[i];
+            sq += (a_q[2] + f[i] * b_q[2]) * v2[i];
+            si += (a_i[3] + f[i] * b_i[3]) * v3[i];
+            sq += (a_q[3] + f[i] * b_q[3]) * v3[i];
+            sum_i[i] = si, sum_q[i] = sq;
+        }
+    }
+    for (; j <= j_last; ++j) {
+        const std::complex<float> h0 = w0[j], h1 = w1[j];
+        const float a_i = h0.real(), b_i = h1.real() - h0.real();
+        const float a_q = h0.imag(), b_q = h1.imag() - h0.imag();
+        const float* __restrict v = sub_line(j);
+        for (int i = begin; i < end; ++i) {
+            sum_i[i] += (a_i + f[i] * b_i) * v[i];
+            sum_q[i] += (a_q + f[i] * b_q) * v[i];
+        }
+    }
+}
+
+}  // namespace detail
+
 namespace {
 
 constexpr double kC0 = tissue::kReferenceSpeed;  // m/s
@@ -182,54 +234,6 @@ struct BackscatterGrid {
         const float v = gx * gy * b[at] + fx * gy * b[at + 1] + gx * fy * b[at + g.nx] +
                         fx * fy * b[at + g.nx + 1];
         out[u] = v * v;
-    }
-}
-
-// One line's speckle sums over the samples [begin, end) between two table rows: for each
-// sub-line j in [j_first, j_last] (offset from the line's own), sum += (h0_j + f (h1_j -
-// h0_j)) v_j, in-phase and quadrature, in order of j. Four sub-lines per pass over the
-// samples (each sample's sums stay in registers: the rows are ~16 samples, and one pass
-// per sub-line was mostly loop overhead); the additions keep their order, so the sums are
-// the same bits as one sub-line at a time. Built for AVX2 too (no FMA: the same numbers).
-[[gnu::target_clones("avx2", "default")]] void add_weighted_sub_lines(
-    const std::complex<float>* w0, const std::complex<float>* w1, int j_first, int j_last,
-    const float* first_sub_line, int N, const float* __restrict f, int begin, int end,
-    float* __restrict sum_i, float* __restrict sum_q) {
-    auto sub_line = [&](int j) { return first_sub_line + std::ptrdiff_t(j) * N; };
-    int j = j_first;
-    for (; j + 3 <= j_last; j += 4) {
-        float a_i[4], b_i[4], a_q[4], b_q[4];
-        for (int u = 0; u < 4; ++u) {
-            const std::complex<float> h0 = w0[j + u], h1 = w1[j + u];
-            a_i[u] = h0.real(), b_i[u] = h1.real() - h0.real();
-            a_q[u] = h0.imag(), b_q[u] = h1.imag() - h0.imag();
-        }
-        const float* __restrict v0 = sub_line(j);
-        const float* __restrict v1 = sub_line(j + 1);
-        const float* __restrict v2 = sub_line(j + 2);
-        const float* __restrict v3 = sub_line(j + 3);
-        for (int i = begin; i < end; ++i) {
-            float si = sum_i[i], sq = sum_q[i];
-            si += (a_i[0] + f[i] * b_i[0]) * v0[i];
-            sq += (a_q[0] + f[i] * b_q[0]) * v0[i];
-            si += (a_i[1] + f[i] * b_i[1]) * v1[i];
-            sq += (a_q[1] + f[i] * b_q[1]) * v1[i];
-            si += (a_i[2] + f[i] * b_i[2]) * v2[i];
-            sq += (a_q[2] + f[i] * b_q[2]) * v2[i];
-            si += (a_i[3] + f[i] * b_i[3]) * v3[i];
-            sq += (a_q[3] + f[i] * b_q[3]) * v3[i];
-            sum_i[i] = si, sum_q[i] = sq;
-        }
-    }
-    for (; j <= j_last; ++j) {
-        const std::complex<float> h0 = w0[j], h1 = w1[j];
-        const float a_i = h0.real(), b_i = h1.real() - h0.real();
-        const float a_q = h0.imag(), b_q = h1.imag() - h0.imag();
-        const float* __restrict v = sub_line(j);
-        for (int i = begin; i < end; ++i) {
-            sum_i[i] += (a_i + f[i] * b_i) * v[i];
-            sum_q[i] += (a_q + f[i] * b_q) * v[i];
-        }
     }
 }
 
@@ -464,8 +468,8 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
             const int j_first = std::max(-reach, -centre),
                       j_last = std::min(reach, sub_lines - 1 - centre);
             const float* first_sub_line = sub.get() + std::size_t(centre) * std::size_t(N);
-            add_weighted_sub_lines(w0, w1, j_first, j_last, first_sub_line, N, f.data(), begin,
-                                   end, sum_i.data(), sum_q.data());
+            detail::add_weighted_sub_lines(w0, w1, j_first, j_last, first_sub_line, N, f.data(),
+                                           begin, end, sum_i.data(), sum_q.data());
         }
         for (int i = 0; i < N; ++i) {
             const bool lit = light[row + std::size_t(i)] > 0.0;  // nothing where nothing is lit

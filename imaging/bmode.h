@@ -27,6 +27,7 @@
 // sums them weighted by its complex H, so the mean level follows the lateral power
 // integral |H|^2 dx (brightest at the focus) and the grain grows away from it.
 #include <cmath>
+#include <complex>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -204,5 +205,14 @@ struct ScanConverted {
 };
 ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, double pixel_mm,
                            float outside = 0.0f);
+
+namespace detail {
+// One line's speckle sums over the samples [begin, end) between two PSF table rows: for
+// each sub-line j in [j_first, j_last] (first_sub_line + j N), sum += (h0_j + f (h1_j -
+// h0_j)) v_j, in-phase into sum_i and quadrature into sum_q, in the order of j (bmode.cpp).
+void add_weighted_sub_lines(const std::complex<float>* w0, const std::complex<float>* w1,
+                            int j_first, int j_last, const float* first_sub_line, int N,
+                            const float* f, int begin, int end, float* sum_i, float* sum_q);
+}  // namespace detail
 
 }  // namespace sonotrace::imaging

@@ -10,7 +10,9 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <cstring>
 #include <numbers>
+#include <random>
 #include <vector>
 
 #include "imaging/bmode.h"
@@ -427,6 +429,79 @@ TEST(Psf, ReceiveWeightsAreKeptForTheSameParticlesOnly) {
     ASSERT_EQ(shifted->weight.size(), first->weight.size());
     for (std::size_t q = 0; q < first->weight.size(); ++q)
         ASSERT_NEAR(shifted->weight[q], first->weight[q], 1e-3f * (1.0f + first->weight[q])) << q;
+}
+
+}  // namespace
+}  // namespace sonotrace
+
+namespace sonotrace {
+namespace {
+
+// Two optimisations that claim to change nothing, against the plain forms they replace:
+// the sub-line weights kept per table row (PsfTable::sub_line_weights) are at_row at
+// j d(z_i) for every line and depth index, and the speckle sums four sub-lines at a time
+// equal one sub-line at a time, bit for bit.
+TEST(Psf, SubLineWeightsAreTheRowsAtTheSubLineOffsets) {
+    for (const char* preset : {"convex", "linear", "phased"}) {
+        probe::Transducer t = probe::find_transducer(preset, "test");
+        t.lines = 24;
+        const auto psf = imaging::PsfTable::of(t);
+        const probe::ScanGeometry geometry(t);
+        for (int K : {1, 3}) {
+            const auto w = psf->sub_line_weights(K);
+            ASSERT_EQ(w->reach, 8 * K);
+            long differing = 0;
+            for (int l = 0; l < t.lines; ++l)
+                for (int i = 0; i <= psf->depths(); ++i) {
+                    const double d = std::max(geometry.line_spacing_mm(i * psf->dz()), 1e-6) / K;
+                    for (int j = -w->reach; j <= w->reach; ++j) {
+                        const std::complex<float> expected = psf->at_row(l, i, j * d);
+                        differing += std::memcmp(&w->at(l, i)[j], &expected, sizeof expected) != 0;
+                    }
+                }
+            EXPECT_EQ(differing, 0) << preset << ", K " << K;
+        }
+    }
+}
+
+TEST(Speckle, FourSubLinesAtATimeAddAsOneAtATime) {
+    std::mt19937 rng(11);
+    std::normal_distribution<float> normal;
+    const int N = 37, sub_lines = 23;
+    std::vector<float> sub(std::size_t(N) * std::size_t(sub_lines));
+    std::vector<float> f(static_cast<std::size_t>(N));
+    for (float& v : sub) v = normal(rng);
+    for (float& v : f) v = std::uniform_real_distribution<float>(0.0f, 1.0f)(rng);
+    std::vector<std::complex<float>> w0(static_cast<std::size_t>(sub_lines));
+    std::vector<std::complex<float>> w1(w0.size());
+    for (std::size_t j = 0; j < w0.size(); ++j)
+        w0[j] = {normal(rng), normal(rng)}, w1[j] = {normal(rng), normal(rng)};
+    const int centre = 11;  // the line's own sub-line
+    for (int j_first = -11; j_first <= -5; ++j_first)
+        for (int j_last = j_first; j_last <= 11; ++j_last) {
+            std::vector<float> fast_i(std::size_t(N), 0.5f), fast_q(std::size_t(N), -0.25f);
+            std::vector<float> plain_i = fast_i, plain_q = fast_q;
+            const int begin = 3, end = N - 2;
+            imaging::detail::add_weighted_sub_lines(w0.data() + centre, w1.data() + centre, j_first,
+                                                    j_last, sub.data() + std::size_t(centre * N), N,
+                                                    f.data(), begin, end, fast_i.data(),
+                                                    fast_q.data());
+            for (int j = j_first; j <= j_last; ++j) {  // the loop it replaced
+                const std::complex<float> h0 = w0[std::size_t(centre + j)],
+                                          h1 = w1[std::size_t(centre + j)];
+                const float* v = sub.data() + std::size_t((centre + j) * N);
+                for (int i = begin; i < end; ++i) {
+                    plain_i[std::size_t(i)] +=
+                        (h0.real() + f[std::size_t(i)] * (h1.real() - h0.real())) * v[i];
+                    plain_q[std::size_t(i)] +=
+                        (h0.imag() + f[std::size_t(i)] * (h1.imag() - h0.imag())) * v[i];
+                }
+            }
+            ASSERT_EQ(std::memcmp(fast_i.data(), plain_i.data(), fast_i.size() * 4), 0)
+                << j_first << ".." << j_last;
+            ASSERT_EQ(std::memcmp(fast_q.data(), plain_q.data(), fast_q.size() * 4), 0)
+                << j_first << ".." << j_last;
+        }
 }
 
 }  // namespace

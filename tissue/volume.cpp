@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 #include <vector>
 
@@ -134,6 +135,43 @@ float Volume::quantile(double q) const {
     return hi;
 }
 
+namespace {
+// out[i] = sum over taps o of w[o] rows[o][i], added in the order of o from 0. In blocks of
+// 32 samples whose sums stay in registers through all the taps (one load per tap and
+// sample, where adding each tap into `out` took a load and a store more); the order of
+// the additions is that of one tap at a time. Built for AVX2 too (no FMA: the same numbers).
+[[gnu::target_clones("avx2", "default")]] void weighted_sum_of_rows(const float* const* rows,
+                                                                    const float* w, int taps,
+                                                                    std::size_t n, float* out) {
+    // Four vectors of eight (GCC vector extensions: AVX registers, or pairs of SSE2
+    // ones); a plain array of 32 sums was kept in memory.
+    typedef float v8f __attribute__((vector_size(32)));
+    constexpr std::size_t kBlock = 32;
+    std::size_t first = 0;
+    for (; first + kBlock <= n; first += kBlock) {
+        v8f sum[4] = {};
+        for (int o = 0; o < taps; ++o) {
+            const float weight = w[o];
+            const float* source = rows[o] + first;
+            for (int v = 0; v < 4; ++v) {
+                v8f x;
+                std::memcpy(&x, source + 8 * v, sizeof x);
+                sum[v] += weight * x;
+            }
+        }
+        std::memcpy(out + first, sum, sizeof sum);
+    }
+    const std::size_t rest = n - first;
+    float sum[kBlock] = {};
+    for (int o = 0; o < taps; ++o) {
+        const float weight = w[o];
+        const float* source = rows[o] + first;
+        for (std::size_t i = 0; i < rest; ++i) sum[i] += weight * source[i];
+    }
+    std::copy_n(sum, rest, out + first);
+}
+}  // namespace
+
 Volume gaussian_smoothed(const Volume& volume, double sigma_mm) {
     Volume out = volume;
     const glm::ivec3 dims = volume.dims();
@@ -151,37 +189,32 @@ Volume gaussian_smoothed(const Volume& volume, double sigma_mm) {
             kernel[std::size_t(o + radius)] =
                 float(std::exp(-0.5 * o * o / (sigma * sigma)) / total);
         const Volume in = out;
-        // Each output row (along x) is one task's, summed tap by tap over whole rows: the
-        // inner loops run along x, contiguous and branch-free, and vectorise; the order of
-        // the sums is fixed, so the result does not depend on the threads.
+        // Each output row (along x) is one task's: the sum over taps of whole source rows
+        // (along x: the row shifted, padded with its edge values; along y or z: the rows
+        // at clamped offsets), in a fixed order, so the result does not depend on the
+        // threads.
         tbb::parallel_for(std::size_t(0), row_count, [&](std::size_t row) {
             float* target = out.voxels().data() + row * nx;
-            std::fill_n(target, nx, 0.0f);
+            std::vector<const float*> sources(kernel.size());
+            std::vector<float> padded;
             if (axis == 0) {
-                // Along x: the row padded with its edge values.
-                std::vector<float> padded(nx + 2 * std::size_t(radius));
+                padded.resize(nx + 2 * std::size_t(radius));
                 const float* source = in.voxels().data() + row * nx;
                 std::fill_n(padded.begin(), radius, source[0]);
                 std::copy_n(source, nx, padded.begin() + radius);
                 std::fill_n(padded.begin() + radius + std::ptrdiff_t(nx), radius, source[nx - 1]);
-                for (int o = 0; o <= 2 * radius; ++o) {
-                    const float w = kernel[std::size_t(o)];
-                    const float* shifted = padded.data() + o;
-                    for (std::size_t i = 0; i < nx; ++i) target[i] += w * shifted[i];
+                for (std::size_t o = 0; o < kernel.size(); ++o) sources[o] = padded.data() + o;
+            } else {
+                const std::size_t j = row % std::size_t(dims.y), k = row / std::size_t(dims.y);
+                const int at = int(axis == 1 ? j : k);
+                for (int o = -radius; o <= radius; ++o) {
+                    const std::size_t q = std::size_t(std::clamp(at + o, 0, n - 1));
+                    const std::size_t source_row =
+                        axis == 1 ? k * std::size_t(dims.y) + q : q * std::size_t(dims.y) + j;
+                    sources[std::size_t(o + radius)] = in.voxels().data() + source_row * nx;
                 }
-                return;
             }
-            // Along y or z: whole rows at clamped offsets along the axis.
-            const std::size_t j = row % std::size_t(dims.y), k = row / std::size_t(dims.y);
-            const int at = int(axis == 1 ? j : k);
-            for (int o = -radius; o <= radius; ++o) {
-                const std::size_t q = std::size_t(std::clamp(at + o, 0, n - 1));
-                const std::size_t source_row =
-                    axis == 1 ? k * std::size_t(dims.y) + q : q * std::size_t(dims.y) + j;
-                const float w = kernel[std::size_t(o + radius)];
-                const float* source = in.voxels().data() + source_row * nx;
-                for (std::size_t i = 0; i < nx; ++i) target[i] += w * source[i];
-            }
+            weighted_sum_of_rows(sources.data(), kernel.data(), int(kernel.size()), nx, target);
         });
     }
     return out;
