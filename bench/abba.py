@@ -36,6 +36,12 @@ def main():
             raise SystemExit(f"{binary}: no '{args.counter}' counter for '{args.filter}'")
         return float(match.group(1)) * scale[match.group(2)]
 
+    def shown(value):  # with the counter's own prefix: 43.2 M steps/s, 15.3 frames/s
+        for prefix, factor in (("G", 1e9), ("M", 1e6), ("k", 1e3)):
+            if value >= factor:
+                return f"{value / factor:9.2f} {prefix}"
+        return f"{value:9.2f}  "
+
     a_rates, b_rates, ratios = [], [], []
     for pair in range(args.pairs):
         first_a = pair % 2 == 0
@@ -45,8 +51,8 @@ def main():
         a_rates.append(a)
         b_rates.append(b)
         ratios.append(b / a)
-        print(f"{a / 1e6:9.2f} M {b / 1e6:9.2f} M  ratio {b / a:.3f}", flush=True)
-    print(f"median A {statistics.median(a_rates) / 1e6:.2f} M, B {statistics.median(b_rates) / 1e6:.2f} M,"
+        print(f"{shown(a)} {shown(b)}  ratio {b / a:.3f}", flush=True)
+    print(f"median A {shown(statistics.median(a_rates))}, B {shown(statistics.median(b_rates))},"
           f" median ratio {statistics.median(ratios):.3f} (mean {statistics.mean(ratios):.3f},"
           f" {min(ratios):.3f}-{max(ratios):.3f}) over {args.pairs} pairs")
 
