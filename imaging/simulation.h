@@ -21,7 +21,7 @@
 
 namespace sonotrace::imaging {
 
-// How echoes reach the image (DESIGN.md, "Echo formation").
+// How echoes reach the image (README, "sonotrace simulate": receive model).
 enum class ReceiveModel {
     monostatic,  // every reflection/scattering event echoes at twice its time (default)
     capture,     // reflections count only when the particle itself reaches the face, which

@@ -1109,7 +1109,7 @@ class LineTracer {
     RunEnd uniform_run(Batch<Dim>& b, int k) {
         if (!uniform_runs_) return RunEnd::step;
         // Most steps in a textured medium (the head) are not in a uniform block: leave
-        // before loading and storing back the particle's state (Colin27 2D: +15 % steps/s).
+        // before loading and storing back the particle's state.
         const Texel* first = map_.uniform_block(b.position[k]);
         if (first == nullptr) return RunEnd::step_outside_blocks;  // step() need not look again
         return uniform_run(b, k, first);
@@ -1341,7 +1341,7 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         // Row by row of the tile (cells x fastest), within the map's edge.
         constexpr int side = DepositTiles<Dim>::kSide;
         // The next tile's first half, prefetched: tiles lie anywhere in their chunks, and
-        // the hardware's stream prefetch restarts at each (merge 2.39 -> 2.16 ms, 3D).
+        // the hardware's stream prefetch restarts at each.
         for (const DepositTiles<Dim>* m : maps) {
             const auto* next = t + 1 < tiles ? m->tile(t + 1) : nullptr;
             if (next == nullptr) continue;

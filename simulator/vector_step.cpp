@@ -1,6 +1,6 @@
 // The general step of a batch, eight particles at a time (GCC vector extensions: AVX2
 // registers where the CPU has them, SSE pairs otherwise; a clone for x86-64-v4 adds
-// AVX-512's 32 registers and two-source shuffles, 3D +9 %). In textured tissue (the head)
+// AVX-512's 32 registers and two-source shuffles). In textured tissue (the head)
 // nearly every step interpolates and refracts; as scalar code with a branch per physics
 // stage it cost ~270 cycles, while lanes in lockstep share one instruction stream.
 //

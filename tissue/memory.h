@@ -21,16 +21,15 @@ void check_allocation(double bytes, const std::string& source, const std::string
 // heap, which is trimmed only above 64 MiB free. By default a block above malloc's
 // adaptive threshold is a fresh mapping each time, and each trace allocates tens of MB of
 // transient buffers (echo lists, per-line outputs, result maps); the kernel zeroes fresh
-// pages at their first touch, and in a virtual machine the host may fault on them too
-// (bench/README.md: 2D synthetic 189 -> 205-211 M steps/s; peak RSS +8 MB). Called at the
-// start of main() by our programs.
+// pages at their first touch, and in a virtual machine the host may fault on them too.
+// Called at the start of main() by our programs.
 void keep_freed_memory();
 
 // Memory on 2 MiB pages where the kernel offers them (transparent huge pages: asked for
 // with madvise, which is all Debian's default "madvise" mode grants). For arrays read at
 // random by the particle tracer: one TLB entry then covers 512 pages' worth, and in a
-// virtual machine each TLB miss costs a two-level page walk (bench/README.md: +7 % 2D,
-// +14 % 3D on Colin27). Blocks under 2 MiB come from operator new as usual.
+// virtual machine each TLB miss costs a two-level page walk. Blocks under 2 MiB come
+// from operator new as usual.
 void* allocate_huge(std::size_t bytes);
 void free_huge(void* p, std::size_t bytes);
 
@@ -67,7 +66,7 @@ struct HugePageAllocator {
 
 // The same, but value-initialization writes nothing: for arrays that are filled in
 // parallel right after allocation, so that their pages fault in on every thread (page
-// faults are slow in a virtual machine: a renderer's 28 MB cell list took 55 ms on one).
+// faults are slow in a virtual machine).
 template <class T>
 struct UninitializedHugePageAllocator : HugePageAllocator<T>, DefaultInitConstruct {
     using value_type = T;
@@ -79,8 +78,8 @@ struct UninitializedHugePageAllocator : HugePageAllocator<T>, DefaultInitConstru
 // For arrays whose elements start at zero, such as volumes: memory from calloc, which
 // clears only what needs it (a fresh mapping is zero already, and its pages cost nothing
 // until written, then they fault in whichever thread writes them), and value-
-// initialization that writes nothing more. A 3D trace's two 14.5 MB result maps took
-// 15 ms on one core when std::vector zero-filled them (a quarter of the trace).
+// initialization that writes nothing more (std::vector zero-filling a 3D trace's result
+// maps on one core was a quarter of the trace).
 // Caveat: a vector shrunk and then grown in place keeps the old values; Volume never
 // resizes its storage.
 template <class T>

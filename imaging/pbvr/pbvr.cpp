@@ -345,8 +345,8 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
         }
     });
     // One list in slab order, copied on both threads into calloc's memory (fresh pages
-    // are not touched until then), so that its pages fault in on both: one thread's copy
-    // was 75 ms of a 0.28 s set-up (page faults are slow in a virtual machine).
+    // are not touched until then), so that its pages fault in on both (page faults are
+    // slow in a virtual machine, and a quarter of the set-up when one thread took them).
     std::vector<std::size_t> first(slabs.size() + 1, 0);
     for (std::size_t k = 0; k < slabs.size(); ++k) first[k + 1] = first[k] + slabs[k].size();
     cells_.resize(first.back());

@@ -16,8 +16,8 @@
 // A cell's r is proportional to its camera depth: the sub-pixel footprint there, times
 // radius_scale / sqrt(pi). Particles then project to discs of the same size everywhere,
 // and a repetition's particle count follows the image, not the camera's distance. With
-// one r for all, set at the orbit target, a camera 20 mm from the head's centre took
-// 18 s a repetition; it now takes 0.21 s. The model holds cell by cell: r changes only
+// one r for all, set at the orbit target, a camera close to the head projected each
+// near particle over thousands of pixels. The model holds cell by cell: r changes only
 // at cell faces, by the ratio of neighbouring depths, and where that ratio is large, r is
 // far below the cell size.
 //
