@@ -814,7 +814,7 @@ namespace {
 // a fan costs as much as the rest of the conversion, so the table is kept for the next
 // frames of the same geometry (a sweep, the GUI).
 struct ScanTable {
-    std::array<double, 8> key{};
+    std::array<double, 9> key{};
     int rows = 0, cols = 0;
     glm::dvec2 origin{0.0};
     std::vector<int32_t> first;      // l0 * samples + s0, -1 outside the scanned region
@@ -829,14 +829,9 @@ std::shared_ptr<const ScanTable> scan_table(const LineData& data, const probe::T
     // compiler, cannot capture bindings).
     const std::pair<glm::dvec2, glm::dvec2> bounds = geometry.bounds();
     const glm::dvec2 lo = bounds.first, hi = bounds.second;
-    const std::array<double, 8> key{double(t.is_fan()),
-                                    double(data.lines),
-                                    double(data.samples),
-                                    data.fs_hz,
-                                    pixel_mm,
-                                    t.depth_mm,
-                                    t.radius_of_lines(),
-                                    t.is_fan() ? t.fov_deg : t.array_length_mm()};
+    const std::array<double, 9> key{double(int(t.type)), double(data.lines), double(data.samples),
+                                    data.fs_hz,          pixel_mm,           t.depth_mm,
+                                    t.radius_mm,         t.fov_deg,          t.array_length_mm()};
     static std::mutex mutex;
     static std::vector<std::shared_ptr<const ScanTable>> cache;  // most recent last
     {
@@ -861,11 +856,21 @@ std::shared_ptr<const ScanTable> scan_table(const LineData& data, const probe::T
             const glm::dvec2 ld = geometry.line_and_depth(p);
             if (!(ld.x >= -0.5 && ld.x <= data.lines - 0.5 && ld.y >= 0.0 && ld.y <= t.depth_mm))
                 continue;
-            const double l = std::clamp(ld.x, 0.0, double(data.lines - 1));
             const double sm = std::clamp(ld.y * samples_per_mm, 0.0, double(data.samples - 1));
-            const int l0 = std::min(int(l), std::max(data.lines - 2, 0)),
-                      s0 = std::min(int(sm), data.samples - 2);
+            const int s0 = std::min(int(sm), data.samples - 2);
             const std::size_t at = std::size_t(r) * std::size_t(table->cols) + std::size_t(c);
+            if (geometry.closed() && data.lines > 1 && (ld.x < 0.0 || ld.x > data.lines - 1)) {
+                // Between the last line and the first, which neighbour on a closed array.
+                const double l = ld.x < 0.0 ? ld.x + data.lines : ld.x;
+                const int last = data.lines - 1;
+                table->first[at] = last * data.samples + s0;
+                table->next_line[at] = -last * data.samples;
+                table->line_frac[at] = float(l - last);
+                table->sample_frac[at] = float(sm - s0);
+                continue;
+            }
+            const double l = std::clamp(ld.x, 0.0, double(data.lines - 1));
+            const int l0 = std::min(int(l), std::max(data.lines - 2, 0));
             table->first[at] = l0 * data.samples + s0;
             table->next_line[at] = std::min(l0 + 1, data.lines - 1) == l0 ? 0 : data.samples;
             table->line_frac[at] = float(l - l0);

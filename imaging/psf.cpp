@@ -11,6 +11,7 @@
 #include <numbers>
 
 #include "probe/aperture.h"
+#include "probe/array_geometry.h"
 #include "tissue/acoustic_map.h"
 
 namespace sonotrace::imaging {
@@ -44,6 +45,7 @@ struct PsfTableBuilder {
         };
         std::vector<Job> jobs;
         table->row_of_.assign(std::size_t(t.lines) * std::size_t(depths), 0);
+        const probe::ScanGeometry geometry(t);
         for (int l = 0; l < t.lines; ++l) {
             const probe::LineArray& a = fields[std::size_t(l)].array();
             int centre = 0;
@@ -58,9 +60,9 @@ struct PsfTableBuilder {
             };
             const auto tx =
                 range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization));
-            const long offset = t.type == probe::TransducerType::phased
-                                    ? 1000000L + l
-                                    : std::lround(a.along[std::size_t(centre)] * 1e4);
+            const bool steered = !geometry.array().aperture_centre(geometry.line(l));
+            const long offset =
+                steered ? 1000000L + l : std::lround(a.along[std::size_t(centre)] * 1e4);
             for (int i = 0; i < depths; ++i) {
                 const auto rx = range(probe::aperture_weights(a, t.receive_aperture_mm(depth_of(i)),
                                                               t.rx_apodization));

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "imaging/psf.h"
+#include "probe/array_geometry.h"
 #include "probe/placement.h"
 #include "tissue/error.h"
 #include "tissue/tissue_table.h"
@@ -274,7 +275,7 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
         face.centre = glm::vec2(grid.to_map);
         face.normal = {0.0f, 1.0f};
         face.half_width_mm = float(0.5 * t.array_length_mm());
-        face.radius_mm = float(t.radius_of_lines());
+        face.radius_mm = float(probe::array_geometry(t)->face_radius_mm());
         face.reflectivity = float(t.face_reflectivity);
         trace.probe_face_2d = face;
     }

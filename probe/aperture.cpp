@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "probe/array_geometry.h"
 #include "tissue/fast_math.h"
 
 #include <vector>
@@ -12,40 +13,25 @@ namespace sonotrace::probe {
 
 LineArray line_array(const Transducer& t, int l, double snap_along) {
     const ScanGeometry geometry(t);
+    const ArrayGeometry& array = geometry.array();
     const ScanLine line = geometry.line(l);
     LineArray a;
     a.pitch_mm = t.pitch_mm;
-    const double half = 0.5 * t.array_length_mm();
-    // The line's centre on the array (mm along it); phased lines steer the whole array.
-    double centre = 0.0;
-    if (t.type == TransducerType::linear) centre = line.origin.x;
-    if (t.type == TransducerType::convex)
-        centre = std::atan2(line.direction.x, line.direction.y) * t.radius_mm;
-    if (snap_along > 0.0 && t.type != TransducerType::phased) {
+    const double length = t.array_length_mm(), half = 0.5 * length;
+    // The line's centre on the array (mm along it); steered lines use the whole array.
+    const std::optional<double> aperture_centre = array.aperture_centre(line);
+    double centre = aperture_centre.value_or(0.0);
+    if (snap_along > 0.0 && aperture_centre) {
         const double first = -half + 0.5 * t.pitch_mm;  // the first element's centre
         centre = first + std::round((centre - first) / snap_along) * snap_along;
     }
-    const glm::dvec2 across(line.direction.y, -line.direction.x);
     for (int e = 0; e < t.elements; ++e) {
         const double s = -half + (e + 0.5) * t.pitch_mm;  // along the array
-        const double along = s - centre;
-        glm::dvec2 p, n;
-        if (t.type == TransducerType::convex) {
-            // Rotation about the centre of curvature: the element `along` mm of arc from
-            // the line's foot.
-            const double phi = along / t.radius_mm;
-            p = {t.radius_mm * std::sin(phi), t.radius_mm * (std::cos(phi) - 1.0)};
-            n = {std::sin(phi), std::cos(phi)};
-        } else if (t.type == TransducerType::linear) {
-            p = {along, 0.0}, n = {0.0, 1.0};
-        } else {  // phased: the flat array in the steered line's frame
-            const glm::dvec2 world(s, 0.0), up(0.0, 1.0);
-            p = {glm::dot(world - line.origin, across),
-                 glm::dot(world - line.origin, line.direction)};
-            n = {glm::dot(up, across), glm::dot(up, line.direction)};
-        }
-        a.position.push_back(p);
-        a.normal.push_back(n);
+        double along = s - centre;
+        if (array.closed()) along -= length * std::floor((along + half) / length);  // [-L/2, L/2)
+        const ArrayPoint p = array.seen_from_line(s, along, line);
+        a.position.push_back(p.position);
+        a.normal.push_back(p.normal);
         a.along.push_back(along);
     }
     return a;

@@ -5,6 +5,7 @@
 #include <numbers>
 #include <numeric>
 
+#include "probe/array_geometry.h"
 #include "tissue/acoustic_map.h"
 #include "tissue/hash.h"
 
@@ -79,6 +80,7 @@ double focal_sigma_mm(const Transducer& t, double aperture_mm) {
 
 Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const glm::dvec2& to_map) {
     const ScanGeometry geometry(t);
+    const ArrayGeometry& array = geometry.array();
     const int n = std::max(1, settings.particles_per_line);
     const double half_array = 0.5 * t.array_length_mm();
     const double half_aperture = 0.5 * t.active_aperture_mm();
@@ -91,13 +93,13 @@ Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const g
         const glm::dvec2 focus = line.origin + t.focus_mm * line.direction;
         const glm::dvec2 across(line.direction.y, -line.direction.x);
         // The active aperture as a coordinate s along the array (mm from its centre),
-        // clipped to the array: edge lines of a linear or convex probe have less.
-        double centre = 0.0;  // phased: the whole array steers every line
-        if (t.type == TransducerType::linear) centre = line.origin.x;
-        if (t.type == TransducerType::convex)
-            centre = std::atan2(line.direction.x, line.direction.y) * t.radius_mm;
-        const double s_lo = std::max(centre - half_aperture, -half_array);
-        const double s_hi = std::min(centre + half_aperture, half_array);
+        // clipped to the array: edge lines of a linear or convex probe have less. A
+        // closed array has no ends; steered lines use the whole array.
+        const double centre = array.aperture_centre(line).value_or(0.0);
+        const double s_lo =
+            array.closed() ? centre - half_aperture : std::max(centre - half_aperture, -half_array);
+        const double s_hi =
+            array.closed() ? centre + half_aperture : std::min(centre + half_aperture, half_array);
         const double sigma = focal_sigma_mm(t, s_hi - s_lo);
         // Aim offsets: stratified too, paired with the aperture strata by a shuffle.
         std::iota(strata.begin(), strata.end(), 0);
@@ -110,13 +112,7 @@ Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const g
             const double u2 =
                 (strata[std::size_t(i)] + uniform(settings.seed, uint64_t(l), uint64_t(i), 1)) / n;
             const double s = s_lo + (s_hi - s_lo) * hann_inverse_cdf(u1);
-            glm::dvec2 element;
-            if (t.type == TransducerType::convex) {
-                const double angle = s / t.radius_mm;
-                element = {t.radius_mm * std::sin(angle), t.radius_mm * (std::cos(angle) - 1.0)};
-            } else {
-                element = {s, 0.0};
-            }
+            const glm::dvec2 element = array.face(s).position;
             const double offset = sigma * normal_inverse_cdf(u2);
             const glm::dvec2 aim = focus + offset * across;
             SourceParticle<2> p;

@@ -4,22 +4,11 @@
 #include <cmath>
 #include <numbers>
 
+#include "probe/array_geometry.h"
 #include "tissue/acoustic_map.h"
 #include "tissue/error.h"
 
 namespace sonotrace::probe {
-
-std::string to_string(TransducerType type) {
-    switch (type) {
-        case TransducerType::linear:
-            return "linear";
-        case TransducerType::convex:
-            return "convex";
-        case TransducerType::phased:
-            return "phased";
-    }
-    return "?";
-}
 
 std::string to_string(Apodization a) {
     switch (a) {
@@ -88,25 +77,7 @@ void Transducer::validate(const std::string& source) const {
     in_range(slice_thickness_mm, 0.01, 50.0, "slice-thickness", "mm");
     in_range(lines, 1, 4096, "lines", "");
     in_range(face_reflectivity, 0.0, 1.0, "face-reflectivity", "");
-    if (type == TransducerType::convex) {
-        in_range(radius_mm, 1.0, 1000.0, "radius", "mm");
-        const double arc_deg = array_length_mm() / radius_mm * 180.0 / std::numbers::pi;
-        in_range(fov_deg, 1e-3, 180.0, "fov", "degrees");
-        if (fov_deg > arc_deg + 1e-9) {
-            throw tissue::InputError(source, "fov",
-                                     "the field of view (" + tissue::number_text(fov_deg) +
-                                         " degrees) is wider than the array's arc (" +
-                                         tissue::number_text(arc_deg) + " degrees = elements * " +
-                                         "pitch / radius)");
-        }
-    }
-    if (type == TransducerType::phased) {
-        if (!(std::isfinite(fov_deg) && fov_deg > 0.0 && fov_deg < 180.0)) {
-            throw tissue::InputError(source, "fov",
-                                     "a phased array steers within (0, 180) degrees, got " +
-                                         tissue::number_text(fov_deg));
-        }
-    }
+    array_type(type).validate(*this, source);
 }
 
 double Transducer::wavelength_mm() const {
@@ -121,13 +92,18 @@ double Transducer::active_aperture_mm() const {
 double Transducer::receive_aperture_mm(double range_mm) const {
     return std::min(std::max(range_mm, 0.0) / rx_f_number, array_length_mm());
 }
-double Transducer::radius_of_lines() const {
-    return type == TransducerType::convex ? radius_mm : 0.0;
-}
 
 const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
+    // The types' own descriptions, from their registration.
+    static const std::string types = [] {
+        std::string text = "transducer type: ";
+        for (const ArrayType& a : array_types())
+            text += std::string(&a == &array_types().front() ? "" : ", ") + a.name + " (" +
+                    a.description + ")";
+        return text;
+    }();
     static const std::vector<TransducerParameterDoc> docs = {
-        {"type", "", "transducer type: linear (parallel lines), convex or phased (fan of lines)"},
+        {"type", "", types.c_str()},
         {"elements", "", "number of array elements"},
         {"pitch", "mm", "centre-to-centre element distance"},
         {"radius", "mm", "radius of curvature of a convex array"},
@@ -242,29 +218,19 @@ const Transducer& find_transducer(const std::string& name, const std::string& so
 }
 
 ScanGeometry::ScanGeometry(const Transducer& t)
-    : fan_(t.is_fan()), lines_(t.lines), depth_(t.depth_mm), radius_(t.radius_of_lines()) {
-    span_ = fan_ ? t.fov_deg * std::numbers::pi / 180.0 : t.array_length_mm();
-}
+    : array_(array_geometry(t)), lines_(t.lines), depth_(t.depth_mm) {}
 
 glm::dvec2 ScanGeometry::point(double l, double depth) const {
-    const double u = -0.5 * span_ + (l + 0.5) * span_ / lines_;
-    if (!fan_) return {u, depth};
-    const double r = radius_ + depth;
-    return {r * std::sin(u), r * std::cos(u) - radius_};
+    return array_->point(l, depth);
 }
-
 ScanLine ScanGeometry::line(int l) const {
-    const glm::dvec2 origin = point(l, 0.0);
-    if (!fan_) return {origin, {0.0, 1.0}};
-    const double u = -0.5 * span_ + (l + 0.5) * span_ / lines_;
-    return {origin, {std::sin(u), std::cos(u)}};
+    return array_->line(l);
 }
-
 glm::dvec2 ScanGeometry::line_and_depth(const glm::dvec2& p) const {
-    if (!fan_) return {(p.x + 0.5 * span_) * lines_ / span_ - 0.5, p.y};
-    const glm::dvec2 v(p.x, p.y + radius_);
-    const double u = std::atan2(v.x, v.y);
-    return {(u + 0.5 * span_) * lines_ / span_ - 0.5, glm::length(v) - radius_};
+    return array_->line_and_depth(p);
+}
+bool ScanGeometry::closed() const {
+    return array_->closed();
 }
 
 std::pair<glm::dvec2, glm::dvec2> ScanGeometry::bounds() const {
@@ -284,7 +250,7 @@ std::pair<glm::dvec2, glm::dvec2> ScanGeometry::bounds() const {
 }
 
 double ScanGeometry::line_spacing_mm(double depth) const {
-    return fan_ ? (radius_ + depth) * span_ / lines_ : span_ / lines_;
+    return array_->line_spacing_mm(depth);
 }
 
 }  // namespace sonotrace::probe

@@ -1,12 +1,12 @@
 #pragma once
-// Transducer models: linear (parallel scan lines), convex/curvilinear and phased (fan of
-// scan lines), their parameters (each documented once, with its unit), presets modelled
-// on real probes, and the scan geometry in the probe's own plane.
+// Transducer models: their parameters (each documented once, with its unit), presets
+// modelled on real probes, and the scan geometry in the probe's own plane. Each array
+// type (linear, convex, phased, ...) is a class of its own in probe/arrays/, registered
+// in probe/array_geometry.cpp.
 //
 // Probe-local plane: x = lateral (along the array), y = axial (into the tissue), origin
-// at the centre of the transducer face (for a convex probe: the apex of its arc). A
-// convex probe's centre of curvature is at (0, -radius); a phased probe steers every
-// line from the origin, which is the convex geometry with radius 0.
+// at the centre of the transducer face (for a curved array: the apex of its arc).
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -14,6 +14,7 @@
 
 namespace sonotrace::probe {
 
+// The registered array types (probe/array_geometry.h: names, geometry, checks).
 enum class TransducerType { linear, convex, phased };
 
 std::string to_string(TransducerType type);
@@ -37,8 +38,8 @@ struct Transducer {
     TransducerType type = TransducerType::convex;
     int elements = 128;
     double pitch_mm = 0.508;
-    double radius_mm = 49.6;  // convex only
-    double fov_deg = 60.0;    // convex and phased: angle spanned by the scan lines
+    double radius_mm = 49.6;  // curved arrays: radius of the arc
+    double fov_deg = 60.0;    // fans (convex, phased): angle spanned by the scan lines
     double frequency_mhz = 3.5;
     double bandwidth = 0.8;  // fractional, -6 dB of the pulse-echo spectrum
     double focus_mm = 50.0;  // transmit focus depth
@@ -62,8 +63,6 @@ struct Transducer {
     double array_length_mm() const;     // elements * pitch (along the face)
     double active_aperture_mm() const;  // transmit: focus / F-number, at most the array
     double receive_aperture_mm(double range_mm) const;  // depth / rx F-number, at most the array
-    double radius_of_lines() const;  // radius of the lines' common arc (0 for phased)
-    bool is_fan() const { return type != TransducerType::linear; }
 };
 
 // Parameter texts, reused by CLI help, the GUI and the sidecar.
@@ -85,7 +84,10 @@ struct ScanLine {
     glm::dvec2 direction;  // unit
 };
 
-// Geometry of the scan lines of a transducer and its inverse for scan conversion.
+class ArrayGeometry;
+
+// Geometry of the scan lines of a transducer and its inverse for scan conversion (its
+// array type's, probe/array_geometry.h).
 class ScanGeometry {
   public:
     explicit ScanGeometry(const Transducer& t);
@@ -103,11 +105,14 @@ class ScanGeometry {
     std::pair<glm::dvec2, glm::dvec2> bounds() const;
     // Distance between neighbouring lines at a depth (mm).
     double line_spacing_mm(double depth) const;
+    // True if the last line neighbours the first (an array closed on itself).
+    bool closed() const;
+    const ArrayGeometry& array() const { return *array_; }
 
   private:
-    bool fan_;
+    std::shared_ptr<const ArrayGeometry> array_;
     int lines_;
-    double depth_, radius_, span_;  // span: lateral width (linear) or angle in radians (fan)
+    double depth_;
 };
 
 }  // namespace sonotrace::probe

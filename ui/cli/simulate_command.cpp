@@ -18,6 +18,7 @@
 #include "imaging/picture.h"
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
+#include "probe/array_geometry.h"
 #include "probe/placement.h"
 #include "sonotrace_version.h"
 #include "tissue/atomic_output.h"
@@ -112,16 +113,7 @@ std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::T
 
 probe::Transducer make_transducer(const SimulateOptions& o, const std::string& preset) {
     probe::Transducer t = probe::find_transducer(preset, "--probe");
-    if (o.type) {
-        if (*o.type == "linear")
-            t.type = probe::TransducerType::linear;
-        else if (*o.type == "convex")
-            t.type = probe::TransducerType::convex;
-        else if (*o.type == "phased")
-            t.type = probe::TransducerType::phased;
-        else
-            throw tissue::InputError("--type", "", "must be linear, convex or phased");
-    }
+    if (o.type) t.type = probe::parse_transducer_type(*o.type, "--type", "");
     if (o.elements) t.elements = *o.elements;
     if (o.lines) t.lines = *o.lines;
     if (o.pitch) t.pitch_mm = *o.pitch;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "probe/array_geometry.h"
 #include "simulator/trace_settings.h"
 #include "ui/cli/simulate_command.h"
 
@@ -73,8 +74,8 @@ const SliderSpec& slider(Control control) {
 double slider_max(Control control, const probe::Transducer& t) {
     const double max = slider(control).max;
     if (control == Control::focus) return std::min(max, t.depth_mm);
-    if (control == Control::fov && t.type == probe::TransducerType::convex && t.radius_mm > 0.0)
-        return std::min(max, std::floor(t.elements * t.pitch_mm / t.radius_mm * 180.0 / M_PI));
+    if (control == Control::fov)
+        return std::min(max, std::floor(probe::array_type(t.type).max_fov_deg(t)));
     return max;
 }
 

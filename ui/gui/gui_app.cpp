@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "imaging/picture.h"
+#include "probe/array_geometry.h"
 #include "sonotrace_version.h"
 #include "tissue/atomic_output.h"
 #include "tissue/error.h"
@@ -384,7 +385,7 @@ void App::draw_controls(float x, float y, float w, float h) {
         slider_double(Control::lines, &value, lines.min, lines.max, "%.0f");
         t.lines = int(std::lround(value));
     }
-    if (t.is_fan()) {
+    if (probe::array_type(t.type).fov_adjustable) {
         const SliderSpec& fov = slider(Control::fov);
         slider_double(Control::fov, &t.fov_deg, fov.min, slider_max(Control::fov, t), "%.0f");
     }

@@ -1,0 +1,69 @@
+#include "probe/array_geometry.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "tissue/error.h"
+
+namespace sonotrace::probe {
+
+const std::vector<ArrayType>& array_types() {
+    // The registration of every array type: its name (CLI, sidecars, GUI), what the CLI's
+    // --type help says of it, and whether --fov sets its lines' angle.
+    static const std::vector<ArrayType> types = {
+        {TransducerType::linear, "linear", "parallel lines", false, arrays::no_fov,
+         arrays::make_linear, arrays::validate_linear},
+        {TransducerType::convex, "convex", "a fan of lines from a curved array", true,
+         arrays::max_fov_convex, arrays::make_convex, arrays::validate_convex},
+        {TransducerType::phased, "phased", "a fan of lines steered from a flat array", true,
+         arrays::max_fov_phased, arrays::make_phased, arrays::validate_phased},
+    };
+    return types;
+}
+
+const ArrayType& array_type(TransducerType type) {
+    for (const ArrayType& a : array_types())
+        if (a.type == type) return a;
+    throw std::logic_error("array type " + std::to_string(int(type)) + " not registered");
+}
+
+TransducerType parse_transducer_type(const std::string& name, const std::string& source,
+                                     const std::string& field) {
+    std::string names;
+    for (const ArrayType& a : array_types()) {
+        if (name == a.name) return a.type;
+        names += (names.empty() ? "" : ", ") + std::string(a.name);
+    }
+    throw tissue::InputError(source, field,
+                             "unknown transducer type '" + name + "' (types: " + names + ")");
+}
+
+std::string to_string(TransducerType type) {
+    return array_type(type).name;
+}
+
+std::unique_ptr<const ArrayGeometry> array_geometry(const Transducer& t) {
+    return array_type(t.type).make(t);
+}
+
+// A fan from the arc's centre (0, -R): the point at depth d on the line at angle u lies
+// R + d from the centre, at (r sin u, r cos u - R).
+glm::dvec2 FanLines::point(double l, double depth) const {
+    const double u = angle(l);
+    const double r = radius + depth;
+    return {r * std::sin(u), r * std::cos(u) - radius};
+}
+
+ScanLine FanLines::line(int l) const {
+    const glm::dvec2 origin = point(l, 0.0);
+    const double u = angle(l);
+    return {origin, {std::sin(u), std::cos(u)}};
+}
+
+glm::dvec2 FanLines::line_and_depth(const glm::dvec2& p) const {
+    const glm::dvec2 v(p.x, p.y + radius);
+    const double u = std::atan2(v.x, v.y);
+    return {(u + 0.5 * span) * lines / span - 0.5, glm::length(v) - radius};
+}
+
+}  // namespace sonotrace::probe
