@@ -43,8 +43,9 @@ std::vector<double> aperture_weights(const LineArray& array, double width_mm, Ap
     if (n == 0) return w;
     // At least two pitches, so that the aperture holds an element wherever it sits.
     const double half = 0.5 * std::max(width_mm, 2.0 * array.pitch_mm);
-    const double first = array.along.front() - 0.5 * array.pitch_mm,
-                 last = array.along.back() + 0.5 * array.pitch_mm;
+    // The array's ends (a ring's elements are numbered from anywhere along it).
+    const auto [lowest, highest] = std::minmax_element(array.along.begin(), array.along.end());
+    const double first = *lowest - 0.5 * array.pitch_mm, last = *highest + 0.5 * array.pitch_mm;
     const double lo = std::max(-half, first), hi = std::min(half, last);
     double total = 0.0;
     for (std::size_t e = 0; e < n; ++e) {

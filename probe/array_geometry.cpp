@@ -12,11 +12,13 @@ const std::vector<ArrayType>& array_types() {
     // --type help says of it, and whether --fov sets its lines' angle.
     static const std::vector<ArrayType> types = {
         {TransducerType::linear, "linear", "parallel lines", false, arrays::no_fov,
-         arrays::make_linear, arrays::validate_linear},
+         arrays::whole_array, arrays::make_linear, arrays::validate_linear},
         {TransducerType::convex, "convex", "a fan of lines from a curved array", true,
-         arrays::max_fov_convex, arrays::make_convex, arrays::validate_convex},
+         arrays::max_fov_convex, arrays::whole_array, arrays::make_convex, arrays::validate_convex},
         {TransducerType::phased, "phased", "a fan of lines steered from a flat array", true,
-         arrays::max_fov_phased, arrays::make_phased, arrays::validate_phased},
+         arrays::max_fov_phased, arrays::whole_array, arrays::make_phased, arrays::validate_phased},
+        {TransducerType::radial, "radial", "lines all around a ring of elements", false,
+         arrays::max_fov_radial, arrays::half_ring, arrays::make_radial, arrays::validate_radial},
     };
     return types;
 }
@@ -40,6 +42,10 @@ TransducerType parse_transducer_type(const std::string& name, const std::string&
 
 std::string to_string(TransducerType type) {
     return array_type(type).name;
+}
+
+double arrays::whole_array(const Transducer& t) {
+    return t.array_length_mm();
 }
 
 std::unique_ptr<const ArrayGeometry> array_geometry(const Transducer& t) {

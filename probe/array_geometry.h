@@ -66,6 +66,9 @@ struct ArrayType {
     const char* description;
     bool fov_adjustable;
     double (*max_fov_deg)(const Transducer&);  // the widest --fov its arrays allow
+    // The widest active aperture (mm of the array) a line can use: apertures asked wider
+    // are clipped to it (Transducer::active_aperture_mm, receive_aperture_mm).
+    double (*largest_aperture_mm)(const Transducer&);
     std::unique_ptr<const ArrayGeometry> (*make)(const Transducer&);
     void (*validate)(const Transducer&, const std::string& source);
 };
@@ -91,6 +94,7 @@ struct FanLines {
 // The factories of the registered types (probe/arrays/<type>.cpp).
 namespace arrays {
 double no_fov(const Transducer& t);
+double whole_array(const Transducer& t);
 std::unique_ptr<const ArrayGeometry> make_linear(const Transducer& t);
 void validate_linear(const Transducer& t, const std::string& source);
 std::unique_ptr<const ArrayGeometry> make_convex(const Transducer& t);
@@ -99,6 +103,10 @@ double max_fov_convex(const Transducer& t);
 std::unique_ptr<const ArrayGeometry> make_phased(const Transducer& t);
 void validate_phased(const Transducer& t, const std::string& source);
 double max_fov_phased(const Transducer& t);
+std::unique_ptr<const ArrayGeometry> make_radial(const Transducer& t);
+void validate_radial(const Transducer& t, const std::string& source);
+double max_fov_radial(const Transducer& t);
+double half_ring(const Transducer& t);
 }  // namespace arrays
 
 }  // namespace sonotrace::probe

@@ -87,10 +87,11 @@ double Transducer::array_length_mm() const {
     return elements * pitch_mm;
 }
 double Transducer::active_aperture_mm() const {
-    return std::min(focus_mm / f_number, array_length_mm());
+    return std::min(focus_mm / f_number, array_type(type).largest_aperture_mm(*this));
 }
 double Transducer::receive_aperture_mm(double range_mm) const {
-    return std::min(std::max(range_mm, 0.0) / rx_f_number, array_length_mm());
+    return std::min(std::max(range_mm, 0.0) / rx_f_number,
+                    array_type(type).largest_aperture_mm(*this));
 }
 
 const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
@@ -106,8 +107,9 @@ const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
         {"type", "", types.c_str()},
         {"elements", "", "number of array elements"},
         {"pitch", "mm", "centre-to-centre element distance"},
-        {"radius", "mm", "radius of curvature of a convex array"},
-        {"fov", "degrees", "angle spanned by the scan lines (convex, phased)"},
+        {"radius", "mm",
+         "radius of a curved array: a convex arc, or a radial ring (elements x pitch / 2 pi)"},
+        {"fov", "degrees", "angle spanned by the scan lines (convex, phased; radial: 360)"},
         {"frequency", "MHz", "centre frequency of the pulse"},
         {"bandwidth", "", "fractional -6 dB bandwidth of the pulse-echo spectrum"},
         {"focus", "mm", "transmit focus depth"},
@@ -202,6 +204,32 @@ const std::vector<Transducer>& transducer_presets() {
         phased.depth_mm = 120.0;
         phased.lines = 128;
         p.push_back(phased);
+
+        // Typical values of electronic radial echoendoscopes (360 degrees, 5-10 MHz, a
+        // tip about 12 mm across), not one probe's datasheet. The ring of 256 elements
+        // of 0.147 mm closes on a 6 mm radius; the transmit aperture (7.5 mm, 51
+        // elements) and the receive (at most 16 mm at 40 mm) stay within the half of the
+        // ring that faces a line.
+        Transducer radial;
+        radial.name = "radial";
+        radial.description =
+            "radial 7.5 MHz, 256 elements at 0.147 mm around a 12 mm tip (an electronic "
+            "radial array as in echoendoscopes and EBUS: 360 degrees, 5-10 MHz)";
+        radial.type = TransducerType::radial;
+        radial.elements = 256;
+        radial.radius_mm = 6.0;
+        radial.pitch_mm = 2.0 * std::numbers::pi * radial.radius_mm / radial.elements;
+        radial.fov_deg = 360.0;
+        radial.frequency_mhz = 7.5;
+        radial.bandwidth = 0.67;  // (10 - 5) / 7.5
+        radial.focus_mm = 15.0;
+        radial.f_number = 2.0;
+        radial.rx_f_number = 2.5;
+        radial.elevation_focus_mm = 20.0;
+        radial.slice_thickness_mm = 1.0;
+        radial.depth_mm = 40.0;
+        radial.lines = 256;
+        p.push_back(radial);
         return p;
     }();
     return presets;

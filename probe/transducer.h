@@ -15,7 +15,7 @@
 namespace sonotrace::probe {
 
 // The registered array types (probe/array_geometry.h: names, geometry, checks).
-enum class TransducerType { linear, convex, phased };
+enum class TransducerType { linear, convex, phased, radial };
 
 std::string to_string(TransducerType type);
 

@@ -1,6 +1,7 @@
 #!/bin/sh
 # Renders the README's B-mode pictures into docs/images/: the default frame and the
-# temporal view (through the skull) beside their ground truth, and the point-target grid. Usage: scripts/readme_pictures.sh [build-dir]
+# temporal view (through the skull) beside their ground truth, the point-target grid and
+# the radial array. Usage: scripts/readme_pictures.sh [build-dir]
 set -eu
 build=${1:-build}
 tmp=$(mktemp -d)
@@ -18,3 +19,8 @@ oiiotool "$tmp/temporal/bmode.png" --ch 0,0,0 "$tmp/temporal/bmode_labels_previe
 "$build/sonotrace" simulate -q --phantom phantoms/point_grid.json --quality high --depth 64 \
     --pixel 0.1 --gain 34 --out "$tmp/points"
 cp "$tmp/points/bmode.png" docs/images/bmode-point-grid.png
+# The radial array (probe/arrays/radial.cpp) in phantoms/radial_ring.json: wires, a cyst
+# and a vessel all around the 12 mm tip, beside the labels.
+"$build/sonotrace" simulate -q --phantom phantoms/radial_ring.json --labels --out "$tmp/radial"
+oiiotool "$tmp/radial/bmode.png" --ch 0,0,0 "$tmp/radial/bmode_labels_preview.png" \
+    --mosaic:pad=8 2x1 -o docs/images/bmode-radial.png

@@ -347,7 +347,8 @@ TEST(Bmode, ScanConversionPutsKnownPointsAtTheirPixels) {
             const double span = t.elements * t.pitch_mm;
             expected = {-0.5 * span + (line + 0.5) * span / t.lines, depth};
         } else {
-            const double r = t.type == probe::TransducerType::convex ? t.radius_mm : 0.0;
+            // Fans from the arc's centre (0, -R): convex and radial arrays have an arc.
+            const double r = t.type == probe::TransducerType::phased ? 0.0 : t.radius_mm;
             const double fov = t.fov_deg * std::numbers::pi / 180.0;
             const double angle = -0.5 * fov + (line + 0.5) * fov / t.lines;
             expected = {(r + depth) * std::sin(angle), (r + depth) * std::cos(angle) - r};
@@ -359,6 +360,61 @@ TEST(Bmode, ScanConversionPutsKnownPointsAtTheirPixels) {
                   t.type == probe::TransducerType::linear ? 255 : 0)
             << t.name;
     }
+}
+
+// A radial array's frame is a full annulus around the ring: every pixel between the ring
+// and the imaging depth is inside, also between the last line and the first (where the
+// numbering wraps), and a field constant over the lines reads constant there.
+TEST(ScanConversion, ARadialFrameClosesTheCircle) {
+    probe::Transducer t = probe::find_transducer("radial", "test");
+    t.lines = 64;
+    LineData data;
+    data.lines = t.lines;
+    data.fs_hz = 20e6;
+    data.samples = int(std::ceil(2.0 * t.depth_mm * 1e-3 / kC0 * data.fs_hz)) + 1;
+    data.values.assign(std::size_t(data.lines) * std::size_t(data.samples), 0.0f);
+    for (int l = 0; l < t.lines; ++l)
+        for (int i = 0; i < data.samples; ++i) data.at(l, i) = 1.0f + 0.5f * float(l == 0);
+    const double pixel = 0.2;
+    const imaging::ScanConverted frame = imaging::scan_convert(data, t, pixel, -1.0f);
+    const glm::dvec2 centre(0.0, -t.radius_mm);
+    int checked = 0, outside = 0;
+    double seam_low = 2.0, seam_high = 0.0;
+    for (int k = 0; k < 3600; ++k) {
+        const double angle = 2.0 * std::numbers::pi * k / 3600.0;
+        for (double r :
+             {t.radius_mm + 1.0, t.radius_mm + 0.5 * t.depth_mm, t.radius_mm + t.depth_mm - 1.0}) {
+            const glm::dvec2 p = centre + r * glm::dvec2(std::sin(angle), std::cos(angle));
+            const int c = int(std::lround((p.x - frame.origin.x) / pixel)),
+                      row = int(std::lround((p.y - frame.origin.y) / pixel));
+            ASSERT_TRUE(c >= 0 && row >= 0 && c < frame.image.cols && row < frame.image.rows);
+            ++checked;
+            if (!frame.inside.at<uint8_t>(row, c)) {
+                ++outside;
+                continue;
+            }
+            const float v = frame.image.at<float>(row, c);
+            EXPECT_GE(v, 1.0f - 1e-6f);
+            EXPECT_LE(v, 1.5f + 1e-6f);
+            // Near the seam (angle pi, where line 0 starts and line L-1 ends), values blend
+            // line 0's 1.5 and line L-1's 1.
+            if (std::abs(angle - std::numbers::pi) < 2.0 * std::numbers::pi / t.lines)
+                seam_low = std::min(seam_low, double(v)),
+                seam_high = std::max(seam_high, double(v));
+        }
+    }
+    EXPECT_EQ(outside, 0) << "of " << checked;
+    // Halfway between line L-1 and line 0 the two blend equally: 1.25 (a scan conversion
+    // that clamped to the end lines would read 1 or 1.5 there). At mid-depth the lines lie
+    // 2.5 mm apart, so the pixel grid's 0.1 mm offset moves the blend by under 0.05.
+    {
+        const glm::dvec2 p = centre + (t.radius_mm + 0.5 * t.depth_mm) * glm::dvec2(0.0, -1.0);
+        const int c = int(std::lround((p.x - frame.origin.x) / pixel)),
+                  row = int(std::lround((p.y - frame.origin.y) / pixel));
+        EXPECT_NEAR(frame.image.at<float>(row, c), 1.25f, 0.05f);
+    }
+    EXPECT_LT(seam_low, 1.1);   // line L-1's value is reached on one side of the seam
+    EXPECT_GT(seam_high, 1.4);  // and line 0's on the other
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "probe/transducer.h"
 #include "test_util.h"
 #include "tissue/raw_io.h"
 
@@ -119,7 +120,8 @@ TEST(CliRender, OverlaysFramesOfEveryProbeTypeAndNamesBadSidecarFields) {
     const std::string phantom = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/cyst_and_stone.json";
     const std::string render = "render -q --volume " + volume +
                                " --tf ramp --repetitions 1 --width 16 --height 16 --frame ";
-    for (const std::string probe : {"linear", "convex", "phased"}) {
+    for (const probe::Transducer& preset : probe::transducer_presets()) {
+        const std::string probe = preset.name;
         const auto sim = run(dir, "simulate -q --quality interactive --phantom " + phantom +
                                       " --probe " + probe + " --out " + (dir / probe));
         ASSERT_EQ(sim.exit_code, 0) << probe << ": " << sim.err;

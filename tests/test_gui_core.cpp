@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "phantoms/phantom.h"
+#include "probe/array_geometry.h"
 #include "tissue/error.h"
 #include "ui/gui/controls.h"
 #include "ui/gui/scanner.h"
@@ -281,6 +282,9 @@ TEST(GuiControls, EverySliderExtremeGivesAFrame) {
     const auto scene = cyst_scene();
     for (const probe::Transducer& preset : probe::transducer_presets()) {
         for (const SliderSpec& spec : slider_specs()) {
+            // The panel shows the fov slider only where the type's fov is adjustable.
+            if (spec.control == Control::fov && !probe::array_type(preset.type).fov_adjustable)
+                continue;
             for (double value : {spec.min, slider_max(spec.control, preset)}) {
                 ScanRequest r = request_for(scene);
                 r.parameters.transducer = preset;
@@ -315,7 +319,8 @@ TEST(GuiControls, EverySliderExtremeGivesAFrame) {
                 }
                 // The panel keeps every slider within its (probe-dependent) maximum.
                 t.focus_mm = std::min(t.focus_mm, slider_max(Control::focus, t));
-                t.fov_deg = std::min(t.fov_deg, slider_max(Control::fov, t));
+                if (probe::array_type(t.type).fov_adjustable)
+                    t.fov_deg = std::min(t.fov_deg, slider_max(Control::fov, t));
                 SCOPED_TRACE(preset.name + " " + spec.label + " = " + std::to_string(value));
                 ASSERT_NO_THROW(r.parameters.settings(*scene));
                 if (preset.name != scene->probe_preset) continue;  // frames: the scene's probe

@@ -2,9 +2,13 @@
 // types, and the beam sampler (Hann apodization and Gaussian aim offsets, chi-square).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <complex>
 #include <numbers>
 
+#include "probe/aperture.h"
+#include "probe/array_geometry.h"
 #include "probe/beam.h"
 #include "probe/transducer.h"
 #include "tests/test_util.h"
@@ -162,6 +166,105 @@ TEST(Beams, ConvergeOnTheFocusWithGaussianWaist) {
     }
     // Stratified draws are more even than chance, so this bound is conservative.
     EXPECT_LT(chi_square(counts, std::vector<double>(bins, 1.0 / bins), n), 37.70);  // 15 dof
+}
+
+// The radial array (probe/arrays/radial.cpp). Expectations from the ring's geometry
+// alone: a circle of radius R centred at (0, -R), lines leaving it along its radii every
+// 2 pi / L, and a ring that looks the same from every line (rotational symmetry).
+TEST(RadialArray, LinesLeaveTheRingAlongItsRadiiAllAround) {
+    const Transducer t = probe::find_transducer("radial", "x");
+    const probe::ScanGeometry g(t);
+    const glm::dvec2 centre(0.0, -t.radius_mm);
+    EXPECT_TRUE(g.closed());
+    EXPECT_NEAR(t.array_length_mm(), 2.0 * std::numbers::pi * t.radius_mm, 1e-4);
+    for (int l = 0; l < t.lines; ++l) {
+        const probe::ScanLine line = g.line(l);
+        EXPECT_NEAR(glm::length(line.origin - centre), t.radius_mm, 1e-9) << l;
+        const glm::dvec2 radial = (line.origin - centre) / t.radius_mm;
+        EXPECT_NEAR(glm::length(line.direction - radial), 0.0, 1e-12) << l;
+        // The angle to the next line, the last one's next being the first.
+        const probe::ScanLine next = g.line((l + 1) % t.lines);
+        const double step =
+            std::acos(std::clamp(glm::dot(line.direction, next.direction), -1.0, 1.0));
+        EXPECT_NEAR(step, 2.0 * std::numbers::pi / t.lines, 1e-9) << l;
+        const double cross =
+            line.direction.x * next.direction.y - line.direction.y * next.direction.x;
+        EXPECT_LT(cross, 0.0) << l;  // always turning the same way round
+    }
+    EXPECT_NEAR(g.line_spacing_mm(20.0), (t.radius_mm + 20.0) * 2.0 * std::numbers::pi / t.lines,
+                1e-12);
+}
+
+TEST(RadialArray, EveryLineSeesTheSameRing) {
+    const Transducer t = probe::find_transducer("radial", "x");
+    // Line 0 sits where the elements' numbering wraps (its aperture takes the last and
+    // the first elements); line L/2 does not. By symmetry they see the same array.
+    const probe::LineFields wrapping(t, probe::line_array(t, 0));
+    const probe::LineFields inside(t, probe::line_array(t, t.lines / 2));
+    const probe::LineFields quarter(t, probe::line_array(t, t.lines / 4 + 3));
+    double largest = 0.0, worst = 0.0;
+    for (double z : {5.0, t.focus_mm, 35.0})
+        for (double x = -4.0; x <= 4.0; x += 0.25) {
+            const glm::dvec2 q(x, z);
+            const std::complex<double> h = inside.two_way(q);
+            largest = std::max(largest, std::abs(h));
+            worst = std::max(
+                {worst, std::abs(wrapping.two_way(q) - h), std::abs(quarter.two_way(q) - h)});
+        }
+    ASSERT_GT(largest, 0.0);
+    EXPECT_LT(worst, 1e-6 * largest);
+    // The aperture is centred on the line: the weights are mirror-symmetric about it.
+    const probe::LineArray a = probe::line_array(t, 0);
+    const std::vector<double> w =
+        probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization);
+    double first_moment = 0.0, total = 0.0;
+    for (std::size_t e = 0; e < w.size(); ++e)
+        first_moment += w[e] * a.position[e].x, total += w[e];
+    EXPECT_GT(total, 0.0);
+    EXPECT_NEAR(first_moment / total, 0.0, 1e-9);
+}
+
+TEST(RadialArray, BeamsLeaveTheRingWithinTheActiveArc) {
+    Transducer t = probe::find_transducer("radial", "x");
+    const probe::BeamSettings settings{200, 3};
+    const auto sources = probe::make_beams(t, settings, {0.0, 0.0});
+    const probe::ScanGeometry g(t);
+    const glm::dvec2 centre(0.0, -t.radius_mm);
+    const double c0_mm_per_s = 1540e3;
+    for (const auto& s : sources) {
+        const probe::ScanLine line = g.line(int(s.line));
+        const glm::dvec2 from(s.position);
+        EXPECT_NEAR(glm::length(from - centre), t.radius_mm, 1e-5);
+        // The arc from the line's foot: within half the active aperture, also across
+        // the numbering's wrap.
+        const double turn = std::acos(
+            std::clamp(glm::dot((from - centre) / t.radius_mm, line.direction), -1.0, 1.0));
+        EXPECT_LE(turn * t.radius_mm, 0.5 * t.active_aperture_mm() + 1e-4);
+        const glm::dvec2 focus = line.origin + t.focus_mm * line.direction;
+        EXPECT_NEAR(s.time_s + glm::length(focus - from) / c0_mm_per_s, t.focus_mm / c0_mm_per_s,
+                    1e-9);
+    }
+}
+
+TEST(RadialArray, ImpossibleRingsAreRefusedNamingTheField) {
+    const Transducer t = probe::find_transducer("radial", "x");
+    Transducer open = t;
+    open.elements = 128;  // half the ring's circumference
+    test::expect_input_error([&] { open.validate("probe"); }, "probe", "radius",
+                             "closes on itself");
+    Transducer fan = t;
+    fan.fov_deg = 300.0;
+    test::expect_input_error([&] { fan.validate("probe"); }, "probe", "fov", "360");
+    // Apertures asked wider than the half of the ring that faces a line are clipped to it.
+    Transducer wide = t;
+    wide.f_number = 0.6;     // 25 mm asked on a 37.7 mm ring
+    wide.rx_f_number = 1.0;  // 40 mm at the imaging depth
+    EXPECT_NO_THROW(wide.validate("probe"));
+    EXPECT_NEAR(wide.active_aperture_mm(), std::numbers::pi * t.radius_mm, 1e-9);
+    EXPECT_NEAR(wide.receive_aperture_mm(t.depth_mm), std::numbers::pi * t.radius_mm, 1e-9);
+    EXPECT_EQ(probe::parse_transducer_type("radial", "--type", ""), TransducerType::radial);
+    test::expect_input_error([] { probe::parse_transducer_type("sector", "--type", ""); }, "--type",
+                             "", "linear, convex, phased, radial");
 }
 
 }  // namespace

@@ -81,7 +81,7 @@ FrameOverlay load_frame_overlay(const std::string& sidecar_path) {
         probe::find_transducer(jsonio::get_string(probe_json, "name", src, "probe"), src);
     // The run's own geometry overrides the preset's; the transducer's own check then says
     // what each array type allows (a linear array has no field of view: 0).
-    o.transducer.fov_deg = jsonio::get_number(probe_json, "fov_deg", src, "probe", 0.0, 180.0);
+    o.transducer.fov_deg = jsonio::get_number(probe_json, "fov_deg", src, "probe", 0.0, 360.0);
     o.transducer.depth_mm = jsonio::get_number(probe_json, "depth_mm", src, "probe", 1.0, 1000.0);
     o.transducer.lines = int(jsonio::get_number(probe_json, "lines", src, "probe", 1, 100000));
     o.transducer.radius_mm = jsonio::get_number(probe_json, "radius_mm", src, "probe", 0.0, 1e4);

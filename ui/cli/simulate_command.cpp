@@ -47,10 +47,20 @@ constexpr ParameterDoc kViewDoc = {
     "through a virtual craniotomy, coronal plane through the lateral ventricles) or "
     "'temporal' (phased probe on the right temple, imaging through the skull). Other "
     "volumes, or --pose, place the probe without a craniotomy"};
-constexpr ParameterDoc kProbeDoc = {
-    "--probe", "",
-    "transducer preset: linear (7.6 MHz, like the L11-5v), convex (3.5 MHz, like the C5-2v), "
-    "phased (2.7 MHz, like the P4-2v); empty = the view's probe"};
+// --probe's text names every preset (the sidecar and the README describe each fully).
+const ParameterDoc& probe_doc() {
+    static const std::string text = [] {
+        std::string t = "transducer preset: ";
+        for (const probe::Transducer& p : probe::transducer_presets()) {
+            t += (&p == &probe::transducer_presets().front() ? "" : ", ") + p.name + " (" +
+                 tissue::number_text(p.frequency_mhz) + " MHz, " + std::to_string(p.elements) +
+                 " elements)";
+        }
+        return t + "; empty = the view's probe (the phantom's, or linear)";
+    }();
+    static const ParameterDoc doc = {"--probe", "", text.c_str()};
+    return doc;
+}
 constexpr ParameterDoc kPixelDoc = {"--pixel", "mm", "pixel size of the scan-converted image"};
 constexpr ParameterDoc kStepDoc = {
     "--step", "texels",
@@ -208,7 +218,7 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     add_parameter(*cmd, kViewDoc, o.view);
     add_volume_options(*cmd, o.volume);
     add_parameter(*cmd, kPhantomDoc, o.phantom);
-    add_parameter(*cmd, kProbeDoc, o.probe);
+    add_parameter(*cmd, probe_doc(), o.probe);
     for (const auto& doc : probe::transducer_parameter_docs()) {
         const std::string flag = std::string("--") + doc.key;
         std::string help = std::string(doc.description) + " (default: the preset's)";
