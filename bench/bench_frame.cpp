@@ -12,6 +12,7 @@
 #include <map>
 #include <string>
 
+#include "imaging/colin27.h"
 #include "imaging/psf.h"
 #include "imaging/simulation.h"
 #include "tissue/property_maps.h"

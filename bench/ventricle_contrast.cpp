@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "imaging/colin27.h"
 #include "imaging/psf.h"
 #include "imaging/simulation.h"
 #include "probe/aperture.h"

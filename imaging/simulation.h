@@ -1,7 +1,7 @@
 #pragma once
 // One B-mode frame from a volume and a probe: the grid under the probe, the acoustic
-// map, beams, tracing and image formation (imaging/bmode.h), with the scenes of the
-// `simulate` command (Colin27 through a craniotomy, through the temporal window).
+// map, beams, tracing and image formation (imaging/bmode.h). The default head's views
+// and membranes are in imaging/colin27.h.
 #include <functional>
 #include <optional>
 #include <string>
@@ -170,35 +170,14 @@ SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& s
                               const SimulationSettings& settings, bool with_labels,
                               const FrameProgress& progress = {});
 
-// ---- scenes of the Colin27 head ----
-
-// Where a scene puts the probe and what it does to the tissue under it.
+// Where a scene puts the probe and what it does to the tissue under it (the default
+// head's views: imaging/colin27.h).
 struct ScenePlacement {
     probe::Pose pose;
     double craniotomy_radius_mm = 0.0;  // 0 = no craniotomy
     double craniotomy_depth_mm = 0.0;   // below the face
     std::string description;
 };
-
-// Intraoperative view: the convex probe on the right parietal cortex through a
-// craniotomy, coronal plane down through both lateral ventricles. `tf` bound to `head`.
-ScenePlacement craniotomy_scene(const tissue::Volume& head, const tissue::TransferFunction& tf);
-// The phased probe on the skin of the right temple (transtemporal window), axial plane.
-ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::TransferFunction& tf);
-
-// Membranes of the Colin27 head that its T1 MRI shows as CSF or brain, placed by
-// anatomy (MNI coordinates, mm) on a grid whose properties came from `head` (whose
-// value outside is `outside`):
-//   falx cerebri: the sheet of dura in the interhemispheric fissure, |x - 0.5| < 0.75,
-//     above the corpus callosum (z > 34), where the grid holds brain or CSF;
-//   choroid plexus: the lateral ventricles' CSF within 2.5 mm above their floor (the
-//     head 2.5 mm lower is not CSF), 3 < |x| < 22, -45 < y < -5, 8 < z < 26 (body and
-//     atrium).
-// Both are hyperechoic in intraoperative and neonatal cranial ultrasound. `labels` (the
-// grid's tissue labels, optional) follow. Returns the number of samples changed.
-std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::TransferFunction& tf,
-                                  float outside, const tissue::VolumeGeometry& grid,
-                                  tissue::PropertyMaps& maps, tissue::Volume* labels = nullptr);
 
 // Saline filling the craniotomy, and coupling gel (water properties).
 tissue::AcousticProperties saline();

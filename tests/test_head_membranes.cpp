@@ -3,6 +3,7 @@
 // default intraoperative frame shows the falx brighter than the brain beside it.
 #include <gtest/gtest.h>
 
+#include "imaging/colin27.h"
 #include "imaging/simulation.h"
 #include "probe/transducer.h"
 #include "tissue/property_maps.h"

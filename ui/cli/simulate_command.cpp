@@ -15,6 +15,7 @@
 #include <opencv2/videoio.hpp>
 #include <sstream>
 
+#include "imaging/colin27.h"
 #include "imaging/picture.h"
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <iostream>
 
+#include "imaging/colin27.h"
 #include "imaging/simulation.h"
 #include "tissue/error.h"
 #include "tissue/memory.h"

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <set>
 
+#include "imaging/colin27.h"
 #include "phantoms/phantom.h"
 #include "probe/placement.h"
 #include "tissue/error.h"

@@ -1,0 +1,34 @@
+#pragma once
+// The embedded default head (Colin27, MNI coordinates): its two views, and the membranes
+// its T1 MRI does not show. Everything here knows this one head's anatomy; the frame
+// pipeline (imaging/simulation.h) does not.
+#include <cstddef>
+
+#include "imaging/simulation.h"
+#include "tissue/property_maps.h"
+#include "tissue/transfer_function.h"
+#include "tissue/volume.h"
+
+namespace sonotrace::imaging {
+
+// Intraoperative view: the convex probe on the right parietal cortex through a
+// craniotomy, coronal plane down through both lateral ventricles. `tf` bound to `head`.
+ScenePlacement craniotomy_scene(const tissue::Volume& head, const tissue::TransferFunction& tf);
+// The phased probe on the skin of the right temple (transtemporal window), axial plane.
+ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::TransferFunction& tf);
+
+// Membranes of the Colin27 head that its T1 MRI shows as CSF or brain, placed by
+// anatomy (MNI coordinates, mm) on a grid whose properties came from `head` (whose
+// value outside is `outside`):
+//   falx cerebri: the sheet of dura in the interhemispheric fissure, |x - 0.5| < 0.75,
+//     above the corpus callosum (z > 34), where the grid holds brain or CSF;
+//   choroid plexus: the lateral ventricles' CSF within 2.5 mm above their floor (the
+//     head 2.5 mm lower is not CSF), 3 < |x| < 22, -45 < y < -5, 8 < z < 26 (body and
+//     atrium).
+// Both are hyperechoic in intraoperative and neonatal cranial ultrasound. `labels` (the
+// grid's tissue labels, optional) follow. Returns the number of samples changed.
+std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::TransferFunction& tf,
+                                  float outside, const tissue::VolumeGeometry& grid,
+                                  tissue::PropertyMaps& maps, tissue::Volume* labels = nullptr);
+
+}  // namespace sonotrace::imaging
