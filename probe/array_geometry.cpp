@@ -72,4 +72,14 @@ glm::dvec2 FanLines::line_and_depth(const glm::dvec2& p) const {
     return {(u + 0.5 * span) * lines / span - 0.5, glm::length(v) - radius};
 }
 
+ArrayPoint ArcArray::face(double s) const {
+    const double phi = s / radius_;
+    return {{radius_ * std::sin(phi), radius_ * (std::cos(phi) - 1.0)},
+            {std::sin(phi), std::cos(phi)}};
+}
+
+std::optional<double> ArcArray::aperture_centre(const ScanLine& line) const {
+    return std::atan2(line.direction.x, line.direction.y) * radius_;
+}
+
 }  // namespace sonotrace::probe

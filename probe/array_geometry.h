@@ -91,6 +91,33 @@ struct FanLines {
     double line_spacing_mm(double depth) const { return (radius + depth) * span / lines; }
 };
 
+// An array on an arc of radius R (centre of curvature (0, -R)) whose lines leave along
+// its normals (FanLines over `span`): the element at arc length s sits at angle phi =
+// s / R, at (R sin phi, R (cos phi - 1)), facing (sin phi, cos phi); a line's aperture is
+// centred on its foot, u_l R along the arc, and seen from the line the array is the same
+// arc turned so that the foot is its apex. Convex arrays (part of a circle) and radial
+// ones (the whole ring) are arcs.
+class ArcArray : public ArrayGeometry {
+  public:
+    ArcArray(double radius_mm, double span_rad, int lines)
+        : radius_(radius_mm), fan_{radius_mm, span_rad, lines} {}
+
+    glm::dvec2 point(double l, double depth) const override { return fan_.point(l, depth); }
+    ScanLine line(int l) const override { return fan_.line(l); }
+    glm::dvec2 line_and_depth(const glm::dvec2& p) const override { return fan_.line_and_depth(p); }
+    double line_spacing_mm(double depth) const override { return fan_.line_spacing_mm(depth); }
+    ArrayPoint face(double s) const override;
+    std::optional<double> aperture_centre(const ScanLine& line) const override;
+    ArrayPoint seen_from_line(double, double along, const ScanLine&) const override {
+        return face(along);
+    }
+    double face_radius_mm() const override { return radius_; }
+
+  private:
+    double radius_;
+    FanLines fan_;
+};
+
 // The factories of the registered types (probe/arrays/<type>.cpp).
 namespace arrays {
 double no_fov(const Transducer& t);

@@ -1,9 +1,8 @@
 // Convex (curvilinear) array: the elements lie on an arc of radius R (centre of curvature
 // (0, -R)), and L lines leave it along its normals, evenly over the field of view:
-// line l at angle u_l = -fov/2 + (l + 1/2) fov / L from the axis (FanLines). An element
-// at arc length s from the apex sits at angle phi = s / R: (R sin phi, R (cos phi - 1)),
-// facing (sin phi, cos phi). A line's active aperture is centred on its foot, u_l R
-// along the arc (clipped by the array's ends at the edge lines).
+// line l at angle u_l = -fov/2 + (l + 1/2) fov / L from the axis (ArcArray). A line's
+// active aperture is centred on its foot, u_l R along the arc (clipped by the array's
+// ends at the edge lines). The lines cannot fan wider than the arc the elements cover.
 #include <cmath>
 #include <numbers>
 
@@ -13,34 +12,11 @@
 namespace sonotrace::probe::arrays {
 namespace {
 
-class ConvexArray final : public ArrayGeometry {
+// The arc spans the field of view.
+class ConvexArray final : public ArcArray {
   public:
     explicit ConvexArray(const Transducer& t)
-        : radius_(t.radius_mm), fan_{t.radius_mm, t.fov_deg * std::numbers::pi / 180.0, t.lines} {}
-
-    glm::dvec2 point(double l, double depth) const override { return fan_.point(l, depth); }
-    ScanLine line(int l) const override { return fan_.line(l); }
-    glm::dvec2 line_and_depth(const glm::dvec2& p) const override { return fan_.line_and_depth(p); }
-    double line_spacing_mm(double depth) const override { return fan_.line_spacing_mm(depth); }
-
-    ArrayPoint face(double s) const override {
-        const double phi = s / radius_;
-        return {{radius_ * std::sin(phi), radius_ * (std::cos(phi) - 1.0)},
-                {std::sin(phi), std::cos(phi)}};
-    }
-    std::optional<double> aperture_centre(const ScanLine& line) const override {
-        return std::atan2(line.direction.x, line.direction.y) * radius_;
-    }
-    // In the line's frame the array is the same arc, turned so that the line's foot is
-    // its apex: the element `along` mm of arc from the foot.
-    ArrayPoint seen_from_line(double, double along, const ScanLine&) const override {
-        return face(along);
-    }
-    double face_radius_mm() const override { return radius_; }
-
-  private:
-    double radius_;
-    FanLines fan_;
+        : ArcArray(t.radius_mm, t.fov_deg * std::numbers::pi / 180.0, t.lines) {}
 };
 
 }  // namespace
