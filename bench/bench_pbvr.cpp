@@ -23,7 +23,7 @@
 
 #include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
-#include "tissue/memory.h"
+#include "tissue/base/memory.h"
 #include "tissue/volume_io.h"
 
 namespace {
@@ -216,7 +216,7 @@ void bench_noise(const RenderVolume& volume, const ColourTransferFunction& tf,
 }
 
 int main(int argc, char** argv) {
-    tissue::keep_freed_memory();  // as the sonotrace program does
+    base::keep_freed_memory();  // as the sonotrace program does
     if (argc > 2 && std::string(argv[1]) == "fusion") {
         bench_fusion(argv[2], argc > 3 ? std::atoi(argv[3]) : 64);
         return 0;

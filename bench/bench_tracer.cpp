@@ -262,7 +262,7 @@ void print_all_digests() {
 }  // namespace
 
 int main(int argc, char** argv) {
-    sonotrace::tissue::keep_freed_memory();
+    sonotrace::base::keep_freed_memory();
     if (argc == 2 && std::string_view(argv[1]) == "--digest") {
         print_all_digests();
         return 0;

@@ -1,13 +1,13 @@
 #pragma once
 // BENCHMARK_MAIN() with malloc keeping freed memory first, as the sonotrace program does
-// (tissue::keep_freed_memory): the benchmarks measure what the program runs.
+// (base::keep_freed_memory): the benchmarks measure what the program runs.
 #include <benchmark/benchmark.h>
 
-#include "tissue/memory.h"
+#include "tissue/base/memory.h"
 
 #define SONOTRACE_BENCHMARK_MAIN()                                        \
     int main(int argc, char** argv) {                                     \
-        sonotrace::tissue::keep_freed_memory();                           \
+        sonotrace::base::keep_freed_memory();                             \
         benchmark::Initialize(&argc, argv);                               \
         if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1; \
         benchmark::RunSpecifiedBenchmarks();                              \

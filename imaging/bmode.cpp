@@ -18,12 +18,12 @@
 #include "probe/pulse.h"
 #include "simulator/interactions.h"
 #include "tissue/acoustic_map.h"
-#include "tissue/fast_math.h"
-#include "tissue/hash.h"
+#include "tissue/base/fast_math.h"
+#include "tissue/base/hash.h"
 
 namespace sonotrace::imaging {
 
-using tissue::kFwhmPerSigma;
+using base::kFwhmPerSigma;
 
 namespace detail {
 
@@ -81,8 +81,8 @@ namespace {
 
 constexpr double kC0 = tissue::kReferenceSpeed;  // m/s
 
+using base::mix64;
 using probe::ScanLine;
-using tissue::mix64;
 
 // out = in (*) kernel (centred), zero outside. The interior tap by tap over all samples
 // (a loop that vectorises; each sum still adds its terms in tap order), the edges as
@@ -496,10 +496,10 @@ void add_pulse(const probe::PulseEcho& pulse, double at, double fs, std::complex
 }
 
 // Log compression with the dB scale folded in: clamp(scale ln(envelope) + offset, 0, 1).
-// tissue::log_float rather than std::log: the loop over a line vectorises (the call was
+// base::log_float rather than std::log: the loop over a line vectorises (the call was
 // most of the stage). Infinite envelopes clamp to the largest float first.
 inline float compressed(float envelope, float scale, float offset) {
-    const float level = scale * tissue::log_float(std::min(envelope, 3.4e38f)) + offset;
+    const float level = scale * base::log_float(std::min(envelope, 3.4e38f)) + offset;
     return envelope > 0.0f ? std::clamp(level, 0.0f, 1.0f) : 0.0f;
 }
 float compression_scale(double dynamic_range_db) {

@@ -41,8 +41,8 @@
 #include "simulator/records.h"
 #include "simulator/trace_settings.h"
 #include "tissue/acoustic_map.h"
-#include "tissue/fast_math.h"
-#include "tissue/hash.h"
+#include "tissue/base/fast_math.h"
+#include "tissue/base/hash.h"
 
 namespace sonotrace::imaging {
 
@@ -162,8 +162,8 @@ class ScattererField {
     // The same in single precision, for batches (cells up to 2^24 from the origin: the
     // lattice spans at most a few thousand cells).
     static float at_lattice_float(uint32_t seed, float x, float y, float z) {
-        const int32_t ix = tissue::floor_to_int(x), iy = tissue::floor_to_int(y),
-                      iz = tissue::floor_to_int(z);
+        const int32_t ix = base::floor_to_int(x), iy = base::floor_to_int(y),
+                      iz = base::floor_to_int(z);
         const uint32_t key =
             seed + uint32_t(ix) * kSpreadI + uint32_t(iy) * kSpreadJ + uint32_t(iz) * kSpreadK;
         return blend(key, x - float(ix), y - float(iy), z - float(iz));
@@ -189,7 +189,7 @@ class ScattererField {
                               kSpreadK = 0xC2B2AE3Du;
     // Uniform on [-sqrt 3, sqrt 3): zero mean, unit variance (lowbias32 finaliser).
     static float value(uint32_t h) {
-        return float(int32_t(tissue::mix32(h))) * 8.0654901e-10f;  // sqrt(3) / 2^31
+        return float(int32_t(base::mix32(h))) * 8.0654901e-10f;  // sqrt(3) / 2^31
     }
     uint32_t seed_;
     double inverse_cell_;

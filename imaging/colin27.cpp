@@ -8,7 +8,7 @@
 
 #include "probe/placement.h"
 #include "probe/pose.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 #include "tissue/tissue_table.h"
 
 namespace sonotrace::imaging {
@@ -81,9 +81,9 @@ ScenePlacement craniotomy_scene(const tissue::Volume& head, const tissue::Transf
                    2.0, [&](const tissue::AcousticProperties&, int l) { return l == brain; }, 3.0)
              : std::nullopt;
     if (!cortex)
-        throw tissue::InputError("scene craniotomy", "pose",
-                                 "no skull and cortex found along the approach to the ventricles: "
-                                 "is the volume the Colin27 head?");
+        throw base::InputError("scene craniotomy", "pose",
+                               "no skull and cortex found along the approach to the ventricles: "
+                               "is the volume the Colin27 head?");
     ScenePlacement scene;
     scene.pose = probe::Pose::looking(cortex->point - 0.5 * approach, -approach, {1.0, 0.0, 0.0});
     scene.craniotomy_radius_mm = 32.0;
@@ -99,9 +99,9 @@ ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::Transfer
     const glm::dvec3 outside = temple.position - 30.0 * temple.axial();
     const auto skin = probe::skin_surface(head, tf, outside, temple.axial(), 80.0);
     if (!skin)
-        throw tissue::InputError("scene temporal", "pose",
-                                 "no skin found on the right temple: is the volume the "
-                                 "Colin27 head?");
+        throw base::InputError("scene temporal", "pose",
+                               "no skin found on the right temple: is the volume the "
+                               "Colin27 head?");
     ScenePlacement scene;
     scene.pose = temple;
     scene.pose.position = skin->point;

@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 #include "tissue/image_io.h"
 
 namespace sonotrace::imaging {

@@ -32,7 +32,7 @@ cv::Mat render_field(const tissue::Volume& field, const FieldStyle& style);
 cv::Mat montage(const std::vector<cv::Mat>& pictures, int columns);
 
 // Writes an 8-bit BGR or grey cv::Mat as PNG (RGB order on disk) to `path` exactly (no
-// staging: callers stage through tissue::OutputTransaction).
+// staging: callers stage through base::OutputTransaction).
 void write_png(const cv::Mat& picture, const std::string& path);
 
 }  // namespace sonotrace::imaging

@@ -14,7 +14,7 @@
 #include "imaging/psf.h"
 #include "probe/array_geometry.h"
 #include "probe/placement.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
 
@@ -80,8 +80,8 @@ PhysicsSwitches disabled_physics(const std::string& list, const std::string& sou
         if (found == names.end()) {
             std::string known;
             for (const auto& n : names) known += (known.empty() ? "" : ", ") + std::string(n.name);
-            throw tissue::InputError(source, field,
-                                     "unknown physics '" + name + "' (known: " + known + ")");
+            throw base::InputError(source, field,
+                                   "unknown physics '" + name + "' (known: " + known + ")");
         }
         out.*(found->member) = false;
         start = comma + 1;
@@ -105,7 +105,7 @@ void SimulationSettings::validate(const std::string& source) const {
     transducer.validate(source);
     trace.validate(source);
     auto in_range = [&](double v, double lo, double hi, const char* field) {
-        tissue::require_in_range(source, field, v, lo, hi);
+        base::require_in_range(source, field, v, lo, hi);
     };
     in_range(step_texels, 0.0, 100.0, "step");
     if (refraction_smoothing_mm)
@@ -114,11 +114,11 @@ void SimulationSettings::validate(const std::string& source) const {
     if (imaging.sampling_mhz > 0.0 &&
         imaging.sampling_mhz <
             2.0 * transducer.frequency_mhz * (1.0 + 0.5 * transducer.bandwidth)) {
-        throw tissue::InputError(source, "sampling",
-                                 "is below the Nyquist rate of the pulse (2 x (1 + B/2) x f0 = " +
-                                     std::to_string(2.0 * transducer.frequency_mhz *
-                                                    (1.0 + 0.5 * transducer.bandwidth)) +
-                                     " MHz)");
+        throw base::InputError(source, "sampling",
+                               "is below the Nyquist rate of the pulse (2 x (1 + B/2) x f0 = " +
+                                   std::to_string(2.0 * transducer.frequency_mhz *
+                                                  (1.0 + 0.5 * transducer.bandwidth)) +
+                                   " MHz)");
     }
     in_range(imaging.speckle_cell_mm, 0.0, 10.0, "speckle-cell");
     in_range(imaging.profile_smoothing, 0.0, 10.0, "profile-smoothing");
@@ -130,7 +130,7 @@ void SimulationSettings::validate(const std::string& source) const {
         in_range(p.depth_mm, 0.0, 1000.0, "tgc.depth");
         in_range(p.gain_db, -200.0, 200.0, "tgc.gain");
         if (p.depth_mm <= previous)
-            throw tissue::InputError(source, "tgc", "depths must increase along the curve");
+            throw base::InputError(source, "tgc", "depths must increase along the curve");
         previous = p.depth_mm;
     }
 }
@@ -170,7 +170,7 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
     const double lambda = t.wavelength_mm();
     // Two-way elevation profile: a Gaussian of -6 dB full width = slice thickness, unit
     // integral (per mm of elevation).
-    const double sigma_e = t.slice_thickness_mm / tissue::kFwhmPerSigma;
+    const double sigma_e = t.slice_thickness_mm / base::kFwhmPerSigma;
     const double step = 0.5 * std::min(map.spacing().x, map.spacing().y);
     std::vector<PointEcho> echoes;
     for (const tissue::PointTarget& target : targets) {

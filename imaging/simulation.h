@@ -61,7 +61,7 @@ struct PhysicsSwitchName {
 };
 const std::vector<PhysicsSwitchName>& physics_switch_names();
 // "refraction,specular,..." (names above; empty = none) switched off; throws
-// tissue::InputError naming `source` and `field` for an unknown name.
+// base::InputError naming `source` and `field` for an unknown name.
 PhysicsSwitches disabled_physics(const std::string& list, const std::string& source,
                                  const std::string& field);
 
@@ -99,7 +99,7 @@ struct SimulationSettings {
     std::vector<tissue::PointTarget> targets;
     double target_margin_mm = 0.5;
 
-    // Throws tissue::InputError naming the first bad parameter.
+    // Throws base::InputError naming the first bad parameter.
     void validate(const std::string& source) const;
 };
 

@@ -5,9 +5,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "tissue/error.h"
-#include "tissue/json_util.h"
-#include "tissue/memory.h"
+#include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
+#include "tissue/base/memory.h"
 #include "tissue/transfer_function.h"
 
 namespace sonotrace::phantoms {
@@ -15,7 +15,7 @@ namespace sonotrace::phantoms {
 namespace {
 
 using nlohmann::json;
-namespace jsonio = tissue::jsonio;
+namespace jsonio = base::jsonio;
 
 struct ShapeKeys {
     const char* name;
@@ -54,7 +54,7 @@ glm::dvec3 unit(const json& object, const std::string& key, const std::string& s
                 const std::string& where) {
     const glm::dvec3 v = jsonio::get_vec3(object, key, source, where);
     if (!(glm::length(v) > 0.0))
-        throw tissue::InputError(source, jsonio::join(where, key), "must not be zero");
+        throw base::InputError(source, jsonio::join(where, key), "must not be zero");
     return glm::normalize(v);
 }
 
@@ -67,8 +67,8 @@ Shape parse_shape(const json& j, const std::string& source, const std::string& w
     if (found == all.end()) {
         std::string list;
         for (const auto& k : all) list += (list.empty() ? "" : ", ") + std::string(k.name);
-        throw tissue::InputError(source, jsonio::join(where, "type"),
-                                 "unknown shape '" + type + "' (known: " + list + ")");
+        throw base::InputError(source, jsonio::join(where, "type"),
+                               "unknown shape '" + type + "' (known: " + list + ")");
     }
     std::vector<std::string_view> keys = found->geometry;
     keys.insert(keys.end(), {"type", "profile"});
@@ -87,25 +87,25 @@ Shape parse_shape(const json& j, const std::string& source, const std::string& w
         case ShapeType::ellipsoid:
             s.a = vec("centre"), s.b = vec("radii");
             if (!(glm::min(s.b.x, glm::min(s.b.y, s.b.z)) > 0.0))
-                throw tissue::InputError(source, jsonio::join(where, "radii"), "must be > 0");
+                throw base::InputError(source, jsonio::join(where, "radii"), "must be > 0");
             break;
         case ShapeType::box:
             s.a = vec("min"), s.b = vec("max");
             if (!(s.b.x > s.a.x && s.b.y > s.a.y && s.b.z > s.a.z))
-                throw tissue::InputError(source, jsonio::join(where, "max"),
-                                         "must exceed min on every axis");
+                throw base::InputError(source, jsonio::join(where, "max"),
+                                       "must exceed min on every axis");
             break;
         case ShapeType::cylinder:
             s.a = vec("from"), s.b = vec("to"), s.radius = length("radius");
             if (!(glm::length(s.b - s.a) > 0.0))
-                throw tissue::InputError(source, jsonio::join(where, "to"), "equals from");
+                throw base::InputError(source, jsonio::join(where, "to"), "equals from");
             break;
         case ShapeType::wire: {
             if (!j.contains("at"))
-                throw tissue::InputError(source, jsonio::join(where, "at"), "is required");
+                throw base::InputError(source, jsonio::join(where, "at"), "is required");
             const json& at = j.at("at");
             if (!at.is_array() || at.size() != 2 || !at[0].is_number() || !at[1].is_number())
-                throw tissue::InputError(source, jsonio::join(where, "at"), "must be [x, y] (mm)");
+                throw base::InputError(source, jsonio::join(where, "at"), "must be [x, y] (mm)");
             s.a = {at[0].get<double>(), at[1].get<double>(), 0.0};
             s.radius = length("radius");
             break;
@@ -120,15 +120,15 @@ Shape parse_shape(const json& j, const std::string& source, const std::string& w
         case ShapeType::tube: {
             const json* path = j.contains("path") ? &j.at("path") : nullptr;
             if (!path || !path->is_array() || path->size() < 2)
-                throw tissue::InputError(source, jsonio::join(where, "path"),
-                                         "must be an array of at least two [x, y, z] points (mm)");
+                throw base::InputError(source, jsonio::join(where, "path"),
+                                       "must be an array of at least two [x, y, z] points (mm)");
             for (std::size_t i = 0; i < path->size(); ++i) {
                 const json& q = (*path)[i];
                 if (!q.is_array() || q.size() != 3 ||
                     !std::all_of(q.begin(), q.end(), [](const json& v) { return v.is_number(); }))
-                    throw tissue::InputError(source,
-                                             jsonio::join(where, "path[" + std::to_string(i) + "]"),
-                                             "must be [x, y, z] (mm)");
+                    throw base::InputError(source,
+                                           jsonio::join(where, "path[" + std::to_string(i) + "]"),
+                                           "must be [x, y, z] (mm)");
                 s.path.push_back({q[0].get<double>(), q[1].get<double>(), q[2].get<double>()});
             }
             s.radius = length("radius");
@@ -142,10 +142,10 @@ Shape parse_shape(const json& j, const std::string& source, const std::string& w
         if (profile == "parabolic" && radial)
             s.parabolic = true;
         else if (profile != "smooth")
-            throw tissue::InputError(source, jsonio::join(where, "profile"),
-                                     "must be 'smooth' or (sphere, cylinder, wire, tube) "
-                                     "'parabolic', got '" +
-                                         profile + "'");
+            throw base::InputError(source, jsonio::join(where, "profile"),
+                                   "must be 'smooth' or (sphere, cylinder, wire, tube) "
+                                   "'parabolic', got '" +
+                                       profile + "'");
     }
     if (paper) {
         s.paper_density = jsonio::get_number(j, "paper_density", source, where, 0.01, 100.0);
@@ -194,25 +194,24 @@ tissue::PointTarget parse_target(const json& j, const glm::dvec3& size, const st
     tissue::PointTarget t;
     const std::string type = jsonio::get_string(j, "type", source, where);
     if (type != "point" && type != "wire")
-        throw tissue::InputError(source, jsonio::join(where, "type"),
-                                 "unknown target '" + type + "' (known: point, wire)");
+        throw base::InputError(source, jsonio::join(where, "type"),
+                               "unknown target '" + type + "' (known: point, wire)");
     t.type = type == "wire" ? tissue::PointTarget::Type::wire : tissue::PointTarget::Type::point;
     const json* at = j.contains("at") ? &j.at("at") : nullptr;
     const std::size_t n = t.type == tissue::PointTarget::Type::wire ? 2 : 3;
     if (!at || !at->is_array() || at->size() != n ||
         !std::all_of(at->begin(), at->end(), [](const json& v) { return v.is_number(); }))
-        throw tissue::InputError(
+        throw base::InputError(
             source, jsonio::join(where, "at"),
             n == 2 ? "must be [x, y] (mm; a wire runs along z)" : "must be [x, y, z] (mm)");
     t.at = {(*at)[0].get<double>(), (*at)[1].get<double>(),
             n == 3 ? (*at)[2].get<double>() : 0.5 * size.z};
     for (std::size_t a = 0; a < n; ++a)
         if (!(t.at[int(a)] >= 0.0 && t.at[int(a)] <= size[int(a)]))
-            throw tissue::InputError(source, jsonio::join(where, "at"),
-                                     "lies outside the phantom (size " +
-                                         tissue::number_text(size.x) + " x " +
-                                         tissue::number_text(size.y) + " x " +
-                                         tissue::number_text(size.z) + " mm from the origin)");
+            throw base::InputError(source, jsonio::join(where, "at"),
+                                   "lies outside the phantom (size " + base::number_text(size.x) +
+                                       " x " + base::number_text(size.y) + " x " +
+                                       base::number_text(size.z) + " mm from the origin)");
     if (auto d = jsonio::get_optional_number(j, "diameter", source, where, 1e-3, 2.0))
         t.diameter_mm = *d;
     if (auto r = jsonio::get_optional_number(j, "reflectivity", source, where, 1e-6, 1.0))
@@ -349,7 +348,7 @@ Phantom parse_phantom(const json& j, const std::string& source) {
     ph.size = jsonio::get_vec3(j, "size", source, "");
     for (int a = 0; a < 3; ++a)
         if (!(ph.size[a] > 0.0 && ph.size[a] <= 1e4))
-            throw tissue::InputError(source, "size", "every extent must be in (0, 10000] mm");
+            throw base::InputError(source, "size", "every extent must be in (0, 10000] mm");
     if (auto r = jsonio::get_optional_number(j, "resolution", source, "", 1e-3, 100.0))
         ph.resolution_mm = *r;
     if (auto w = jsonio::get_optional_number(j, "smoothing", source, "", 0.0, 100.0))
@@ -357,16 +356,16 @@ Phantom parse_phantom(const json& j, const std::string& source) {
     // The whole phantom rasterised at its resolution (property maps, 4 bytes a field)
     // must fit: an absurd resolution fails here, not in an allocation.
     const glm::dvec3 texels = glm::floor(ph.size / ph.resolution_mm) + 1.0;
-    tissue::check_allocation(texels.x * texels.y * texels.z * 4.0 * double(tissue::kPropertyCount),
-                             source, "resolution");
+    base::check_allocation(texels.x * texels.y * texels.z * 4.0 * double(tissue::kPropertyCount),
+                           source, "resolution");
     if (j.contains("mode")) {
         const std::string mode = jsonio::get_string(j, "mode", source, "");
         if (mode != "acoustic" && mode != "paper")
-            throw tissue::InputError(source, "mode",
-                                     "must be 'acoustic' or 'paper', got '" + mode + "'");
+            throw base::InputError(source, "mode",
+                                   "must be 'acoustic' or 'paper', got '" + mode + "'");
         ph.paper_mode = mode == "paper";
     }
-    if (!j.contains("background")) throw tissue::InputError(source, "background", "is required");
+    if (!j.contains("background")) throw base::InputError(source, "background", "is required");
     {
         const json& b = j.at("background");
         jsonio::require_object(b, source, "background");
@@ -382,23 +381,23 @@ Phantom parse_phantom(const json& j, const std::string& source) {
     }
     if (j.contains("shapes")) {
         const json& shapes = j.at("shapes");
-        if (!shapes.is_array()) throw tissue::InputError(source, "shapes", "must be an array");
+        if (!shapes.is_array()) throw base::InputError(source, "shapes", "must be an array");
         for (std::size_t i = 0; i < shapes.size(); ++i) {
             const std::string where = "shapes[" + std::to_string(i) + "]";
             ph.shapes.push_back(parse_shape(shapes[i], source, where, ph.paper_mode));
             if (!touches_box(ph.shapes.back(), ph.size))
-                throw tissue::InputError(
-                    source, where,
-                    "lies entirely outside the phantom (size " + tissue::number_text(ph.size.x) +
-                        " x " + tissue::number_text(ph.size.y) + " x " +
-                        tissue::number_text(ph.size.z) + " mm from the origin)");
+                throw base::InputError(source, where,
+                                       "lies entirely outside the phantom (size " +
+                                           base::number_text(ph.size.x) + " x " +
+                                           base::number_text(ph.size.y) + " x " +
+                                           base::number_text(ph.size.z) + " mm from the origin)");
         }
     }
     if (j.contains("targets")) {
         const json& targets = j.at("targets");
-        if (!targets.is_array()) throw tissue::InputError(source, "targets", "must be an array");
+        if (!targets.is_array()) throw base::InputError(source, "targets", "must be an array");
         if (ph.paper_mode)
-            throw tissue::InputError(source, "targets", "are not imaged in paper mode");
+            throw base::InputError(source, "targets", "are not imaged in paper mode");
         for (std::size_t i = 0; i < targets.size(); ++i) {
             const std::string where = "targets[" + std::to_string(i) + "]";
             ph.targets.push_back(parse_target(targets[i], ph.size, source, where));
@@ -414,20 +413,20 @@ Phantom parse_phantom(const json& j, const std::string& source) {
         ParticleSource ps;
         const std::string type = jsonio::get_string(src, "type", source, "source");
         if (type != "fan" && type != "parallel")
-            throw tissue::InputError(source, "source.type",
-                                     "must be 'fan' or 'parallel', got '" + type + "'");
+            throw base::InputError(source, "source.type",
+                                   "must be 'fan' or 'parallel', got '" + type + "'");
         ps.type = type == "fan" ? ParticleSource::Type::fan : ParticleSource::Type::parallel;
         auto vec2 = [&](const char* key) {
             const json* v = src.contains(key) ? &src.at(key) : nullptr;
             if (!v || !v->is_array() || v->size() != 2 || !(*v)[0].is_number() ||
                 !(*v)[1].is_number())
-                throw tissue::InputError(source, std::string("source.") + key, "must be [x, y]");
+                throw base::InputError(source, std::string("source.") + key, "must be [x, y]");
             return glm::dvec2((*v)[0].get<double>(), (*v)[1].get<double>());
         };
         ps.at = vec2("at");
         ps.direction = vec2("direction");
         if (!(glm::length(ps.direction) > 0.0))
-            throw tissue::InputError(source, "source.direction", "must not be zero");
+            throw base::InputError(source, "source.direction", "must not be zero");
         ps.direction = glm::normalize(ps.direction);
         if (ps.type == ParticleSource::Type::fan)
             ps.half_angle_deg = jsonio::get_number(src, "half_angle", source, "source", 0.0, 89.0);
@@ -454,7 +453,7 @@ Phantom parse_phantom(const json& j, const std::string& source) {
     try {
         ph.pose = probe::Pose::looking(at, beam, lateral);
     } catch (const std::invalid_argument&) {
-        throw tissue::InputError(source, "probe.lateral", "is parallel to the beam");
+        throw base::InputError(source, "probe.lateral", "is parallel to the beam");
     }
     return ph;
 }

@@ -1,14 +1,14 @@
 #include "phantoms/trace_scene.h"
 
 #include "simulator/sources.h"
-#include "tissue/error.h"
-#include "tissue/json_util.h"
+#include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
 
 namespace sonotrace::phantoms {
 
 namespace {
 
-namespace jsonio = tissue::jsonio;
+namespace jsonio = base::jsonio;
 using nlohmann::json;
 
 // The "trace" entry over the mode's defaults (paper: the paper's integrator alone, no
@@ -32,7 +32,7 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
     auto flag = [&](const char* key, bool& value) {
         if (!t.contains(key)) return;
         if (!t.at(key).is_boolean())
-            throw tissue::InputError(src, std::string("trace.") + key, "must be true or false");
+            throw base::InputError(src, std::string("trace.") + key, "must be true or false");
         value = t.at(key).get<bool>();
     };
     flag("refraction", s.refraction);
@@ -49,13 +49,13 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
         else if (v == "density_ratio")
             s.lobe_exponent = simulator::LobeExponent::density_ratio;
         else
-            throw tissue::InputError(src, "trace.lobe_exponent",
-                                     "must be roughness, reflecting_density or density_ratio");
+            throw base::InputError(src, "trace.lobe_exponent",
+                                   "must be roughness, reflecting_density or density_ratio");
     }
     if (t.contains("lobe_weight")) {
         const std::string v = jsonio::get_string(t, "lobe_weight", src, "trace");
         if (v != "probability" && v != "energy")
-            throw tissue::InputError(src, "trace.lobe_weight", "must be probability or energy");
+            throw base::InputError(src, "trace.lobe_weight", "must be probability or energy");
         s.lobe_weight =
             v == "energy" ? simulator::LobeWeight::energy : simulator::LobeWeight::probability;
     }
@@ -86,8 +86,8 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
 
 simulator::Scene2D trace_scene(const Phantom& ph, int particles) {
     if (!ph.injection)
-        throw tissue::InputError(ph.source, "source",
-                                 "is required to trace a phantom (where the particles start)");
+        throw base::InputError(ph.source, "source",
+                               "is required to trace a phantom (where the particles start)");
     simulator::Scene2D scene;
     scene.name = ph.name;
     scene.description = ph.description;

@@ -7,7 +7,7 @@
 
 namespace sonotrace::phantoms {
 
-// `particles` > 0 overrides the source's count. Throws tissue::InputError naming the
+// `particles` > 0 overrides the source's count. Throws base::InputError naming the
 // phantom file and field (no source, a bad "trace" key).
 simulator::Scene2D trace_scene(const Phantom& phantom, int particles = 0);
 

@@ -5,7 +5,7 @@
 #include <numbers>
 
 #include "probe/array_geometry.h"
-#include "tissue/fast_math.h"
+#include "tissue/base/fast_math.h"
 
 #include <vector>
 
@@ -84,7 +84,7 @@ namespace {
 inline float directivity(float sin_theta, float cos_theta, float half_width_in_lambdas) {
     const float u = half_width_in_lambdas * std::abs(sin_theta) + 1e-9f;
     float s, c;
-    tissue::sincos_turns(u, s, c);
+    base::sincos_turns(u, s, c);
     return s / (6.28318531f * u) * std::max(cos_theta, 0.0f);
 }
 
@@ -107,7 +107,7 @@ inline float directivity(float sin_theta, float cos_theta, float half_width_in_l
                            std::sqrt(r);
         const float fdx = fx - x[e], fdy = fy - y[e];
         const float path = r - std::sqrt(fdx * fdx + fdy * fdy) + fy - qy;
-        tissue::sincos_turns(path * inverse_lambda, s, c);
+        base::sincos_turns(path * inverse_lambda, s, c);
         re[e] = gain * c, im[e] = -gain * s;  // exp(-i k path)
     }
 }
@@ -185,7 +185,7 @@ struct ReceiveElements {
         const float gain = directivity(sin_e, cos_e, half_width_in_lambdas) *
                            directivity(sin_r, cos_r, half_width_in_lambdas) * weight[r] /
                            (std::sqrt(length) * cos_beta);
-        tissue::sincos_turns(length * inverse_lambda - delay[r] * inverse_lambda - offset, s, co);
+        base::sincos_turns(length * inverse_lambda - delay[r] * inverse_lambda - offset, s, co);
         re[r] = gain * co, im[r] = -gain * s;  // exp(-i 2 pi phase)
     }
 }

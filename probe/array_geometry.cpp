@@ -3,7 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::probe {
 
@@ -36,8 +36,8 @@ TransducerType parse_transducer_type(const std::string& name, const std::string&
         if (name == a.name) return a.type;
         names += (names.empty() ? "" : ", ") + std::string(a.name);
     }
-    throw tissue::InputError(source, field,
-                             "unknown transducer type '" + name + "' (types: " + names + ")");
+    throw base::InputError(source, field,
+                           "unknown transducer type '" + name + "' (types: " + names + ")");
 }
 
 std::string to_string(TransducerType type) {

@@ -59,7 +59,7 @@ std::unique_ptr<const ArrayGeometry> array_geometry(const Transducer& t);
 
 // One registered array type: its name, the CLI's description of it, whether its lines
 // fan out over --fov, its geometry and its own parameter checks (after the common ones;
-// tissue::InputError(source, field)).
+// base::InputError(source, field)).
 struct ArrayType {
     TransducerType type;
     const char* name;
@@ -74,7 +74,7 @@ struct ArrayType {
 };
 const std::vector<ArrayType>& array_types();
 const ArrayType& array_type(TransducerType type);
-// By name; throws tissue::InputError(source, field) listing the names otherwise.
+// By name; throws base::InputError(source, field) listing the names otherwise.
 TransducerType parse_transducer_type(const std::string& name, const std::string& source,
                                      const std::string& field);
 

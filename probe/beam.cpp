@@ -7,13 +7,13 @@
 
 #include "probe/array_geometry.h"
 #include "tissue/acoustic_map.h"
-#include "tissue/hash.h"
+#include "tissue/base/hash.h"
 
 namespace sonotrace::probe {
 
 namespace {
 
-using tissue::mix64;
+using base::mix64;
 
 // Uniform in [0, 1) from a key: 53 random bits.
 double uniform(uint64_t seed, uint64_t line, uint64_t particle, uint64_t draw) {

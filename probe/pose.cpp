@@ -4,7 +4,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::probe {
 
@@ -16,11 +16,11 @@ glm::dvec3 parse_vec3(const std::string& text, const std::string& source, const 
     char comma = 0;
     if (!(in >> v.x >> comma >> v.y) || comma != ',' || !(in >> comma >> v.z) || comma != ',' ||
         !(in >> std::ws).eof()) {
-        throw tissue::InputError(source, key,
-                                 "expected three comma-separated numbers, got '" + text + "'");
+        throw base::InputError(source, key,
+                               "expected three comma-separated numbers, got '" + text + "'");
     }
     if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
-        throw tissue::InputError(source, key, "values must be finite");
+        throw base::InputError(source, key, "values must be finite");
     }
     return v;
 }
@@ -34,8 +34,8 @@ double parse_degrees(const std::string& text, const std::string& source, const s
         used = 0;
     }
     if (used != text.size() || !std::isfinite(v) || std::abs(v) > 360.0) {
-        throw tissue::InputError(source, key,
-                                 "expected an angle in degrees in [-360, 360], got '" + text + "'");
+        throw base::InputError(source, key,
+                               "expected an angle in degrees in [-360, 360], got '" + text + "'");
     }
     return v;
 }
@@ -85,8 +85,8 @@ Pose parse_pose(const std::string& text, const std::string& source) {
     while (in >> token) {
         const auto eq = token.find('=');
         if (eq == std::string::npos) {
-            throw tissue::InputError(source, token,
-                                     "expected key=value (keys: at, beam, lateral, rotate, tilt)");
+            throw base::InputError(source, token,
+                                   "expected key=value (keys: at, beam, lateral, rotate, tilt)");
         }
         const std::string key = token.substr(0, eq), value = token.substr(eq + 1);
         if (key == "at")
@@ -100,12 +100,12 @@ Pose parse_pose(const std::string& text, const std::string& source) {
         else if (key == "tilt")
             tilt = parse_degrees(value, source, key);
         else
-            throw tissue::InputError(source, key,
-                                     "unknown key (keys: at, beam, lateral, rotate, tilt)");
+            throw base::InputError(source, key,
+                                   "unknown key (keys: at, beam, lateral, rotate, tilt)");
     }
-    if (!has_at) throw tissue::InputError(source, "at", "is required (probe face centre in mm)");
-    if (!has_beam) throw tissue::InputError(source, "beam", "is required (beam direction)");
-    if (!(glm::length(beam) > 0.0)) throw tissue::InputError(source, "beam", "must not be zero");
+    if (!has_at) throw base::InputError(source, "at", "is required (probe face centre in mm)");
+    if (!has_beam) throw base::InputError(source, "beam", "is required (beam direction)");
+    if (!(glm::length(beam) > 0.0)) throw base::InputError(source, "beam", "must not be zero");
     if (!has_lateral) {
         // The world axis most perpendicular to the beam, preferring +Y, then +X.
         const glm::dvec3 b = glm::normalize(beam);
@@ -115,7 +115,7 @@ Pose parse_pose(const std::string& text, const std::string& source) {
     try {
         pose = Pose::looking(at, beam, lateral);
     } catch (const std::invalid_argument& e) {
-        throw tissue::InputError(source, "lateral", e.what());
+        throw base::InputError(source, "lateral", e.what());
     }
     return pose.rotated(rotate).tilted(tilt);
 }

@@ -7,11 +7,11 @@
 
 #include "probe/transducer.h"
 #include "tissue/acoustic_map.h"
-#include "tissue/fast_math.h"
+#include "tissue/base/fast_math.h"
 
 namespace sonotrace::probe {
 
-using tissue::kFwhmPerSigma;
+using base::kFwhmPerSigma;
 
 namespace {
 constexpr int kSamplesPerPeriod = 64;

@@ -6,7 +6,7 @@
 
 #include "probe/array_geometry.h"
 #include "tissue/acoustic_map.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::probe {
 
@@ -26,8 +26,8 @@ Apodization parse_apodization(const std::string& name, const std::string& source
                               const std::string& field) {
     for (Apodization a : {Apodization::rectangular, Apodization::hann, Apodization::tukey})
         if (to_string(a) == name) return a;
-    throw tissue::InputError(source, field,
-                             "unknown apodization '" + name + "' (rectangular, hann, tukey)");
+    throw base::InputError(source, field,
+                           "unknown apodization '" + name + "' (rectangular, hann, tukey)");
 }
 
 double apodization_weight(Apodization a, double u) {
@@ -47,7 +47,7 @@ double apodization_weight(Apodization a, double u) {
 
 void Transducer::validate(const std::string& source) const {
     auto in_range = [&](double v, double lo, double hi, const char* field, const char* unit) {
-        tissue::require_in_range(source, field, v, lo, hi, unit);
+        base::require_in_range(source, field, v, lo, hi, unit);
     };
     in_range(elements, 1, 4096, "elements", "");
     in_range(pitch_mm, 1e-3, 10.0, "pitch", "mm");
@@ -56,22 +56,22 @@ void Transducer::validate(const std::string& source) const {
     in_range(depth_mm, 1.0, 500.0, "depth", "mm");
     in_range(focus_mm, 1e-3, 1e6, "focus", "mm");
     if (focus_mm > depth_mm) {
-        throw tissue::InputError(source, "focus",
-                                 "the transmit focus (" + tissue::number_text(focus_mm) +
-                                     " mm) lies beyond the imaging depth (" +
-                                     tissue::number_text(depth_mm) + " mm)");
+        throw base::InputError(source, "focus",
+                               "the transmit focus (" + base::number_text(focus_mm) +
+                                   " mm) lies beyond the imaging depth (" +
+                                   base::number_text(depth_mm) + " mm)");
     }
     in_range(f_number, 0.5, 20.0, "f-number", "");
     if (!(rx_f_number > 0.0))
-        throw tissue::InputError(source, "rx-f-number",
-                                 "the receive F-number must be > 0 (a small value such as 0.1 "
-                                 "receives on the whole array), got " +
-                                     tissue::number_text(rx_f_number));
+        throw base::InputError(source, "rx-f-number",
+                               "the receive F-number must be > 0 (a small value such as 0.1 "
+                               "receives on the whole array), got " +
+                                   base::number_text(rx_f_number));
     in_range(rx_f_number, 1e-3, 20.0, "rx-f-number", "");
     if (!(cycles > 0.0))
-        throw tissue::InputError(
+        throw base::InputError(
             source, "cycles",
-            "the excitation needs a positive number of cycles, got " + tissue::number_text(cycles));
+            "the excitation needs a positive number of cycles, got " + base::number_text(cycles));
     in_range(cycles, 0.01, 64.0, "cycles", "");
     in_range(elevation_focus_mm, 1.0, 1000.0, "elevation-focus", "mm");
     in_range(slice_thickness_mm, 0.01, 50.0, "slice-thickness", "mm");
@@ -241,8 +241,8 @@ const Transducer& find_transducer(const std::string& name, const std::string& so
         if (t.name == name) return t;
         names += (names.empty() ? "" : ", ") + t.name;
     }
-    throw tissue::InputError(source, "probe",
-                             "unknown transducer preset '" + name + "' (presets: " + names + ")");
+    throw base::InputError(source, "probe",
+                           "unknown transducer preset '" + name + "' (presets: " + names + ")");
 }
 
 ScanGeometry::ScanGeometry(const Transducer& t)

@@ -26,7 +26,7 @@ enum class Apodization {
     tukey,        // flat middle, cosine tapers over the outer quarters (alpha 0.5)
 };
 std::string to_string(Apodization a);
-// By name; throws tissue::InputError(source, field) listing the names otherwise.
+// By name; throws base::InputError(source, field) listing the names otherwise.
 Apodization parse_apodization(const std::string& name, const std::string& source,
                               const std::string& field);
 // Weight of an element at fraction u in [0, 1] across the active aperture (0 outside).
@@ -56,7 +56,7 @@ struct Transducer {
     int lines = 128;
     double face_reflectivity = 0.3;  // intensity fraction the face reflects back (capture model)
 
-    // Throws tissue::InputError(source, field) naming the first impossible parameter.
+    // Throws base::InputError(source, field) naming the first impossible parameter.
     void validate(const std::string& source) const;
 
     double wavelength_mm() const;       // at the centre frequency and 1540 m/s
@@ -75,7 +75,7 @@ const std::vector<TransducerParameterDoc>& transducer_parameter_docs();
 
 // Presets modelled on real probes (values from the public datasheets; see the .cpp).
 const std::vector<Transducer>& transducer_presets();
-// By name; throws tissue::InputError(source, "probe") listing the presets otherwise.
+// By name; throws base::InputError(source, "probe") listing the presets otherwise.
 const Transducer& find_transducer(const std::string& name, const std::string& source);
 
 // One scan line in the probe plane.

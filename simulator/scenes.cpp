@@ -3,7 +3,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 #include "tissue/resample.h"
 #include "tissue/transfer_function.h"
 #include "tissue/volume_io.h"
@@ -113,13 +113,13 @@ double FibreGeometry::length_mm() const {
 
 Scene2D make_paper_scene(const std::string& name, int particles) {
     if (particles < 1 || particles > 10000000) {
-        throw tissue::InputError("--particles", "", "must be between 1 and 10000000");
+        throw base::InputError("--particles", "", "must be between 1 and 10000000");
     }
     if (name == "fig5") return figure5(particles);
-    throw tissue::InputError("--config", "",
-                             "unknown configuration '" + name +
-                                 "' (known: fig2, fig4a, fig4b, fig6 from the phantom catalogue, "
-                                 "fig5)");
+    throw base::InputError("--config", "",
+                           "unknown configuration '" + name +
+                               "' (known: fig2, fig4a, fig4b, fig6 from the phantom catalogue, "
+                               "fig5)");
 }
 
 tissue::PropertyMaps planar_interface(int nx, int ny, double h, glm::dvec2 point, glm::dvec2 normal,

@@ -21,7 +21,7 @@ struct Scene2D {
     TraceSettings settings;
 };
 
-// "fig5" (loads Colin27); throws tissue::InputError("--config", ...) for other names.
+// "fig5" (loads Colin27); throws base::InputError("--config", ...) for other names.
 Scene2D make_paper_scene(const std::string& name, int particles);
 
 // Two media separated by a plane through `point` with unit `normal` (pointing into

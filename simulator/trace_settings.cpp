@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::simulator {
 
@@ -28,7 +28,7 @@ std::string to_string(LobeWeight weight) {
 
 void TraceSettings::validate(const std::string& source) const {
     auto in_range = [&](double v, double lo, double hi, const char* field) {
-        tissue::require_in_range(source, field, v, lo, hi);
+        base::require_in_range(source, field, v, lo, hi);
     };
     in_range(step_texels, 0.01, 4.0, "step");
     in_range(frequency_mhz, 0.1, 100.0, "frequency");

@@ -173,7 +173,7 @@ struct TraceSettings {
     std::optional<ProbeFace<3>> probe_face_3d;
     std::optional<RingDetector> ring;
 
-    // Throws tissue::InputError(source, field) naming the first bad parameter.
+    // Throws base::InputError(source, field) naming the first bad parameter.
     void validate(const std::string& source) const;
 };
 

@@ -18,8 +18,8 @@
 #include "simulator/interactions.h"
 #include "simulator/rng.h"
 #include "simulator/step.h"
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 
 namespace sonotrace::simulator {
 
@@ -55,7 +55,7 @@ class DepositChunks {
                 return chunk;
             }
         }
-        return tissue::allocate_huge(kBytes);
+        return base::allocate_huge(kBytes);
     }
     static void give(void* chunk) {
         Pool& pool = the_pool();
@@ -66,7 +66,7 @@ class DepositChunks {
                 return;
             }
         }
-        tissue::free_huge(chunk, kBytes);
+        base::free_huge(chunk, kBytes);
     }
 
   private:
@@ -75,7 +75,7 @@ class DepositChunks {
         std::mutex mutex;
         std::vector<void*> kept;
         ~Pool() {
-            for (void* chunk : kept) tissue::free_huge(chunk, kBytes);
+            for (void* chunk : kept) base::free_huge(chunk, kBytes);
         }
     };
     static Pool& the_pool() {
@@ -148,7 +148,7 @@ class DepositTiles {
         void operator()(Tile* chunk) const { DepositChunks::give(chunk); }
     };
     glm::ivec3 tiles_per_axis_{1};
-    std::vector<Tile*, tissue::HugePageAllocator<Tile*>> tiles_;
+    std::vector<Tile*, base::HugePageAllocator<Tile*>> tiles_;
     std::vector<std::unique_ptr<Tile, FreeChunk>> chunks_;
     std::size_t chunk_used_ = 0;
 };
@@ -194,10 +194,10 @@ class InterfaceCache {
         capacity_ = std::size_t(1) << bits;
         keys_ = std::make_unique<std::atomic<uint32_t>[]>(capacity_);  // zero: empty
         entries_ = static_cast<InterfaceSides<Dim>*>(
-            tissue::allocate_huge(capacity_ * sizeof(InterfaceSides<Dim>)));
+            base::allocate_huge(capacity_ * sizeof(InterfaceSides<Dim>)));
     }
     ~InterfaceCache() {
-        if (entries_) tissue::free_huge(entries_, capacity_ * sizeof(InterfaceSides<Dim>));
+        if (entries_) base::free_huge(entries_, capacity_ * sizeof(InterfaceSides<Dim>));
     }
     InterfaceCache(const InterfaceCache&) = delete;
     InterfaceCache& operator=(const InterfaceCache&) = delete;
@@ -1274,11 +1274,11 @@ void validate_sources(const Sources<Dim>& sources) {
             finite = finite && std::isfinite(s.position[a]) && std::isfinite(s.direction[a]);
         const std::string field = "sources[" + std::to_string(n) + "]";
         if (!finite)
-            throw tissue::InputError("sources", field,
-                                     "position, direction and energy must be finite");
-        if (s.energy < 0.0f) throw tissue::InputError("sources", field + ".energy", "must be >= 0");
+            throw base::InputError("sources", field,
+                                   "position, direction and energy must be finite");
+        if (s.energy < 0.0f) throw base::InputError("sources", field + ".energy", "must be >= 0");
         if (!(glm::length(s.direction) > 0.0f))
-            throw tissue::InputError("sources", field + ".direction", "is zero");
+            throw base::InputError("sources", field + ".direction", "is zero");
     }
 }
 

@@ -41,7 +41,7 @@ namespace sonotrace::simulator {
 // Called from worker threads after each finished line with (lines done, lines total).
 using TraceProgress = std::function<void(std::size_t, std::size_t)>;
 
-// Throws tissue::InputError("sources" / settings source, field) on invalid input.
+// Throws base::InputError("sources" / settings source, field) on invalid input.
 template <int Dim>
 TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& sources,
                        const TraceSettings& settings, const TraceProgress& progress = {});

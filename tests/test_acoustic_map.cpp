@@ -224,14 +224,14 @@ namespace {
 TEST(HugePageAllocator, LargeArraysStartOnHugePageBoundaries) {
     constexpr std::size_t kHuge = std::size_t(2) << 20;
     for (const std::size_t bytes : {std::size_t(64), kHuge - 1, kHuge, 3 * kHuge + 5}) {
-        std::vector<char, HugePageAllocator<char>> v(bytes, 'x');
+        std::vector<char, base::HugePageAllocator<char>> v(bytes, 'x');
         if (bytes >= kHuge) {
             EXPECT_EQ(reinterpret_cast<std::uintptr_t>(v.data()) % kHuge, 0u);
         }
         EXPECT_EQ(v.front(), 'x');
         EXPECT_EQ(v.back(), 'x');
     }
-    std::vector<double, HugePageAllocator<double>> grown;
+    std::vector<double, base::HugePageAllocator<double>> grown;
     for (int i = 0; i < 1 << 20; ++i) grown.push_back(i);  // crosses the 2 MiB threshold
     EXPECT_EQ(grown[123456], 123456.0);
 }

@@ -15,7 +15,7 @@
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
 #include "probe/aperture.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace {
 namespace {
@@ -152,7 +152,7 @@ TEST(Anechoic, DisabledPhysicsParsesNamesAndRefusesUnknownOnes) {
     try {
         imaging::disabled_physics("refraction,gravity", "--disable", "");
         FAIL() << "accepted an unknown switch";
-    } catch (const tissue::InputError& e) {
+    } catch (const base::InputError& e) {
         EXPECT_NE(std::string(e.what()).find("gravity"), std::string::npos) << e.what();
         EXPECT_NE(std::string(e.what()).find("--disable"), std::string::npos) << e.what();
     }

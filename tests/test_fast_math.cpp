@@ -6,7 +6,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "tissue/fast_math.h"
+#include "tissue/base/fast_math.h"
 
 namespace sonotrace::tissue {
 namespace {
@@ -14,21 +14,21 @@ namespace {
 TEST(FastMath, FloorAndCeilToIntMatchLibm) {
     for (float x : {-3.0f, -2.5f, -1.0f, -0.75f, -1e-7f, 0.0f, 1e-7f, 0.5f, 1.0f, 2.999f, 1e6f,
                     -1e6f - 0.5f}) {
-        EXPECT_EQ(floor_to_int(x), int32_t(std::floor(x))) << x;
-        EXPECT_EQ(ceil_to_int(x), int32_t(std::ceil(x))) << x;
+        EXPECT_EQ(base::floor_to_int(x), int32_t(std::floor(x))) << x;
+        EXPECT_EQ(base::ceil_to_int(x), int32_t(std::ceil(x))) << x;
     }
     for (int i = -4000; i <= 4000; ++i) {
         const float x = float(i) * 0.37f;
-        ASSERT_EQ(floor_to_int(x), int32_t(std::floor(x))) << x;
-        ASSERT_EQ(ceil_to_int(x), int32_t(std::ceil(x))) << x;
+        ASSERT_EQ(base::floor_to_int(x), int32_t(std::floor(x))) << x;
+        ASSERT_EQ(base::ceil_to_int(x), int32_t(std::ceil(x))) << x;
         const double d = double(i) * 0.37 + 1e-12;  // doubles too, just off the integers
-        ASSERT_EQ(floor_to_int(d), int32_t(std::floor(d))) << d;
-        ASSERT_EQ(ceil_to_int(d), int32_t(std::ceil(d))) << d;
+        ASSERT_EQ(base::floor_to_int(d), int32_t(std::floor(d))) << d;
+        ASSERT_EQ(base::ceil_to_int(d), int32_t(std::ceil(d))) << d;
     }
 }
 
 TEST(FastMath, PowerOfTwoMatchesLdexp) {
-    for (int k = -126; k <= 127; ++k) EXPECT_EQ(power_of_two(k), std::ldexp(1.0f, k)) << k;
+    for (int k = -126; k <= 127; ++k) EXPECT_EQ(base::power_of_two(k), std::ldexp(1.0f, k)) << k;
 }
 
 TEST(FastMath, ExpWithinStatedRelativeError) {
@@ -36,13 +36,13 @@ TEST(FastMath, ExpWithinStatedRelativeError) {
     for (int i = 0; i <= 200000; ++i) {
         const float x = -87.0f + 175.0f * float(i) / 200000.0f;
         const double exact = std::exp(double(x));
-        worst = std::max(worst, std::abs(double(exp_float(x)) - exact) / exact);
+        worst = std::max(worst, std::abs(double(base::exp_float(x)) - exact) / exact);
     }
     EXPECT_LT(worst, 2e-7);
-    EXPECT_EQ(exp_float(0.0f), 1.0f);
+    EXPECT_EQ(base::exp_float(0.0f), 1.0f);
     // Clamped outside [-87, 88]: finite and positive, no overflow into infinity.
-    EXPECT_GT(exp_float(-1000.0f), 0.0f);
-    EXPECT_TRUE(std::isfinite(exp_float(1000.0f)));
+    EXPECT_GT(base::exp_float(-1000.0f), 0.0f);
+    EXPECT_TRUE(std::isfinite(base::exp_float(1000.0f)));
 }
 
 TEST(FastMath, LogWithinStatedError) {
@@ -51,15 +51,15 @@ TEST(FastMath, LogWithinStatedError) {
     double worst = 0.0;
     auto check = [&](float x) {
         const double exact = std::log(double(x));
-        worst = std::max(worst,
-                         std::abs(double(log_float(x)) - exact) / std::max(1.0, std::abs(exact)));
+        worst = std::max(
+            worst, std::abs(double(base::log_float(x)) - exact) / std::max(1.0, std::abs(exact)));
     };
     for (double x = 1.2e-38; x < 3e38; x *= 1.00044) check(float(x));
     for (int i = -10000; i <= 10000; ++i) check(1.0f + float(i) * 3e-5f);
     EXPECT_LT(worst, 1.2e-7);
-    EXPECT_EQ(log_float(1.0f), 0.0f);
+    EXPECT_EQ(base::log_float(1.0f), 0.0f);
     // Below the normal range: the smallest normal's logarithm, finite.
-    EXPECT_NEAR(log_float(1e-40f), std::log(1.17549435e-38), 1e-5);
+    EXPECT_NEAR(base::log_float(1e-40f), std::log(1.17549435e-38), 1e-5);
 }
 
 TEST(FastMath, SinCosOfTurnsWithinStatedError) {
@@ -70,14 +70,14 @@ TEST(FastMath, SinCosOfTurnsWithinStatedError) {
     for (int i = -300000; i <= 300000; ++i) {
         const float t = float(i) * 1e-5f;
         float s = 0.0f, c = 0.0f;
-        sincos_turns(t, s, c);
+        base::sincos_turns(t, s, c);
         const double x = 2.0 * std::numbers::pi * double(t);
         worst = std::max({worst, std::abs(s - std::sin(x)), std::abs(c - std::cos(x))});
     }
     EXPECT_LT(worst, 1e-6);
     for (float t : {1234.567f, -98765.4f, 3.0e6f}) {
         float s = 0.0f, c = 0.0f;
-        sincos_turns(t, s, c);
+        base::sincos_turns(t, s, c);
         const double x = 2.0 * std::numbers::pi * double(t);
         const double ulp = std::abs(double(std::nextafter(t, 2.0f * t)) - double(t));
         const double bound = 1e-6 + 2.0 * std::numbers::pi * ulp;

@@ -11,7 +11,7 @@
 
 #include "phantoms/phantom.h"
 #include "probe/array_geometry.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 #include "ui/gui/controls.h"
 #include "ui/gui/scanner.h"
 
@@ -99,7 +99,7 @@ TEST(GuiScene, BadFilesAreErrorsNamingTheFile) {
         try {
             load_scene(spec, kPhantoms);
             ADD_FAILURE() << spec << " loaded";
-        } catch (const tissue::InputError& e) {
+        } catch (const base::InputError& e) {
             EXPECT_NE(std::string(e.what()).find(spec), std::string::npos) << e.what();
         }
     }

@@ -8,7 +8,7 @@
 #include <fstream>
 
 #include "test_util.h"
-#include "tissue/atomic_output.h"
+#include "tissue/base/atomic_output.h"
 #include "tissue/image_io.h"
 #include "tissue/volume_io.h"
 
@@ -160,7 +160,7 @@ TEST(ImageIoErrors, NanPixelsInExr) {
 namespace sonotrace::tissue {
 namespace {
 
-// Every output goes through write_file(), which checks each write and the close: on a full
+// Every output goes through base::write_file(), which checks each write and the close: on a full
 // disk (/dev/full answers every write with ENOSPC) it throws naming the output, where an
 // unchecked stream left a truncated PNG reported as written. A staged temporary is named
 // by its final path.
@@ -168,7 +168,7 @@ TEST(OutputErrors, AFullDiskIsAnErrorNamingTheOutput) {
     if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "no /dev/full on this system";
     test::ScratchDir dir;
     const std::string bytes(100000, 'x');
-    test::expect_input_error([&] { write_file("/dev/full", bytes.data(), bytes.size()); },
+    test::expect_input_error([&] { base::write_file("/dev/full", bytes.data(), bytes.size()); },
                              "/dev/full", "", "No space left on device");
     EXPECT_TRUE(std::filesystem::exists("/dev/full")) << "a device is never removed";
     // Through the image encoder: the PNG is encoded in memory, then written and checked.
@@ -179,8 +179,8 @@ TEST(OutputErrors, AFullDiskIsAnErrorNamingTheOutput) {
         [&] { write_image_file(dir / "frame.png", spec, OIIO::TypeDesc::FLOAT, pixels.data()); },
         "frame.png", "", "No space left on device");
     // A staged name in a message is the final one.
-    EXPECT_EQ(output_name("/out/.partial-123-4-bmode.png"), "/out/bmode.png");
-    EXPECT_EQ(output_name("/out/bmode.png"), "/out/bmode.png");
+    EXPECT_EQ(base::output_name("/out/.partial-123-4-bmode.png"), "/out/bmode.png");
+    EXPECT_EQ(base::output_name("/out/bmode.png"), "/out/bmode.png");
 }
 
 }  // namespace

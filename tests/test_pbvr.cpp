@@ -13,7 +13,7 @@
 #include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
 #include "test_util.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::imaging::pbvr {
 namespace {

@@ -7,8 +7,8 @@
 #include "phantoms/phantom.h"
 #include "phantoms/trace_scene.h"
 #include "test_util.h"
-#include "tissue/error.h"
-#include "tissue/json_util.h"
+#include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
 
@@ -166,7 +166,7 @@ TEST(Phantom, BadInputNamesTheField) {
         try {
             phantoms::parse_phantom(nlohmann::json::parse(c.text), "p.json");
             ADD_FAILURE() << "accepted: " << c.text;
-        } catch (const tissue::InputError& e) {
+        } catch (const base::InputError& e) {
             EXPECT_NE(std::string(e.what()).find("p.json"), std::string::npos) << e.what();
             EXPECT_NE(std::string(e.what()).find(c.field), std::string::npos) << e.what();
         }
@@ -285,10 +285,10 @@ TEST(Phantom, KeyGivenTwiceIsRefused) {
         R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
         "shapes": [{"type": "sphere", "centre": [5, 5, 5], "radius": 1, "radius": 2,
                     "tissue": "fat"}]})";
-    test::expect_input_error([&] { tissue::jsonio::parse(text, "twice.json"); }, "twice.json",
+    test::expect_input_error([&] { base::jsonio::parse(text, "twice.json"); }, "twice.json",
                              "radius", "twice");
     // The same key in different objects is fine.
-    EXPECT_NO_THROW(tissue::jsonio::parse(R"({"a": {"k": 1}, "b": {"k": 2}})", "ok.json"));
+    EXPECT_NO_THROW(base::jsonio::parse(R"({"a": {"k": 1}, "b": {"k": 2}})", "ok.json"));
 }
 
 TEST(Phantom, CatalogueParses) {

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::test {
 
@@ -42,7 +42,7 @@ inline void expect_input_error(const std::function<void()>& action, const std::s
     try {
         action();
         ADD_FAILURE() << "expected an InputError naming " << source_part << " / " << field_part;
-    } catch (const tissue::InputError& e) {
+    } catch (const base::InputError& e) {
         const std::string what = e.what();
         EXPECT_NE(what.find(source_part), std::string::npos) << "message: " << what;
         EXPECT_NE(e.field().find(field_part), std::string::npos)

@@ -12,8 +12,8 @@
 #include <random>
 
 #include "test_util.h"
-#include "tissue/atomic_output.h"
-#include "tissue/memory.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/memory.h"
 #include "tissue/volume.h"
 
 namespace sonotrace::tissue {
@@ -112,13 +112,13 @@ TEST(Volume, RequireFiniteNamesVoxel) {
     test::expect_input_error([&] { v.require_finite("x.raw"); }, "x.raw", "data", "(2, 1, 1)");
 }
 
-// Storage is zeroed without a write of ours (ZeroedAllocator): fresh maps read zero, small
+// Storage is zeroed without a write of ours (base::ZeroedAllocator): fresh maps read zero, small
 // and large, with malloc's defaults (large blocks: fresh mappings) and as our programs set
-// it (keep_freed_memory: reused heap), after earlier volumes of the same size were written
+// it (base::keep_freed_memory: reused heap), after earlier volumes of the same size were written
 // and freed (their memory must not come back with old values); a fill reaches every voxel.
 TEST(Volume, FreshVolumesReadZeroAndFillsReachEveryVoxel) {
     for (const bool keep : {false, true}) {
-        if (keep) keep_freed_memory();
+        if (keep) base::keep_freed_memory();
         for (const glm::ivec3 dims : {glm::ivec3(7, 5, 3), glm::ivec3(130, 120, 70)}) {
             VolumeGeometry g;
             g.dims = dims;
@@ -182,7 +182,7 @@ TEST(OutputTransaction, UncommittedFilesVanishCommittedOnesAppear) {
     test::ScratchDir dir;
     const std::string a = dir / "sub/a.txt", b = dir / "b.txt";
     {
-        OutputTransaction t;
+        base::OutputTransaction t;
         std::ofstream(t.stage(a)) << "a";
         std::ofstream(t.stage(b)) << "b";
         EXPECT_FALSE(std::filesystem::exists(a));
@@ -191,7 +191,7 @@ TEST(OutputTransaction, UncommittedFilesVanishCommittedOnesAppear) {
     EXPECT_FALSE(std::filesystem::exists(b));
     EXPECT_TRUE(std::filesystem::is_empty(dir / "sub"));
     {
-        OutputTransaction t;
+        base::OutputTransaction t;
         std::ofstream(t.stage(a)) << "a";
         t.commit();
     }
@@ -215,7 +215,7 @@ TEST(OutputTransaction, ACommitIsAllOrNothing) {
     std::ofstream(dir / "b.txt") << "old";
     std::filesystem::create_directories(dir / "c.txt");
     {
-        OutputTransaction t;
+        base::OutputTransaction t;
         std::ofstream(t.stage(dir / "a.txt")) << "new a";
         std::ofstream(t.stage(dir / "b.txt")) << "new b";
         std::ofstream(t.stage(dir / "c.txt")) << "new c";
@@ -228,7 +228,7 @@ TEST(OutputTransaction, ACommitIsAllOrNothing) {
         << "only b.txt and the directory c.txt";
     // Without the obstacle the same outputs replace the old file.
     std::filesystem::remove(dir / "c.txt");
-    OutputTransaction t;
+    base::OutputTransaction t;
     std::ofstream(t.stage(dir / "a.txt")) << "new a";
     std::ofstream(t.stage(dir / "b.txt")) << "new b";
     t.commit();
@@ -239,7 +239,7 @@ TEST(OutputTransaction, ACommitIsAllOrNothing) {
 
 TEST(OutputTransaction, TwoOutputsOfOneNameAreRefused) {
     test::ScratchDir dir;
-    OutputTransaction t;
+    base::OutputTransaction t;
     t.stage(dir / "out/trace.json");
     test::expect_input_error([&] { t.stage(dir / "out/../out/trace.json"); }, "trace.json", "",
                              "two outputs");
@@ -260,7 +260,7 @@ TEST(OutputTransaction, TheNextRunRemovesStaleTemporaries) {
     const std::string live = dir / (".partial-" + std::to_string(getppid()) + "-0-bmode.png");
     std::ofstream(stale) << "x";
     std::ofstream(live) << "x";
-    OutputTransaction t;
+    base::OutputTransaction t;
     std::ofstream(t.stage(dir / "bmode.png")) << "frame";
     EXPECT_FALSE(std::filesystem::exists(stale));
     EXPECT_TRUE(std::filesystem::exists(live));

@@ -25,7 +25,7 @@
 
 #include <glm/glm.hpp>
 
-#include "tissue/memory.h"
+#include "tissue/base/memory.h"
 #include "tissue/property_maps.h"
 #include "tissue/volume.h"
 
@@ -170,8 +170,8 @@ class AcousticMap {
     Vec spacing_{};
     Vec inverse_spacing_{};
     Vec extent_{};  // (n - 1) * h per axis: the domain for inside()
-    std::vector<AcousticTexel<Dim>, HugePageAllocator<AcousticTexel<Dim>>> texels_;
-    std::vector<float, HugePageAllocator<float>> roughness_;  // per texel, 2D only
+    std::vector<AcousticTexel<Dim>, base::HugePageAllocator<AcousticTexel<Dim>>> texels_;
+    std::vector<float, base::HugePageAllocator<float>> roughness_;  // per texel, 2D only
     IVec block_dims_{};
     // Per block: its record's index in uniform_records_ (distinct records, a handful in
     // practice, so they stay in L1), or -1.

@@ -11,9 +11,9 @@
 #include <sstream>
 #include <string_view>
 
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 
 namespace sonotrace::tissue {
 
@@ -48,20 +48,22 @@ struct ImageSlice {
 
 // Reads `path` into `out` (width*height floats). Returns the size it found.
 ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* expect) {
-    if (!fs::exists(path)) throw InputError(path, "", "file not found");
+    if (!fs::exists(path)) throw base::InputError(path, "", "file not found");
     // Stored colour values, not premultiplied by alpha (which we ignore).
     OIIO::ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
     auto in = OIIO::ImageInput::open(path, &config);
-    if (!in) throw InputError(path, "", "cannot read image: " + OIIO::geterror());
+    if (!in) throw base::InputError(path, "", "cannot read image: " + OIIO::geterror());
     const OIIO::ImageSpec& spec = in->spec();
     ImageSlice slice{spec.width, spec.height, spec.nchannels};
-    if (spec.depth > 1) throw InputError(path, "depth", "volumetric images are not supported");
+    if (spec.depth > 1)
+        throw base::InputError(path, "depth", "volumetric images are not supported");
     if (expect && (slice.width != expect->width || slice.height != expect->height)) {
-        throw InputError(path, "size",
-                         std::to_string(slice.width) + "x" + std::to_string(slice.height) +
-                             " differs from the first slice's " + std::to_string(expect->width) +
-                             "x" + std::to_string(expect->height));
+        throw base::InputError(path, "size",
+                               std::to_string(slice.width) + "x" + std::to_string(slice.height) +
+                                   " differs from the first slice's " +
+                                   std::to_string(expect->width) + "x" +
+                                   std::to_string(expect->height));
     }
     const std::size_t pixels = std::size_t(slice.width) * slice.height;
     // A PNG's rows are deflate-compressed, at most 1032:1 (plus a filter byte per row): a
@@ -76,10 +78,10 @@ ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* exp
             s << "declares " << slice.width << " x " << slice.height << " pixels ("
               << declared / 1048576.0 << " MiB) in " << bytes
               << " bytes; deflate compresses at most 1032:1, so the file is truncated or corrupt";
-            throw InputError(path, "size", s.str());
+            throw base::InputError(path, "size", s.str());
         }
     }
-    check_allocation(double(pixels) * slice.channels * 8.0, path, "size");
+    base::check_allocation(double(pixels) * slice.channels * 8.0, path, "size");
 
     // Integers are read raw (no OIIO normalisation to 0..1); floats of any width as float.
     TypeDesc format = spec.format;
@@ -90,7 +92,7 @@ ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* exp
     if (!integer) format = TypeDesc::FLOAT;
     std::vector<unsigned char> raw(pixels * slice.channels * format.size());
     if (!in->read_image(0, 0, 0, slice.channels, format, raw.data())) {
-        throw InputError(path, "data", "cannot decode image: " + in->geterror());
+        throw base::InputError(path, "data", "cannot decode image: " + in->geterror());
     }
     const std::size_t offset = out->size();
     out->resize(offset + pixels);
@@ -153,11 +155,12 @@ std::vector<std::string> list_image_stack(const std::string& spec) {
             const long na = trailing_number(a), nb = trailing_number(b);
             return na != nb ? na < nb : a < b;
         });
-        if (files.empty()) throw InputError(spec, "", "directory holds no image files");
+        if (files.empty()) throw base::InputError(spec, "", "directory holds no image files");
         return files;
     }
     if (spec.find('%') == std::string::npos) {
-        throw InputError(spec, "", "not a directory or a printf pattern such as img_%03d.png");
+        throw base::InputError(spec, "",
+                               "not a directory or a printf pattern such as img_%03d.png");
     }
     auto name_for = [&](int index) {
         std::vector<char> buffer(spec.size() + 32);
@@ -166,7 +169,8 @@ std::vector<std::string> list_image_stack(const std::string& spec) {
     };
     int first = 0;
     while (first < 10000 && !fs::exists(name_for(first))) ++first;
-    if (first == 10000) throw InputError(spec, "", "no file matches the pattern (indices 0..9999)");
+    if (first == 10000)
+        throw base::InputError(spec, "", "no file matches the pattern (indices 0..9999)");
     for (int index = first; fs::exists(name_for(index)); ++index) files.push_back(name_for(index));
     return files;
 }
@@ -177,15 +181,15 @@ Volume read_image(const std::string& path, const glm::dvec3& spacing) {
 
 Volume read_image_stack(const std::vector<std::string>& files, const glm::dvec3& spacing,
                         const std::string& source) {
-    if (files.empty()) throw InputError(source, "", "no image files");
+    if (files.empty()) throw base::InputError(source, "", "no image files");
     Voxels voxels;
     ImageSlice first;
     for (std::size_t n = 0; n < files.size(); ++n) {
         const ImageSlice slice = read_into(files[n], &voxels, n == 0 ? nullptr : &first);
         if (n == 0) {
             first = slice;
-            check_allocation(double(slice.width) * slice.height * files.size() * sizeof(float),
-                             source, "size");
+            base::check_allocation(
+                double(slice.width) * slice.height * files.size() * sizeof(float), source, "size");
             voxels.reserve(std::size_t(slice.width) * slice.height * files.size());
         }
     }
@@ -208,32 +212,33 @@ void write_gray_image(const std::string& path, int width, int height,
         const float range = bits == 8 ? 255.0f : 65535.0f;
         for (float& v : scaled) v /= range;
     }
-    if (output_name(path) != path) {  // already staged by the caller's transaction
+    if (base::output_name(path) != path) {  // already staged by the caller's transaction
         write_image_file(path, spec, TypeDesc::FLOAT, scaled.data());
         return;
     }
-    OutputTransaction transaction;
+    base::OutputTransaction transaction;
     write_image_file(transaction.stage(path), spec, TypeDesc::FLOAT, scaled.data());
     transaction.commit();
 }
 
 void write_image_file(const std::string& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc given,
                       const void* pixels, OIIO::stride_t row_bytes) {
-    const std::string shown = output_name(path);
+    const std::string shown = base::output_name(path);
     auto out = OIIO::ImageOutput::create(path);
     if (!out)
-        throw InputError(shown, "", "no image writer for this extension: " + OIIO::geterror());
+        throw base::InputError(shown, "",
+                               "no image writer for this extension: " + OIIO::geterror());
     OIIO::ImageSpec stamped = spec;
     stamped.attribute("DateTime", "");  // no write time: same inputs, same bytes
     std::vector<unsigned char> encoded;
     OIIO::Filesystem::IOVecOutput memory(encoded);
     if (!out->supports("ioproxy") || !out->set_ioproxy(&memory))
-        throw InputError(shown, "", "the image writer cannot encode to memory");
+        throw base::InputError(shown, "", "the image writer cannot encode to memory");
     if (!out->open(path, stamped) ||
         !out->write_image(given, pixels, OIIO::AutoStride, row_bytes) || !out->close()) {
-        throw InputError(shown, "", "cannot encode the image: " + out->geterror());
+        throw base::InputError(shown, "", "cannot encode the image: " + out->geterror());
     }
-    write_file(path, encoded.data(), encoded.size());
+    base::write_file(path, encoded.data(), encoded.size());
 }
 
 }  // namespace sonotrace::tissue

@@ -21,7 +21,7 @@ bool has_image_extension(const std::string& path);
 
 // Lists the files of a stack: a directory (its image files in natural numeric order)
 // or a printf pattern such as "slices/img_%03d.png" (consecutive indices from the first
-// one found among 0..9999). Throws InputError if nothing matches.
+// one found among 0..9999). Throws base::InputError if nothing matches.
 std::vector<std::string> list_image_stack(const std::string& spec);
 
 // Reads one image (one slice) or a stack into a volume with the given spacing (mm).
@@ -30,7 +30,7 @@ Volume read_image_stack(const std::vector<std::string>& files, const glm::dvec3&
                         const std::string& source);
 
 // Encodes an image of `spec` (the file format by `path`'s extension) from `pixels` of type
-// `given` in memory, then writes it with write_file(): a full disk is an error naming the
+// `given` in memory, then writes it with base::write_file(): a full disk is an error naming the
 // output, never a truncated image reported as written. `row_bytes`: AutoStride when
 // packed.
 void write_image_file(const std::string& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc given,
@@ -38,7 +38,7 @@ void write_image_file(const std::string& path, const OIIO::ImageSpec& spec, OIIO
 
 // Writes a single-channel image (used by tests and tools); 8- or 16-bit by `bits`,
 // or 32-bit float when bits == 32. Atomic (staged and renamed, unless `path` is already a
-// staged temporary of the caller's OutputTransaction).
+// staged temporary of the caller's base::OutputTransaction).
 void write_gray_image(const std::string& path, int width, int height,
                       const std::vector<float>& pixels, int bits);
 

@@ -10,9 +10,9 @@
 #include <memory>
 #include <sstream>
 
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 
 namespace sonotrace::tissue {
 
@@ -35,23 +35,25 @@ std::string number(double v) {
 // file is not a NIfTI-1 file before niftilib gives up with a generic failure.
 void check_header_bytes(const std::string& path) {
     gzFile file = gzopen(path.c_str(), "rb");
-    if (!file) throw InputError(path, "", "cannot open file");
+    if (!file) throw base::InputError(path, "", "cannot open file");
     unsigned char header[348];
     const int got = gzread(file, header, sizeof header);
     gzclose(file);
-    if (got < 0) throw InputError(path, "", "corrupt compressed data in the header");
+    if (got < 0) throw base::InputError(path, "", "corrupt compressed data in the header");
     if (got < int(sizeof header)) {
-        throw InputError(path, "sizeof_hdr",
-                         "truncated header: " + std::to_string(got) + " of 348 bytes present");
+        throw base::InputError(
+            path, "sizeof_hdr",
+            "truncated header: " + std::to_string(got) + " of 348 bytes present");
     }
     int32_t sizeof_hdr = 0;
     std::memcpy(&sizeof_hdr, header, 4);
     const int32_t swapped = int32_t(__builtin_bswap32(uint32_t(sizeof_hdr)));
     if (sizeof_hdr == 540 || swapped == 540) {
-        throw InputError(path, "sizeof_hdr", "NIfTI-2 files are not supported; convert to NIfTI-1");
+        throw base::InputError(path, "sizeof_hdr",
+                               "NIfTI-2 files are not supported; convert to NIfTI-1");
     }
     if (sizeof_hdr != 348 && swapped != 348) {
-        throw InputError(
+        throw base::InputError(
             path, "sizeof_hdr",
             "not a NIfTI-1 file (sizeof_hdr is " + std::to_string(sizeof_hdr) + ", expected 348)");
     }
@@ -137,7 +139,7 @@ void read_voxel_bytes(const nifti_image& nim, const std::string& path,
                       std::vector<unsigned char>* bytes) {
     const std::string data_file = nim.iname ? nim.iname : path;
     gzFile file = gzopen(data_file.c_str(), "rb");
-    if (!file) throw InputError(data_file, "", "cannot open the voxel data file");
+    if (!file) throw base::InputError(data_file, "", "cannot open the voxel data file");
     std::size_t got = 0;
     if (gzseek(file, nim.iname_offset, SEEK_SET) == nim.iname_offset) {
         while (got < bytes->size()) {
@@ -149,9 +151,9 @@ void read_voxel_bytes(const nifti_image& nim, const std::string& path,
     }
     gzclose(file);
     if (got < bytes->size()) {
-        throw InputError(data_file, "data",
-                         "file is truncated or corrupt: " + std::to_string(got) + " of " +
-                             std::to_string(bytes->size()) + " voxel bytes could be read");
+        throw base::InputError(data_file, "data",
+                               "file is truncated or corrupt: " + std::to_string(got) + " of " +
+                                   std::to_string(bytes->size()) + " voxel bytes could be read");
     }
 }
 
@@ -167,8 +169,9 @@ glm::dmat4 to_glm(const mat44& m) {
 
 NiftiReadResult read_nifti(const std::string& path) {
     NiftiReadResult result;
-    if (!fs::exists(path)) throw InputError(path, "", "file not found");
-    if (fs::is_directory(path)) throw InputError(path, "", "is a directory, not a NIfTI file");
+    if (!fs::exists(path)) throw base::InputError(path, "", "file not found");
+    if (fs::is_directory(path))
+        throw base::InputError(path, "", "is a directory, not a NIfTI file");
     nifti_set_debug_level(0);  // we report errors ourselves, naming the field
     check_header_bytes(path);
 
@@ -176,41 +179,42 @@ NiftiReadResult read_nifti(const std::string& path) {
     int swapped = 0;
     std::unique_ptr<nifti_1_header, decltype(&std::free)> hdr(
         nifti_read_header(path.c_str(), &swapped, 1), &std::free);
-    if (!hdr) throw InputError(path, "header", "header is inconsistent (niftilib rejected it)");
+    if (!hdr)
+        throw base::InputError(path, "header", "header is inconsistent (niftilib rejected it)");
     const int ndim = hdr->dim[0];
     if (ndim < 1 || ndim > 7) {
-        throw InputError(path, "dim[0]", "must be 1..7, got " + std::to_string(ndim));
+        throw base::InputError(path, "dim[0]", "must be 1..7, got " + std::to_string(ndim));
     }
     double voxel_total = 1.0;
     for (int d = 1; d <= ndim; ++d) {
         if (hdr->dim[d] < 1) {
-            throw InputError(path, "dim[" + std::to_string(d) + "]",
-                             "must be at least 1, got " + std::to_string(hdr->dim[d]));
+            throw base::InputError(path, "dim[" + std::to_string(d) + "]",
+                                   "must be at least 1, got " + std::to_string(hdr->dim[d]));
         }
         voxel_total *= hdr->dim[d];
     }
     if (!is_supported_datatype(hdr->datatype)) {
-        throw InputError(path, "datatype",
-                         std::string("unsupported datatype ") +
-                             nifti_datatype_string(hdr->datatype) + " (" +
-                             std::to_string(hdr->datatype) +
-                             "); sonotrace reads real scalar integer and float voxels");
+        throw base::InputError(path, "datatype",
+                               std::string("unsupported datatype ") +
+                                   nifti_datatype_string(hdr->datatype) + " (" +
+                                   std::to_string(hdr->datatype) +
+                                   "); sonotrace reads real scalar integer and float voxels");
     }
     for (int d = 1; d <= std::min(ndim, 3); ++d) {
         const double pd = hdr->pixdim[d];
         const std::string field = "pixdim[" + std::to_string(d) + "]";
         if (!std::isfinite(pd) || pd < 0.0 || (pd == 0.0 && hdr->dim[d] > 1)) {
-            throw InputError(path, field,
-                             "voxel spacing must be positive and finite, got " + number(pd));
+            throw base::InputError(path, field,
+                                   "voxel spacing must be positive and finite, got " + number(pd));
         }
     }
     if (!std::isfinite(hdr->scl_slope) || !std::isfinite(hdr->scl_inter)) {
-        throw InputError(path, "scl_slope/scl_inter", "scaling is not finite");
+        throw base::InputError(path, "scl_slope/scl_inter", "scaling is not finite");
     }
-    check_allocation(voxel_total * (hdr->bitpix / 8.0 + sizeof(float)), path, "dim");
+    base::check_allocation(voxel_total * (hdr->bitpix / 8.0 + sizeof(float)), path, "dim");
 
     NiftiImagePtr nim(nifti_image_read(path.c_str(), 0));  // header only
-    if (!nim) throw InputError(path, "header", "niftilib could not interpret the header");
+    if (!nim) throw base::InputError(path, "header", "niftilib could not interpret the header");
 
     VolumeGeometry g;
     g.dims = glm::ivec3(nim->nx, std::max(1, nim->ny), std::max(1, nim->nz));
@@ -229,7 +233,8 @@ NiftiReadResult read_nifti(const std::string& path) {
         for (int r = 0; r < 3; ++r) {
             for (int c = 0; c < 4; ++c) {
                 if (!std::isfinite(affine[c][r])) {
-                    throw InputError(path, "srow_" + std::string(1, "xyz"[r]), "is not finite");
+                    throw base::InputError(path, "srow_" + std::string(1, "xyz"[r]),
+                                           "is not finite");
                 }
             }
         }
@@ -251,8 +256,8 @@ NiftiReadResult read_nifti(const std::string& path) {
             length = 1.0;
         }
         if (!(length > 0.0) || !std::isfinite(length)) {
-            throw InputError(path, nim->sform_code > 0 ? "srow" : "pixdim",
-                             "axis " + std::to_string(c) + " has zero or invalid spacing");
+            throw base::InputError(path, nim->sform_code > 0 ? "srow" : "pixdim",
+                                   "axis " + std::to_string(c) + " has zero or invalid spacing");
         }
         g.spacing[c] = length;
         g.direction[c] = column / length;
@@ -267,17 +272,17 @@ NiftiReadResult read_nifti(const std::string& path) {
         const std::string data_file = nim->iname ? nim->iname : path;
         std::error_code error;
         const double file_bytes = double(fs::file_size(data_file, error));
-        if (error) throw InputError(data_file, "", "cannot read the voxel data file's size");
+        if (error) throw base::InputError(data_file, "", "cannot read the voxel data file's size");
         const bool compressed = data_file.size() > 3 && data_file.ends_with(".gz");
         // gzip's deflate compresses at most 1032:1
         const double can_hold =
             compressed ? 1100.0 * file_bytes + 65536.0 : file_bytes - double(nim->iname_offset);
         const double declared = double(count) * double(nim->nbyper);
         if (declared > can_hold) {
-            throw InputError(data_file, "data",
-                             "dim declares " + number_text(declared) +
-                                 " voxel bytes, more than the " + number_text(file_bytes) +
-                                 "-byte file can hold: truncated or corrupt");
+            throw base::InputError(
+                data_file, "data",
+                "dim declares " + base::number_text(declared) + " voxel bytes, more than the " +
+                    base::number_text(file_bytes) + "-byte file can hold: truncated or corrupt");
         }
     }
     std::vector<unsigned char> bytes(count * std::size_t(nim->nbyper));
@@ -297,12 +302,12 @@ NiftiReadResult read_nifti(const std::string& path) {
 
 void write_nifti(const Volume& volume, const std::string& path) {
     const VolumeGeometry& g = volume.geometry();
-    OutputTransaction transaction;
+    base::OutputTransaction transaction;
     const std::string temporary = transaction.stage(path);
 
     int dims[8] = {3, g.dims.x, g.dims.y, g.dims.z, 1, 1, 1, 1};
     NiftiImagePtr nim(nifti_make_new_nim(dims, DT_FLOAT32, 1));
-    if (!nim) throw InputError(path, "", "niftilib could not create the image");
+    if (!nim) throw base::InputError(path, "", "niftilib could not create the image");
     nim->nifti_type = NIFTI_FTYPE_NIFTI1_1;  // single .nii(.gz) file
     std::memcpy(nim->data, volume.voxels().data(), volume.size() * sizeof(float));
 
@@ -330,12 +335,12 @@ void write_nifti(const Volume& volume, const std::string& path) {
     std::strncpy(nim->descrip, "sonotrace", sizeof nim->descrip - 1);
 
     if (nifti_set_filenames(nim.get(), temporary.c_str(), 0, 1) != 0) {
-        throw InputError(path, "", "niftilib rejected the file name (use .nii or .nii.gz)");
+        throw base::InputError(path, "", "niftilib rejected the file name (use .nii or .nii.gz)");
     }
     nifti_image_write(nim.get());
     std::error_code ec;
     if (!fs::exists(temporary, ec) || fs::file_size(temporary, ec) == 0) {
-        throw InputError(path, "", "writing the NIfTI file failed");
+        throw base::InputError(path, "", "writing the NIfTI file failed");
     }
     transaction.commit();
 }

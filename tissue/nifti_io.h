@@ -18,7 +18,7 @@ struct NiftiReadResult {
     std::vector<std::string> warnings;  // e.g. "4D file: only volume 0 was read"
 };
 
-// Throws InputError naming the file and header field on any problem (missing file,
+// Throws base::InputError naming the file and header field on any problem (missing file,
 // truncated data, unsupported datatype, bad dimensions or spacing, NaN/Inf voxels,
 // more memory than available).
 NiftiReadResult read_nifti(const std::string& path);

@@ -5,10 +5,10 @@
 #include <filesystem>
 #include <fstream>
 
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
-#include "tissue/json_util.h"
-#include "tissue/memory.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
+#include "tissue/base/memory.h"
 
 namespace sonotrace::tissue {
 
@@ -53,68 +53,72 @@ Volume read_raw(const std::string& path) {
     if (sidecar.extension() != ".json") sidecar.replace_extension(".json");
     const std::string source = sidecar.string();
     if (!fs::exists(sidecar)) {
-        throw InputError(source, "", "raw volumes need a JSON sidecar describing them; not found");
+        throw base::InputError(source, "",
+                               "raw volumes need a JSON sidecar describing them; not found");
     }
-    const auto j = jsonio::read_file(source);
-    jsonio::require_known_keys(j,
-                               {"file", "dims", "spacing", "origin", "direction", "datatype",
-                                "byte_order", "header_bytes"},
-                               source, "");
+    const auto j = base::jsonio::read_file(source);
+    base::jsonio::require_known_keys(j,
+                                     {"file", "dims", "spacing", "origin", "direction", "datatype",
+                                      "byte_order", "header_bytes"},
+                                     source, "");
     VolumeGeometry g;
-    const glm::dvec3 dims = jsonio::get_vec3(j, "dims", source, "");
+    const glm::dvec3 dims = base::jsonio::get_vec3(j, "dims", source, "");
     for (int a = 0; a < 3; ++a) {
         if (dims[a] < 1 || dims[a] != std::floor(dims[a]) || dims[a] > 1e6) {
-            throw InputError(source, "dims", "must be three positive integers");
+            throw base::InputError(source, "dims", "must be three positive integers");
         }
     }
     g.dims = glm::ivec3(dims);
-    g.spacing = jsonio::get_vec3(j, "spacing", source, "");
-    if (j.contains("origin")) g.origin = jsonio::get_vec3(j, "origin", source, "");
+    g.spacing = base::jsonio::get_vec3(j, "spacing", source, "");
+    if (j.contains("origin")) g.origin = base::jsonio::get_vec3(j, "origin", source, "");
     if (j.contains("direction")) {
         const auto& d = j.at("direction");
         if (!d.is_array() || d.size() != 3) {
-            throw InputError(source, "direction", "must be an array of three 3-vectors");
+            throw base::InputError(source, "direction", "must be an array of three 3-vectors");
         }
         for (int c = 0; c < 3; ++c) {
             nlohmann::json wrapper = {{"axis", d[c]}};
-            g.direction[c] = glm::normalize(jsonio::get_vec3(wrapper, "axis", source, "direction"));
+            g.direction[c] =
+                glm::normalize(base::jsonio::get_vec3(wrapper, "axis", source, "direction"));
         }
     }
     g.validate(source);
 
-    const std::string type_name = jsonio::get_string(j, "datatype", source, "");
+    const std::string type_name = base::jsonio::get_string(j, "datatype", source, "");
     const RawType* type = nullptr;
     for (const RawType& t : kRawTypes) type = type_name == t.name ? &t : type;
     if (!type) {
-        throw InputError(source, "datatype",
-                         "unknown datatype '" + type_name +
-                             "' (use uint8, int8, uint16, int16, uint32, int32, float32, float64)");
+        throw base::InputError(
+            source, "datatype",
+            "unknown datatype '" + type_name +
+                "' (use uint8, int8, uint16, int16, uint32, int32, float32, float64)");
     }
     const std::string order =
-        j.contains("byte_order") ? jsonio::get_string(j, "byte_order", source, "") : "little";
+        j.contains("byte_order") ? base::jsonio::get_string(j, "byte_order", source, "") : "little";
     if (order != "little" && order != "big") {
-        throw InputError(source, "byte_order", "must be \"little\" or \"big\"");
+        throw base::InputError(source, "byte_order", "must be \"little\" or \"big\"");
     }
     const bool swap = (order == "big") != (std::endian::native == std::endian::big);
     const auto header_bytes = std::size_t(
-        jsonio::get_optional_number(j, "header_bytes", source, "", 0, 1e12).value_or(0));
+        base::jsonio::get_optional_number(j, "header_bytes", source, "", 0, 1e12).value_or(0));
 
-    fs::path raw =
-        sidecar.parent_path() / (j.contains("file") ? jsonio::get_string(j, "file", source, "")
-                                                    : sidecar.stem().string() + ".raw");
-    if (!fs::exists(raw)) throw InputError(raw.string(), "", "raw data file not found");
+    fs::path raw = sidecar.parent_path() / (j.contains("file")
+                                                ? base::jsonio::get_string(j, "file", source, "")
+                                                : sidecar.stem().string() + ".raw");
+    if (!fs::exists(raw)) throw base::InputError(raw.string(), "", "raw data file not found");
     const std::size_t expected = header_bytes + g.voxel_count() * std::size_t(type->bytes);
     const std::size_t actual = fs::file_size(raw);
     if (actual < expected) {
-        throw InputError(raw.string(), "size",
-                         "file is truncated: " + std::to_string(actual) + " bytes, the sidecar " +
-                             source + " describes " + std::to_string(expected));
+        throw base::InputError(raw.string(), "size",
+                               "file is truncated: " + std::to_string(actual) +
+                                   " bytes, the sidecar " + source + " describes " +
+                                   std::to_string(expected));
     }
     std::ifstream in(raw, std::ios::binary);
     in.seekg(std::streamoff(header_bytes));
     std::vector<unsigned char> bytes(g.voxel_count() * std::size_t(type->bytes));
     in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(bytes.size()));
-    if (!in) throw InputError(raw.string(), "", "read error");
+    if (!in) throw base::InputError(raw.string(), "", "read error");
 
     Voxels voxels(g.voxel_count());
     for (std::size_t n = 0; n < voxels.size(); ++n) {
@@ -129,8 +133,9 @@ void write_raw(const Volume& volume, const std::string& raw_path) {
     const VolumeGeometry& g = volume.geometry();
     fs::path sidecar(raw_path);
     sidecar.replace_extension(".json");
-    OutputTransaction transaction;
-    write_file(transaction.stage(raw_path), volume.voxels().data(), volume.size() * sizeof(float));
+    base::OutputTransaction transaction;
+    base::write_file(transaction.stage(raw_path), volume.voxels().data(),
+                     volume.size() * sizeof(float));
     nlohmann::json j = {
         {"file", fs::path(raw_path).filename().string()},
         {"dims", {g.dims.x, g.dims.y, g.dims.z}},
@@ -144,7 +149,7 @@ void write_raw(const Volume& volume, const std::string& raw_path) {
         j["direction"].push_back({g.direction[c].x, g.direction[c].y, g.direction[c].z});
     }
     const std::string text = j.dump(2) + "\n";
-    write_file(transaction.stage(sidecar.string()), text.data(), text.size());
+    base::write_file(transaction.stage(sidecar.string()), text.data(), text.size());
     transaction.commit();
 }
 

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::tissue {
 
@@ -12,36 +12,37 @@ VolumeGeometry probe_grid(const ProbeFrame& frame, const GridExtent& extent,
                           const std::string& source) {
     auto positive = [&](double v, const char* field) {
         if (!(std::isfinite(v) && v > 0.0)) {
-            throw InputError(source, field,
-                             "must be a positive number of mm, got " + number_text(v));
+            throw base::InputError(source, field,
+                                   "must be a positive number of mm, got " + base::number_text(v));
         }
     };
     positive(extent.width_mm, "width");
     positive(extent.depth_mm, "depth");
     positive(extent.pixel_mm, "resolution");
     if (!(std::isfinite(extent.elevation_mm) && extent.elevation_mm >= 0.0)) {
-        throw InputError(source, "elevation", "must be zero or a positive number of mm");
+        throw base::InputError(source, "elevation", "must be zero or a positive number of mm");
     }
     const double ll = glm::length(frame.lateral), la = glm::length(frame.axial);
     if (std::abs(ll - 1.0) > 1e-6 || std::abs(la - 1.0) > 1e-6 ||
         std::abs(glm::dot(frame.lateral, frame.axial)) > 1e-6) {
-        throw InputError(source, "pose", "lateral and axial axes must be orthonormal");
+        throw base::InputError(source, "pose", "lateral and axial axes must be orthonormal");
     }
     VolumeGeometry g;
     const double h = extent.pixel_mm;
     for (double length : {extent.width_mm, extent.depth_mm, extent.elevation_mm}) {
         if (length / h > 1e8) {
-            throw InputError(source, "dims",
-                             "the grid would need more than 1e8 samples per axis "
-                             "(memory); increase the resolution value");
+            throw base::InputError(source, "dims",
+                                   "the grid would need more than 1e8 samples per axis "
+                                   "(memory); increase the resolution value");
         }
     }
     // An acoustic map needs two samples per axis of the plane (gradients, interpolation).
     if (std::round(extent.width_mm / h) < 2.0 || std::round(extent.depth_mm / h) < 2.0) {
-        throw InputError(source, extent.width_mm < extent.depth_mm ? "width" : "depth",
-                         "the plane needs at least 2 samples along each axis: width and depth "
-                         "at least twice the resolution (" +
-                             number_text(h) + " mm)");
+        throw base::InputError(
+            source, extent.width_mm < extent.depth_mm ? "width" : "depth",
+            "the plane needs at least 2 samples along each axis: width and depth "
+            "at least twice the resolution (" +
+                base::number_text(h) + " mm)");
     }
     g.dims = glm::ivec3(std::max(1.0, std::round(extent.width_mm / h)),
                         std::max(1.0, std::round(extent.depth_mm / h)),

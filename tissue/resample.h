@@ -29,7 +29,7 @@ struct GridExtent {
 };
 
 // Geometry of the probe-aligned grid (nz == 1 when elevation_mm <= pixel_mm).
-// Throws InputError(source, field) when the extent or frame is unusable.
+// Throws base::InputError(source, field) when the extent or frame is unusable.
 VolumeGeometry probe_grid(const ProbeFrame& frame, const GridExtent& extent,
                           const std::string& source);
 

@@ -2,7 +2,7 @@
 
 #include <array>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::tissue {
 
@@ -67,8 +67,8 @@ const TissueEntry& find_tissue(std::string_view key, const std::string& source,
     std::string known;
     for (const TissueEntry& entry : kTable)
         known += (known.empty() ? "" : ", ") + std::string(entry.key);
-    throw InputError(source, field,
-                     "unknown tissue '" + std::string(key) + "' (known: " + known + ")");
+    throw base::InputError(source, field,
+                           "unknown tissue '" + std::string(key) + "' (known: " + known + ")");
 }
 
 }  // namespace sonotrace::tissue

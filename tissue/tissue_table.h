@@ -18,7 +18,7 @@ struct TissueEntry {
 };
 
 std::span<const TissueEntry> tissue_table();
-// Throws InputError(source, field, ...) listing the known names if `key` is unknown.
+// Throws base::InputError(source, field, ...) listing the known names if `key` is unknown.
 const TissueEntry& find_tissue(std::string_view key, const std::string& source,
                                const std::string& field);
 

@@ -24,7 +24,7 @@ namespace sonotrace::tissue {
 class TransferFunction {
   public:
     virtual ~TransferFunction() = default;
-    // Adapts to the volume before use (intensity window, label check). Throws InputError
+    // Adapts to the volume before use (intensity window, label check). Throws base::InputError
     // naming the transfer function's file if the volume does not fit it.
     virtual void bind(const Volume& volume) = 0;
     virtual AcousticProperties evaluate(float value) const = 0;
@@ -104,7 +104,7 @@ std::string tissue_label_name(int label);
 
 // Names of the presets compiled into the binary (from tissue/presets/*.json).
 std::vector<std::string> transfer_function_presets();
-// `spec` is a preset name or a JSON file path. Throws InputError naming the file/field.
+// `spec` is a preset name or a JSON file path. Throws base::InputError naming the file/field.
 std::unique_ptr<TransferFunction> load_transfer_function(const std::string& spec);
 // Parses JSON text; `source` names it in messages.
 std::unique_ptr<TransferFunction> parse_transfer_function(const std::string& text,

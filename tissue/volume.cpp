@@ -8,8 +8,8 @@
 
 #include <tbb/parallel_for.h>
 
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 
 namespace sonotrace::tissue {
 
@@ -28,27 +28,27 @@ void VolumeGeometry::validate(const std::string& source) const {
     for (int a = 0; a < 3; ++a) {
         const std::string axis(1, "ijk"[a]);
         if (dims[a] < 1) {
-            throw InputError(source, "dims[" + axis + "]",
-                             "must be at least 1, got " + std::to_string(dims[a]));
+            throw base::InputError(source, "dims[" + axis + "]",
+                                   "must be at least 1, got " + std::to_string(dims[a]));
         }
         if (!(std::isfinite(spacing[a]) && spacing[a] > 0.0)) {
             std::ostringstream s;
             s << "voxel spacing must be a positive finite number of mm, got " << spacing[a];
-            throw InputError(source, "spacing[" + axis + "]", s.str());
+            throw base::InputError(source, "spacing[" + axis + "]", s.str());
         }
         if (!std::isfinite(origin[a])) {
-            throw InputError(source, "origin[" + axis + "]", "is not finite");
+            throw base::InputError(source, "origin[" + axis + "]", "is not finite");
         }
     }
     const double det = glm::determinant(direction);
     if (!std::isfinite(det) || std::abs(det) < 1e-6) {
-        throw InputError(
+        throw base::InputError(
             source, "direction",
-            "the axis directions are degenerate (determinant " + number_text(det) + ")");
+            "the axis directions are degenerate (determinant " + base::number_text(det) + ")");
     }
     // In double: a corrupt header's dims can overflow size_t.
-    check_allocation(double(dims.x) * double(dims.y) * double(dims.z) * sizeof(float), source,
-                     "dims");
+    base::check_allocation(double(dims.x) * double(dims.y) * double(dims.z) * sizeof(float), source,
+                           "dims");
 }
 
 Volume::Volume(const VolumeGeometry& geometry, float fill) : geometry_(geometry) {
@@ -101,7 +101,7 @@ void Volume::require_finite(const std::string& source) const {
         std::ostringstream s;
         s << "voxel (" << n % d.x << ", " << (n / d.x) % d.y << ", " << n / (std::size_t(d.x) * d.y)
           << ") is " << voxels_[n] << "; NaN and Inf voxels are not allowed";
-        throw InputError(source, "data", s.str());
+        throw base::InputError(source, "data", s.str());
     }
 }
 

@@ -12,7 +12,7 @@
 
 #include <glm/glm.hpp>
 
-#include "tissue/memory.h"
+#include "tissue/base/memory.h"
 
 namespace sonotrace::tissue {
 
@@ -38,12 +38,12 @@ struct VolumeGeometry {
     glm::dvec3 world_to_index(const glm::dvec3& world) const;
     // The 4x4 affine index -> world, as NIfTI's sform stores it.
     glm::dmat4 index_to_world_matrix() const;
-    // Throws InputError(source, ...) when dims or spacing are unusable.
+    // Throws base::InputError(source, ...) when dims or spacing are unusable.
     void validate(const std::string& source) const;
 };
 
-// A volume's voxels. Zero-initialized without writing: see ZeroedAllocator.
-using Voxels = std::vector<float, ZeroedAllocator<float>>;
+// A volume's voxels. Zero-initialized without writing: see base::ZeroedAllocator.
+using Voxels = std::vector<float, base::ZeroedAllocator<float>>;
 
 class Volume {
   public:
@@ -77,7 +77,7 @@ class Volume {
     // Value below which the fraction `q` (0..1) of voxels lies (histogram estimate).
     float quantile(double q) const;
 
-    // Throws InputError(source, "data", ...) naming the first NaN or Inf voxel.
+    // Throws base::InputError(source, "data", ...) naming the first NaN or Inf voxel.
     void require_finite(const std::string& source) const;
 
   private:

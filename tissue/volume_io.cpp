@@ -2,7 +2,7 @@
 
 #include <filesystem>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 #include "tissue/image_io.h"
 #include "tissue/nifti_io.h"
 #include "tissue/raw_io.h"
@@ -18,9 +18,10 @@ bool ends_with(const std::string& s, const std::string& suffix) {
 
 glm::dvec3 require_spacing(const VolumeRequest& request) {
     if (!request.image_spacing) {
-        throw InputError(request.spec, "--spacing",
-                         "images carry no physical size: give the pixel spacing in mm, "
-                         "e.g. --spacing 0.5,0.5 (and the slice spacing for stacks: 0.5,0.5,1)");
+        throw base::InputError(
+            request.spec, "--spacing",
+            "images carry no physical size: give the pixel spacing in mm, "
+            "e.g. --spacing 0.5,0.5 (and the slice spacing for stacks: 0.5,0.5,1)");
     }
     return *request.image_spacing;
 }
@@ -30,13 +31,13 @@ glm::dvec3 require_spacing(const VolumeRequest& request) {
 LoadedVolume load_volume(const VolumeRequest& request) {
     LoadedVolume loaded;
     const std::string& spec = request.spec;
-    if (spec.empty()) throw InputError("--volume", "", "no volume given");
+    if (spec.empty()) throw base::InputError("--volume", "", "no volume given");
     if (spec == kDefaultVolumeName) {
         loaded.path = kDefaultVolumePath;
         if (!std::filesystem::exists(loaded.path)) {
-            throw InputError(loaded.path, "",
-                             "the default Colin27 volume is missing; install Debian's "
-                             "mricron-data package (scripts/setup.sh does)");
+            throw base::InputError(loaded.path, "",
+                                   "the default Colin27 volume is missing; install Debian's "
+                                   "mricron-data package (scripts/setup.sh does)");
         }
     } else {
         loaded.path = spec;
@@ -59,11 +60,12 @@ LoadedVolume load_volume(const VolumeRequest& request) {
         loaded.volume = read_image(path, spacing);
         loaded.format = "image";
     } else if (!std::filesystem::exists(path)) {
-        throw InputError(path, "", "file not found");
+        throw base::InputError(path, "", "file not found");
     } else {
-        throw InputError(path, "",
-                         "unknown volume format (expected .nii, .nii.gz, .hdr, .json/.raw, an "
-                         "image file, a directory of images or an image pattern)");
+        throw base::InputError(
+            path, "",
+            "unknown volume format (expected .nii, .nii.gz, .hdr, .json/.raw, an "
+            "image file, a directory of images or an image pattern)");
     }
     return loaded;
 }

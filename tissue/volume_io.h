@@ -28,7 +28,7 @@ struct LoadedVolume {
     std::vector<std::string> warnings;
 };
 
-// Throws InputError naming the file/field on every failure.
+// Throws base::InputError naming the file/field on every failure.
 LoadedVolume load_volume(const VolumeRequest& request);
 
 }  // namespace sonotrace::tissue

@@ -3,12 +3,12 @@
 #include <cmath>
 #include <limits>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::imaging::pbvr {
 
 void OrbitCamera::validate() const {
-    using tissue::require_in_range;
+    using base::require_in_range;
     for (int a = 0; a < 3; ++a) require_in_range("camera", "target", target[a], -1e6, 1e6, "mm");
     require_in_range("camera", "distance", distance_mm, 1e-3, 1e6, "mm");
     require_in_range("camera", "azimuth", azimuth_deg, -360.0, 360.0, "degrees");

@@ -17,7 +17,7 @@ struct OrbitCamera {
     double fov_deg = 30.0;       // vertical field of view
     int width = 512, height = 512;
 
-    // Throws tissue::InputError("camera", field) on a zero or inverted field of view, a
+    // Throws base::InputError("camera", field) on a zero or inverted field of view, a
     // non-positive distance or image size.
     void validate() const;
     glm::dvec3 eye() const;

@@ -4,14 +4,14 @@
 #include <cmath>
 #include <filesystem>
 
-#include "tissue/error.h"
-#include "tissue/fast_math.h"
-#include "tissue/json_util.h"
+#include "tissue/base/error.h"
+#include "tissue/base/fast_math.h"
+#include "tissue/base/json_util.h"
 
 namespace sonotrace::imaging::pbvr {
 
-using tissue::InputError;
-namespace jsonio = tissue::jsonio;
+using base::InputError;
+namespace jsonio = base::jsonio;
 
 namespace {
 
@@ -89,14 +89,14 @@ ColourTransferFunction::ColourTransferFunction(std::string name, std::string sou
     for (std::size_t i = 0; i < points_.size(); ++i) {
         const std::string field = "points[" + std::to_string(i) + "]";
         const ColourPoint& p = points_[i];
-        tissue::require_in_range(source_, (field + ".value").c_str(), p.value, 0.0, 1.0);
-        tissue::require_in_range(source_, (field + ".opacity").c_str(), p.opacity, 0.0, 1.0);
+        base::require_in_range(source_, (field + ".value").c_str(), p.value, 0.0, 1.0);
+        base::require_in_range(source_, (field + ".opacity").c_str(), p.opacity, 0.0, 1.0);
         for (int c = 0; c < 3; ++c)
-            tissue::require_in_range(source_, (field + ".colour").c_str(), p.colour[c], 0.0, 1.0);
+            base::require_in_range(source_, (field + ".colour").c_str(), p.colour[c], 0.0, 1.0);
         if (i > 0 && !(p.value > points_[i - 1].value))
             throw InputError(source_, field + ".value", "values must increase");
     }
-    tissue::require_in_range(source_, "unit_length_mm", unit_length_mm_, 1e-6, 1e6, "mm");
+    base::require_in_range(source_, "unit_length_mm", unit_length_mm_, 1e-6, 1e6, "mm");
     if (!(high_quantile_ > low_quantile_))
         throw InputError(source_, "normalization.high_quantile", "must exceed low_quantile");
     build_tables();
@@ -140,8 +140,8 @@ float ColourTransferFunction::max_extinction(float s0, float s1) const {
     float result = std::max(extinction(s0), extinction(s1));
     // (integer ceil and floor: std::ceil/std::floor are calls on the x86-64 baseline, and
     // the renderer's set-up asks this of every cell of the volume)
-    const int first = tissue::ceil_to_int(glm::clamp(s0, 0.0f, 1.0f) * float(kEntries - 1));
-    const int last = tissue::floor_to_int(glm::clamp(s1, 0.0f, 1.0f) * float(kEntries - 1));
+    const int first = base::ceil_to_int(glm::clamp(s0, 0.0f, 1.0f) * float(kEntries - 1));
+    const int last = base::floor_to_int(glm::clamp(s1, 0.0f, 1.0f) * float(kEntries - 1));
     if (last >= first) {
         const int span = last - first + 1;
         int level = 0;

@@ -31,7 +31,7 @@ class ColourTransferFunction {
     static constexpr int kEntries = 1024;
 
     ColourTransferFunction() = default;
-    // Throws tissue::InputError(source, field) on bad points (unsorted, out of range,
+    // Throws base::InputError(source, field) on bad points (unsorted, out of range,
     // fewer than two) or parameters.
     ColourTransferFunction(std::string name, std::string source, std::vector<ColourPoint> points,
                            double unit_length_mm, double low_quantile, double high_quantile);

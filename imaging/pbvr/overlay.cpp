@@ -9,13 +9,13 @@
 #include <limits>
 
 #include "imaging/pbvr/pbvr.h"
-#include "tissue/error.h"
-#include "tissue/json_util.h"
+#include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
 
 namespace sonotrace::imaging::pbvr {
 
-using tissue::InputError;
-namespace jsonio = tissue::jsonio;
+using base::InputError;
+namespace jsonio = base::jsonio;
 
 namespace {
 

@@ -28,7 +28,7 @@ struct FrameOverlay {
 };
 
 // From the JSON sidecar `sonotrace simulate` writes next to a frame (the PNG of the same
-// stem). Throws tissue::InputError naming the file and field.
+// stem). Throws base::InputError naming the file and field.
 FrameOverlay load_frame_overlay(const std::string& sidecar_path);
 
 // Z-buffer entries (zbuffer_entry) of the overlay for every sub-pixel of the camera.

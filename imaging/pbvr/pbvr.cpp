@@ -13,12 +13,12 @@
 #include <limits>
 #include <numbers>
 
-#include "tissue/error.h"
-#include "tissue/fast_math.h"
+#include "tissue/base/error.h"
+#include "tissue/base/fast_math.h"
 
 namespace sonotrace::imaging::pbvr {
 
-using tissue::InputError;
+using base::InputError;
 
 // ---- volume ------------------------------------------------------------------------
 
@@ -85,7 +85,7 @@ CutAway facing_octant(const tissue::VolumeGeometry& geometry, const OrbitCamera&
 // ---- settings, shading, images -----------------------------------------------------
 
 void RenderSettings::validate() const {
-    using tissue::require_in_range;
+    using base::require_in_range;
     const std::string source = "render settings";
     require_in_range(source, "repetitions", repetitions, 1, 1e7);
     require_in_range(source, "subpixel_level", subpixel_level, 1, 16);
@@ -211,8 +211,8 @@ namespace {
 // clamped first so that far-off or non-finite positions convert safely.
 template <typename Real>
 inline void centres_within(Real low, Real high, int size, int* first, int* last) {
-    *first = std::max(0, tissue::ceil_to_int(std::max(Real(-1), low - Real(0.5))));
-    *last = std::min(size - 1, tissue::floor_to_int(std::min(Real(size), high - Real(0.5))));
+    *first = std::max(0, base::ceil_to_int(std::max(Real(-1), low - Real(0.5))));
+    *last = std::min(size - 1, base::floor_to_int(std::min(Real(size), high - Real(0.5))));
 }
 
 uint32_t particle_id(uint32_t cell, uint32_t k) {
@@ -668,7 +668,7 @@ float PbvrRenderer::deepest_occlusion(float x0, float x1, float y0, float y1) co
     // clamped to the grid; v is clamped first so that the conversion is safe.
     const float tile = float(kOcclusionTile);
     auto tile_of = [tile](float v, int tiles) {
-        return std::clamp(tissue::floor_to_int(std::clamp(v / tile, -1.0f, float(tiles))), 0,
+        return std::clamp(base::floor_to_int(std::clamp(v / tile, -1.0f, float(tiles))), 0,
                           tiles - 1);
     };
     const int tx0 = tile_of(x0, occlusion_tiles_x_), tx1 = tile_of(x1, occlusion_tiles_x_);
@@ -852,7 +852,7 @@ RgbImage raycast_fused(
     const OrbitCamera& camera, const RenderSettings& settings, double step_mm) {
     camera.validate();
     settings.validate();
-    tissue::require_in_range("raycast", "step", step_mm, 1e-4, 100.0, "mm");
+    base::require_in_range("raycast", "step", step_mm, 1e-4, 100.0, "mm");
     if ((volume == nullptr) != (volume_tf == nullptr))
         throw std::invalid_argument("raycast_fused: a volume needs its transfer function");
     const int L = settings.subpixel_level;

@@ -45,8 +45,8 @@
 #include "imaging/pbvr/colour_tf.h"
 #include "imaging/pbvr/sampling.h"
 #include "imaging/pbvr/tetra.h"
-#include "tissue/fast_math.h"
-#include "tissue/memory.h"
+#include "tissue/base/fast_math.h"
+#include "tissue/base/memory.h"
 #include "tissue/volume.h"
 
 namespace sonotrace::imaging::pbvr {
@@ -130,7 +130,7 @@ inline glm::vec3 RenderVolume::stored_gradient(int i, int j, int k) const {
                        std::size_t(geometry_.dims.x) +
                    std::size_t(i)];
     // std::ldexp was a library call per corner, a fifth of a repetition's time.
-    const float scale = tissue::power_of_two(int8_t(packed >> 24));
+    const float scale = base::power_of_two(int8_t(packed >> 24));
     return glm::vec3(float(int8_t(packed)), float(int8_t(packed >> 8)),
                      float(int8_t(packed >> 16))) *
            scale;
@@ -205,7 +205,7 @@ struct RenderSettings {
     // every cell is classified, for the test that checks this).
     bool brick_culling = true;
 
-    // Throws tissue::InputError("render settings", field).
+    // Throws base::InputError("render settings", field).
     void validate() const;
 };
 
@@ -346,12 +346,12 @@ class PbvrRenderer {
     // Particles' discs are stretched off the axis (add_repetition), so the plane tests
     // take a cell's radius times this bound on the stretch near the image's edges.
     float edge_stretch_ = 2.0f;
-    std::vector<Cell, tissue::UninitializedHugePageAllocator<Cell>> cells_;  // filled in parallel
+    std::vector<Cell, base::UninitializedHugePageAllocator<Cell>> cells_;  // filled in parallel
     std::size_t culled_cells_ = 0;
     std::size_t skipped_bricks_ = 0;
     std::vector<float> occluded_beyond_;  // the occlusion map while cells are listed
     int occlusion_tiles_x_ = 0, occlusion_tiles_y_ = 0;
-    std::vector<glm::dvec3, tissue::HugePageAllocator<glm::dvec3>>
+    std::vector<glm::dvec3, base::HugePageAllocator<glm::dvec3>>
         accumulated_;  // per pixel, sum over repetitions of sub-pixel means
     const std::atomic<bool>* cancel_ = nullptr;
     bool cancelled() const { return cancel_ && cancel_->load(std::memory_order_relaxed); }

@@ -21,7 +21,7 @@
 
 #include <glm/glm.hpp>
 
-#include "tissue/hash.h"
+#include "tissue/base/hash.h"
 
 namespace sonotrace::imaging::pbvr {
 
@@ -36,15 +36,14 @@ enum class Sampling { uniform, metropolis };
 class CellRandom {
   public:
     CellRandom(uint64_t seed, uint32_t repetition, uint32_t cell)
-        : state_(tissue::finalise64(seed ^ tissue::finalise64(uint64_t(repetition) << 32 | cell))) {
-    }
+        : state_(base::finalise64(seed ^ base::finalise64(uint64_t(repetition) << 32 | cell))) {}
     float next() {
         if (has_spare_) {
             has_spare_ = false;
             return spare_;
         }
         state_ += kGamma;
-        const uint64_t bits = tissue::finalise64(state_);
+        const uint64_t bits = base::finalise64(state_);
         spare_ = float(uint32_t(bits) >> 8) * (1.0f / 16777216.0f);
         has_spare_ = true;
         return float(uint32_t(bits >> 32) >> 8) * (1.0f / 16777216.0f);
@@ -139,19 +138,19 @@ inline uint32_t scramble_reversed(uint32_t x, uint32_t seed) {
 class CellSequence {
   public:
     CellSequence(uint64_t seed, uint32_t repetition, uint32_t cell)
-        : key_(tissue::finalise64(seed ^ tissue::finalise64(uint64_t(cell) << 32 | 0xFFFFFFFFu))),
+        : key_(base::finalise64(seed ^ base::finalise64(uint64_t(cell) << 32 | 0xFFFFFFFFu))),
           reversed_repetition_(sobol::reverse_bits(repetition)) {}
     float count_uniform() const {
-        const uint64_t h = tissue::finalise64(key_);
+        const uint64_t h = base::finalise64(key_);
         return value(index(uint32_t(h)), uint32_t(h >> 32), 0);
     }
     // Candidate `slot`'s position in the unit cube (x, y, z) and thinning number (w).
     glm::vec4 candidate(uint32_t slot) const {
-        const uint64_t h = tissue::finalise64(key_ + slot + 1);
+        const uint64_t h = base::finalise64(key_ + slot + 1);
         const auto a = uint32_t(h), b = uint32_t(h >> 32);
         const uint32_t i = index(a);
-        return {value(i, b, 0), value(i, tissue::mix32(b + 1), 1),
-                value(i, tissue::mix32(b + 2), 2), value(i, tissue::mix32(b + 3), 3)};
+        return {value(i, b, 0), value(i, base::mix32(b + 1), 1), value(i, base::mix32(b + 2), 2),
+                value(i, base::mix32(b + 3), 3)};
     }
 
   private:

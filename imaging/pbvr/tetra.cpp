@@ -10,11 +10,11 @@
 #include <sstream>
 #include <type_traits>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::imaging::pbvr {
 
-using tissue::InputError;
+using base::InputError;
 
 namespace {
 
@@ -48,7 +48,7 @@ class VtkStream {
         if (double(n) * (binary_ ? binary_bytes : ascii_bytes) > remaining) {
             throw InputError(path_, section,
                              "declares " + std::to_string(n) + " items, more than the " +
-                                 tissue::number_text(std::max(0.0, remaining)) +
+                                 base::number_text(std::max(0.0, remaining)) +
                                  " bytes left in the file hold: truncated or corrupt");
         }
         return std::size_t(n);
@@ -74,7 +74,7 @@ class VtkStream {
                 const double past_high = 2.0 * (double(std::numeric_limits<T>::max() / 2) + 1.0);
                 if (!(v >= low && v < past_high))
                     throw InputError(path_, section,
-                                     "integer " + tissue::number_text(v) + " is out of range");
+                                     "integer " + base::number_text(v) + " is out of range");
             }
             return T(v);
         }

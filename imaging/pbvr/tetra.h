@@ -30,7 +30,7 @@ struct TetMesh {
     std::vector<float> values;                  // per point, raw (the TF normalizes)
     std::vector<std::array<uint32_t, 4>> tets;  // point indices
 
-    // Throws tissue::InputError(source, ...) on indices out of range or non-finite data.
+    // Throws base::InputError(source, ...) on indices out of range or non-finite data.
     void validate(const std::string& source) const;
     // The values as a volume-like sample set for ColourTransferFunction::bind.
     tissue::Volume values_as_volume() const;

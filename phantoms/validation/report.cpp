@@ -9,8 +9,8 @@
 #include "imaging/picture.h"
 #include "phantoms/validation/validation.h"
 #include "sonotrace_version.h"
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::validation {
 
@@ -239,7 +239,7 @@ void write_report(const std::string& dir, const std::vector<const Case*>& run,
     }
     h << "</body></html>\n";
     const std::string text = h.str();
-    tissue::write_file(stage(dir + "/index.html"), text.data(), text.size());
+    base::write_file(stage(dir + "/index.html"), text.data(), text.size());
 }
 
 }  // namespace sonotrace::validation

@@ -7,7 +7,7 @@
 #include <numbers>
 
 #include "probe/array_geometry.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::probe::arrays {
 namespace {
@@ -31,15 +31,15 @@ double max_fov_convex(const Transducer& t) {
 }
 
 void validate_convex(const Transducer& t, const std::string& source) {
-    tissue::require_in_range(source, "radius", t.radius_mm, 1.0, 1000.0, "mm");
+    base::require_in_range(source, "radius", t.radius_mm, 1.0, 1000.0, "mm");
     const double arc_deg = t.array_length_mm() / t.radius_mm * 180.0 / std::numbers::pi;
-    tissue::require_in_range(source, "fov", t.fov_deg, 1e-3, 180.0, "degrees");
+    base::require_in_range(source, "fov", t.fov_deg, 1e-3, 180.0, "degrees");
     if (t.fov_deg > arc_deg + 1e-9) {
-        throw tissue::InputError(source, "fov",
-                                 "the field of view (" + tissue::number_text(t.fov_deg) +
-                                     " degrees) is wider than the array's arc (" +
-                                     tissue::number_text(arc_deg) + " degrees = elements * " +
-                                     "pitch / radius)");
+        throw base::InputError(source, "fov",
+                               "the field of view (" + base::number_text(t.fov_deg) +
+                                   " degrees) is wider than the array's arc (" +
+                                   base::number_text(arc_deg) + " degrees = elements * " +
+                                   "pitch / radius)");
     }
 }
 

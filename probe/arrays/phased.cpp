@@ -6,7 +6,7 @@
 #include <numbers>
 
 #include "probe/array_geometry.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::probe::arrays {
 namespace {
@@ -49,9 +49,9 @@ double max_fov_phased(const Transducer&) {
 
 void validate_phased(const Transducer& t, const std::string& source) {
     if (!(std::isfinite(t.fov_deg) && t.fov_deg > 0.0 && t.fov_deg < 180.0)) {
-        throw tissue::InputError(
+        throw base::InputError(
             source, "fov",
-            "a phased array steers within (0, 180) degrees, got " + tissue::number_text(t.fov_deg));
+            "a phased array steers within (0, 180) degrees, got " + base::number_text(t.fov_deg));
     }
 }
 

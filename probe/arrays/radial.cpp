@@ -11,7 +11,7 @@
 #include <numbers>
 
 #include "probe/array_geometry.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::probe::arrays {
 namespace {
@@ -40,22 +40,22 @@ double half_ring(const Transducer& t) {
 }
 
 void validate_radial(const Transducer& t, const std::string& source) {
-    tissue::require_in_range(source, "radius", t.radius_mm, 0.1, 100.0, "mm");
+    base::require_in_range(source, "radius", t.radius_mm, 0.1, 100.0, "mm");
     const double ring = 2.0 * std::numbers::pi * t.radius_mm;
     // Within 1e-4 (4 um on a 12 mm ring): the seam where the numbering wraps is that far off.
     if (std::abs(t.array_length_mm() - ring) > 1e-4 * ring) {
-        throw tissue::InputError(
+        throw base::InputError(
             source, "radius",
             "a radial array closes on itself: elements * pitch (" +
-                tissue::number_text(t.array_length_mm()) + " mm) must equal 2 pi * radius (" +
-                tissue::number_text(ring) + " mm); set the radius to " +
-                tissue::number_text(t.array_length_mm() / (2.0 * std::numbers::pi)) + " mm");
+                base::number_text(t.array_length_mm()) + " mm) must equal 2 pi * radius (" +
+                base::number_text(ring) + " mm); set the radius to " +
+                base::number_text(t.array_length_mm() / (2.0 * std::numbers::pi)) + " mm");
     }
     if (t.fov_deg != 360.0)
-        throw tissue::InputError(source, "fov",
-                                 "a radial array images all around: the field of view is 360 "
-                                 "degrees, got " +
-                                     tissue::number_text(t.fov_deg));
+        throw base::InputError(source, "fov",
+                               "a radial array images all around: the field of view is 360 "
+                               "degrees, got " +
+                                   base::number_text(t.fov_deg));
 }
 
 }  // namespace sonotrace::probe::arrays

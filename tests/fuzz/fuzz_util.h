@@ -1,7 +1,7 @@
 #pragma once
 // What every fuzz target shares (libFuzzer, built with -DSONOTRACE_FUZZ=ON and clang):
 // the input as a file of a given name (the parsers read files), and the contract that a
-// parser may refuse input only with tissue::InputError. Any other exception escapes
+// parser may refuse input only with base::InputError. Any other exception escapes
 // LLVMFuzzerTestOneInput and libFuzzer reports it as a crash, like a sanitizer error.
 #include <unistd.h>
 
@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <string>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::fuzz {
 
@@ -46,7 +46,7 @@ template <class Parse>
 int only_input_errors(Parse&& parse) {
     try {
         parse();
-    } catch (const tissue::InputError&) {
+    } catch (const base::InputError&) {
     }
     return 0;
 }

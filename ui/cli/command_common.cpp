@@ -10,8 +10,8 @@
 #include <iostream>
 #include <sstream>
 
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::ui {
 
@@ -81,7 +81,7 @@ void write_json(const nlohmann::json& record, const std::string& path) {
         return;
     }
     const std::string text = record.dump(2) + "\n";
-    tissue::write_file(path, text.data(), text.size());
+    base::write_file(path, text.data(), text.size());
 }
 
 std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out) {
@@ -105,9 +105,9 @@ std::vector<double> parse_numbers(const std::string& text, const std::string& op
                                   std::size_t count) {
     std::vector<double> values;
     if (const auto error = parse_number_list(text, &values))
-        throw tissue::InputError(option, "", *error);
+        throw base::InputError(option, "", *error);
     if (values.size() != count)
-        throw tissue::InputError(
+        throw base::InputError(
             option, "",
             "needs " + std::to_string(count) + " comma-separated numbers, got '" + text + "'");
     return values;

@@ -80,13 +80,13 @@ class ProgressBar {
 // Limits TBB to `threads` workers for the lifetime of the returned object (0 = all cores).
 std::unique_ptr<tbb::global_control> limit_threads(int threads);
 
-// Writes `record` to `path` (callers stage it through tissue::OutputTransaction), or to
+// Writes `record` to `path` (callers stage it through base::OutputTransaction), or to
 // stdout when path is "-".
 void write_json(const nlohmann::json& record, const std::string& path);
 
 // Comma-separated finite numbers ("0.5,0.5" or "1,1,2"); the error text if one is not.
 std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out);
-// Exactly `count` of them for `option`; throws tissue::InputError naming the option.
+// Exactly `count` of them for `option`; throws base::InputError naming the option.
 std::vector<double> parse_numbers(const std::string& text, const std::string& option,
                                   std::size_t count);
 // Two or three positive spacings in mm (the third defaults to 1) for options like --spacing.

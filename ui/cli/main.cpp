@@ -4,8 +4,8 @@
 #include <CLI/CLI.hpp>
 
 #include "sonotrace_version.h"
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 #include "ui/cli/render_command.h"
 #include "ui/cli/simulate_command.h"
 #include "ui/cli/tissue_command.h"
@@ -14,7 +14,7 @@
 
 int main(int argc, char** argv) {
     using namespace sonotrace;
-    tissue::keep_freed_memory();
+    base::keep_freed_memory();
     CLI::App app(
         "sonotrace " SONOTRACE_VERSION
         " - ultrasound image simulation by particle tracing through tissue maps.\n"
@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
         if (simulate_cmd->parsed()) return ui::run_simulate_command(simulate_options);
         if (validate_cmd->parsed()) return ui::run_validate_command(validate_options);
         if (render_cmd->parsed()) return ui::run_render_command(render_options);
-    } catch (const tissue::InputError& e) {
+    } catch (const base::InputError& e) {
         ui::StageTimer::break_line();
         std::cerr << "sonotrace: error: " << e.what() << "\n";
         return 1;

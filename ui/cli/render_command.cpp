@@ -13,9 +13,9 @@
 #include "imaging/pbvr/pbvr.h"
 #include "imaging/picture.h"
 #include "sonotrace_version.h"
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 #include "tissue/volume_io.h"
 
 namespace sonotrace::ui {
@@ -143,7 +143,7 @@ int run_render_command(const RenderOptions& options) {
     else if (options.sampling == "metropolis")
         settings.sampling = pbvr::Sampling::metropolis;
     else
-        throw tissue::InputError("--sampling", "", "must be 'uniform' or 'metropolis'");
+        throw base::InputError("--sampling", "", "must be 'uniform' or 'metropolis'");
     if (options.shading == "none")
         settings.shading.model = pbvr::Shading::Model::none;
     else if (options.shading == "lambert")
@@ -151,14 +151,14 @@ int run_render_command(const RenderOptions& options) {
     else if (options.shading == "blinn-phong")
         settings.shading.model = pbvr::Shading::Model::blinn_phong;
     else
-        throw tissue::InputError("--shading", "", "must be 'none', 'lambert' or 'blinn-phong'");
+        throw base::InputError("--shading", "", "must be 'none', 'lambert' or 'blinn-phong'");
     const auto bg = parse_numbers(options.background, "--background", 3);
     settings.background = glm::vec3(bg[0], bg[1], bg[2]);
-    tissue::require_in_range("--time-limit", "", options.time_limit_s, 0.0, 1e6, "s");
+    base::require_in_range("--time-limit", "", options.time_limit_s, 0.0, 1e6, "s");
     settings.validate();
     const std::filesystem::path out_path(options.out);
     if (out_path.extension() != ".png")
-        throw tissue::InputError("--out", "", "must name a .png file, got '" + options.out + "'");
+        throw base::InputError("--out", "", "must name a .png file, got '" + options.out + "'");
 
     pbvr::DepthSampling depth_sampling = pbvr::DepthSampling::cdf;
     {
@@ -168,30 +168,30 @@ int run_render_command(const RenderOptions& options) {
               pbvr::DepthSampling::exit, pbvr::DepthSampling::random})
             if (options.depth_sampling == pbvr::to_string(d)) depth_sampling = d, known = true;
         if (!known)
-            throw tissue::InputError("--depth-sampling", "",
-                                     "must be cdf, entry, middle, exit or random");
+            throw base::InputError("--depth-sampling", "",
+                                   "must be cdf, entry, middle, exit or random");
     }
     {  // the camera's own parameters, before anything is loaded (the distance may be "fit")
         pbvr::OrbitCamera check;
         check.azimuth_deg = options.azimuth_deg, check.elevation_deg = options.elevation_deg;
         check.fov_deg = options.fov_deg, check.width = options.width, check.height = options.height;
         check.distance_mm = options.distance_mm > 0.0 ? options.distance_mm : 1.0;
-        tissue::require_in_range("--distance", "", options.distance_mm, 0.0, 1e6, "mm");
+        base::require_in_range("--distance", "", options.distance_mm, 0.0, 1e6, "mm");
         check.validate();
         // Each option may be in range while their product is not: the sub-pixel grid holds a
         // depth entry, an overlay entry and a reference sample per sub-pixel (8 bytes each).
         const double subpixels = double(options.width) * double(options.height) *
                                  double(options.subpixel) * double(options.subpixel);
-        tissue::check_allocation(subpixels * 24.0, "--width x --height x --subpixel^2", "");
+        base::check_allocation(subpixels * 24.0, "--width x --height x --subpixel^2", "");
     }
     if (options.sector && options.frame.empty())
-        throw tissue::InputError("--sector", "", "needs --frame (the frame whose sector to mesh)");
-    if (options.volumes.empty()) throw tissue::InputError("--volume", "", "needs a volume");
+        throw base::InputError("--sector", "", "needs --frame (the frame whose sector to mesh)");
+    if (options.volumes.empty()) throw base::InputError("--volume", "", "needs a volume");
     if (options.tfs.size() != options.volumes.size())
-        throw tissue::InputError("--tf", "",
-                                 "give one transfer function per --volume (" +
-                                     std::to_string(options.volumes.size()) + " volumes, " +
-                                     std::to_string(options.tfs.size()) + " transfer functions)");
+        throw base::InputError("--tf", "",
+                               "give one transfer function per --volume (" +
+                                   std::to_string(options.volumes.size()) + " volumes, " +
+                                   std::to_string(options.tfs.size()) + " transfer functions)");
 
     // ---- the inputs: one regular volume for particles, meshes for the rest ----
     std::optional<tissue::LoadedVolume> loaded;
@@ -331,8 +331,8 @@ int run_render_command(const RenderOptions& options) {
     bar.finish();
     std::signal(SIGINT, previous_handler);
     if (renderer->repetitions_done() == 0)
-        throw tissue::InputError("render", "",
-                                 "interrupted before a repetition finished: nothing written");
+        throw base::InputError("render", "",
+                               "interrupted before a repetition finished: nothing written");
     const double render_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const pbvr::RgbImage image = renderer->image();
@@ -375,7 +375,7 @@ int run_render_command(const RenderOptions& options) {
         record["ms_per_repetition_median"] = sorted[sorted.size() / 2];
     }
 
-    tissue::OutputTransaction transaction;
+    base::OutputTransaction transaction;
     imaging::write_png(pbvr::to_picture(image), transaction.stage(options.out));
     if (!options.reference.empty()) {
         timer.begin("ray-casting the reference");

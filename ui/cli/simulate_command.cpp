@@ -22,10 +22,10 @@
 #include "probe/array_geometry.h"
 #include "probe/placement.h"
 #include "sonotrace_version.h"
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
 #include "tissue/image_io.h"
-#include "tissue/json_util.h"
 #include "tissue/property_maps.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
@@ -54,7 +54,7 @@ const ParameterDoc& probe_doc() {
         std::string t = "transducer preset: ";
         for (const probe::Transducer& p : probe::transducer_presets()) {
             t += (&p == &probe::transducer_presets().front() ? "" : ", ") + p.name + " (" +
-                 tissue::number_text(p.frequency_mhz) + " MHz, " + std::to_string(p.elements) +
+                 base::number_text(p.frequency_mhz) + " MHz, " + std::to_string(p.elements) +
                  " elements)";
         }
         return t + "; empty = the view's probe (the phantom's, or linear)";
@@ -114,8 +114,7 @@ std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::T
             p.depth_mm = std::stod(item.substr(0, colon), &used);
             p.gain_db = std::stod(item.substr(colon + 1));
         } catch (const std::exception&) {
-            throw tissue::InputError("--tgc", item,
-                                     "expected DEPTH:GAIN (mm:dB), 'auto' or 'none'");
+            throw base::InputError("--tgc", item, "expected DEPTH:GAIN (mm:dB), 'auto' or 'none'");
         }
         curve.push_back(p);
     }
@@ -155,7 +154,7 @@ E parse_enum(const std::string& text, const char* flag,
         if (name == text) return value;
         names += (names.empty() ? "" : ", ") + name;
     }
-    throw tissue::InputError(flag, "", "must be one of " + names + ", got '" + text + "'");
+    throw base::InputError(flag, "", "must be one of " + names + ", got '" + text + "'");
 }
 
 // Frame (0..1, scan converted) as an image file of the requested format.
@@ -312,8 +311,8 @@ namespace {
 // Values of a --scene file become the results of the options not given on the command
 // line (the command line wins). Keys are option names without dashes; '_' = '-'.
 void apply_scene_file(CLI::App& command, const std::string& path) {
-    const json scene = tissue::jsonio::read_file(path);
-    if (!scene.is_object()) throw tissue::InputError(path, "", "must be a JSON object");
+    const json scene = base::jsonio::read_file(path);
+    if (!scene.is_object()) throw base::InputError(path, "", "must be a JSON object");
     for (const auto& [key, value] : scene.items()) {
         if (key == "comment") continue;  // notes for people, as in phantoms
         std::string flag = key;
@@ -326,7 +325,7 @@ void apply_scene_file(CLI::App& command, const std::string& path) {
                 if (name.rfind("--", 0) == 0 && name != "--scene" && name != "--help")
                     known += (known.empty() ? "" : ", ") + name.substr(2);
             }
-            throw tissue::InputError(path, key, "unknown key; known keys: " + known);
+            throw base::InputError(path, key, "unknown key; known keys: " + known);
         }
         if (option->count() > 0) continue;  // given on the command line
         std::string text;
@@ -341,12 +340,12 @@ void apply_scene_file(CLI::App& command, const std::string& path) {
                 text += (text.empty() ? "" : ",") +
                         (item.is_string() ? item.get<std::string>() : item.dump());
         } else
-            throw tissue::InputError(path, key, "must be a string, number, boolean or list");
+            throw base::InputError(path, key, "must be a string, number, boolean or list");
         try {
             option->add_result(text);
             option->run_callback();
         } catch (const CLI::Error& e) {
-            throw tissue::InputError(path, key, e.what());
+            throw base::InputError(path, key, e.what());
         }
     }
 }
@@ -375,7 +374,7 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
             p.scene.description = base.description + " (pose from " + sweep + ")";
             out.push_back(p);
         }
-        if (out.empty()) throw tissue::InputError(sweep, "", "lists no poses");
+        if (out.empty()) throw base::InputError(sweep, "", "lists no poses");
         return out;
     }
     std::vector<std::string> parts;
@@ -384,8 +383,8 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
         for (std::string part; std::getline(list, part, ':');) parts.push_back(part);
     }
     if (parts.size() != 3)
-        throw tissue::InputError("--sweep", sweep,
-                                 "expected AXIS:LENGTH:STEP (mm) or a file of poses");
+        throw base::InputError("--sweep", sweep,
+                               "expected AXIS:LENGTH:STEP (mm) or a file of poses");
     glm::dvec3 axis;
     if (parts[0] == "elevation")
         axis = base.pose.elevation();
@@ -398,8 +397,8 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
         char c1 = 0, c2 = 0;
         if (!(xyz >> axis.x >> c1 >> axis.y >> c2 >> axis.z) || c1 != ',' || c2 != ',' ||
             !(glm::length(axis) > 0.0) || !std::isfinite(glm::length(axis)))
-            throw tissue::InputError("--sweep", parts[0],
-                                     "axis must be elevation, lateral, axial or X,Y,Z");
+            throw base::InputError("--sweep", parts[0],
+                                   "axis must be elevation, lateral, axial or X,Y,Z");
         axis = glm::normalize(axis);
     }
     double length = 0.0, step = 0.0;
@@ -407,13 +406,13 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
         length = std::stod(parts[1]);
         step = std::stod(parts[2]);
     } catch (const std::exception&) {
-        throw tissue::InputError("--sweep", sweep, "LENGTH and STEP must be numbers (mm)");
+        throw base::InputError("--sweep", sweep, "LENGTH and STEP must be numbers (mm)");
     }
-    tissue::require_in_range("--sweep", "length", length, 0.0, 1000.0, "mm");
-    tissue::require_in_range("--sweep", "step", step, 1e-3, 1000.0, "mm");
+    base::require_in_range("--sweep", "length", length, 0.0, 1000.0, "mm");
+    base::require_in_range("--sweep", "step", step, 1e-3, 1000.0, "mm");
     const int frames = int(std::floor(length / step + 1e-9)) + 1;
     if (frames > 10000)
-        throw tissue::InputError("--sweep", sweep, "would make more than 10000 frames");
+        throw base::InputError("--sweep", sweep, "would make more than 10000 frames");
     for (int f = 0; f < frames; ++f) {
         Placement p{base, -0.5 * length + f * step};
         p.scene.pose.position += p.offset_mm * axis;
@@ -429,11 +428,11 @@ void require_pose_in_box(const glm::dvec3& in_box, const glm::dvec3& box_size,
     for (int a = 0; a < 3; ++a) {
         const double margin = 10.0;
         if (!(in_box[a] >= -margin && in_box[a] <= box_size[a] + margin)) {
-            throw tissue::InputError(source, "pose",
-                                     "the probe at (" + tissue::number_text(pose.position.x) +
-                                         ", " + tissue::number_text(pose.position.y) + ", " +
-                                         tissue::number_text(pose.position.z) +
-                                         ") mm is outside the " + what);
+            throw base::InputError(source, "pose",
+                                   "the probe at (" + base::number_text(pose.position.x) + ", " +
+                                       base::number_text(pose.position.y) + ", " +
+                                       base::number_text(pose.position.z) + ") mm is outside the " +
+                                       what);
         }
     }
 }
@@ -455,13 +454,13 @@ int run_simulate_command(const SimulateOptions& o) {
 
     // ---- validate everything before loading ----
     if (o.view != "craniotomy" && o.view != "temporal")
-        throw tissue::InputError("--view", "",
-                                 "must be craniotomy or temporal, got '" + o.view + "'");
+        throw base::InputError("--view", "",
+                               "must be craniotomy or temporal, got '" + o.view + "'");
     // A phantom is read first: it is small, and it names the default probe.
     std::optional<phantoms::Phantom> phantom;
     if (!o.phantom.empty()) {
         if (o.volume.volume != "default")
-            throw tissue::InputError("--phantom", "", "cannot be combined with --volume");
+            throw base::InputError("--phantom", "", "cannot be combined with --volume");
         phantom = phantoms::load_phantom(o.phantom);
     }
     const std::string preset =
@@ -491,7 +490,7 @@ int run_simulate_command(const SimulateOptions& o) {
     settings.imaging.pixel_mm = o.pixel_mm;
     settings.imaging.tgc = parse_tgc(o.tgc, settings.transducer);
     settings.validate("simulate options");
-    tissue::require_in_range("simulate options", "fps", o.fps, 0.1, 240.0);
+    base::require_in_range("simulate options", "fps", o.fps, 0.1, 240.0);
     std::vector<std::pair<std::string, int>> formats;  // file suffix, bits
     {
         std::istringstream list(o.formats);
@@ -503,9 +502,9 @@ int run_simulate_command(const SimulateOptions& o) {
             else if (f == "exr")
                 formats.emplace_back(".exr", 32);
             else
-                throw tissue::InputError("--formats", f, "unknown format (png8, png16, exr)");
+                throw base::InputError("--formats", f, "unknown format (png8, png16, exr)");
         }
-        if (formats.empty()) throw tissue::InputError("--formats", "", "is empty");
+        if (formats.empty()) throw base::InputError("--formats", "", "is empty");
     }
     // A visible file stem that leaves room in a file name (255 bytes) for the frame number,
     // the suffixes and the staged temporary's prefix.
@@ -513,18 +512,18 @@ int run_simulate_command(const SimulateOptions& o) {
     if (o.name.empty() || o.name.find('/') != std::string::npos || o.name.front() == '.' ||
         o.name.size() > kMaxNameBytes ||
         std::any_of(o.name.begin(), o.name.end(), [](char c) { return std::iscntrl(uint8_t(c)); }))
-        throw tissue::InputError("--name", "",
-                                 "must be a plain file stem: no '/', not starting with '.', no "
-                                 "control characters, at most 200 bytes");
+        throw base::InputError("--name", "",
+                               "must be a plain file stem: no '/', not starting with '.', no "
+                               "control characters, at most 200 bytes");
     const std::string video_suffix = o.video.empty() ? "" : "." + o.video;
     if (!o.video.empty() && o.video != "mp4" && o.video != "avi")
-        throw tissue::InputError("--video", o.video, "must be mp4, avi or empty");
-    if (o.resume && o.sweep.empty()) throw tissue::InputError("--resume", "", "needs --sweep");
+        throw base::InputError("--video", o.video, "must be mp4, avi or empty");
+    if (o.resume && o.sweep.empty()) throw base::InputError("--resume", "", "needs --sweep");
     if (o.resume && !o.video.empty() &&
         std::none_of(formats.begin(), formats.end(), [](const auto& f) { return f.second == 8; }))
-        throw tissue::InputError("--resume", "",
-                                 "rebuilds the video from the png8 frames: add png8 to --formats "
-                                 "or give --video ''");
+        throw base::InputError("--resume", "",
+                               "rebuilds the video from the png8 frames: add png8 to --formats "
+                               "or give --video ''");
     std::optional<probe::Pose> pose;
     if (o.volume.pose != "default") pose = probe::parse_pose(o.volume.pose, "--pose");
 
@@ -580,7 +579,7 @@ int run_simulate_command(const SimulateOptions& o) {
     const imaging::QualityLevel level = imaging::quality_level(settings.quality);
     const std::size_t particles =
         std::size_t(settings.transducer.lines) * std::size_t(level.particles_per_line);
-    tissue::OutputTransaction transaction;
+    base::OutputTransaction transaction;
     const std::filesystem::path out(o.out_dir);
     std::vector<std::string> written;
     json frames_record = json::array();
@@ -605,8 +604,8 @@ int run_simulate_command(const SimulateOptions& o) {
             video_staged = transaction.stage(video_path);
             video.emplace(video_staged, fourcc, o.fps, bgr.size(), true);
             if (!video->isOpened())
-                throw tissue::InputError(video_path, "",
-                                         "OpenCV cannot write this video format here");
+                throw base::InputError(video_path, "",
+                                       "OpenCV cannot write this video format here");
             written.push_back(video_path);
         }
         video->write(bgr);
@@ -621,8 +620,8 @@ int run_simulate_command(const SimulateOptions& o) {
         char numbered[32];
         std::snprintf(numbered, sizeof numbered, "_%04zu", f);
         const std::string stem = o.name + (sweeping ? numbered : "");
-        tissue::OutputTransaction frame_transaction;
-        tissue::OutputTransaction& frame_files = sweeping ? frame_transaction : transaction;
+        base::OutputTransaction frame_transaction;
+        base::OutputTransaction& frame_files = sweeping ? frame_transaction : transaction;
         // -- --resume: a frame whose files are all there is kept as it is
         std::vector<std::string> frame_paths;
         for (const auto& [suffix, bits] : formats)
@@ -731,15 +730,15 @@ int run_simulate_command(const SimulateOptions& o) {
         int decoded = 0;
         for (cv::Mat image; check.isOpened() && check.read(image);) ++decoded;
         if (decoded != video_frames)
-            throw tissue::InputError(
+            throw base::InputError(
                 video_path, "",
                 "the video could not be written completely (" + std::to_string(decoded) + " of " +
                     std::to_string(video_frames) + " frames read back): is the disk full?");
     }
     const bool interrupted = frames_done < placements.size();
     if (frames_done == 0)
-        throw tissue::InputError("--sweep", "",
-                                 "interrupted before the first frame: nothing written");
+        throw base::InputError("--sweep", "",
+                               "interrupted before the first frame: nothing written");
 
     const imaging::Frame& frame = last;
     json record = {

@@ -13,9 +13,9 @@
 #include "probe/pose.h"
 #include "sonotrace_version.h"
 #include "tissue/acoustic_map.h"
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 #include "tissue/nifti_io.h"
 #include "tissue/property_maps.h"
 #include "tissue/resample.h"
@@ -163,7 +163,7 @@ int run_tissue_command(const TissueOptions& options) {
 
     // Stage every path first (the transaction is not thread-safe), then render and encode
     // the pictures in parallel; each task writes only its own files.
-    tissue::OutputTransaction transaction;
+    base::OutputTransaction transaction;
     json outputs = json::array();
     std::vector<std::string> png_staged(fields.size()), nii_staged(fields.size());
     for (std::size_t n = 0; n < fields.size(); ++n) {

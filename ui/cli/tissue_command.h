@@ -22,7 +22,7 @@ struct TissueOptions {
 CLI::App* add_tissue_command(CLI::App& app, TissueOptions& options);
 // The property and tissue tables as Markdown (also in README.md, checked by a test).
 std::string tissue_tables_markdown();
-// Returns the process exit code; throws tissue::InputError on bad input.
+// Returns the process exit code; throws base::InputError on bad input.
 int run_tissue_command(const TissueOptions& options);
 
 }  // namespace sonotrace::ui

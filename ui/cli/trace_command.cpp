@@ -18,8 +18,8 @@
 #include "simulator/scenes.h"
 #include "simulator/tracer.h"
 #include "sonotrace_version.h"
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::ui {
 
@@ -91,7 +91,7 @@ void apply_disable(const std::string& disable, simulator::TraceSettings& s) {
         else if (item == "bounces")
             s.max_bounces = 1;
         else if (!item.empty()) {
-            throw tissue::InputError(
+            throw base::InputError(
                 "--disable", item,
                 "unknown switch (refraction, specular, diffuse, scattering, absorption, bounces)");
         }
@@ -113,8 +113,7 @@ void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
     else if (o.mode == "acoustic")
         s.mode = simulator::PhysicsMode::acoustic;
     else
-        throw tissue::InputError("--mode", "",
-                                 "must be 'acoustic' or 'paper', got '" + o.mode + "'");
+        throw base::InputError("--mode", "", "must be 'acoustic' or 'paper', got '" + o.mode + "'");
     apply_disable(o.disable, s);
     if (o.lobe_exponent == "roughness")
         s.lobe_exponent = simulator::LobeExponent::roughness;
@@ -123,15 +122,15 @@ void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
     else if (o.lobe_exponent == "density-ratio")
         s.lobe_exponent = simulator::LobeExponent::density_ratio;
     else if (!o.lobe_exponent.empty()) {
-        throw tissue::InputError("--lobe-exponent", "",
-                                 "must be roughness, reflecting-density or density-ratio");
+        throw base::InputError("--lobe-exponent", "",
+                               "must be roughness, reflecting-density or density-ratio");
     }
     if (o.lobe_weight == "probability")
         s.lobe_weight = simulator::LobeWeight::probability;
     else if (o.lobe_weight == "energy")
         s.lobe_weight = simulator::LobeWeight::energy;
     else if (!o.lobe_weight.empty())
-        throw tissue::InputError("--lobe-weight", "", "must be probability or energy");
+        throw base::InputError("--lobe-weight", "", "must be probability or energy");
     apply_integration_options(o, s);
     if (s.max_bounces != 1) s.max_bounces = o.max_bounces;
 }
@@ -144,7 +143,7 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
     const int particles = o.particles > 0 ? o.particles : 4000;
     if (o.mode == "paper") {
         if (!(std::isfinite(o.contrast) && o.contrast > 0.0 && o.contrast < 100.0)) {
-            throw tissue::InputError("--contrast", "", "must be in (0, 100)");
+            throw base::InputError("--contrast", "", "must be in (0, 100)");
         }
         tissue::Volume density = slice.values;
         const double lo = slice.value_min,
@@ -163,7 +162,7 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
     const glm::vec2 extent = scene.map.extent_mm();
     const glm::vec2 face_centre(0.5f * extent.x, 0.01f);
     if (o.lines < 1 || o.lines > 100000)
-        throw tissue::InputError("--lines", "", "must be between 1 and 100000");
+        throw base::InputError("--lines", "", "must be between 1 and 100000");
     for (int p = 0; p < particles; ++p) {
         const float u = (float(p) + 0.5f) / float(particles) * 2.0f - 1.0f;  // -1..1
         const auto line = uint32_t(std::int64_t(p) * o.lines / particles);
@@ -177,7 +176,7 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
                  1.0f,
                  line});
         } else {
-            throw tissue::InputError("--injection", "", "must be 'fan' or 'parallel'");
+            throw base::InputError("--injection", "", "must be 'fan' or 'parallel'");
         }
     }
     simulator::ProbeFace<2> face;
@@ -206,7 +205,7 @@ void write_echoes_csv(const std::vector<simulator::EchoEvent<2>>& echoes, const 
             << '\n';
     }
     const std::string text = out.str();
-    tissue::write_file(path, text.data(), text.size());
+    base::write_file(path, text.data(), text.size());
 }
 
 }  // namespace
@@ -254,7 +253,7 @@ int run_trace_command(const TraceOptions& options) {
     json source_record;
     if (!options.config.empty() || !options.phantom.empty()) {
         if (!options.config.empty() && !options.phantom.empty())
-            throw tissue::InputError("--phantom", "", "cannot be combined with --config");
+            throw base::InputError("--phantom", "", "cannot be combined with --config");
         // The paper's figures 2, 4 and 6 are catalogue phantoms; figure 5 is an MRI slice.
         std::string file = options.phantom;
         for (const auto& [config, name] : phantoms::kPaperFigurePhantoms)
@@ -298,7 +297,7 @@ int run_trace_command(const TraceOptions& options) {
     // ---- pictures ----
     timer.begin("writing pictures");
     const double px = scene.map.spacing().x;
-    tissue::OutputTransaction transaction;
+    base::OutputTransaction transaction;
     const std::filesystem::path out(options.out_dir);
     struct Picture {
         std::string name;
@@ -359,8 +358,8 @@ int run_trace_command(const TraceOptions& options) {
         for (std::size_t b = 0; b < angles.size(); ++b)
             csv << angles[b] << ',' << result.ring_profile[b] << '\n';
         const std::string text = csv.str();
-        tissue::write_file(transaction.stage((out / "profile.csv").string()), text.data(),
-                           text.size());
+        base::write_file(transaction.stage((out / "profile.csv").string()), text.data(),
+                         text.size());
         outputs.push_back({{"name", "profile"}, {"csv", (out / "profile.csv").string()}});
     }
     std::vector<cv::Mat> panels;

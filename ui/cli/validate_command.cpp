@@ -6,8 +6,8 @@
 #include <iostream>
 
 #include "phantoms/validation/validation.h"
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::ui {
 
@@ -70,18 +70,18 @@ int run_validate_command(const ValidateOptions& o) {
         if (it == all.end()) {
             std::string known;
             for (const auto& c : all) known += (known.empty() ? "" : ", ") + c.name;
-            throw tissue::InputError("--case", "",
-                                     "unknown case '" + name + "' (known: " + known + ")");
+            throw base::InputError("--case", "",
+                                   "unknown case '" + name + "' (known: " + known + ")");
         }
         run.push_back(&*it);
     }
     if (o.cases.empty())
         for (const auto& c : all) run.push_back(&c);
     if (!std::filesystem::is_directory(o.phantom_dir))
-        throw tissue::InputError("--phantoms", "", "'" + o.phantom_dir + "' is not a directory");
+        throw base::InputError("--phantoms", "", "'" + o.phantom_dir + "' is not a directory");
     if (!o.report_dir.empty() && std::filesystem::exists(o.report_dir) &&
         !std::filesystem::is_directory(o.report_dir))
-        throw tissue::InputError("--report", "", "'" + o.report_dir + "' is not a directory");
+        throw base::InputError("--report", "", "'" + o.report_dir + "' is not a directory");
     const auto thread_limit = limit_threads(o.threads);
 
     validation::CaseContext ctx;
@@ -114,7 +114,7 @@ int run_validate_command(const ValidateOptions& o) {
     std::cout << results.size() - std::size_t(failed) << " of " << results.size()
               << " cases pass\n";
 
-    tissue::OutputTransaction outputs;
+    base::OutputTransaction outputs;
     if (!o.json_path.empty()) {
         const nlohmann::json records = validation::to_json(run, results);
         write_json(records, o.json_path == "-" ? "-" : outputs.stage(o.json_path));

@@ -5,8 +5,8 @@
 
 #include "imaging/colin27.h"
 #include "imaging/simulation.h"
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 
 namespace sonotrace::ui {
 
@@ -92,11 +92,11 @@ VolumeSource load_volume_source(const SliceOptions& options, StageTimer& timer) 
     if (!options.spacing.empty()) {
         double s[3];
         if (auto error = parse_spacing(options.spacing, s))
-            throw tissue::InputError("--spacing", "", *error);
+            throw base::InputError("--spacing", "", *error);
         request.image_spacing = glm::dvec3(s[0], s[1], s[2]);
     }
     if (!std::isnan(options.outside) && !std::isfinite(options.outside)) {
-        throw tissue::InputError("--outside", "", "must be finite");
+        throw base::InputError("--outside", "", "must be finite");
     }
     const std::string tf_spec = !options.tf.empty()
                                     ? options.tf
@@ -120,8 +120,8 @@ VolumeSource load_volume_source(const SliceOptions& options, StageTimer& timer) 
 }
 
 tissue::Volume VolumeSource::resample(const tissue::VolumeGeometry& grid) const {
-    tissue::check_allocation(double(grid.voxel_count()) * 4.0 * 24.0, "--resolution",
-                             "grid of " + std::to_string(grid.voxel_count()) + " samples");
+    base::check_allocation(double(grid.voxel_count()) * 4.0 * 24.0, "--resolution",
+                           "grid of " + std::to_string(grid.voxel_count()) + " samples");
     const auto interpolation = tf->uses_nearest_sampling() ? tissue::Interpolation::nearest
                                                            : tissue::Interpolation::trilinear;
     return tissue::resample(loaded.volume, grid, interpolation, outside);
@@ -140,15 +140,15 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     // ---- validate every parameter before loading anything heavy ----
     auto nonnegative = [](double v, const char* flag) {
         if (!(std::isfinite(v) && v >= 0.0)) {
-            throw tissue::InputError(
-                flag, "", "must be a finite number >= 0 (mm), got " + tissue::number_text(v));
+            throw base::InputError(
+                flag, "", "must be a finite number >= 0 (mm), got " + base::number_text(v));
         }
     };
     nonnegative(options.width_mm, "--width");
     nonnegative(options.depth_mm, "--depth");
     nonnegative(options.elevation_mm, "--elevation");
     if (!(std::isfinite(options.resolution_mm) && options.resolution_mm > 0.0)) {
-        throw tissue::InputError("--resolution", "", "must be a positive number of mm per pixel");
+        throw base::InputError("--resolution", "", "must be a positive number of mm per pixel");
     }
     std::optional<probe::Pose> pose;
     if (options.pose != "default") pose = probe::parse_pose(options.pose, "--pose");

@@ -13,8 +13,8 @@
 #include "imaging/picture.h"
 #include "probe/array_geometry.h"
 #include "sonotrace_version.h"
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
 #include "ui/cli/simulate_command.h"
 #include "ui/cli/volume_slice.h"
 
@@ -161,8 +161,8 @@ App::App(const AppOptions& options)
     else if (options.quality == "high")
         parameters_.quality = imaging::Quality::high;
     else
-        throw tissue::InputError("--quality", options.quality,
-                                 "must be interactive, standard or high");
+        throw base::InputError("--quality", options.quality,
+                               "must be interactive, standard or high");
     if (!options.probe.empty()) probe::find_transducer(options.probe, "--probe");  // validates
     parameters_.gain_db = 36.0;  // as `sonotrace simulate`
     view_.enabled = options.context;
@@ -179,8 +179,8 @@ App::App(const AppOptions& options)
             known += (known.empty() ? "" : ", ") + a.name;
         }
         if (highlighted_ == Control::none)
-            throw tissue::InputError("--explain", options.explain,
-                                     "is not an artifact of this scene; it shows: " + known);
+            throw base::InputError("--explain", options.explain,
+                                   "is not an artifact of this scene; it shows: " + known);
     }
 }
 
@@ -712,7 +712,7 @@ void App::save_frame() {
         int n = 0;
         while (std::filesystem::exists(dir / ("frame_" + std::to_string(n) + ".png"))) ++n;
         const std::string stem = (dir / ("frame_" + std::to_string(n))).string();
-        tissue::OutputTransaction transaction;
+        base::OutputTransaction transaction;
         cv::Mat grey;
         frame_->frame.image.image.convertTo(grey, CV_8U, 255.0);
         imaging::write_png(grey, transaction.stage(stem + ".png"));

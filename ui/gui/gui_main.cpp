@@ -20,9 +20,9 @@
 #include <CLI/CLI.hpp>
 
 #include "imaging/picture.h"
-#include "tissue/atomic_output.h"
-#include "tissue/error.h"
-#include "tissue/memory.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 #include "ui/cli/command_common.h"
 #include "ui/gui/gui_app.h"
 
@@ -68,13 +68,13 @@ double median(std::vector<double> v) {
 }
 
 int run(const Options& o) {
-    if (o.frames < 1) throw tissue::InputError("--frames", "", "must be at least 1");
+    if (o.frames < 1) throw base::InputError("--frames", "", "must be at least 1");
     if (o.width < 640 || o.height < 480 || o.width > 8192 || o.height > 8192)
-        throw tissue::InputError("--size", "", "window must be 640x480 to 8192x8192 pixels");
+        throw base::InputError("--size", "", "window must be 640x480 to 8192x8192 pixels");
     if (!o.screenshot.empty()) {
         const auto dir = std::filesystem::path(o.screenshot).parent_path();
         if (!dir.empty() && !std::filesystem::is_directory(dir))
-            throw tissue::InputError("--screenshot", o.screenshot, "its directory does not exist");
+            throw base::InputError("--screenshot", o.screenshot, "its directory does not exist");
     }
     glfwSetErrorCallback([](int code, const char* text) {
         std::cerr << "sonotrace-gui: GLFW error " << code << ": " << text << "\n";
@@ -159,7 +159,7 @@ int run(const Options& o) {
             if (done_screenshot) {
                 if (o.save) app.save_frame();
                 if (app.recording()) app.toggle_recording();
-                tissue::OutputTransaction transaction;
+                base::OutputTransaction transaction;
                 imaging::write_png(read_window(fw, fh), transaction.stage(o.screenshot));
                 const nlohmann::json layout = {{"width", fw},
                                                {"height", fh},
@@ -218,7 +218,7 @@ int run(const Options& o) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    sonotrace::tissue::keep_freed_memory();
+    sonotrace::base::keep_freed_memory();
     Options o;
     CLI::App cli(
         "sonotrace-gui: a live ultrasound scanner for teaching. Move the probe over the Colin27 "
@@ -279,7 +279,7 @@ int main(int argc, char** argv) {
     try {
         cli.parse(argc, argv);
         if (std::sscanf(size.c_str(), "%dx%d", &o.width, &o.height) != 2)
-            throw tissue::InputError("--size", size, "expected WIDTHxHEIGHT");
+            throw base::InputError("--size", size, "expected WIDTHxHEIGHT");
         return run(o);
     } catch (const CLI::ParseError& e) {
         return cli.exit(e);

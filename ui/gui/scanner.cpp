@@ -5,7 +5,7 @@
 
 #include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::gui {
 

@@ -39,7 +39,7 @@ struct ScanParameters {
     PhysicsSwitches physics;
     uint64_t seed = 1;
 
-    // Throws tissue::InputError naming the field when out of range.
+    // Throws base::InputError naming the field when out of range.
     imaging::SimulationSettings settings(const Scene& scene) const;
 };
 

@@ -7,8 +7,8 @@
 #include "imaging/colin27.h"
 #include "phantoms/phantom.h"
 #include "probe/placement.h"
-#include "tissue/error.h"
-#include "tissue/json_util.h"
+#include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
 #include "tissue/property_maps.h"
 #include "tissue/tissue_table.h"
 #include "ui/cli/volume_slice.h"
@@ -168,16 +168,16 @@ std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::stri
         const std::string name = spec.substr(8);
         const std::string path = phantom_dir + "/" + name + ".json";
         if (name.empty() || name.find('/') != std::string::npos || !std::filesystem::exists(path))
-            throw tissue::InputError(spec, "", "no phantom of that name in " + phantom_dir);
+            throw base::InputError(spec, "", "no phantom of that name in " + phantom_dir);
         return phantom_scene(path);
     }
     if (!std::filesystem::exists(spec))
-        throw tissue::InputError(spec, "",
-                                 "no such file (scenes: head-craniotomy, head-temporal, "
-                                 "phantom:NAME, or a volume or phantom file)");
+        throw base::InputError(spec, "",
+                               "no such file (scenes: head-craniotomy, head-temporal, "
+                               "phantom:NAME, or a volume or phantom file)");
     if (ends_with(spec, ".json")) {
         // A phantom, unless it is a raw volume's header (which names its data file).
-        const nlohmann::json j = tissue::jsonio::read_file(spec);
+        const nlohmann::json j = base::jsonio::read_file(spec);
         if (j.is_object() && j.contains("shapes")) return phantom_scene(spec);
     }
     return volume_scene(spec, "");

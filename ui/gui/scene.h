@@ -44,7 +44,7 @@ struct Scene {
 
 // "head-craniotomy", "head-temporal", "phantom:NAME" (NAME.json in phantom_dir), or a
 // path: a phantom (.json) or a volume (NIfTI, raw with header, image stack; see
-// tissue/volume_io.h), scanned from the top face. Throws tissue::InputError naming the
+// tissue/volume_io.h), scanned from the top face. Throws base::InputError naming the
 // file on any failure; nothing is half-loaded.
 std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::string& phantom_dir);
 

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace sonotrace::tissue {
+namespace sonotrace::base {
 
 class InputError : public std::runtime_error {
   public:
@@ -51,4 +51,4 @@ inline void require_in_range(const std::string& source, const char* field, doubl
     }
 }
 
-}  // namespace sonotrace::tissue
+}  // namespace sonotrace::base

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <type_traits>
 
-namespace sonotrace::tissue {
+namespace sonotrace::base {
 
 // A Gaussian's full width at half maximum over its sigma: 2 sqrt(2 ln 2).
 inline constexpr double kFwhmPerSigma = 2.3548200450309493;
@@ -96,4 +96,4 @@ inline void sincos_turns(float t, float& sine, float& cosine) {
     cosine = (c - s) * (c + s);
 }
 
-}  // namespace sonotrace::tissue
+}  // namespace sonotrace::base

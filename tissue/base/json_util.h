@@ -11,7 +11,7 @@
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
 
-namespace sonotrace::tissue::jsonio {
+namespace sonotrace::base::jsonio {
 
 using nlohmann::json;
 
@@ -51,4 +51,4 @@ glm::dvec3 get_vec3(const json& object, const std::string& key, const std::strin
 // "where.key" or "key" when `where` is empty.
 std::string join(const std::string& where, const std::string& key);
 
-}  // namespace sonotrace::tissue::jsonio
+}  // namespace sonotrace::base::jsonio

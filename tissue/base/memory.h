@@ -8,7 +8,7 @@
 #include <string>
 #include <utility>
 
-namespace sonotrace::tissue {
+namespace sonotrace::base {
 
 // Bytes of memory currently available (MemAvailable from /proc/meminfo, or physical
 // memory if that is unreadable).
@@ -103,4 +103,4 @@ struct ZeroedAllocator : DefaultInitConstruct {
     }
 };
 
-}  // namespace sonotrace::tissue
+}  // namespace sonotrace::base

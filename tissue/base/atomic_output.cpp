@@ -1,4 +1,4 @@
-#include "tissue/atomic_output.h"
+#include "tissue/base/atomic_output.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -13,9 +13,9 @@
 #include <string_view>
 #include <system_error>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
-namespace sonotrace::tissue {
+namespace sonotrace::base {
 
 namespace fs = std::filesystem;
 
@@ -167,4 +167,4 @@ std::vector<std::string> OutputTransaction::final_paths() const {
     return paths;
 }
 
-}  // namespace sonotrace::tissue
+}  // namespace sonotrace::base

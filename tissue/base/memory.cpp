@@ -1,4 +1,4 @@
-#include "tissue/memory.h"
+#include "tissue/base/memory.h"
 
 #include <malloc.h>
 #include <sys/mman.h>
@@ -13,9 +13,9 @@
 #include <fstream>
 #include <sstream>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
-namespace sonotrace::tissue {
+namespace sonotrace::base {
 
 namespace {
 constexpr std::size_t kHugePage = std::size_t(2) << 20;
@@ -64,4 +64,4 @@ void check_allocation(double bytes, const std::string& source, const std::string
     }
 }
 
-}  // namespace sonotrace::tissue
+}  // namespace sonotrace::base

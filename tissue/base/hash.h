@@ -4,7 +4,7 @@
 // it, so results do not depend on evaluation order or thread count.
 #include <cstdint>
 
-namespace sonotrace::tissue {
+namespace sonotrace::base {
 
 // splitmix64's finaliser alone (generators that add the golden gamma themselves).
 inline uint64_t finalise64(uint64_t x) {
@@ -26,4 +26,4 @@ inline uint32_t mix32(uint32_t x) {
     return x ^ (x >> 16);
 }
 
-}  // namespace sonotrace::tissue
+}  // namespace sonotrace::base

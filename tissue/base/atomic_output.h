@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-namespace sonotrace::tissue {
+namespace sonotrace::base {
 
 // The path a message should name: for a staged temporary (OutputTransaction::stage) its
 // final path, otherwise `path` itself. Users never see the hidden names.
@@ -46,4 +46,4 @@ class OutputTransaction {
     bool committed_ = false;
 };
 
-}  // namespace sonotrace::tissue
+}  // namespace sonotrace::base

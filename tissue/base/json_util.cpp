@@ -1,4 +1,4 @@
-#include "tissue/json_util.h"
+#include "tissue/base/json_util.h"
 
 #include <cmath>
 #include <cstdint>
@@ -7,9 +7,9 @@
 #include <set>
 #include <sstream>
 
-#include "tissue/error.h"
+#include "tissue/base/error.h"
 
-namespace sonotrace::tissue::jsonio {
+namespace sonotrace::base::jsonio {
 
 namespace {
 std::string describe(double v) {
@@ -188,4 +188,4 @@ glm::dvec3 get_vec3(const json& object, const std::string& key, const std::strin
     return v;
 }
 
-}  // namespace sonotrace::tissue::jsonio
+}  // namespace sonotrace::base::jsonio
