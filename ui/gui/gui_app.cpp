@@ -59,10 +59,16 @@ struct Fit {
 };
 
 // Points of a scan sector's outline in the probe plane (mm): the first line, the far
-// arc, the last line, the face.
+// arc, the last line, the face; for an array closed on itself, the far circle.
 std::vector<glm::dvec2> sector_outline(const probe::Transducer& t) {
     const probe::ScanGeometry scan(t);
     std::vector<glm::dvec2> out;
+    if (scan.closed()) {
+        const int arc = 96;
+        for (int k = 0; k < arc; ++k)
+            out.push_back(scan.point(-0.5 + double(scan.lines()) * k / arc, scan.depth_mm()));
+        return out;
+    }
     const double last = scan.lines() - 1;
     const int arc = 24;
     for (int k = 0; k <= arc; ++k) out.push_back(scan.point(last * k / arc, scan.depth_mm()));
@@ -581,10 +587,19 @@ void App::draw_slice(float x, float y, float w, float h) {
                           ImDrawFlags_Closed, 1.0f);
         const double half = 0.5 * frame_->settings.transducer.array_length_mm();
         const glm::dvec2 face = frame_->grid.to_map;
-        draw->AddRectFilled(to_screen(face + glm::dvec2(-half, -frame_->grid.top_margin_mm)),
-                            to_screen(face + glm::dvec2(half, 0.0)), IM_COL32(60, 70, 80, 230));
-        draw->AddRect(to_screen(face + glm::dvec2(-half, -frame_->grid.top_margin_mm)),
-                      to_screen(face + glm::dvec2(half, 0.0)), kProbeColour, 0.0f, 0, 2.0f);
+        const probe::ScanGeometry scan(frame_->settings.transducer);
+        if (scan.closed()) {  // a ring of elements round a tip: the tip's disc
+            const double r = scan.array().face_radius_mm();
+            const ImVec2 centre = to_screen(face + glm::dvec2(0.0, -r));
+            const float radius = to_screen(face + glm::dvec2(r, -r)).x - centre.x;
+            draw->AddCircleFilled(centre, radius, IM_COL32(60, 70, 80, 230), 48);
+            draw->AddCircle(centre, radius, kProbeColour, 48, 2.0f);
+        } else {
+            draw->AddRectFilled(to_screen(face + glm::dvec2(-half, -frame_->grid.top_margin_mm)),
+                                to_screen(face + glm::dvec2(half, 0.0)), IM_COL32(60, 70, 80, 230));
+            draw->AddRect(to_screen(face + glm::dvec2(-half, -frame_->grid.top_margin_mm)),
+                          to_screen(face + glm::dvec2(half, 0.0)), kProbeColour, 0.0f, 0, 2.0f);
+        }
         // Drag to slide the probe along the surface; the wheel rotates (shift: tilts).
         ImGui::SetCursorScreenPos(fit.origin);
         ImGui::InvisibleButton("slice_drag", size);

@@ -20,6 +20,7 @@
 #include <CLI/CLI.hpp>
 
 #include "imaging/picture.h"
+#include "probe/transducer.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
 #include "tissue/base/memory.h"
@@ -231,8 +232,10 @@ int main(int argc, char** argv) {
     cli.add_option("--scene", o.app.scene,
                    "scene to open: " + scene_list + ", or a volume / phantom file")
         ->capture_default_str();
-    cli.add_option("--probe", o.app.probe,
-                   "probe preset (linear, convex, phased); empty = the scene's");
+    std::string presets;
+    for (const probe::Transducer& t : probe::transducer_presets())
+        presets += (presets.empty() ? "" : ", ") + t.name;
+    cli.add_option("--probe", o.app.probe, "probe preset (" + presets + "); empty = the scene's");
     cli.add_option("--quality", o.app.quality,
                    "quality while the probe moves: interactive, standard or high")
         ->capture_default_str();
