@@ -311,6 +311,25 @@ TEST(NiftiErrors, TruncatedDataUncompressedAndCompressed) {
                        "dim declares 4e+09 voxel bytes");
 }
 
+// vox_offset (a float at byte 108) out of an int's range wraps in niftilib's conversion;
+// a wrapped negative offset made any declared size seem to fit, and the reader allocated
+// it before failing (a 362-byte fuzz input declaring 400 MB). Refused, naming vox_offset,
+// before the voxels are allocated.
+TEST(NiftiErrors, AVoxelOffsetOutsideTheFileIsRefused) {
+    ScratchDir dir;
+    NiftiSpec spec;
+    spec.nx = spec.ny = spec.nz = 8;
+    // Without the magic (an ANALYZE 7.5 header, as niftilib reads it) the offset is taken
+    // as it is; with it, niftilib mends offsets below the header but not those beyond.
+    for (const auto& [offset, analyze] :
+         {std::pair{7.9e34f, true}, std::pair{-4096.0f, true}, std::pair{1e6f, false}}) {
+        write_with_niftilib(dir / "o.nii", spec, ramp(512, 0, 1));
+        patch<float>(dir / "o.nii", 108, offset);
+        if (analyze) patch<int32_t>(dir / "o.nii", 344, 0);
+        expect_input_error([&] { read_nifti(dir / "o.nii"); }, "o.nii", "vox_offset", "outside");
+    }
+}
+
 TEST(NiftiErrors, TruncatedHeaderAndGarbage) {
     ScratchDir dir;
     std::ofstream(dir / "short.nii") << "too short";

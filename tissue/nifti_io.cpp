@@ -274,6 +274,13 @@ NiftiReadResult read_nifti(const std::string& path) {
         const double file_bytes = double(fs::file_size(data_file, error));
         if (error) throw base::InputError(data_file, "", "cannot read the voxel data file's size");
         const bool compressed = data_file.size() > 3 && data_file.ends_with(".gz");
+        // vox_offset is a float in the header that niftilib converts to an int: out of
+        // range it wraps, and a negative offset would make the file seem to hold anything.
+        if (nim->iname_offset < 0 || (!compressed && double(nim->iname_offset) > file_bytes))
+            throw base::InputError(
+                data_file, "vox_offset",
+                "the voxel data's offset (" + base::number_text(double(nim->iname_offset)) +
+                    ") lies outside the " + base::number_text(file_bytes) + "-byte file");
         // gzip's deflate compresses at most 1032:1
         const double can_hold =
             compressed ? 1100.0 * file_bytes + 65536.0 : file_bytes - double(nim->iname_offset);
