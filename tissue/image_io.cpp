@@ -54,6 +54,15 @@ ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* exp
     config.attribute("oiio:UnassociatedAlpha", 1);
     auto in = OIIO::ImageInput::open(path, &config);
     if (!in) throw base::InputError(path, "", "cannot read image: " + OIIO::geterror());
+    // The formats the documentation promises (volume_io.h), whatever the file's name: the
+    // others OpenImageIO would read (WebP, RLA, ...) declare sizes a few bytes can claim
+    // (a 21-byte WebP of 16384 x 16384 pixels took 2.2 GB) and are not what scans come in.
+    const std::string_view file_format = in->format_name();
+    if (file_format != "png" && file_format != "tiff" && file_format != "jpeg" &&
+        file_format != "openexr")
+        throw base::InputError(path, "format",
+                               "is a '" + std::string(file_format) +
+                                   "' image; image volumes are read from PNG, TIFF, JPEG or EXR");
     const OIIO::ImageSpec& spec = in->spec();
     ImageSlice slice{spec.width, spec.height, spec.nchannels};
     if (spec.depth > 1)
@@ -69,7 +78,7 @@ ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* exp
     // A PNG's rows are deflate-compressed, at most 1032:1 (plus a filter byte per row): a
     // header declaring more than that is truncated, corrupt or a decompression bomb, and
     // is refused before anything is allocated or decoded.
-    if (std::string_view(in->format_name()) == "png") {
+    if (file_format == "png") {
         const double declared = double(pixels) * slice.channels * spec.format.size();
         const double bytes = double(fs::file_size(path));
         if (declared > 1100.0 * bytes + 65536.0) {
