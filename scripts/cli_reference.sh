@@ -22,7 +22,8 @@ page() {
     echo
     echo '```'
     # shellcheck disable=SC2086
-    "$binary" $command --help
+    # Defaults that are paths of this checkout read the same on every machine.
+    "$binary" $command --help | sed "s|$PWD/|<source>/|g"
     echo '```'
   done
 }
