@@ -12,43 +12,26 @@
 #include <map>
 #include <string>
 
-#include "imaging/colin27.h"
 #include "imaging/psf.h"
+#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "tissue/property_maps.h"
-#include "tissue/resample.h"
-#include "tissue/transfer_function.h"
-#include "tissue/volume_io.h"
 
 namespace {
 
 using namespace sonotrace;
 
-struct Scene {
-    tissue::LoadedVolume head;
-    std::unique_ptr<tissue::TransferFunction> tf;
-    imaging::ScenePlacement placement;
-    Scene() {
-        head = tissue::load_volume(tissue::VolumeRequest{});
-        tf = tissue::load_transfer_function("mri-t1-head");
-        tf->bind(head.volume);
-        placement = imaging::craniotomy_scene(head.volume, *tf);
-        outside = head.volume.value_range().first;
-    }
-    float outside = 0.0f;  // the resampling's value outside the volume
-};
-
-const Scene& scene() {
-    static const Scene s;
-    return s;
+const imaging::Scene& scene() {
+    static const auto s = imaging::load_scene({});  // the default: Colin27, craniotomy view
+    return *s;
 }
 
 void frame(benchmark::State& state, imaging::Quality quality) {
-    const Scene& s = scene();
+    const imaging::Scene& s = scene();
     imaging::SimulationSettings settings;
     settings.transducer = probe::find_transducer("convex", "bench");
     settings.quality = quality;
-    settings.trace.interface_reach_mm = 3.0;
+    s.apply_to(settings);
     settings.imaging.gain_db = 36.0;
     settings.trace.deposition_maps = false;  // as `sonotrace simulate` without --energy
     const imaging::QualityLevel level = imaging::quality_level(quality);
@@ -61,16 +44,13 @@ void frame(benchmark::State& state, imaging::Quality quality) {
     for (auto _ : state) {
         const auto start = std::chrono::steady_clock::now();
         const imaging::PlaneGrid grid =
-            imaging::plane_grid(settings.transducer, s.placement.pose, level.map_pixel_mm);
-        const tissue::Volume plane = tissue::resample(s.head.volume, grid.geometry,
-                                                      tissue::Interpolation::trilinear, s.outside);
-        tissue::PropertyMaps maps = tissue::classify(plane, *s.tf);
-        // The default scene's falx and choroid plexus, as `sonotrace simulate` adds them.
-        imaging::add_colin27_membranes(s.head.volume, *s.tf, s.outside, grid.geometry, maps);
-        imaging::prepare_plane(maps, grid, s.placement);
+            imaging::plane_grid(settings.transducer, s.start.pose, level.map_pixel_mm);
+        // With the falx and choroid plexus, as `sonotrace simulate` adds them.
+        tissue::PropertyMaps maps = s.mapper(grid.geometry, nullptr);
+        imaging::prepare_plane(maps, grid, s.start);
         const auto map = imaging::frame_map(maps, settings);
         plane_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        const imaging::Frame f = imaging::simulate_frame(map, grid, s.placement.pose, settings);
+        const imaging::Frame f = imaging::simulate_frame(map, grid, s.start.pose, settings);
         steps += f.stats.steps;
         for (const auto& [name, seconds] : f.timings.items())
             stage_s[name] += seconds.get<double>();

@@ -40,11 +40,11 @@
 
 #include "imaging/colin27.h"
 #include "imaging/psf.h"
+#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "probe/aperture.h"
 #include "tissue/image_io.h"
 #include "tissue/tissue_table.h"
-#include "ui/cli/volume_slice.h"
 
 using namespace sonotrace;
 
@@ -71,15 +71,13 @@ struct Options {
            probe_to = 0.0;  // a PNG of the first variant's envelope (dB), interior samples marked
 };
 
-double measure(const ui::VolumeSource& head, const char* what,
+double measure(const imaging::Scene& head, const char* what,
                const imaging::PhysicsSwitches& physics, const Options& o) {
-    const imaging::ScenePlacement scene =
-        o.temporal ? imaging::temporal_scene(head.loaded.volume, *head.tf)
-                   : imaging::craniotomy_scene(head.loaded.volume, *head.tf);
+    const imaging::ScenePlacement& scene = head.start;
     imaging::SimulationSettings s;
     s.transducer = probe::find_transducer(o.temporal ? "phased" : "convex", "ventricle_contrast");
     if (o.depth_mm > 0.0) s.transducer.depth_mm = o.depth_mm;
-    s.trace.interface_reach_mm = 3.0;  // as `simulate` on the default volume
+    head.apply_to(s);
     imaging::apply(physics, s);
     s.refraction_smoothing_mm = o.smoothing_mm;
     constexpr int kBands = 60;
@@ -101,7 +99,7 @@ double measure(const ui::VolumeSource& head, const char* what,
         const imaging::PlaneGrid grid =
             imaging::plane_grid(s.transducer, scene.pose, level.map_pixel_mm);
         tissue::Volume labels;
-        tissue::PropertyMaps maps = head.plane_properties(grid.geometry, &labels);
+        tissue::PropertyMaps maps = head.mapper(grid.geometry, &labels);
         imaging::prepare_plane(maps, grid, scene, 5.0, &labels);
         const auto map = imaging::frame_map(maps, s);
         const auto psf = imaging::PsfTable::of(s.transducer);
@@ -292,9 +290,9 @@ int main(int argc, char** argv) {
             return 1;
         }
     }
-    ui::SliceOptions options;
-    ui::StageTimer quiet(true);
-    const ui::VolumeSource head = ui::load_volume_source(options, quiet);
+    imaging::SceneOptions options;
+    options.view = o.temporal ? "temporal" : "craniotomy";
+    const auto head = imaging::load_scene(options);
     struct Variant {
         const char* name;
         std::vector<bool imaging::PhysicsSwitches::*> off;
@@ -318,7 +316,7 @@ int main(int argc, char** argv) {
         if (o.variant >= 0 && &v != &variants[o.variant]) continue;
         P p;
         for (auto member : v.off) p.*member = false;
-        totals.emplace_back(v.name, measure(head, v.name, p, o));
+        totals.emplace_back(v.name, measure(*head, v.name, p, o));
     }
     std::printf("\nsummary (interior against parenchyma, %.0f mm deep and more)\n", o.from_mm);
     for (const auto& [name, db] : totals) std::printf("  %6.1f dB  %s\n", db, name);

@@ -4,22 +4,18 @@
 #include <gtest/gtest.h>
 
 #include "imaging/colin27.h"
+#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "probe/transducer.h"
 #include "tissue/property_maps.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
-#include "ui/cli/volume_slice.h"
 
 namespace sonotrace {
 namespace {
 
-const ui::VolumeSource& head() {
-    static const ui::VolumeSource source = [] {
-        ui::SliceOptions options;
-        ui::StageTimer quiet(true);
-        return ui::load_volume_source(options, quiet);
-    }();
+const imaging::VolumeSource& head() {
+    static const imaging::VolumeSource source = imaging::load_volume_source({});
     return source;
 }
 

@@ -9,6 +9,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
 #include "phantoms/validation/validation.h"
@@ -46,8 +47,9 @@ struct FrameOptions {
 
 PhantomFrame image_phantom(phantoms::Phantom phantom, const FrameOptions& o, uint64_t seed) {
     PhantomFrame out;
-    out.transducer = probe::find_transducer(
-        phantom.probe_preset.empty() ? "linear" : phantom.probe_preset, phantom.source);
+    const auto scene = imaging::phantom_scene(std::move(phantom));
+    const phantoms::Phantom& ph = *scene->phantom;
+    out.transducer = probe::find_transducer(scene->probe_preset, ph.source);
     if (o.depth_mm > 0.0) out.transducer.depth_mm = o.depth_mm;
     if (o.lines > 0) out.transducer.lines = o.lines;
     if (o.focus_mm > 0.0) out.transducer.focus_mm = o.focus_mm;
@@ -58,23 +60,15 @@ PhantomFrame image_phantom(phantoms::Phantom phantom, const FrameOptions& o, uin
     s.imaging.speckle = o.speckle;
     // Display only (measurements use the envelope): TGC for the background's two-way
     // attenuation, and the gain that puts liver-like speckle at mid-grey at 7.6 MHz.
-    const double alpha = phantom.background[tissue::Property::attenuation];
+    const double alpha = ph.background[tissue::Property::attenuation];
     const double depth = out.transducer.depth_mm;
     s.imaging.tgc = {{0.0, 0.0},
                      {depth, 2.0 * alpha * out.transducer.frequency_mhz * depth / 10.0}};
     s.imaging.gain_db = 56.0;
-    // Interfaces blend over the phantom's smoothing width; plateaus lie beyond it.
-    s.trace.interface_reach_mm = std::max(2.0 * phantom.smoothing_mm, 1.0);
-    s.validate(phantom.source);
-    imaging::ScenePlacement scene;
-    scene.pose = phantom.pose;
-    const phantoms::Phantom* ph = &phantom;
-    const imaging::PlaneMapper mapper = [ph](const tissue::VolumeGeometry& grid,
-                                             tissue::Volume* labels) {
-        return phantoms::rasterise(*ph, grid, labels);
-    };
-    out.frame = imaging::simulate_plane(mapper, scene, s, false).frame;
-    out.phantom = std::move(phantom);
+    scene->apply_to(s);
+    s.validate(ph.source);
+    out.frame = imaging::simulate_plane(scene->mapper, scene->start, s, false).frame;
+    out.phantom = ph;
     return out;
 }
 

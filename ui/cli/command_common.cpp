@@ -84,52 +84,6 @@ void write_json(const nlohmann::json& record, const std::string& path) {
     base::write_file(path, text.data(), text.size());
 }
 
-std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out) {
-    out->clear();
-    std::istringstream in(text);
-    for (std::string part; std::getline(in, part, ',');) {
-        std::size_t used = 0;
-        double v = 0.0;
-        try {
-            v = std::stod(part, &used);
-        } catch (const std::exception&) {
-            return "'" + part + "' is not a number";
-        }
-        if (used != part.size() || !std::isfinite(v)) return "'" + part + "' is not a number";
-        out->push_back(v);
-    }
-    return std::nullopt;
-}
-
-std::vector<double> parse_numbers(const std::string& text, const std::string& option,
-                                  std::size_t count) {
-    std::vector<double> values;
-    if (const auto error = parse_number_list(text, &values))
-        throw base::InputError(option, "", *error);
-    if (values.size() != count)
-        throw base::InputError(
-            option, "",
-            "needs " + std::to_string(count) + " comma-separated numbers, got '" + text + "'");
-    return values;
-}
-
-std::optional<std::string> parse_spacing(const std::string& text, double out[3]) {
-    std::vector<double> values;
-    if (const auto error = parse_number_list(text, &values)) return error;
-    if (values.size() > 3) return "at most three values";
-    if (values.size() < 2) return "give at least two values (mm per pixel along x and y)";
-    for (std::size_t i = 0; i < values.size(); ++i) {
-        if (!(values[i] > 0.0)) {
-            std::ostringstream shown;
-            shown << values[i];
-            return "'" + shown.str() + "' is not a positive number of mm";
-        }
-        out[i] = values[i];
-    }
-    if (values.size() == 2) out[2] = 1.0;
-    return std::nullopt;
-}
-
 void refuse_non_finite_numbers(CLI::App& app) {
     const CLI::Validator finite(
         [](std::string& value) -> std::string {

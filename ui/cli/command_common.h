@@ -13,6 +13,9 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "tissue/base/number_list.h"
+#include "tissue/base/stages.h"
+
 namespace sonotrace::ui {
 
 // One documented parameter. The CLI help shows "description [unit] (default: ...)".
@@ -45,11 +48,11 @@ void refuse_non_finite_numbers(CLI::App& app);
 void add_run_options(CLI::App& command, std::string& json_path, int& threads, bool& quiet);
 
 // Times named stages and prints "sonotrace: <stage> ... 0.42 s" lines to stderr.
-class StageTimer {
+class StageTimer : public base::StageObserver {
   public:
     explicit StageTimer(bool quiet) : quiet_(quiet) {}
-    void begin(const std::string& stage);
-    void end();
+    void begin(const std::string& stage) override;
+    void end() override;
     // Ends an unfinished progress line (before an error message is printed).
     static void break_line();
     const nlohmann::json& timings() const { return timings_; }  // seconds per stage
@@ -84,12 +87,8 @@ std::unique_ptr<tbb::global_control> limit_threads(int threads);
 // stdout when path is "-".
 void write_json(const nlohmann::json& record, const std::string& path);
 
-// Comma-separated finite numbers ("0.5,0.5" or "1,1,2"); the error text if one is not.
-std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out);
-// Exactly `count` of them for `option`; throws base::InputError naming the option.
-std::vector<double> parse_numbers(const std::string& text, const std::string& option,
-                                  std::size_t count);
-// Two or three positive spacings in mm (the third defaults to 1) for options like --spacing.
-std::optional<std::string> parse_spacing(const std::string& text, double out[3]);
+using base::parse_number_list;
+using base::parse_numbers;
+using base::parse_spacing;
 
 }  // namespace sonotrace::ui

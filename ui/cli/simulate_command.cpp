@@ -421,29 +421,6 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
     return out;
 }
 
-// The probe face must sit inside the imaged object (or within 10 mm of coupling margin):
-// a pose far away images nothing. `in_box` is the position along the box's axes.
-void require_pose_in_box(const glm::dvec3& in_box, const glm::dvec3& box_size,
-                         const probe::Pose& pose, const std::string& source, const char* what) {
-    for (int a = 0; a < 3; ++a) {
-        const double margin = 10.0;
-        if (!(in_box[a] >= -margin && in_box[a] <= box_size[a] + margin)) {
-            throw base::InputError(source, "pose",
-                                   "the probe at (" + base::number_text(pose.position.x) + ", " +
-                                       base::number_text(pose.position.y) + ", " +
-                                       base::number_text(pose.position.z) + ") mm is outside the " +
-                                       what);
-        }
-    }
-}
-
-void require_pose_in_volume(const probe::Pose& pose, const tissue::Volume& volume,
-                            const std::string& source) {
-    const tissue::VolumeGeometry& g = volume.geometry();
-    require_pose_in_box(g.world_to_index(pose.position) * g.spacing,
-                        glm::dvec3(g.dims - 1) * g.spacing, pose, source, "volume");
-}
-
 }  // namespace
 
 int run_simulate_command(const SimulateOptions& o) {
@@ -453,21 +430,18 @@ int run_simulate_command(const SimulateOptions& o) {
     const auto thread_limit = limit_threads(o.threads);
 
     // ---- validate everything before loading ----
-    if (o.view != "craniotomy" && o.view != "temporal")
-        throw base::InputError("--view", "",
-                               "must be craniotomy or temporal, got '" + o.view + "'");
+    imaging::SceneOptions scene_options;
+    static_cast<imaging::VolumeOptions&>(scene_options) = o.volume;
+    scene_options.phantom = o.phantom;
+    scene_options.view = o.view;
+    if (o.volume.pose != "default") scene_options.pose = probe::parse_pose(o.volume.pose, "--pose");
+    scene_options.validate();
     // A phantom is read first: it is small, and it names the default probe.
-    std::optional<phantoms::Phantom> phantom;
-    if (!o.phantom.empty()) {
-        if (o.volume.volume != "default")
-            throw base::InputError("--phantom", "", "cannot be combined with --volume");
-        phantom = phantoms::load_phantom(o.phantom);
-    }
-    const std::string preset =
-        !o.probe.empty()
-            ? o.probe
-            : (phantom ? (phantom->probe_preset.empty() ? "linear" : phantom->probe_preset)
-                       : (o.view == "temporal" ? "phased" : "convex"));
+    std::shared_ptr<const imaging::Scene> scene;
+    if (!o.phantom.empty()) scene = imaging::load_scene(scene_options, &timer);
+    const std::string preset = !o.probe.empty() ? o.probe
+                               : scene          ? scene->probe_preset
+                                                : scene_options.volume_probe_preset();
     imaging::SimulationSettings settings;
     settings.transducer = make_transducer(o, preset);
     settings.quality = parse_enum<imaging::Quality>(o.quality, "--quality",
@@ -524,55 +498,14 @@ int run_simulate_command(const SimulateOptions& o) {
         throw base::InputError("--resume", "",
                                "rebuilds the video from the png8 frames: add png8 to --formats "
                                "or give --video ''");
-    std::optional<probe::Pose> pose;
-    if (o.volume.pose != "default") pose = probe::parse_pose(o.volume.pose, "--pose");
 
     // ---- load and place the probe ----
-    std::optional<VolumeSource> source;
-    imaging::PlaneMapper mapper;
-    imaging::ScenePlacement scene;
-    if (phantom) {
-        // Interfaces blend over the phantom's smoothing width; plateaus lie beyond it.
-        settings.trace.interface_reach_mm = std::max(2.0 * phantom->smoothing_mm, 1.0);
-        scene.pose = pose ? *pose : phantom->pose;
-        scene.description = "phantom " + phantom->name + (pose ? ", probe at --pose" : "");
-        settings.targets = phantom->targets;
-        // A painted core blends over the smoothing width, sampled on the map's texels.
-        settings.target_margin_mm =
-            phantom->smoothing_mm + imaging::quality_level(settings.quality).map_pixel_mm;
-        mapper = [&phantom](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
-            return phantoms::rasterise(*phantom, grid, labels);
-        };
-    } else {
-        source.emplace(load_volume_source(o.volume, timer));
-        const glm::dvec3 voxel = source->loaded.volume.geometry().spacing;
-        settings.trace.interface_reach_mm = 3.0 * std::max({voxel.x, voxel.y, voxel.z});
-        mapper = [&source](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
-            return source->plane_properties(grid, labels);
-        };
-        timer.begin("placing the probe (" + o.view + ")");
-        if (pose) {
-            scene.pose = *pose;
-            scene.description = "probe at --pose";
-        } else if (source->is_default) {
-            scene = o.view == "temporal"
-                        ? imaging::temporal_scene(source->loaded.volume, *source->tf)
-                        : imaging::craniotomy_scene(source->loaded.volume, *source->tf);
-        } else {
-            scene.pose = top_centre_pose(source->loaded.volume.geometry());
-            scene.description = "probe on the top face of the volume";
-        }
-        timer.end();
-    }
-    const std::vector<Placement> placements = sweep_placements(o.sweep, scene);
-    const std::string pose_source = o.sweep.empty() ? "--pose" : "--sweep";
-    for (const Placement& p : placements) {
-        if (phantom)
-            require_pose_in_box(p.scene.pose.position, phantom->size, p.scene.pose,
-                                o.phantom + " " + pose_source, "phantom");
-        else
-            require_pose_in_volume(p.scene.pose, source->loaded.volume, pose_source);
-    }
+    if (!scene) scene = imaging::load_scene(scene_options, &timer);
+    scene->apply_to(settings);
+    const std::vector<Placement> placements = sweep_placements(o.sweep, scene->start);
+    const std::string pose_source =
+        (scene->phantom ? o.phantom + " " : "") + (o.sweep.empty() ? "--pose" : "--sweep");
+    for (const Placement& p : placements) scene->require_inside(p.scene.pose, pose_source);
 
     // ---- trace and form the frames; outputs staged and committed together ----
     const bool sweeping = !o.sweep.empty();
@@ -659,7 +592,7 @@ int run_simulate_command(const SimulateOptions& o) {
         ProgressBar bar("simulating " + std::to_string(particles) + " particles",
                         o.quiet || sweeping);
         imaging::SimulatedFrame simulated = imaging::simulate_plane(
-            mapper, placement.scene, settings, o.write_labels,
+            scene->mapper, placement.scene, settings, o.write_labels,
             [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
         bar.finish();
         const imaging::Frame& frame = simulated.frame;
@@ -746,13 +679,13 @@ int run_simulate_command(const SimulateOptions& o) {
         {"version", SONOTRACE_VERSION},
         {"seed", o.seed},
         {"view", o.view},
-        {"scene", scene.description},
-        {"source", phantom ? json{{"phantom", o.phantom},
-                                  {"name", phantom->name},
-                                  {"description", phantom->description}}
-                           : volume_source_json(*source, o.volume)},
+        {"scene", scene->start.description},
+        {"source", scene->phantom ? json{{"phantom", o.phantom},
+                                         {"name", scene->phantom->name},
+                                         {"description", scene->phantom->description}}
+                                  : volume_source_json(*scene->volume, o.volume)},
         {"probe", transducer_json(settings.transducer)},
-        {"pose", pose_json(scene.pose)},
+        {"pose", pose_json(scene->start.pose)},
         {"quality",
          {{"name", imaging::to_string(settings.quality)},
           {"map_pixel_mm", level.map_pixel_mm},
@@ -768,7 +701,8 @@ int run_simulate_command(const SimulateOptions& o) {
              return off;
          }()},
         {"craniotomy",
-         {{"radius_mm", scene.craniotomy_radius_mm}, {"depth_mm", scene.craniotomy_depth_mm}}},
+         {{"radius_mm", scene->start.craniotomy_radius_mm},
+          {"depth_mm", scene->start.craniotomy_depth_mm}}},
         {"image",
          {{"width", frame.image.image.cols},
           {"height", frame.image.image.rows},

@@ -104,7 +104,7 @@ int run_tissue_command(const TissueOptions& options) {
     const tissue::PropertyMaps& maps = slice.maps;
     const tissue::Volume& values = slice.values;
     const tissue::GridExtent& extent = slice.extent;
-    const float vmin = slice.value_min, vmax = slice.value_max;
+    const float vmin = slice.source.value_min, vmax = slice.source.value_max;
     timer.begin("acoustic map and gradients");
     tissue::Volume grad_n(grid), grad_z(grid);
     auto store_gradients = [&](const auto& map) {

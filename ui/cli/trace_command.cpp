@@ -139,15 +139,16 @@ void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
 Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
     Scene2D scene;
     scene.name = "volume";
-    scene.description = "volume slice of " + slice.loaded.path;
+    scene.description = "volume slice of " + slice.source.loaded.path;
     const int particles = o.particles > 0 ? o.particles : 4000;
     if (o.mode == "paper") {
         if (!(std::isfinite(o.contrast) && o.contrast > 0.0 && o.contrast < 100.0)) {
             throw base::InputError("--contrast", "", "must be in (0, 100)");
         }
         tissue::Volume density = slice.values;
-        const double lo = slice.value_min,
-                     span = std::max(1e-12, double(slice.value_max - slice.value_min));
+        const double lo = slice.source.value_min,
+                     span =
+                         std::max(1e-12, double(slice.source.value_max - slice.source.value_min));
         for (float& v : density.voxels())
             v = float(1.0 + o.contrast * std::clamp((v - lo) / span, 0.0, 1.0));
         scene.map = tissue::AcousticMap<2>::build_paper(density);

@@ -59,12 +59,6 @@ json geometry_json(const tissue::VolumeGeometry& g) {
 
 }  // namespace
 
-probe::Pose top_centre_pose(const tissue::VolumeGeometry& g) {
-    const glm::dvec3 centre = glm::dvec3(g.dims - 1) * 0.5;
-    const glm::dvec3 top = g.index_to_world({centre.x, -0.5, centre.z});
-    return probe::Pose::looking(top, g.direction[1], g.direction[0]);
-}
-
 void add_volume_options(CLI::App& cmd, SliceOptions& options) {
     add_parameter(cmd, kVolumeDoc, options.volume);
     add_parameter(cmd, kSpacingDoc, options.spacing);
@@ -85,57 +79,6 @@ void add_slice_options(CLI::App& cmd, SliceOptions& options, bool with_elevation
     add_parameter(cmd, kOutsideDoc, options.outside);
 }
 
-VolumeSource load_volume_source(const SliceOptions& options, StageTimer& timer) {
-    VolumeSource source;
-    source.is_default = options.volume == tissue::kDefaultVolumeName;
-    tissue::VolumeRequest request{options.volume, std::nullopt};
-    if (!options.spacing.empty()) {
-        double s[3];
-        if (auto error = parse_spacing(options.spacing, s))
-            throw base::InputError("--spacing", "", *error);
-        request.image_spacing = glm::dvec3(s[0], s[1], s[2]);
-    }
-    if (!std::isnan(options.outside) && !std::isfinite(options.outside)) {
-        throw base::InputError("--outside", "", "must be finite");
-    }
-    const std::string tf_spec = !options.tf.empty()
-                                    ? options.tf
-                                    : (source.is_default ? "mri-t1-head" : "generic-soft-tissue");
-    timer.begin("transfer function " + tf_spec);
-    source.tf = tissue::load_transfer_function(tf_spec);
-    timer.end();
-
-    timer.begin("loading " + options.volume);
-    source.loaded = tissue::load_volume(request);
-    timer.end();
-    for (const auto& w : source.loaded.warnings) std::cerr << "sonotrace: warning: " << w << "\n";
-    const auto [vmin, vmax] = source.loaded.volume.value_range();
-    source.outside = std::isnan(options.outside) ? vmin : float(options.outside);
-    source.value_min = vmin;
-    source.value_max = vmax;
-    timer.begin("binding the transfer function to the volume");
-    source.tf->bind(source.loaded.volume);
-    timer.end();
-    return source;
-}
-
-tissue::Volume VolumeSource::resample(const tissue::VolumeGeometry& grid) const {
-    base::check_allocation(double(grid.voxel_count()) * 4.0 * 24.0, "--resolution",
-                           "grid of " + std::to_string(grid.voxel_count()) + " samples");
-    const auto interpolation = tf->uses_nearest_sampling() ? tissue::Interpolation::nearest
-                                                           : tissue::Interpolation::trilinear;
-    return tissue::resample(loaded.volume, grid, interpolation, outside);
-}
-
-tissue::PropertyMaps VolumeSource::plane_properties(const tissue::VolumeGeometry& grid,
-                                                    tissue::Volume* labels) const {
-    const tissue::Volume values = resample(grid);
-    if (labels) *labels = tissue::tissue_labels(values, *tf);
-    tissue::PropertyMaps maps = tissue::classify(values, *tf);
-    if (is_default) imaging::add_colin27_membranes(loaded.volume, *tf, outside, grid, maps, labels);
-    return maps;
-}
-
 Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     // ---- validate every parameter before loading anything heavy ----
     auto nonnegative = [](double v, const char* flag) {
@@ -153,13 +96,13 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     std::optional<probe::Pose> pose;
     if (options.pose != "default") pose = probe::parse_pose(options.pose, "--pose");
 
-    VolumeSource source = load_volume_source(options, timer);
+    imaging::VolumeSource source = imaging::load_volume_source(options, &timer);
     const tissue::Volume& volume = source.loaded.volume;
 
     // ---- grid under the probe ----
     if (!pose)
-        pose =
-            source.is_default ? probe::colin27_temporal_pose() : top_centre_pose(volume.geometry());
+        pose = source.is_default ? probe::colin27_temporal_pose()
+                                 : imaging::top_centre_pose(volume.geometry());
     tissue::GridExtent extent;
     const glm::dvec3 size_mm = glm::dvec3(volume.dims()) * volume.geometry().spacing;
     extent.width_mm =
@@ -179,14 +122,10 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     timer.begin("classifying");
     slice.maps = tissue::classify(slice.values, *source.tf);
     timer.end();
-    slice.loaded = std::move(source.loaded);
-    slice.tf = std::move(source.tf);
+    slice.source = std::move(source);
     slice.pose = *pose;
     slice.extent = extent;
     slice.grid = grid;
-    slice.outside = source.outside;
-    slice.value_min = source.value_min;
-    slice.value_max = source.value_max;
     return slice;
 }
 
@@ -198,7 +137,8 @@ json pose_json(const probe::Pose& pose) {
             {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}};
 }
 
-json volume_source_json(const VolumeSource& source, const SliceOptions& options) {
+json volume_source_json(const imaging::VolumeSource& source,
+                        const imaging::VolumeOptions& options) {
     return {{"volume",
              {{"spec", options.volume},
               {"path", source.loaded.path},
@@ -211,27 +151,17 @@ json volume_source_json(const VolumeSource& source, const SliceOptions& options)
 }
 
 json slice_json(const Slice& slice, const SliceOptions& options) {
-    const probe::Pose& pose = slice.pose;
-    return {
-        {"volume",
-         {{"spec", options.volume},
-          {"path", slice.loaded.path},
-          {"format", slice.loaded.format},
-          {"geometry", geometry_json(slice.loaded.volume.geometry())},
-          {"value_range", {slice.value_min, slice.value_max}},
-          {"outside_value", slice.outside}}},
-        {"transfer_function", slice.tf->describe()},
-        {"pose", pose_json(pose)},
-        {"grid",
-         {{"geometry", geometry_json(slice.grid)},
-          {"width_mm", slice.extent.width_mm},
-          {"depth_mm", slice.extent.depth_mm},
-          {"elevation_mm", slice.extent.elevation_mm},
-          {"pixel_mm", slice.extent.pixel_mm},
-          {"interpolation", slice.tf->uses_nearest_sampling() ? "nearest" : "trilinear"},
-          {"axes", "i = lateral, j = depth (axial), k = elevation"}}},
-        {"warnings", slice.loaded.warnings},
-    };
+    json record = volume_source_json(slice.source, options);
+    record["pose"] = pose_json(slice.pose);
+    record["grid"] = {
+        {"geometry", geometry_json(slice.grid)},
+        {"width_mm", slice.extent.width_mm},
+        {"depth_mm", slice.extent.depth_mm},
+        {"elevation_mm", slice.extent.elevation_mm},
+        {"pixel_mm", slice.extent.pixel_mm},
+        {"interpolation", slice.source.tf->uses_nearest_sampling() ? "nearest" : "trilinear"},
+        {"axes", "i = lateral, j = depth (axial), k = elevation"}};
+    return record;
 }
 
 }  // namespace sonotrace::ui

@@ -31,7 +31,7 @@ Features features_of(const Scene& scene) {
     using tissue::Property;
     Features f;
     double slowest = 1e9, fastest = 0.0;
-    for (const tissue::AcousticProperties& m : scene.materials) {
+    for (const tissue::AcousticProperties& m : scene.materials()) {
         const double z = m.impedance_mrayl();
         if (z < 0.1) {
             f.air = true;

@@ -220,7 +220,7 @@ void App::move_probe(double lateral_mm, double elevation_mm, double rotate_deg, 
     p.position += lateral_mm * p.lateral() + elevation_mm * p.elevation();
     if (rotate_deg != 0.0) p = p.rotated(rotate_deg);
     if (tilt_deg != 0.0) p = p.tilted(tilt_deg);
-    pose_ = clamp_to_scene(*scene_, scene_->settle(p));
+    pose_ = scene_->clamp(scene_->settle(p));
     dirty_ = true;
 }
 

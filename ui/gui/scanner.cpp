@@ -62,7 +62,7 @@ imaging::SimulationSettings ScanParameters::settings(const Scene& scene) const {
     }
     s.imaging.pixel_mm = std::max(0.1, transducer.depth_mm / 400.0);
     imaging::apply(physics, s);
-    s.trace.interface_reach_mm = scene.interface_reach_mm;
+    scene.apply_to(s);
     s.validate("gui settings");
     return s;
 }
@@ -86,7 +86,7 @@ std::optional<ScanFrame> simulate_request(const ScanRequest& request, imaging::Q
     out.settings.trace.record_paths = request.paths_per_line;
     out.settings.trace.record_paths_line_stride = request.path_line_stride;
     out.quality = quality;
-    out.pose = clamp_to_scene(scene, request.pose);
+    out.pose = scene.clamp(request.pose);
     imaging::ScenePlacement placement = scene.start;
     placement.pose = out.pose;
 
