@@ -15,7 +15,7 @@
 #include <type_traits>
 
 #include "probe/pose.h"
-#include "simulator/scenes.h"
+#include "simulator/trace_setups.h"
 #include "simulator/tracer.h"
 #include "tissue/resample.h"
 #include "tissue/tissue_table.h"

@@ -5,7 +5,7 @@
 #include <filesystem>
 
 #include "phantoms/phantom.h"
-#include "phantoms/trace_scene.h"
+#include "phantoms/trace_setup.h"
 #include "test_util.h"
 #include "tissue/base/error.h"
 #include "tissue/base/json_util.h"
@@ -223,7 +223,7 @@ TEST(Phantom, PaperFiguresReproduceTheirMedia) {
     EXPECT_LE(hi, 2.6);
     EXPECT_GT(hi - lo, 0.5) << "the texture varies";
     // Each traces: particles from its source, the paper's physics.
-    const simulator::Scene2D scene = phantoms::trace_scene(fig6, 10);
+    const simulator::TraceSetup scene = phantoms::trace_setup(fig6, 10);
     EXPECT_EQ(scene.sources.size(), 10u);
     EXPECT_EQ(scene.settings.mode, simulator::PhysicsMode::paper);
     EXPECT_TRUE(scene.settings.ring.has_value());
@@ -242,16 +242,16 @@ TEST(Phantom, TraceEntryErrorsNameTheField) {
         return text;
     };
     test::expect_input_error(
-        [&] { phantoms::trace_scene(parse(with(R"("comment": "no source")").c_str())); }, "t.json",
+        [&] { phantoms::trace_setup(parse(with(R"("comment": "no source")").c_str())); }, "t.json",
         "source");
     const std::string src =
         R"("source": {"type": "fan", "at": [1, 1], "direction": [1, 0], "half_angle": 10, "particles": 3})";
     test::expect_input_error(
-        [&] { phantoms::trace_scene(parse(with(src + R"(, "trace": {"lobe": 3})").c_str())); },
+        [&] { phantoms::trace_setup(parse(with(src + R"(, "trace": {"lobe": 3})").c_str())); },
         "t.json", "trace.lobe");
     test::expect_input_error(
         [&] {
-            phantoms::trace_scene(
+            phantoms::trace_setup(
                 parse(with(src + R"(, "trace": {"lobe_weight": "heavy"})").c_str()));
         },
         "t.json", "trace.lobe_weight");

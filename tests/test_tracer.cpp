@@ -12,10 +12,10 @@
 #include <numeric>
 #include <random>
 
-#include "phantoms/trace_scene.h"
+#include "phantoms/trace_setup.h"
 #include "simulator/batch.h"
 #include "simulator/interactions.h"
-#include "simulator/scenes.h"
+#include "simulator/trace_setups.h"
 #include "simulator/tracer.h"
 #include "test_util.h"
 #include "tissue/tissue_table.h"
@@ -268,7 +268,7 @@ TEST(ReceiveWeights, ColumnIsTheDivisionsFloor) {
 }
 
 TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
-    Scene2D scene = phantoms::trace_scene(
+    TraceSetup scene = phantoms::trace_setup(
         phantoms::load_phantom(std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/paper_fig6.json"),
         400);
     scene.settings.mode = PhysicsMode::acoustic;  // exercise scattering and roulette too

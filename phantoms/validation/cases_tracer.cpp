@@ -7,10 +7,10 @@
 
 #include "imaging/picture.h"
 #include "imaging/trace_pictures.h"
-#include "phantoms/trace_scene.h"
+#include "phantoms/trace_setup.h"
 #include "phantoms/validation/validation.h"
 #include "simulator/interactions.h"
-#include "simulator/scenes.h"
+#include "simulator/trace_setups.h"
 #include "simulator/tracer.h"
 
 namespace sonotrace::validation {
@@ -217,13 +217,13 @@ CaseResult reflected_fraction(const CaseContext&) {
 
 CaseResult fibre_guide(const CaseContext& ctx) {
     // Figure 4: a bent fibre with a parabolic density profile (core radius 5 mm). Ray
-    // optics of the bend (simulator/scenes.h) guides every injected particle: none may
+    // optics of the bend (simulator/trace_setups.h) guides every injected particle: none may
     // leave the core, and the track's width (largest |offset| from the centreline over the
     // first and the last third) may grow by at most 5 % (the bound).
     const simulator::FibreGeometry fibre;
     CaseResult r;
     for (const char* name : {"fig4a", "fig4b"}) {
-        simulator::Scene2D scene = phantoms::trace_scene(
+        simulator::TraceSetup scene = phantoms::trace_setup(
             phantoms::load_phantom(ctx.phantom_dir + "/paper_" + name + ".json"), 21);
         const auto result = simulator::trace(scene.map, scene.sources, scene.settings);
         const double length = fibre.length_mm() - 6.0;
@@ -454,7 +454,7 @@ CaseResult sedimentation(const CaseContext& ctx) {
     // mean fluence on texels where the density falls along the beam (lower interfaces)
     // over the mean where it rises (upper interfaces), weighted by |grad d . beam|.
     // The paper reports accumulation at the lower interfaces: the ratio must exceed 1.
-    simulator::Scene2D scene = simulator::make_paper_scene("fig5", 40000);
+    simulator::TraceSetup scene = simulator::make_paper_setup("fig5", 40000);
     scene.settings.record_paths = 0;
     const auto result = simulator::trace(scene.map, scene.sources, scene.settings);
     const tissue::Volume& d = scene.medium;

@@ -14,8 +14,8 @@
 
 #include "imaging/picture.h"
 #include "imaging/trace_pictures.h"
-#include "phantoms/trace_scene.h"
-#include "simulator/scenes.h"
+#include "phantoms/trace_setup.h"
+#include "simulator/trace_setups.h"
 #include "simulator/tracer.h"
 #include "sonotrace_version.h"
 #include "tissue/base/atomic_output.h"
@@ -26,7 +26,7 @@ namespace sonotrace::ui {
 namespace {
 
 using nlohmann::json;
-using simulator::Scene2D;
+using simulator::TraceSetup;
 
 constexpr ParameterDoc kConfigDoc = {
     "--config", "",
@@ -135,11 +135,11 @@ void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
     if (s.max_bounces != 1) s.max_bounces = o.max_bounces;
 }
 
-// A volume slice as a scene: the probe at the top centre, fan or parallel injection.
-Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
-    Scene2D scene;
-    scene.name = "volume";
-    scene.description = "volume slice of " + slice.source.loaded.path;
+// A volume slice as a trace set-up: the probe at the top centre, fan or parallel injection.
+TraceSetup volume_setup(const TraceOptions& o, const Slice& slice) {
+    TraceSetup setup;
+    setup.name = "volume";
+    setup.description = "volume slice of " + slice.source.loaded.path;
     const int particles = o.particles > 0 ? o.particles : 4000;
     if (o.mode == "paper") {
         if (!(std::isfinite(o.contrast) && o.contrast > 0.0 && o.contrast < 100.0)) {
@@ -151,16 +151,16 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
                          std::max(1e-12, double(slice.source.value_max - slice.source.value_min));
         for (float& v : density.voxels())
             v = float(1.0 + o.contrast * std::clamp((v - lo) / span, 0.0, 1.0));
-        scene.map = tissue::AcousticMap<2>::build_paper(density);
-        scene.medium = std::move(density);
-        scene.medium_label = "density d";
+        setup.map = tissue::AcousticMap<2>::build_paper(density);
+        setup.medium = std::move(density);
+        setup.medium_label = "density d";
     } else {
-        scene.map = tissue::AcousticMap<2>::build(slice.maps);
-        scene.medium = slice.maps.impedance();
-        scene.medium_label = "impedance Z";
-        scene.medium_unit = "MRayl";
+        setup.map = tissue::AcousticMap<2>::build(slice.maps);
+        setup.medium = slice.maps.impedance();
+        setup.medium_label = "impedance Z";
+        setup.medium_unit = "MRayl";
     }
-    const glm::vec2 extent = scene.map.extent_mm();
+    const glm::vec2 extent = setup.map.extent_mm();
     const glm::vec2 face_centre(0.5f * extent.x, 0.01f);
     if (o.lines < 1 || o.lines > 100000)
         throw base::InputError("--lines", "", "must be between 1 and 100000");
@@ -169,9 +169,9 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
         const auto line = uint32_t(std::int64_t(p) * o.lines / particles);
         if (o.injection == "fan") {
             const float a = glm::radians(float(o.beam_angle_deg)) * u;
-            scene.sources.push_back({face_centre, {std::sin(a), std::cos(a)}, 1.0f, line});
+            setup.sources.push_back({face_centre, {std::sin(a), std::cos(a)}, 1.0f, line});
         } else if (o.injection == "parallel") {
-            scene.sources.push_back(
+            setup.sources.push_back(
                 {face_centre + glm::vec2(0.5f * float(o.beam_width_mm) * u, 0.0f),
                  {0.0f, 1.0f},
                  1.0f,
@@ -185,13 +185,13 @@ Scene2D volume_scene(const TraceOptions& o, const Slice& slice) {
     face.normal = {0.0f, 1.0f};
     face.half_width_mm = o.injection == "fan" ? 5.0f : 0.5f * float(o.beam_width_mm);
     face.reflectivity = float(o.face_reflectivity);
-    scene.settings.probe_face_2d = face;
+    setup.settings.probe_face_2d = face;
     if (o.mode == "paper") {
-        scene.settings.mode = simulator::PhysicsMode::paper;
-        scene.settings.lobe_exponent = simulator::LobeExponent::reflecting_density;
+        setup.settings.mode = simulator::PhysicsMode::paper;
+        setup.settings.lobe_exponent = simulator::LobeExponent::reflecting_density;
     }
-    scene.settings.record_paths = 10;
-    return scene;
+    setup.settings.record_paths = 10;
+    return setup;
 }
 
 void write_echoes_csv(const std::vector<simulator::EchoEvent<2>>& echoes, const std::string& path) {
@@ -249,8 +249,8 @@ int run_trace_command(const TraceOptions& options) {
     StageTimer timer(options.quiet);
     const auto thread_limit = limit_threads(options.threads);
 
-    // ---- the scene (everything validated before tracing) ----
-    Scene2D scene;
+    // ---- the set-up (everything validated before tracing) ----
+    TraceSetup setup;
     json source_record;
     if (!options.config.empty() || !options.phantom.empty()) {
         if (!options.config.empty() && !options.phantom.empty())
@@ -262,34 +262,34 @@ int run_trace_command(const TraceOptions& options) {
                 file = std::string(SONOTRACE_PHANTOM_DIR) + "/" + name + ".json";
         timer.begin("building configuration " + (file.empty() ? options.config : file));
         if (!file.empty()) {
-            scene = phantoms::trace_scene(phantoms::load_phantom(file), options.particles);
-            if (!options.config.empty()) scene.name = options.config;
+            setup = phantoms::trace_setup(phantoms::load_phantom(file), options.particles);
+            if (!options.config.empty()) setup.name = options.config;
         } else {
-            scene = simulator::make_paper_scene(options.config,
+            setup = simulator::make_paper_setup(options.config,
                                                 options.particles > 0 ? options.particles : 4000);
         }
         timer.end();
-        source_record = {{"config", scene.name}, {"description", scene.description}};
+        source_record = {{"config", setup.name}, {"description", setup.description}};
         if (!file.empty()) source_record["phantom"] = file;
         // Only explicitly given options override the configuration's physics.
-        simulator::TraceSettings& s = scene.settings;
+        simulator::TraceSettings& s = setup.settings;
         apply_disable(options.disable, s);
         apply_integration_options(options, s);
     } else {
         const Slice slice = make_slice(options.slice, timer);
-        scene = volume_scene(options, slice);
-        apply_physics_options(options, scene.settings);
+        setup = volume_setup(options, slice);
+        apply_physics_options(options, setup.settings);
         source_record = slice_json(slice, options.slice);
     }
-    if (options.paths >= 0) scene.settings.record_paths = options.paths;
-    scene.settings.validate("trace options");
+    if (options.paths >= 0) setup.settings.record_paths = options.paths;
+    setup.settings.validate("trace options");
 
     // ---- trace ----
-    ProgressBar bar("tracing " + std::to_string(scene.sources.size()) + " particles",
+    ProgressBar bar("tracing " + std::to_string(setup.sources.size()) + " particles",
                     options.quiet);
     const auto start = std::chrono::steady_clock::now();
     const auto result =
-        simulator::trace(scene.map, scene.sources, scene.settings,
+        simulator::trace(setup.map, setup.sources, setup.settings,
                          [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
     bar.finish();
     const double trace_seconds =
@@ -297,7 +297,7 @@ int run_trace_command(const TraceOptions& options) {
 
     // ---- pictures ----
     timer.begin("writing pictures");
-    const double px = scene.map.spacing().x;
+    const double px = setup.map.spacing().x;
     base::OutputTransaction transaction;
     const std::filesystem::path out(options.out_dir);
     struct Picture {
@@ -314,7 +314,7 @@ int run_trace_command(const TraceOptions& options) {
     tbb::parallel_for(0, int(pictures.size()), [&](int n) {
         switch (n) {
             case 0: {
-                cv::Mat paths = imaging::draw_paths(scene.medium, result.paths, {});
+                cv::Mat paths = imaging::draw_paths(setup.medium, result.paths, {});
                 cv::putText(paths, "paths: blue = full energy ... red = 0.1 %", {10, 24},
                             cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 1,
                             cv::LINE_AA);
@@ -323,7 +323,7 @@ int run_trace_command(const TraceOptions& options) {
             }
             case 1:
                 pictures[1] = {"medium", imaging::render_field(
-                                             scene.medium, {scene.medium_label, scene.medium_unit,
+                                             setup.medium, {setup.medium_label, setup.medium_unit,
                                                             imaging::Colormap::gray, std::nullopt,
                                                             false, px, scale})};
                 break;
@@ -346,7 +346,7 @@ int run_trace_command(const TraceOptions& options) {
     json outputs = json::array();
     std::vector<double> angles;
     if (!result.ring_profile.empty()) {
-        const auto& ring = *scene.settings.ring;
+        const auto& ring = *setup.settings.ring;
         for (int b = 0; b < ring.bins; ++b) angles.push_back((b + 0.5) * 180.0 / ring.bins);
         pictures.push_back(
             {"profile", imaging::plot_profile(angles, result.ring_profile,
@@ -383,7 +383,7 @@ int run_trace_command(const TraceOptions& options) {
     for (const auto& e : result.echoes)
         echo_counts[simulator::to_string(e.kind)] =
             echo_counts.value(simulator::to_string(e.kind), 0) + 1;
-    const simulator::TraceSettings& s = scene.settings;
+    const simulator::TraceSettings& s = setup.settings;
     json record = {
         {"command", "trace"},
         {"software", {{"name", "sonotrace"}, {"version", SONOTRACE_VERSION}}},
@@ -404,7 +404,7 @@ int run_trace_command(const TraceOptions& options) {
           {"lobe_scale", s.lobe_scale},
           {"interface_threshold", s.interface_threshold},
           {"roulette_energy", s.roulette_energy}}},
-        {"particles", scene.sources.size()},
+        {"particles", setup.sources.size()},
         {"ledger",
          {{"injected", l.injected},
           {"absorbed", l.absorbed},

@@ -12,7 +12,7 @@
 
 namespace sonotrace::simulator {
 
-struct Scene2D {
+struct TraceSetup {
     std::string name, description;
     tissue::Volume medium;  // what the pictures show underneath the paths (density or speed)
     std::string medium_label, medium_unit;
@@ -22,7 +22,7 @@ struct Scene2D {
 };
 
 // "fig5" (loads Colin27); throws base::InputError("--config", ...) for other names.
-Scene2D make_paper_scene(const std::string& name, int particles);
+TraceSetup make_paper_setup(const std::string& name, int particles);
 
 // Two media separated by a plane through `point` with unit `normal` (pointing into
 // medium b), the transition smoothed linearly over `smoothing_texels`. Grid: nx x ny

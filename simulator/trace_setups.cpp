@@ -1,4 +1,4 @@
-#include "simulator/scenes.h"
+#include "simulator/trace_setups.h"
 
 #include <cmath>
 #include <numbers>
@@ -38,19 +38,19 @@ TraceSettings paper_settings() {
     return s;
 }
 
-Scene2D from_density(std::string name, std::string description, tissue::Volume density) {
-    Scene2D scene;
-    scene.name = std::move(name);
-    scene.description = std::move(description);
-    scene.map = tissue::AcousticMap<2>::build_paper(density);
-    scene.medium = std::move(density);
-    scene.medium_label = "density d";
-    scene.medium_unit = "";
-    scene.settings = paper_settings();
-    return scene;
+TraceSetup from_density(std::string name, std::string description, tissue::Volume density) {
+    TraceSetup setup;
+    setup.name = std::move(name);
+    setup.description = std::move(description);
+    setup.map = tissue::AcousticMap<2>::build_paper(density);
+    setup.medium = std::move(density);
+    setup.medium_label = "density d";
+    setup.medium_unit = "";
+    setup.settings = paper_settings();
+    return setup;
 }
 
-Scene2D figure5(int particles) {
+TraceSetup figure5(int particles) {
     // An axial Colin27 slice through the lateral ventricles (anterior at the top), with a
     // transfer function chosen, as in the paper, for visible effects rather than real
     // acoustics: d = 1 + 0.5 * intensity / (99th percentile).
@@ -61,10 +61,10 @@ Scene2D figure5(int particles) {
     const auto g = tissue::probe_grid(frame, {180.0, 220.0, 0.0, 0.5}, "fig5");
     tissue::Volume d = tissue::resample(head.volume, g, tissue::Interpolation::trilinear, 0.0f);
     for (float& v : d.voxels()) v = float(1.0 + 0.5 * std::clamp(double(v) / q99, 0.0, 1.2));
-    Scene2D scene = from_density(
+    TraceSetup setup = from_density(
         "fig5", "Colin27 axial slice, parallel injection from the upper right", std::move(d));
     // A parallel beam towards the lower left, entering through the top and right edges.
-    const glm::vec2 size = scene.map.extent_mm();
+    const glm::vec2 size = setup.map.extent_mm();
     const glm::vec2 dir = glm::normalize(glm::vec2(-1.0f, 1.0f)), across(-dir.y, dir.x);
     const glm::vec2 centre = 0.5f * size;
     const float half_span = 0.5f * glm::length(size);
@@ -73,12 +73,12 @@ Scene2D figure5(int particles) {
         const float u = (float(n) + 0.5f) / float(particles) * 2.0f - 1.0f;
         glm::vec2 p = centre + across * (u * half_span);
         // Back up against the beam direction to the map boundary.
-        while (scene.map.inside(p - dir * 0.5f)) p -= dir * 0.5f;
-        if (!scene.map.inside(p)) continue;
-        scene.sources.push_back({p, dir, 1.0f, uint32_t(n * kLines / particles)});
+        while (setup.map.inside(p - dir * 0.5f)) p -= dir * 0.5f;
+        if (!setup.map.inside(p)) continue;
+        setup.sources.push_back({p, dir, 1.0f, uint32_t(n * kLines / particles)});
     }
-    scene.settings.record_paths = std::max(1, particles / kLines / 40);
-    return scene;
+    setup.settings.record_paths = std::max(1, particles / kLines / 40);
+    return setup;
 }
 
 }  // namespace
@@ -111,7 +111,7 @@ double FibreGeometry::length_mm() const {
     return straight_mm + bend_radius_mm * kPi / 2.0 + exit_mm;
 }
 
-Scene2D make_paper_scene(const std::string& name, int particles) {
+TraceSetup make_paper_setup(const std::string& name, int particles) {
     if (particles < 1 || particles > 10000000) {
         throw base::InputError("--particles", "", "must be between 1 and 10000000");
     }

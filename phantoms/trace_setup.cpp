@@ -1,4 +1,4 @@
-#include "phantoms/trace_scene.h"
+#include "phantoms/trace_setup.h"
 
 #include "simulator/sources.h"
 #include "tissue/base/error.h"
@@ -84,37 +84,37 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
 
 }  // namespace
 
-simulator::Scene2D trace_scene(const Phantom& ph, int particles) {
+simulator::TraceSetup trace_setup(const Phantom& ph, int particles) {
     if (!ph.injection)
         throw base::InputError(ph.source, "source",
                                "is required to trace a phantom (where the particles start)");
-    simulator::Scene2D scene;
-    scene.name = ph.name;
-    scene.description = ph.description;
-    scene.settings = trace_settings(ph);
+    simulator::TraceSetup setup;
+    setup.name = ph.name;
+    setup.description = ph.description;
+    setup.settings = trace_settings(ph);
     const tissue::VolumeGeometry grid = plane_grid_2d(ph);
     if (ph.paper_mode) {
-        scene.medium = rasterise_paper_density(ph, grid);
-        scene.map = tissue::AcousticMap<2>::build_paper(scene.medium);
-        scene.medium_label = "density d";
+        setup.medium = rasterise_paper_density(ph, grid);
+        setup.map = tissue::AcousticMap<2>::build_paper(setup.medium);
+        setup.medium_label = "density d";
     } else {
         tissue::PropertyMaps maps = rasterise(ph, grid);
-        scene.map = tissue::AcousticMap<2>::build(maps);
-        scene.medium = maps[tissue::Property::speed_of_sound];
-        scene.medium_label = "speed of sound";
-        scene.medium_unit = "m/s";
+        setup.map = tissue::AcousticMap<2>::build(maps);
+        setup.medium = maps[tissue::Property::speed_of_sound];
+        setup.medium_label = "speed of sound";
+        setup.medium_unit = "m/s";
     }
     const ParticleSource& src = *ph.injection;
     const int n = particles > 0 ? particles : src.particles;
     const glm::vec2 at(src.at), dir(src.direction);
-    scene.sources = src.type == ParticleSource::Type::fan
+    setup.sources = src.type == ParticleSource::Type::fan
                         ? simulator::fan_beam(at, dir, float(src.half_angle_deg), n)
                         : simulator::parallel_beam(at, dir, float(src.width_mm), n);
     // Consecutive particles form 16 "lines" so the trace spreads over the threads.
-    const std::size_t count = scene.sources.size();
-    for (std::size_t p = 0; p < count; ++p) scene.sources[p].line = uint32_t(p * 16 / count);
-    scene.settings.record_paths = (n + 15) / 16;  // every path: a figure draws them all
-    return scene;
+    const std::size_t count = setup.sources.size();
+    for (std::size_t p = 0; p < count; ++p) setup.sources[p].line = uint32_t(p * 16 / count);
+    setup.settings.record_paths = (n + 15) / 16;  // every path: a figure draws them all
+    return setup;
 }
 
 }  // namespace sonotrace::phantoms
