@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The README's comparison of the five depth modes of fused rendering (figure 3 of
+# The render guide's comparison of the five depth modes of fused rendering (figure 3 of
 # Sakamoto & Koyamada): two intersecting tetrahedra with red and blue colour maps,
 # rendered with each --depth-sampling mode and against the fused ray integral.
 #   scripts/depth_mode_pictures.sh [build dir]   -> docs/images/depth_modes.png

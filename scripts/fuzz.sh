@@ -4,7 +4,7 @@
 # non-zero when a target finds a crash (its reproducer is left in build-fuzz/crashes).
 #
 #   scripts/fuzz.sh          # 10 s per target: what the test command runs
-#   scripts/fuzz.sh 3600     # an hour per target: the figures in README's reliability section
+#   scripts/fuzz.sh 3600     # an hour per target: the figures in docs/reliability.md
 #   SONOTRACE_FUZZ_TARGETS="nifti image" scripts/fuzz.sh 3600   # only these targets
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -82,7 +82,7 @@ case "$mode" in
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       ctest --test-dir "$build_dir-asan" -j "$jobs" --output-on-failure -LE slow
     # 10 s per target keeps the test command within CI's time budget; the hour-long runs
-    # behind README's reliability figures are `scripts/fuzz.sh 3600`.
+    # behind the figures in docs/reliability.md are `scripts/fuzz.sh 3600`.
     say "fuzzing every input parser for 10 s each (libFuzzer, ASan+UBSan)"
     SONOTRACE_FUZZ_DIR="$build_dir-fuzz" ./scripts/fuzz.sh 10
     say "all tests passed"

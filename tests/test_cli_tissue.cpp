@@ -164,15 +164,16 @@ INSTANTIATE_TEST_SUITE_P(
 namespace sonotrace {
 namespace {
 
-TEST(Docs, ReadmeCarriesTheCurrentTissueTables) {
-    const std::string readme = slurp(std::string(SONOTRACE_SOURCE_DIR) + "/README.md");
+TEST(Docs, TheTissueGuideCarriesTheCurrentTissueTables) {
+    const std::string readme = slurp(std::string(SONOTRACE_SOURCE_DIR) + "/docs/guide/tissue.md");
     const std::string open = "<!-- tissue-tables", close = "<!-- /tissue-tables -->";
     const auto begin = readme.find('\n', readme.find(open));
     const auto end = readme.find(close);
     ASSERT_NE(begin, std::string::npos);
     ASSERT_NE(end, std::string::npos);
     EXPECT_EQ(readme.substr(begin + 1, end - begin - 1), ui::tissue_tables_markdown())
-        << "README.md is out of date: paste the output of `sonotrace tissue --list-tissues`";
+        << "docs/guide/tissue.md is out of date: paste the output of `sonotrace tissue "
+           "--list-tissues`";
 }
 
 }  // namespace

@@ -73,6 +73,10 @@ TEST(RawIoErrors, EachProblemNamesFileAndField) {
     write_text(json, R"({"dims": [2,2,1], "spacing": [1,1,1], "datatype": "float32"})");
     expect_input_error([&] { read_raw(json); }, "d.raw", "size", "truncated");
     expect_input_error([&] { read_raw(dir / "nothing.raw"); }, "nothing.json", "", "sidecar");
+    // Data that is not a regular file: an empty "file" names the sidecar's directory (a
+    // fuzz finding: the size query threw a filesystem_error, an internal error).
+    check(R"({"file": "", "dims": [2,2,1], "spacing": [1,1,1], "datatype": "uint8"})", "file",
+          "not a regular file");
 }
 
 }  // namespace

@@ -106,6 +106,10 @@ Volume read_raw(const std::string& path) {
                                                 ? base::jsonio::get_string(j, "file", source, "")
                                                 : sidecar.stem().string() + ".raw");
     if (!fs::exists(raw)) throw base::InputError(raw.string(), "", "raw data file not found");
+    // A directory (an empty "file" names the sidecar's own) or a device has no size to check.
+    if (!fs::is_regular_file(raw))
+        throw base::InputError(source, "file",
+                               "'" + raw.string() + "' is not a regular file of voxel data");
     const std::size_t expected = header_bytes + g.voxel_count() * std::size_t(type->bytes);
     const std::size_t actual = fs::file_size(raw);
     if (actual < expected) {

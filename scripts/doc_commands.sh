@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Runs every command shown in the README's and the guides' ```sh blocks, as written, from a
+# scratch copy of the checkout's layout (its own out/), so the documentation cannot name
+# files we do not ship or options we do not have. A test runs it.
+#
+#   scripts/doc_commands.sh [BUILD_DIR] [FILES...]   # defaults: build, README.md docs/guide/*.md
+#
+# Not run, by kind: the set-up script (the test command itself is `setup.sh test`), the
+# build commands (cmake, ctest: the build that runs this did them), the picture scripts
+# (they rewrite docs/images). The GUI runs headless under xvfb-run (--screenshot) until it
+# has shown two frames.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root="$PWD"
+build="$(cd "${1:-build}" && pwd)"
+shift || true
+files=("$@")
+[ ${#files[@]} -gt 0 ] || files=(README.md docs/guide/*.md)
+
+scratch="$(mktemp -d)"
+trap 'rm -rf "$scratch"' EXIT
+for entry in "$root"/*; do
+  [ "$(basename "$entry")" = build ] || ln -s "$entry" "$scratch/$(basename "$entry")"
+done
+ln -s "$build" "$scratch/build"
+
+# The commands of the ```sh blocks, continuation lines joined, one per line.
+commands() {
+  awk '/^```sh$/ {inside = 1; next} /^```/ {inside = 0; next}
+       inside { if (sub(/\\$/, "")) { held = held $0; next } print held $0; held = "" }' "$1"
+}
+
+failed=0 ran=0
+for file in "${files[@]}"; do
+  while IFS= read -r command; do
+    trimmed="${command#"${command%%[![:space:]]*}"}"
+    case "$trimmed" in
+      "" | "#"*) continue ;;
+      ./scripts/setup.sh* | cmake* | ctest*) continue ;;
+      scripts/*pictures.sh*) continue ;;
+      build/sonotrace-gui*)
+        if [[ "$trimmed" != *--help* ]]; then
+          command -v xvfb-run >/dev/null && [ -x "$build/sonotrace-gui" ] || continue
+          trimmed="xvfb-run -a ${trimmed%%#*} --screenshot out/doc-gui.png --frames 2"
+        fi ;;
+      build/*) ;;
+      *) echo "doc_commands: $file: a command of no known kind: $trimmed" >&2
+         failed=$((failed + 1)); continue ;;
+    esac
+    ran=$((ran + 1))
+    if ! (cd "$scratch" && bash -c "$trimmed") >"$scratch/log" 2>&1 </dev/null; then
+      echo "doc_commands: $file: failed: $trimmed" >&2
+      tail -n 5 "$scratch/log" >&2
+      failed=$((failed + 1))
+    fi
+  done < <(commands "$file")
+done
+echo "doc_commands: ran $ran commands, $failed failed" >&2
+[ "$failed" = 0 ]
