@@ -667,6 +667,41 @@ TEST(PbvrOverlay, TheFrameSitsOnItsPlaneAndIsDepthTestedAgainstParticles) {
     }
 }
 
+TEST(PbvrOverlay, ARadialProbeIsACylinderAboutItsElevationAxis) {
+    // The radial preset (a ring of radius R = 6 mm; the pose is on its face, the ring's
+    // centre R behind it), its elevation axis towards the camera: the tip's silhouette is
+    // a disc of radius R around the ring's centre, lit head-on (its end cap), and the frame lies
+    // around it, with no outline where the last line meets the first.
+    OverlayScene scene;
+    scene.overlay.transducer = probe::find_transducer("radial", "test");
+    scene.overlay.transducer.depth_mm = 15.0;
+    scene.overlay.position = {20.0, 20.0, 25.0};
+    scene.overlay.frame = cv::Mat(200, 200, CV_8UC1, cv::Scalar(200));
+    scene.overlay.origin_mm = {-20.0, -20.0};
+    scene.overlay.pixel_mm = {0.2, 0.2};
+    scene.camera.target = {20.0, 20.0, 25.0};
+    const std::vector<uint64_t> layer = overlay_layer(scene.overlay, scene.camera, 1);
+    const double radius = scene.overlay.transducer.radius_mm;
+    // Pixels per mm on the plane: 64 pixels span 2 d tan(fov / 2) mm at distance d.
+    const double mm_per_pixel = 2.0 * 200.0 * std::tan(glm::radians(10.0)) / 64.0;
+    // The ring's centre on the plane: R along -axial (world +z) from the camera's target.
+    auto at = [&](double x_mm, double z_mm) {  // offsets from the ring's centre
+        const int col = int(std::lround(32 + x_mm / mm_per_pixel - 0.5));
+        const int row = int(std::lround(32 - (z_mm + radius) / mm_per_pixel - 0.5));
+        return layer[std::size_t(row) * 64 + std::size_t(col)];
+    };
+    const glm::vec3 body_colour(0.30f, 0.42f, 0.62f);
+    for (const double angle : {0.0, 45.0, 90.0, 135.0, 200.0, 300.0}) {
+        const double c = std::cos(glm::radians(angle)), s = std::sin(glm::radians(angle));
+        const glm::vec3 inside = entry_colour(at(0.7 * radius * c, 0.7 * radius * s));
+        // Colours are stored with 8 bits (zbuffer_entry).
+        EXPECT_NEAR(inside.x, body_colour.x, 1.0 / 255.0) << "lit head-on, " << angle;
+        EXPECT_NEAR(inside.z, body_colour.z, 1.0 / 255.0) << angle;
+        const glm::vec3 outside = entry_colour(at(1.4 * radius * c, 1.4 * radius * s));
+        EXPECT_NEAR(outside.x, 200.0f / 255.0f, 1e-6f) << "the frame around the tip, " << angle;
+    }
+}
+
 TEST(PbvrOverlay, TheClipPlaneRemovesTheCameraSide) {
     const OverlayScene scene;
     const glm::vec4 plane =

@@ -7,8 +7,10 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <optional>
 
 #include "imaging/pbvr/pbvr.h"
+#include "probe/array_geometry.h"
 #include "tissue/base/error.h"
 #include "tissue/base/json_util.h"
 
@@ -97,6 +99,44 @@ FrameOverlay load_frame_overlay(const std::string& sidecar_path) {
     return o;
 }
 
+namespace {
+
+// Where a ray first meets a surface from outside, and the surface's unit normal there.
+struct SurfaceHit {
+    double t;
+    glm::dvec3 normal;
+};
+
+// A closed cylinder of `radius` about the z axis between z0 and z1 (a radial probe's tip
+// in its own frame), met from outside by origin + t dir, t > 0.
+std::optional<SurfaceHit> cross_tip(const glm::dvec3& origin, const glm::dvec3& dir, double radius,
+                                    double z0, double z1) {
+    std::optional<SurfaceHit> first;
+    auto keep = [&](double t, const glm::dvec3& normal) {
+        if (t > 0.0 && (!first || t < first->t)) first = SurfaceHit{t, normal};
+    };
+    // The mantle: |(o + t d)_xy| = radius, entering (the smaller root).
+    const double a = dir.x * dir.x + dir.y * dir.y;
+    const double b = origin.x * dir.x + origin.y * dir.y;
+    const double c = origin.x * origin.x + origin.y * origin.y - radius * radius;
+    if (a > 0.0 && b * b - a * c >= 0.0) {
+        const double t = (-b - std::sqrt(b * b - a * c)) / a;
+        const glm::dvec3 p = origin + t * dir;
+        if (p.z >= z0 && p.z <= z1) keep(t, glm::dvec3(p.x, p.y, 0.0) / radius);
+    }
+    // The two end discs.
+    if (dir.z != 0.0) {
+        for (const double z : {z0, z1}) {
+            const double t = (z - origin.z) / dir.z;
+            const glm::dvec3 p = origin + t * dir;
+            if (p.x * p.x + p.y * p.y <= radius * radius) keep(t, glm::dvec3(0.0, 0.0, 1.0));
+        }
+    }
+    return first;
+}
+
+}  // namespace
+
 std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCamera& camera,
                                     int subpixel_level) {
     const int L = subpixel_level, width = camera.width * L, height = camera.height * L;
@@ -105,9 +145,15 @@ std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCame
     const glm::dvec3 eye = camera.eye(), forward = camera.forward(), right = camera.right(),
                      down = -camera.up();
     const double focal = camera.focal_px() * L;
-    // The probe body: the array's length and a 16 mm grip, 25 mm behind the face.
+    // The probe body: the array's length and a 16 mm grip, 25 mm behind the face; a
+    // closed (radial) array is a catheter or scope tip, a cylinder about the elevation axis.
     const double half_length = 0.5 * overlay.transducer.array_length_mm() + 2.0;
     const glm::dvec3 box_low(-half_length, -25.0, -8.0), box_high(half_length, 0.0, 8.0);
+    const bool tip = scan.closed();
+    const double tip_radius = scan.array().face_radius_mm();
+    // The ring's centre: behind the face point of the central line, by the face's radius.
+    const probe::ArrayPoint face_centre = scan.array().face(0.0);
+    const glm::dvec3 tip_axis(face_centre.position - tip_radius * face_centre.normal, 0.0);
     const glm::dmat3 to_probe =
         glm::transpose(glm::dmat3(overlay.lateral, overlay.axial, overlay.elevation));
     const glm::vec3 frame_colour_scale(1.0f / 255.0f);
@@ -119,9 +165,18 @@ std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCame
             uint64_t best = kEmptyEntry;
             // -- the probe model (shaded by the face it is seen through)
             const glm::dvec3 o = to_probe * (eye - overlay.position), d = to_probe * dir;
-            if (const auto hit = cross_box(o, d, box_low, box_high); hit && hit->entry_axis >= 0) {
-                const float light = float(0.45 + 0.55 * std::abs(d[hit->entry_axis]));
-                best = std::min(best, zbuffer_entry(float(hit->t_entry * glm::dot(dir, forward)),
+            std::optional<SurfaceHit> body;
+            if (tip) {
+                body = cross_tip(o - tip_axis, d, tip_radius, -25.0, 8.0);
+            } else if (const auto hit = cross_box(o, d, box_low, box_high);
+                       hit && hit->entry_axis >= 0) {
+                glm::dvec3 normal(0.0);
+                normal[hit->entry_axis] = 1.0;
+                body = SurfaceHit{hit->t_entry, normal};
+            }
+            if (body) {
+                const float light = float(0.45 + 0.55 * std::abs(glm::dot(d, body->normal)));
+                best = std::min(best, zbuffer_entry(float(body->t * glm::dot(dir, forward)),
                                                     glm::vec3(0.30f, 0.42f, 0.62f) * light, 0));
             }
             // -- the scan plane: the frame inside the sector, its outline in yellow
@@ -136,10 +191,13 @@ std::vector<uint64_t> overlay_layer(const FrameOverlay& overlay, const OrbitCame
                     const int lines = scan.lines();
                     const bool inside = ld.x >= -0.5 && ld.x <= lines - 0.5 && ld.y >= 0.0 &&
                                         ld.y <= scan.depth_mm();
-                    const double edge_mm =
-                        std::min({(ld.x + 0.5) * scan.line_spacing_mm(ld.y),
-                                  (lines - 0.5 - ld.x) * scan.line_spacing_mm(ld.y),
-                                  scan.depth_mm() - ld.y, ld.y});
+                    // A closed array's sector has no side edges: its last line meets
+                    // its first.
+                    const double side_mm =
+                        tip ? std::numeric_limits<double>::infinity()
+                            : std::min((ld.x + 0.5) * scan.line_spacing_mm(ld.y),
+                                       (lines - 0.5 - ld.x) * scan.line_spacing_mm(ld.y));
+                    const double edge_mm = std::min({side_mm, scan.depth_mm() - ld.y, ld.y});
                     if (inside && (edge_mm <= 0.8 || overlay.draw_frame)) {
                         glm::vec3 colour(1.0f, 0.85f, 0.1f);  // outline
                         if (edge_mm > 0.8) {
