@@ -271,13 +271,7 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
         trace.diffuse_return_half_angle_rad =
             std::atan(0.5 * t.receive_aperture_mm(t.focus_mm) / std::max(t.focus_mm, 1.0));
     if (settings.receive == ReceiveModel::capture) {
-        simulator::ProbeFace<2> face;
-        face.centre = glm::vec2(grid.to_map);
-        face.normal = {0.0f, 1.0f};
-        face.half_width_mm = float(0.5 * t.array_length_mm());
-        face.radius_mm = float(probe::array_geometry(t)->face_radius_mm());
-        face.reflectivity = float(t.face_reflectivity);
-        trace.probe_face_2d = face;
+        trace.probe_face_2d = simulator::probe_face(t, grid.to_map);
     }
     simulator::TraceResult<2> traced;
     stage("trace", [&] { traced = simulator::trace(map, sources, trace, progress); });

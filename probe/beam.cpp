@@ -78,16 +78,29 @@ double focal_sigma_mm(const Transducer& t, double aperture_mm) {
     return t.wavelength_mm() * f_number / (2.0 * std::sqrt(2.0 * std::log(2.0)));
 }
 
-Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const glm::dvec2& to_map) {
+namespace {
+
+// The beams of make_beams (Dim 2) and make_beams_3d (Dim 3), written once: a 3D particle
+// starts where its 2D twin does in the scan plane, with its in-plane heading and clock,
+// plus an elevation start and an elevation aim of its own draws.
+template <int Dim>
+Sources<Dim> beams(const Transducer& t, const BeamSettings& settings,
+                   const glm::vec<Dim, double>& to_map) {
     const ScanGeometry geometry(t);
     const ArrayGeometry& array = geometry.array();
     const int n = std::max(1, settings.particles_per_line);
     const double half_array = 0.5 * t.array_length_mm();
     const double half_aperture = 0.5 * t.active_aperture_mm();
     const double seconds_per_mm = 1e-3 / tissue::kReferenceSpeed;
-    Sources<2> sources;
+    // Elevation: the lens's height, and the aim's spread at its focus (the slice
+    // thickness as FWHM). Their draws come from a stream of their own.
+    const double half_height = 0.5 * t.elevation_aperture_mm();
+    const double elevation_sigma = t.slice_thickness_mm / (2.0 * std::sqrt(2.0 * std::log(2.0)));
+    const uint64_t elevation_seed = settings.seed ^ 0x656c657661746eull;
+    Sources<Dim> sources;
     sources.reserve(std::size_t(t.lines) * std::size_t(n));
-    std::vector<int> strata(static_cast<std::size_t>(n));
+    std::vector<int> strata(static_cast<std::size_t>(n)), elevation_strata;
+    if constexpr (Dim == 3) elevation_strata.resize(std::size_t(n));
     for (int l = 0; l < t.lines; ++l) {
         const ScanLine line = geometry.line(l);
         const glm::dvec2 focus = line.origin + t.focus_mm * line.direction;
@@ -102,11 +115,15 @@ Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const g
             array.closed() ? centre + half_aperture : std::min(centre + half_aperture, half_array);
         const double sigma = focal_sigma_mm(t, s_hi - s_lo);
         // Aim offsets: stratified too, paired with the aperture strata by a shuffle.
-        std::iota(strata.begin(), strata.end(), 0);
-        for (int i = n - 1; i > 0; --i) {
-            const int j = int(uniform(settings.seed, uint64_t(l), uint64_t(i), 3) * (i + 1));
-            std::swap(strata[std::size_t(i)], strata[std::size_t(j)]);
-        }
+        auto shuffle = [&](std::vector<int>& order, uint64_t seed, uint64_t draw) {
+            std::iota(order.begin(), order.end(), 0);
+            for (int i = n - 1; i > 0; --i) {
+                const int j = int(uniform(seed, uint64_t(l), uint64_t(i), draw) * (i + 1));
+                std::swap(order[std::size_t(i)], order[std::size_t(j)]);
+            }
+        };
+        shuffle(strata, settings.seed, 3);
+        if constexpr (Dim == 3) shuffle(elevation_strata, elevation_seed, 2);
         for (int i = 0; i < n; ++i) {
             const double u1 = (i + uniform(settings.seed, uint64_t(l), uint64_t(i), 0)) / n;
             const double u2 =
@@ -115,16 +132,47 @@ Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const g
             const glm::dvec2 element = array.face(s).position;
             const double offset = sigma * normal_inverse_cdf(u2);
             const glm::dvec2 aim = focus + offset * across;
-            SourceParticle<2> p;
-            p.position = glm::vec2(element + to_map);
-            p.direction = glm::vec2(glm::normalize(aim - element));
+            const glm::dvec2 heading = glm::normalize(aim - element);
+            SourceParticle<Dim> p;
             p.energy = 1.0f / float(n);
             p.line = uint32_t(l);
-            p.time_s = float((t.focus_mm - glm::length(focus - element)) * seconds_per_mm);
+            const double time_mm = t.focus_mm - glm::length(focus - element);
+            if constexpr (Dim == 2) {
+                p.position = glm::vec2(element + to_map);
+                p.direction = glm::vec2(heading);
+                p.time_s = float(time_mm * seconds_per_mm);
+            } else {
+                // A uniform start over the elements' height (stratified), towards a
+                // Gaussian aim at the elevation focus (its strata shuffled against them),
+                // reached after elevation_focus mm in the scan plane.
+                const double u3 = (i + uniform(elevation_seed, uint64_t(l), uint64_t(i), 0)) / n;
+                const double u4 = (elevation_strata[std::size_t(i)] +
+                                   uniform(elevation_seed, uint64_t(l), uint64_t(i), 1)) /
+                                  n;
+                const double e = half_height * (2.0 * u3 - 1.0);
+                const double e_aim = elevation_sigma * normal_inverse_cdf(u4);
+                const double slope = (e_aim - e) / t.elevation_focus_mm;
+                p.position = glm::vec3(glm::dvec3(element, e) + to_map);
+                p.direction = glm::vec3(glm::normalize(glm::dvec3(heading, slope)));
+                // The lens delays the centre: every height reaches its focus together.
+                const double lens_mm = std::hypot(t.elevation_focus_mm, e) - t.elevation_focus_mm;
+                p.time_s = float((time_mm - lens_mm) * seconds_per_mm);
+            }
             sources.push_back(p);
         }
     }
     return sources;
+}
+
+}  // namespace
+
+Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const glm::dvec2& to_map) {
+    return beams<2>(t, settings, to_map);
+}
+
+Sources<3> make_beams_3d(const Transducer& t, const BeamSettings& settings,
+                         const glm::dvec3& to_map) {
+    return beams<3>(t, settings, to_map);
 }
 
 }  // namespace sonotrace::probe

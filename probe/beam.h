@@ -34,6 +34,15 @@ double focal_sigma_mm(const Transducer& t, double aperture_mm);
 // tracer's map frame (map = probe plane + to_map). Line ids are 0..lines-1; energy 1 per
 // line.
 Sources<2> make_beams(const Transducer& t, const BeamSettings& settings, const glm::dvec2& to_map);
+// The same beams in 3D, in the probe frame x lateral, y axial, z elevation shifted by
+// `to_map`. Each particle starts where its make_beams twin does in the scan plane (z = 0
+// there), with the same in-plane heading; it also leaves a height z drawn uniformly over
+// the elements' height (Transducer::elevation_aperture_mm) and aims at a point drawn from
+// a Gaussian whose FWHM is the slice thickness at the elevation focus, so the beam's
+// elevation profile narrows to the slice thickness there. Its clock is its twin's less the
+// lens's extra path sqrt(F_e^2 + z^2) - F_e.
+Sources<3> make_beams_3d(const Transducer& t, const BeamSettings& settings,
+                         const glm::dvec3& to_map);
 
 // Inverse CDF of the Hann (raised-cosine) density 1 - cos(2 pi v) on [0, 1].
 double hann_inverse_cdf(double u);

@@ -89,6 +89,9 @@ double Transducer::array_length_mm() const {
 double Transducer::active_aperture_mm() const {
     return std::min(focus_mm / f_number, array_type(type).largest_aperture_mm(*this));
 }
+double Transducer::elevation_aperture_mm() const {
+    return elevation_focus_mm * wavelength_mm() / slice_thickness_mm;
+}
 double Transducer::receive_aperture_mm(double range_mm) const {
     return std::min(std::max(range_mm, 0.0) / rx_f_number,
                     array_type(type).largest_aperture_mm(*this));

@@ -63,6 +63,10 @@ struct Transducer {
     double array_length_mm() const;     // elements * pitch (along the face)
     double active_aperture_mm() const;  // transmit: focus / F-number, at most the array
     double receive_aperture_mm(double range_mm) const;  // depth / rx F-number, at most the array
+    // The elements' height (mm): the lens aperture whose focal beam width is the slice
+    // thickness, by the same rule as the lateral focus (FWHM = wavelength x F-number), so
+    // elevation_focus x wavelength / slice_thickness.
+    double elevation_aperture_mm() const;
 };
 
 // Parameter texts, reused by CLI help, the GUI and the sidecar.

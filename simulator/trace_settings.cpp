@@ -2,9 +2,33 @@
 
 #include <cmath>
 
+#include "probe/array_geometry.h"
 #include "tissue/base/error.h"
 
 namespace sonotrace::simulator {
+
+ProbeFace<2> probe_face(const probe::Transducer& t, const glm::dvec2& to_map) {
+    ProbeFace<2> face;
+    face.centre = glm::vec2(to_map);
+    face.normal = {0.0f, 1.0f};
+    face.half_width_mm = float(0.5 * t.array_length_mm());
+    face.radius_mm = float(probe::array_geometry(t)->face_radius_mm());
+    face.reflectivity = float(t.face_reflectivity);
+    return face;
+}
+
+ProbeFace<3> probe_face(const probe::Transducer& t, const glm::dvec3& to_map) {
+    const ProbeFace<2> in_plane = probe_face(t, glm::dvec2(to_map));
+    ProbeFace<3> face;
+    face.centre = glm::vec3(to_map);
+    face.normal = {0.0f, 1.0f, 0.0f};
+    face.elevation = {0.0f, 0.0f, 1.0f};
+    face.half_width_mm = in_plane.half_width_mm;
+    face.half_height_mm = float(0.5 * t.elevation_aperture_mm());
+    face.radius_mm = in_plane.radius_mm;
+    face.reflectivity = in_plane.reflectivity;
+    return face;
+}
 
 std::string to_string(PhysicsMode mode) {
     return mode == PhysicsMode::acoustic ? "acoustic" : "paper";

@@ -10,6 +10,8 @@
 
 #include <glm/glm.hpp>
 
+#include "probe/transducer.h"
+
 namespace sonotrace::simulator {
 
 enum class PhysicsMode {
@@ -38,12 +40,20 @@ struct ProbeFace {
     glm::vec<Dim, float> normal{0.0f};  // unit, pointing into the tissue
     float half_width_mm = 0.0f;         // lateral half aperture
     float half_height_mm = 0.0f;        // elevation half aperture (3D)
-    // 2D: radius of curvature of a convex face (0 = flat). The face is then the arc of
-    // that radius through `centre`, bulging along `normal`, with half_width_mm of arc
-    // length on either side.
+    // 3D: the array's elevation axis (unit, across `normal`); lateral = normal x elevation.
+    glm::vec3 elevation{0.0f, 0.0f, 1.0f};
+    // Radius of curvature of a convex face (0 = flat). The face is then the arc of that
+    // radius through `centre`, bulging along `normal`, with half_width_mm of arc length on
+    // either side; in 3D that arc swept along the elevation axis (a cylinder's patch).
     float radius_mm = 0.0f;
     float reflectivity = 0.0f;  // intensity fraction the face reflects (0..1)
 };
+
+// The face of a transducer's array in the probe frame (x lateral, y axial, z elevation)
+// shifted by `to_map`: its whole length (the arc of a convex or radial array) and, in 3D,
+// its elements' height.
+ProbeFace<2> probe_face(const probe::Transducer& t, const glm::dvec2& to_map);
+ProbeFace<3> probe_face(const probe::Transducer& t, const glm::dvec3& to_map);
 
 // A detector on a circle (2D) in the map frame: energy of particles leaving the circle
 // is binned by polar angle over [0, 180] degrees, measured from `zero_direction`

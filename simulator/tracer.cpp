@@ -1181,20 +1181,45 @@ class LineTracer {
             return settings_.probe_face_3d ? &*settings_.probe_face_3d : nullptr;
     }
 
+    // The axis a convex face curves about: through the centre of its arc, along the
+    // elevation in 3D (a 2D face's arc lies in the plane).
+    static V arc_centre(const ProbeFace<Dim>& face) {
+        return face.centre - face.normal * face.radius_mm;
+    }
+    // The part of an offset from the arc's axis that lies across it (all of it in 2D).
+    static V across_axis(const ProbeFace<Dim>& face, const V& rel) {
+        if constexpr (Dim == 2) {
+            (void)face;
+            return rel;
+        } else {
+            return rel - face.elevation * glm::dot(rel, face.elevation);
+        }
+    }
+    static float elevation_offset(const ProbeFace<Dim>& face, const V& offset) {
+        if constexpr (Dim == 2) {
+            (void)face, (void)offset;
+            return 0.0f;
+        } else {
+            return glm::dot(offset, face.elevation);
+        }
+    }
+
     // True if the step from -> to enters the face from the tissue side within its aperture.
     static bool crosses_face(const ProbeFace<Dim>& face, const V& from, const V& to) {
-        if constexpr (Dim == 2) {
-            if (face.radius_mm > 0.0f) {  // convex arc: from outside its circle to inside
-                const V centre = face.centre - face.normal * face.radius_mm;
-                const float r2 = face.radius_mm * face.radius_mm;
-                const V rel = to - centre;
-                if (!(glm::dot(from - centre, from - centre) >= r2 && glm::dot(rel, rel) < r2))
-                    return false;
-                const float angle =
-                    std::atan2(std::abs(face.normal.x * rel.y - face.normal.y * rel.x),
-                               glm::dot(face.normal, rel));
-                return angle * face.radius_mm <= face.half_width_mm;
-            }
+        if (face.radius_mm > 0.0f) {  // convex: from outside its cylinder (2D: circle) to inside
+            const V centre = arc_centre(face);
+            const float r2 = face.radius_mm * face.radius_mm;
+            const V rel = across_axis(face, to - centre), before = across_axis(face, from - centre);
+            if (!(glm::dot(before, before) >= r2 && glm::dot(rel, rel) < r2)) return false;
+            // Arc length from the face's centre: the angle between rel and the normal.
+            float aside;
+            if constexpr (Dim == 2)
+                aside = std::abs(face.normal.x * rel.y - face.normal.y * rel.x);
+            else
+                aside = glm::length(glm::cross(face.normal, rel));
+            const float angle = std::atan2(aside, glm::dot(face.normal, rel));
+            return angle * face.radius_mm <= face.half_width_mm &&
+                   std::abs(elevation_offset(face, to - face.centre)) <= face.half_height_mm;
         }
         const float before = glm::dot(from - face.centre, face.normal);
         const float after = glm::dot(to - face.centre, face.normal);
@@ -1202,11 +1227,7 @@ class LineTracer {
     }
 
     static V face_normal_at(const ProbeFace<Dim>& face, const V& x) {
-        if constexpr (Dim == 2) {
-            if (face.radius_mm > 0.0f)
-                return glm::normalize(x - (face.centre - face.normal * face.radius_mm));
-        }
-        (void)x;
+        if (face.radius_mm > 0.0f) return glm::normalize(across_axis(face, x - arc_centre(face)));
         return face.normal;
     }
 
@@ -1216,10 +1237,9 @@ class LineTracer {
             const V across(-face.normal.y, face.normal.x);
             return std::abs(glm::dot(offset, across)) <= face.half_width_mm;
         } else {
-            V b1, b2;
-            orthonormal_basis(face.normal, &b1, &b2);
-            return std::abs(glm::dot(offset, b1)) <= face.half_width_mm &&
-                   std::abs(glm::dot(offset, b2)) <= face.half_height_mm;
+            const V lateral = glm::cross(face.normal, face.elevation);
+            return std::abs(glm::dot(offset, lateral)) <= face.half_width_mm &&
+                   std::abs(glm::dot(offset, face.elevation)) <= face.half_height_mm;
         }
     }
 

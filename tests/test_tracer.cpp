@@ -571,6 +571,87 @@ Sources<3> fans_3d(int lines, int per_line, float tilt) {
     return src;
 }
 
+// A convex face (radius 10 mm, 6 mm of arc either side, 3D: 3.25 mm of height either
+// side) above lossless water, and particles coming straight back up at it on a grid of
+// lateral offsets dx and heights dz. Geometry alone says which are captured: a particle
+// meets the arc at the angle asin(dx / R), inside the aperture when R asin(|dx| / R) <= 6
+// mm (|dx| <= 5.646 mm) and |dz| <= 3.25 mm. The 2D face is the 3D face's cross-section.
+template <int Dim>
+void expect_convex_face_captures_by_its_geometry() {
+    constexpr double h = 0.5, radius = 10.0, half_width = 6.0, half_height = 3.25;
+    tissue::VolumeGeometry g;
+    g.dims = {60, 50, Dim == 3 ? 40 : 1};
+    g.spacing = glm::dvec3(h);
+    tissue::PropertyMaps maps;
+    for (tissue::Volume& f : maps.fields) f = tissue::Volume(g);
+    const AcousticProperties water = lossless_medium(1500, 1000);
+    for (int p = 0; p < int(maps.fields.size()); ++p)
+        std::fill(maps.fields[std::size_t(p)].voxels().begin(),
+                  maps.fields[std::size_t(p)].voxels().end(), water[Property(p)]);
+    const auto map = tissue::AcousticMap<Dim>::build(maps);
+    using V = glm::vec<Dim, float>;
+    ProbeFace<Dim> face;
+    face.centre = V(0.0f);
+    face.centre.x = 15.0f;
+    face.centre.y = 5.0f;
+    if constexpr (Dim == 3) face.centre.z = 10.0f;
+    face.normal = V(0.0f);
+    face.normal.y = 1.0f;
+    face.half_width_mm = float(half_width);
+    face.half_height_mm = float(half_height);
+    face.radius_mm = float(radius);
+    TraceSettings s = interfaces_only_settings();
+    s.absorption = false;
+    s.probe_face_3d.reset();
+    if constexpr (Dim == 2)
+        s.probe_face_2d = face;
+    else
+        s.probe_face_3d = face;
+    Sources<Dim> src;
+    int expected = 0;
+    const std::vector<double> heights =
+        Dim == 3 ? std::vector<double>{-4.0, -3.5, -3.0, -1.0, 0.0, 2.0, 3.0, 3.5, 4.0}
+                 : std::vector<double>{0.0};
+    for (double dx = -7.0; dx <= 7.0; dx += 0.5)
+        for (double dz : heights) {
+            V at(0.0f), up(0.0f);
+            at.x = float(15.0 + dx);
+            at.y = 20.0f;
+            if constexpr (Dim == 3) at.z = float(10.0 + dz);
+            up.y = -1.0f;
+            src.push_back({at, up, 1.0f, uint32_t(src.size())});
+            if (std::abs(dx) < radius && radius * std::asin(std::abs(dx) / radius) <= half_width &&
+                std::abs(dz) <= half_height)
+                ++expected;
+        }
+    const auto result = trace(map, src, s);
+    EXPECT_EQ(int(result.stats.captured), expected) << Dim << "D, of " << src.size();
+    EXPECT_GT(expected, 0);
+}
+
+TEST(Tracer, AConvexFaceCapturesByItsGeometry) {
+    expect_convex_face_captures_by_its_geometry<2>();
+}
+TEST(Tracer3D, AConvexFaceCapturesThroughItsCylinderWithinItsHeight) {
+    expect_convex_face_captures_by_its_geometry<3>();
+}
+
+// The faces built from a transducer: a convex preset's is its arc (radius and length),
+// with the elements' height in 3D; the 3D face's cross-section is the 2D face.
+TEST(Tracer3D, ATransducersFaceIsItsArcSweptOverTheElementHeight) {
+    const probe::Transducer t = probe::find_transducer("convex", "test");
+    const ProbeFace<2> flat = probe_face(t, glm::dvec2(30.0, 1.0));
+    const ProbeFace<3> face = probe_face(t, glm::dvec3(30.0, 1.0, 12.0));
+    EXPECT_FLOAT_EQ(flat.radius_mm, float(t.radius_mm));
+    EXPECT_FLOAT_EQ(flat.half_width_mm, float(0.5 * t.elements * t.pitch_mm));
+    EXPECT_EQ(face.radius_mm, flat.radius_mm);
+    EXPECT_EQ(face.half_width_mm, flat.half_width_mm);
+    EXPECT_FLOAT_EQ(face.half_height_mm, float(0.5 * t.elevation_aperture_mm()));
+    EXPECT_EQ(glm::vec2(face.centre), flat.centre);
+    EXPECT_EQ(face.centre.z, 12.0f);
+    EXPECT_EQ(face.reflectivity, flat.reflectivity);
+}
+
 TEST(Tracer, VectorStepsTakeTheScalarStepsPaths) {
     expect_vector_steps_take_scalar_paths(textured_tissue<2>(160, 0.25), fans_2d(6, 150, 0.15f));
 }

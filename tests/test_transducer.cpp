@@ -168,6 +168,66 @@ TEST(Beams, ConvergeOnTheFocusWithGaussianWaist) {
     EXPECT_LT(chi_square(counts, std::vector<double>(bins, 1.0 / bins), n), 37.70);  // 15 dof
 }
 
+// 3D beams (make_beams_3d): in the scan plane each particle is its 2D twin (same start,
+// same heading once the elevation component is removed, same line and energy); in
+// elevation the starts are uniform over the elements' height (chi-square, 10 bins) and
+// the heights where particles cross the elevation focus follow N(0, sigma) with FWHM =
+// slice thickness (chi-square, 16 bins), for every array type.
+TEST(Beams, ThreeDBeamsAreTheTwoDBeamsWithAnElevationLens) {
+    for (const char* preset : {"linear", "convex", "phased", "radial"}) {
+        Transducer t = probe::find_transducer(preset, "x");
+        t.lines = 8;
+        const probe::BeamSettings settings{300, 5};
+        const glm::dvec3 to_map(10.0, 2.0, 7.0);
+        const auto flat = probe::make_beams(t, settings, {to_map.x, to_map.y});
+        const auto beams = probe::make_beams_3d(t, settings, to_map);
+        ASSERT_EQ(beams.size(), flat.size()) << preset;
+        const double half_height = 0.5 * t.elevation_aperture_mm();
+        const double sigma = t.slice_thickness_mm / (2.0 * std::sqrt(2.0 * std::log(2.0)));
+        const int start_bins = 10, aim_bins = 16;
+        std::vector<int> starts(start_bins, 0), aims(aim_bins, 0);
+        for (std::size_t k = 0; k < beams.size(); ++k) {
+            const auto& b = beams[k];
+            const auto& f = flat[k];
+            EXPECT_EQ(b.position.x, f.position.x);
+            EXPECT_EQ(b.position.y, f.position.y);
+            EXPECT_EQ(b.line, f.line);
+            EXPECT_EQ(b.energy, f.energy);
+            const glm::dvec2 in_plane = glm::normalize(glm::dvec2(b.direction.x, b.direction.y));
+            EXPECT_NEAR(in_plane.x, f.direction.x, 1e-6);
+            EXPECT_NEAR(in_plane.y, f.direction.y, 1e-6);
+            // The lens: a height z starts sqrt(F^2 + z^2) - F earlier than its twin.
+            const double z = b.position.z - to_map.z;
+            const double lens_s =
+                (std::hypot(t.elevation_focus_mm, z) - t.elevation_focus_mm) / 1540e3;
+            EXPECT_NEAR(b.time_s, f.time_s - lens_s, 1e-9);
+            ASSERT_LE(std::abs(z), half_height + 1e-6);
+            starts[std::min(start_bins - 1,
+                            int((z + half_height) / (2 * half_height) * start_bins))]++;
+            // Height after elevation_focus mm travelled in the scan plane.
+            const double in_plane_length = std::hypot(b.direction.x, b.direction.y);
+            const double at_focus = z + t.elevation_focus_mm * b.direction.z / in_plane_length;
+            const double u = 0.5 * std::erfc(-at_focus / sigma / std::numbers::sqrt2);
+            aims[std::min(aim_bins - 1, int(u * aim_bins))]++;
+        }
+        const int n = int(beams.size());
+        // p = 0.001 critical values: 27.88 (9 dof), 37.70 (15 dof); stratified draws are
+        // more even than chance, so the bounds are conservative.
+        EXPECT_LT(chi_square(starts, std::vector<double>(start_bins, 1.0 / start_bins), n), 27.88)
+            << preset;
+        EXPECT_LT(chi_square(aims, std::vector<double>(aim_bins, 1.0 / aim_bins), n), 37.70)
+            << preset;
+    }
+}
+
+// The elements' height from the presets' own numbers (probe/transducer.cpp: slice
+// thickness = wavelength x F / height, with the datasheet heights 5, 13.5 and 14 mm).
+TEST(Transducer, ElevationApertureIsTheLensThatGivesTheSliceThickness) {
+    EXPECT_NEAR(probe::find_transducer("linear", "x").elevation_aperture_mm(), 5.0, 0.05);
+    EXPECT_NEAR(probe::find_transducer("convex", "x").elevation_aperture_mm(), 13.5, 0.1);
+    EXPECT_NEAR(probe::find_transducer("phased", "x").elevation_aperture_mm(), 14.0, 0.1);
+}
+
 // The radial array (probe/arrays/radial.cpp). Expectations from the ring's geometry
 // alone: a circle of radius R centred at (0, -R), lines leaving it along its radii every
 // 2 pi / L, and a ring that looks the same from every line (rotational symmetry).
