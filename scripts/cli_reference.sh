@@ -11,7 +11,7 @@ check=0
 if [ "${1:-}" = "--check" ]; then check=1; shift; fi
 binary="${1:-build/sonotrace}"
 [ -x "$binary" ] || { echo "cli_reference: no executable '$binary' (build first)" >&2; exit 1; }
-commands="tissue trace simulate validate render"
+commands="tissue trace simulate validate render dataset"
 
 page() {  # COMMAND ('' = the top level)
   local title="sonotrace${1:+ $1}"

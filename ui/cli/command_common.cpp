@@ -45,7 +45,7 @@ void StageTimer::end() {
 ProgressBar::ProgressBar(std::string label, bool quiet)
     : label_(std::move(label)), quiet_(quiet), terminal_(isatty(fileno(stderr)) == 1) {}
 
-void ProgressBar::update(std::size_t done, std::size_t total) {
+void ProgressBar::update(std::size_t done, std::size_t total, const std::string& note) {
     if (quiet_ || total == 0) return;
     std::lock_guard<std::mutex> lock(mutex_);
     if (!terminal_) {
@@ -53,15 +53,17 @@ void ProgressBar::update(std::size_t done, std::size_t total) {
         const int quarter = int(4 * done / total);
         if (quarter == last_drawn_ || (quarter == 0 && done != total)) return;
         last_drawn_ = quarter;
-        std::fprintf(stderr, "sonotrace: %s %zu/%zu\n", label_.c_str(), done, total);
+        std::fprintf(stderr, "sonotrace: %s %zu/%zu%s%s\n", label_.c_str(), done, total,
+                     note.empty() ? "" : ", ", note.c_str());
         return;
     }
     const int filled = int(30 * done / total);
-    if (filled == last_drawn_ && done != total) return;
+    if (filled == last_drawn_ && done != total && note.empty()) return;
     last_drawn_ = filled;
-    std::fprintf(stderr, "\rsonotrace: %s [%s%s] %zu/%zu", label_.c_str(),
+    std::fprintf(stderr, "\rsonotrace: %s [%s%s] %zu/%zu%s%s\033[K", label_.c_str(),
                  std::string(std::size_t(filled), '#').c_str(),
-                 std::string(std::size_t(30 - filled), '.').c_str(), done, total);
+                 std::string(std::size_t(30 - filled), '.').c_str(), done, total,
+                 note.empty() ? "" : "  ", note.c_str());
     std::fflush(stderr);
 }
 

@@ -69,7 +69,8 @@ class StageTimer : public base::StageObserver {
 class ProgressBar {
   public:
     ProgressBar(std::string label, bool quiet);
-    void update(std::size_t done, std::size_t total);
+    // `note` follows the counts (a rate, the time left).
+    void update(std::size_t done, std::size_t total, const std::string& note = "");
     void finish();
 
   private:

@@ -6,6 +6,7 @@
 #include "sonotrace_version.h"
 #include "tissue/base/error.h"
 #include "tissue/base/memory.h"
+#include "ui/cli/dataset_command.h"
 #include "ui/cli/render_command.h"
 #include "ui/cli/simulate_command.h"
 #include "ui/cli/tissue_command.h"
@@ -34,6 +35,8 @@ int main(int argc, char** argv) {
     CLI::App* validate_cmd = ui::add_validate_command(app, validate_options);
     ui::RenderOptions render_options;
     CLI::App* render_cmd = ui::add_render_command(app, render_options);
+    ui::DatasetOptions dataset_options;
+    CLI::App* dataset_cmd = ui::add_dataset_command(app, dataset_options);
 
     ui::refuse_non_finite_numbers(app);
 
@@ -50,6 +53,7 @@ int main(int argc, char** argv) {
         if (simulate_cmd->parsed()) return ui::run_simulate_command(simulate_options);
         if (validate_cmd->parsed()) return ui::run_validate_command(validate_options);
         if (render_cmd->parsed()) return ui::run_render_command(render_options);
+        if (dataset_cmd->parsed()) return ui::run_dataset_command(dataset_options);
     } catch (const base::InputError& e) {
         ui::StageTimer::break_line();
         std::cerr << "sonotrace: error: " << e.what() << "\n";

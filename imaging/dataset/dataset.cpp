@@ -1,0 +1,105 @@
+#include "imaging/dataset/dataset.h"
+
+#include <cstdio>
+#include <filesystem>
+
+#include "imaging/dataset/frames.h"
+#include "imaging/dataset/shard.h"
+#include "sonotrace_version.h"
+#include "tissue/base/atomic_output.h"
+#include "tissue/base/error.h"
+#include "tissue/tissue_table.h"
+
+namespace sonotrace::imaging::dataset {
+
+std::string shard_path(const std::string& dir, uint64_t shard) {
+    char name[32];
+    std::snprintf(name, sizeof name, "shard_%05llu.h5", static_cast<unsigned long long>(shard));
+    return (std::filesystem::path(dir) / name).string();
+}
+
+namespace {
+
+nlohmann::json manifest(const Spec& spec) {
+    nlohmann::json shards = nlohmann::json::array(), sources = nlohmann::json::array();
+    for (uint64_t k = 0; k < spec.shards(); ++k)
+        shards.push_back(std::filesystem::path(shard_path("", k)).filename().string());
+    for (const SourceSpec& s : spec.sources) sources.push_back(s.label);
+    nlohmann::json legend = {{"0", "outside the scanned region"}};
+    for (std::size_t i = 0; i < tissue::tissue_table().size(); ++i)
+        legend[std::to_string(i + 1)] = tissue::tissue_label_name(int(i) + 1);
+    char digest[24];
+    std::snprintf(digest, sizeof digest, "%016llx", static_cast<unsigned long long>(spec.digest()));
+    return {{"version", SONOTRACE_VERSION},
+            {"spec", nlohmann::json::parse(spec.canonical)},
+            {"spec_digest", digest},
+            {"frames", spec.frames},
+            {"frames_per_shard", spec.frames_per_shard},
+            {"image", {{"width", spec.width}, {"height", spec.height}}},
+            {"shards", shards},
+            {"sources", sources},
+            {"labels", legend},
+            {"layout",
+             "each shard: bmode and labels uint8 [n, height, width]; frames: a table of n rows "
+             "(index, seed, source = index into sources, probe, frequency_mhz, depth_mm, "
+             "focus_mm, gain_db, dynamic_range_db, position, lateral, axial, elevation in "
+             "world mm, pixel_mm, origin_mm = probe-plane position of pixel (0, 0) as "
+             "(lateral, depth), valid_width, valid_height = the scanned grid in the top-left "
+             "corner); envelope, rf, energy: float32 per frame under /<name>/<index>"}};
+}
+
+}  // namespace
+
+RunReport make_dataset(const Spec& spec, const RunOptions& options) {
+    RunReport report;
+    // -- what is there already: complete shards of this spec are kept, others refused
+    std::vector<uint64_t> missing;
+    for (uint64_t k = 0; k < spec.shards(); ++k) {
+        const std::string path = shard_path(options.out_dir, k);
+        if (!std::filesystem::exists(path)) {
+            missing.push_back(k);
+            continue;
+        }
+        const auto digest = shard_digest(path);
+        if (!digest || *digest != spec.digest())
+            throw base::InputError(path, "spec_digest",
+                                   "is not a shard of this spec: make the dataset in another "
+                                   "--out, or remove the old shards");
+        ++report.shards_kept;
+    }
+    // -- the missing shards, frame by frame
+    uint64_t total = 0, done = 0;
+    for (uint64_t k : missing)
+        total += std::min(spec.frames, (k + 1) * spec.frames_per_shard) - k * spec.frames_per_shard;
+    if (!missing.empty()) {
+        const FrameMaker maker(spec);
+        for (uint64_t k : missing) {
+            const uint64_t first = k * spec.frames_per_shard;
+            const uint64_t end = std::min(spec.frames, first + spec.frames_per_shard);
+            std::vector<DatasetFrame> frames;
+            for (uint64_t i = first; i < end; ++i) {
+                if (options.stop && options.stop()) {
+                    report.stopped = true;
+                    return report;
+                }
+                frames.push_back(maker.make(i));
+                ++done;
+                if (options.progress) options.progress(done, total);
+            }
+            base::OutputTransaction transaction;
+            const std::string path = shard_path(options.out_dir, k);
+            write_shard(transaction.stage(path), path, spec, k, frames);
+            transaction.commit();
+            ++report.shards_written;
+        }
+    }
+    // -- the manifest, once every shard is there
+    base::OutputTransaction transaction;
+    report.manifest = (std::filesystem::path(options.out_dir) / "manifest.json").string();
+    const std::string text = manifest(spec).dump(2) + "\n";
+    base::write_file(transaction.stage(report.manifest), text.data(), text.size());
+    transaction.commit();
+    return report;
+}
+
+}  // namespace sonotrace::imaging::dataset

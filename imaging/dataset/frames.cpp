@@ -1,0 +1,114 @@
+#include "imaging/dataset/frames.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "tissue/base/error.h"
+
+namespace sonotrace::imaging::dataset {
+
+namespace {
+
+// The transducer of a frame: the preset with the drawn parameters (0 = the preset's).
+probe::Transducer transducer_of(const std::string& preset, double frequency_mhz, double depth_mm,
+                                double focus_mm, const std::string& source) {
+    probe::Transducer t = probe::find_transducer(preset, source);
+    if (frequency_mhz > 0.0) t.frequency_mhz = frequency_mhz;
+    if (depth_mm > 0.0) t.depth_mm = depth_mm;
+    if (focus_mm > 0.0) t.focus_mm = focus_mm;
+    return t;
+}
+
+}  // namespace
+
+FrameMaker::FrameMaker(const Spec& spec) : spec_(spec) {
+    for (std::size_t n = 0; n < spec_.sources.size(); ++n) {
+        try {
+            scenes_.push_back(load_scene(spec_.sources[n].scene));
+        } catch (const base::InputError& e) {
+            throw base::InputError(spec_.path, "sources[" + std::to_string(n) + "]", e.what());
+        }
+    }
+    // Every probe of every source at the corners of the ranges, before any frame: a
+    // focus beyond a depth the spec allows is found now, not at frame 90,000.
+    auto corners = [](const Range& r) {
+        return r.set ? std::vector<double>{r.low, r.high} : std::vector<double>{0.0};
+    };
+    for (std::size_t n = 0; n < scenes_.size(); ++n) {
+        const std::vector<std::string> presets =
+            spec_.probes.empty() ? std::vector<std::string>{scenes_[n]->probe_preset}
+                                 : spec_.probes;
+        for (const std::string& preset : presets)
+            for (double f : corners(spec_.frequency_mhz))
+                for (double d : corners(spec_.depth_mm))
+                    for (double focus : corners(spec_.focus_mm)) {
+                        const std::string where =
+                            "sources[" + std::to_string(n) + "] with probe " + preset +
+                            (d > 0 ? ", depth " + std::to_string(d) : "") +
+                            (focus > 0 ? ", focus " + std::to_string(focus) : "");
+                        transducer_of(preset, f, d, focus, spec_.path)
+                            .validate(spec_.path + " (" + where + ")");
+                    }
+    }
+}
+
+DatasetFrame FrameMaker::make(uint64_t index) const {
+    DatasetFrame out;
+    out.draw = draw_frame(spec_, index);
+    const FrameDraw& d = out.draw;
+    const Scene& scene = *scenes_[std::size_t(d.source)];
+    const std::string where = "frame " + std::to_string(index);
+    // -- the probe: the drawn preset and parameters, checked as every transducer is
+    const probe::Transducer t = transducer_of(d.probe.empty() ? scene.probe_preset : d.probe,
+                                              d.frequency_mhz, d.depth_mm, d.focus_mm, spec_.path);
+    t.validate(spec_.path + " (" + where + ")");
+    out.transducer = t;
+    // -- the pose: moved and turned about the source's start, laid back on the surface
+    probe::Pose pose = scene.start.pose;
+    pose.position += d.lateral_mm * pose.lateral() + d.elevation_mm * pose.elevation();
+    pose = scene.settle(pose.rotated(d.rotation_deg).tilted(d.tilt_deg));
+    scene.require_inside(pose, spec_.path + " (" + where + ", pose)");
+    out.pose = pose;
+    ScenePlacement placement = scene.start;
+    placement.pose = pose;
+    // -- settings as `sonotrace simulate` makes them
+    SimulationSettings s;
+    s.transducer = t;
+    s.quality = spec_.quality;
+    s.seed = d.seed;
+    apply(disabled_physics(spec_.disable, spec_.path, "disable"), s);
+    s.trace.deposition_maps = spec_.write_energy;
+    s.imaging.gain_db = d.gain_db;
+    s.imaging.dynamic_range_db = d.dynamic_range_db;
+    // The CLI's automatic TGC: the two-way attenuation of brain, 0.6 dB/(cm MHz).
+    s.imaging.tgc = {{0.0, 0.0}, {t.depth_mm, 2.0 * 0.6 * t.frequency_mhz * t.depth_mm / 10.0}};
+    // Pixels that fit the scanned region into W x H.
+    const auto [lo, hi] = probe::ScanGeometry(t).bounds();
+    s.imaging.pixel_mm =
+        std::max((hi.x - lo.x) / (spec_.width - 1), (hi.y - lo.y) / (spec_.height - 1)) *
+        (1.0 + 1e-9);
+    scene.apply_to(s);
+    s.validate(spec_.path + " (" + where + ")");
+    SimulatedFrame simulated = simulate_plane(scene.mapper, placement, s, spec_.write_labels);
+    Frame& frame = simulated.frame;
+    // -- onto the W x H grid
+    const ScanConverted& image = frame.image;
+    out.pixel_mm = image.pixel_mm;
+    out.origin_mm = image.origin;
+    out.valid_width = std::min(image.image.cols, spec_.width);
+    out.valid_height = std::min(image.image.rows, spec_.height);
+    const cv::Rect valid(0, 0, out.valid_width, out.valid_height);
+    out.bmode = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
+    for (int y = 0; y < out.valid_height; ++y)
+        for (int x = 0; x < out.valid_width; ++x)
+            out.bmode.at<uint8_t>(y, x) =
+                uint8_t(std::clamp(std::round(image.image.at<float>(y, x) * 255.0f), 0.0f, 255.0f));
+    out.labels = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
+    if (simulated.labels) (*simulated.labels)(valid).copyTo(out.labels(valid));
+    out.envelope = std::move(frame.envelope);
+    out.rf = std::move(frame.rf);
+    out.energy = std::move(frame.absorbed);
+    return out;
+}
+
+}  // namespace sonotrace::imaging::dataset

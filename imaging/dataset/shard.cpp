@@ -1,0 +1,251 @@
+#include "imaging/dataset/shard.h"
+
+#include <hdf5.h>
+
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+
+#include "sonotrace_version.h"
+#include "tissue/base/error.h"
+
+namespace sonotrace::imaging::dataset {
+
+namespace {
+
+// An HDF5 identifier closed by its own close function.
+class Handle {
+  public:
+    Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+    ~Handle() {
+        if (id_ >= 0) close_(id_);
+    }
+    Handle(const Handle&) = delete;
+    Handle& operator=(const Handle&) = delete;
+    operator hid_t() const { return id_; }
+    bool ok() const { return id_ >= 0; }
+
+  private:
+    hid_t id_;
+    herr_t (*close_)(hid_t);
+};
+
+// One row of /frames; zeroed before filling so the padding is the same every time.
+struct FrameRow {
+    uint64_t index, seed;
+    int32_t source;
+    char probe[16];
+    double frequency_mhz, depth_mm, focus_mm, gain_db, dynamic_range_db;
+    double position[3], lateral[3], axial[3], elevation[3];
+    double pixel_mm, origin_mm[2];
+    int32_t valid_width, valid_height;
+};
+
+class ShardWriter {
+  public:
+    ShardWriter(const std::string& path, std::string name) : name_(std::move(name)) {
+        H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors become our messages
+        Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+        H5Pset_obj_track_times(fcpl, false);
+        file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, H5P_DEFAULT);
+        check(file_, "create");
+    }
+    ~ShardWriter() {
+        if (file_ >= 0) H5Fclose(file_);
+    }
+    void close() {
+        const herr_t status = H5Fclose(file_);
+        file_ = -1;
+        check(status, "close");
+    }
+
+    void check(hid_t status, const char* what) const {
+        if (status < 0)
+            throw base::InputError(
+                name_, "",
+                std::string("HDF5 could not ") + what + " the shard (is the disk full?)");
+    }
+
+    void attribute(const char* name, const std::string& text) {
+        Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+        H5Tset_size(type, std::max<std::size_t>(1, text.size()));
+        Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+        Handle a(H5Acreate2(file_, name, type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+        check(a, "write an attribute of");
+        check(H5Awrite(a, type, text.empty() ? "" : text.data()), "write an attribute of");
+    }
+    void attribute(const char* name, uint64_t value) {
+        Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+        Handle a(H5Acreate2(file_, name, H5T_STD_U64LE, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+        check(a, "write an attribute of");
+        check(H5Awrite(a, H5T_NATIVE_UINT64, &value), "write an attribute of");
+    }
+
+    // A dataset of `dims`, chunked as `chunk` (empty: contiguous), deflated when chunked.
+    void dataset(hid_t where, const char* name, hid_t file_type, hid_t memory_type,
+                 const std::vector<hsize_t>& dims, const std::vector<hsize_t>& chunk,
+                 const void* data) {
+        Handle space(H5Screate_simple(int(dims.size()), dims.data(), nullptr), H5Sclose);
+        Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+        H5Pset_obj_track_times(dcpl, false);
+        if (!chunk.empty()) {
+            H5Pset_chunk(dcpl, int(chunk.size()), chunk.data());
+            H5Pset_deflate(dcpl, 4);
+        }
+        Handle d(H5Dcreate2(where, name, file_type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+                 H5Dclose);
+        check(d, "create a dataset in");
+        check(H5Dwrite(d, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "write");
+    }
+
+    hid_t group(const char* name) {
+        Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+        H5Pset_obj_track_times(gcpl, false);
+        const hid_t g = H5Gcreate2(file_, name, H5P_DEFAULT, gcpl, H5P_DEFAULT);
+        check(g, "create a group in");
+        return g;
+    }
+
+    hid_t file() const { return file_; }
+
+  private:
+    std::string name_;
+    hid_t file_ = -1;
+};
+
+// The /frames row type in memory and, packed, in the file.
+hid_t frame_row_type() {
+    const hid_t t = H5Tcreate(H5T_COMPOUND, sizeof(FrameRow));
+    const hsize_t three = 3, two = 2;
+    const hid_t vec3 = H5Tarray_create2(H5T_NATIVE_DOUBLE, 1, &three);
+    const hid_t vec2 = H5Tarray_create2(H5T_NATIVE_DOUBLE, 1, &two);
+    const hid_t name = H5Tcopy(H5T_C_S1);
+    H5Tset_size(name, sizeof(FrameRow::probe));
+    H5Tinsert(t, "index", HOFFSET(FrameRow, index), H5T_NATIVE_UINT64);
+    H5Tinsert(t, "seed", HOFFSET(FrameRow, seed), H5T_NATIVE_UINT64);
+    H5Tinsert(t, "source", HOFFSET(FrameRow, source), H5T_NATIVE_INT32);
+    H5Tinsert(t, "probe", HOFFSET(FrameRow, probe), name);
+    H5Tinsert(t, "frequency_mhz", HOFFSET(FrameRow, frequency_mhz), H5T_NATIVE_DOUBLE);
+    H5Tinsert(t, "depth_mm", HOFFSET(FrameRow, depth_mm), H5T_NATIVE_DOUBLE);
+    H5Tinsert(t, "focus_mm", HOFFSET(FrameRow, focus_mm), H5T_NATIVE_DOUBLE);
+    H5Tinsert(t, "gain_db", HOFFSET(FrameRow, gain_db), H5T_NATIVE_DOUBLE);
+    H5Tinsert(t, "dynamic_range_db", HOFFSET(FrameRow, dynamic_range_db), H5T_NATIVE_DOUBLE);
+    H5Tinsert(t, "position", HOFFSET(FrameRow, position), vec3);
+    H5Tinsert(t, "lateral", HOFFSET(FrameRow, lateral), vec3);
+    H5Tinsert(t, "axial", HOFFSET(FrameRow, axial), vec3);
+    H5Tinsert(t, "elevation", HOFFSET(FrameRow, elevation), vec3);
+    H5Tinsert(t, "pixel_mm", HOFFSET(FrameRow, pixel_mm), H5T_NATIVE_DOUBLE);
+    H5Tinsert(t, "origin_mm", HOFFSET(FrameRow, origin_mm), vec2);
+    H5Tinsert(t, "valid_width", HOFFSET(FrameRow, valid_width), H5T_NATIVE_INT32);
+    H5Tinsert(t, "valid_height", HOFFSET(FrameRow, valid_height), H5T_NATIVE_INT32);
+    H5Tclose(vec3);
+    H5Tclose(vec2);
+    H5Tclose(name);
+    return t;
+}
+
+void copy3(double* to, const glm::dvec3& v) {
+    to[0] = v.x, to[1] = v.y, to[2] = v.z;
+}
+
+}  // namespace
+
+void write_shard(const std::string& path, const std::string& output_name, const Spec& spec,
+                 uint64_t shard, const std::vector<DatasetFrame>& frames) {
+    ShardWriter w(path, output_name);
+    const hsize_t n = frames.size(), h = hsize_t(spec.height), wd = hsize_t(spec.width);
+    auto stack = [&](const char* name, cv::Mat DatasetFrame::*image) {
+        std::vector<uint8_t> pixels(n * h * wd);
+        for (std::size_t f = 0; f < frames.size(); ++f) {
+            const cv::Mat& m = frames[f].*image;
+            for (int y = 0; y < spec.height; ++y)
+                std::memcpy(&pixels[(f * h + hsize_t(y)) * wd], m.ptr<uint8_t>(y), wd);
+        }
+        w.dataset(w.file(), name, H5T_STD_U8LE, H5T_NATIVE_UINT8, {n, h, wd}, {1, h, wd},
+                  pixels.data());
+    };
+    if (spec.write_bmode) stack("bmode", &DatasetFrame::bmode);
+    if (spec.write_labels) stack("labels", &DatasetFrame::labels);
+
+    std::vector<FrameRow> rows(frames.size());
+    for (std::size_t f = 0; f < frames.size(); ++f) {
+        const DatasetFrame& fr = frames[f];
+        FrameRow& r = rows[f];
+        std::memset(&r, 0, sizeof r);
+        r.index = fr.draw.index;
+        r.seed = fr.draw.seed;
+        r.source = fr.draw.source;
+        std::snprintf(r.probe, sizeof r.probe, "%s", fr.transducer.name.c_str());
+        r.frequency_mhz = fr.transducer.frequency_mhz;
+        r.depth_mm = fr.transducer.depth_mm;
+        r.focus_mm = fr.transducer.focus_mm;
+        r.gain_db = fr.draw.gain_db;
+        r.dynamic_range_db = fr.draw.dynamic_range_db;
+        copy3(r.position, fr.pose.position);
+        copy3(r.lateral, fr.pose.lateral());
+        copy3(r.axial, fr.pose.axial());
+        copy3(r.elevation, fr.pose.elevation());
+        r.pixel_mm = fr.pixel_mm;
+        r.origin_mm[0] = fr.origin_mm.x;
+        r.origin_mm[1] = fr.origin_mm.y;
+        r.valid_width = fr.valid_width;
+        r.valid_height = fr.valid_height;
+    }
+    {
+        Handle memory(frame_row_type(), H5Tclose);
+        Handle packed(H5Tcopy(memory), H5Tclose);
+        H5Tpack(packed);
+        w.dataset(w.file(), "frames", packed, memory, {n}, {}, rows.data());
+    }
+    auto per_frame = [&](const char* group, auto&& data_of) {
+        Handle g(w.group(group), H5Gclose);
+        for (const DatasetFrame& fr : frames) {
+            const auto [values, rows_count, cols] = data_of(fr);
+            char name[32];
+            std::snprintf(name, sizeof name, "%08llu",
+                          static_cast<unsigned long long>(fr.draw.index));
+            const std::vector<hsize_t> dims = {hsize_t(rows_count), hsize_t(cols)};
+            const bool empty = rows_count == 0 || cols == 0;  // chunks must not be empty
+            w.dataset(g, name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims,
+                      empty ? std::vector<hsize_t>{} : dims, values);
+        }
+    };
+    struct Array {
+        const float* values;
+        int rows, cols;
+    };
+    if (spec.write_envelope)
+        per_frame("envelope", [](const DatasetFrame& f) {
+            return Array{f.envelope.values.data(), f.envelope.lines, f.envelope.samples};
+        });
+    if (spec.write_rf)
+        per_frame("rf", [](const DatasetFrame& f) {
+            return Array{f.rf.values.data(), f.rf.lines, f.rf.samples};
+        });
+    if (spec.write_energy)
+        per_frame("energy", [](const DatasetFrame& f) {
+            return Array{f.energy.voxels().data(), f.energy.dims().y, f.energy.dims().x};
+        });
+
+    w.attribute("spec", spec.canonical);
+    w.attribute("spec_digest", spec.digest());
+    w.attribute("shard", shard);
+    w.attribute("first_frame", frames.empty() ? 0 : frames.front().draw.index);
+    w.attribute("frame_count", uint64_t(frames.size()));
+    w.attribute("version", std::string(SONOTRACE_VERSION));
+    w.close();
+}
+
+std::optional<uint64_t> shard_digest(const std::string& path) {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    if (H5Fis_hdf5(path.c_str()) <= 0) return std::nullopt;
+    Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!file.ok()) return std::nullopt;
+    Handle a(H5Aopen(file, "spec_digest", H5P_DEFAULT), H5Aclose);
+    uint64_t digest = 0;
+    if (!a.ok() || H5Aread(a, H5T_NATIVE_UINT64, &digest) < 0) return std::nullopt;
+    return digest;
+}
+
+}  // namespace sonotrace::imaging::dataset

@@ -1,0 +1,85 @@
+"""`sonotrace dataset` read back with h5py alone, as a training pipeline would: shapes,
+dtypes, the frame table, labels within the manifest's legend, and bad specs refused with
+exit status 1 and nothing written. Run by ctest (python.dataset_shards) with
+SONOTRACE_BINARY and SONOTRACE_SOURCE_DIR set."""
+import json
+import os
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+
+BINARY = os.environ["SONOTRACE_BINARY"]
+SOURCE = os.environ["SONOTRACE_SOURCE_DIR"]
+
+
+def make(tmp_path, spec, *args):
+    path = tmp_path / "spec.json"
+    path.write_text(json.dumps(spec))
+    out = tmp_path / "out"
+    run = subprocess.run([BINARY, "dataset", str(path), "--out", str(out), "-q", *args],
+                         capture_output=True, text=True)
+    return run, out
+
+
+def spec(**changes):
+    s = {
+        "frames": 3, "frames_per_shard": 2, "seed": 11,
+        "image": {"width": 40, "height": 32},
+        "sources": [{"phantom": SOURCE + "/phantoms/cyst_and_stone.json"}],
+        "depth_mm": [18, 22], "focus_mm": 15, "quality": "interactive",
+        "write": ["bmode", "labels", "rf"],
+    }
+    s.update(changes)
+    return s
+
+
+def test_shards_read_back_with_h5py(tmp_path):
+    run, out = make(tmp_path, spec())
+    assert run.returncode == 0, run.stderr
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["shards"] == ["shard_00000.h5", "shard_00001.h5"]
+    indices = []
+    for name, count in zip(manifest["shards"], [2, 1]):
+        with h5py.File(out / name, "r") as f:
+            assert f["bmode"].shape == (count, 32, 40) and f["bmode"].dtype == np.uint8
+            assert f["labels"].shape == (count, 32, 40) and f["labels"].dtype == np.uint8
+            rows = f["frames"][:]
+            assert len(rows) == count
+            indices += list(rows["index"])
+            # The scanned grid fits the image; its pixels are square and positive.
+            assert np.all(rows["valid_width"] <= 40) and np.all(rows["valid_height"] <= 32)
+            assert np.all(rows["pixel_mm"] > 0)
+            assert np.all((rows["depth_mm"] >= 18) & (rows["depth_mm"] <= 22))
+            assert np.all(rows["focus_mm"] == 15)
+            assert all(p == b"linear" for p in rows["probe"])
+            # Unit axes, lateral x axial = elevation (probe/pose.h).
+            for r in rows:
+                assert np.allclose(np.cross(r["lateral"], r["axial"]), r["elevation"])
+            legend = set(int(k) for k in manifest["labels"])
+            assert set(np.unique(f["labels"][:])) <= legend
+            assert f.attrs["frame_count"] == count
+            assert json.loads(f.attrs["spec"]) == manifest["spec"]
+            for row in rows:
+                rf = f["rf"]["%08d" % row["index"]]
+                assert rf.dtype == np.float32 and rf.ndim == 2 and rf.shape[0] > 0
+            # Pixels outside the scanned grid are 0, inside not all the same.
+            b = f["bmode"][0]
+            assert np.all(b[rows["valid_height"][0]:, :] == 0)
+            assert b[: rows["valid_height"][0], : rows["valid_width"][0]].std() > 1
+    assert indices == [0, 1, 2]
+
+
+@pytest.mark.parametrize("change,field", [
+    ({"frames": 0}, "frames"),
+    ({"write": ["bmode", "video"]}, "write[1]"),
+    ({"sources": [{"phantom": "missing.json"}]}, "sources[0].phantom"),
+    ({"depth_mm": [18, 22], "focus_mm": 30}, "focus"),
+    ({"extra": 1}, "extra"),
+])
+def test_bad_specs_exit_1_naming_the_field_and_write_nothing(tmp_path, change, field):
+    run, out = make(tmp_path, spec(**change))
+    assert run.returncode == 1, run.stderr
+    assert "spec.json" in run.stderr and field in run.stderr, run.stderr
+    assert not out.exists() or not any(out.iterdir())

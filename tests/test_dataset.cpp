@@ -1,0 +1,175 @@
+// `sonotrace dataset` (imaging/dataset): the spec and its errors, frame i as a pure
+// function of (spec, i) with chi-square checks of its draws, byte-identical shards on 1
+// and 2 threads, a stopped run resumed to the same bytes, and shards of another spec
+// refused.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "imaging/dataset/dataset.h"
+#include "imaging/dataset/frames.h"
+#include "imaging/dataset/shard.h"
+#include "test_util.h"
+
+namespace sonotrace::imaging::dataset {
+namespace {
+
+using test::chi_square;
+using test::expect_input_error;
+using test::ScratchDir;
+
+const std::string kPhantoms = SONOTRACE_SOURCE_DIR "/phantoms";
+
+nlohmann::json small_spec() {
+    return nlohmann::json::parse(R"({
+      "frames": 5, "frames_per_shard": 2, "seed": 3,
+      "image": {"width": 48, "height": 40},
+      "sources": [{"phantom": ")" +
+                                 kPhantoms + R"(/cyst_and_stone.json", "weight": 2},
+                  {"phantom": ")" +
+                                 kPhantoms + R"(/point_grid.json"}],
+      "depth_mm": [18, 24], "focus_mm": 15, "gain_db": [40, 56],
+      "pose": {"lateral_mm": 2, "rotation_deg": 4},
+      "quality": "interactive",
+      "write": ["bmode", "labels", "envelope"]
+    })");
+}
+
+std::string bytes_of(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+TEST(DatasetSpec, BadSpecsNameTheFileAndField) {
+    ScratchDir dir;
+    const std::string file = dir / "spec.json";
+    auto check = [&](const std::function<void(nlohmann::json&)>& edit, const std::string& field,
+                     const std::string& text) {
+        nlohmann::json j = small_spec();
+        edit(j);
+        std::ofstream(file) << j.dump();
+        expect_input_error([&] { read_spec(file); }, "spec.json", field, text);
+    };
+    check([](auto& j) { j["colour"] = 1; }, "colour", "unknown key");
+    check([](auto& j) { j.erase("frames"); }, "frames", "");
+    check([](auto& j) { j["frames"] = 2.5; }, "frames", "whole number");
+    check([](auto& j) { j["depth_mm"] = {30, 20}; }, "depth_mm", "low must not exceed high");
+    check([](auto& j) { j["gain_db"] = {40, "a"}; }, "gain_db", "");
+    check([](auto& j) { j["probes"] = {"sonar"}; }, "probes[0]", "");
+    check([](auto& j) { j["write"] = {"bmode", "video"}; }, "write[1]", "must be");
+    check([](auto& j) { j["sources"] = nlohmann::json::array(); }, "sources", "at least one");
+    check([](auto& j) { j["sources"][1]["phantom"] = "nothing.json"; }, "sources[1].phantom",
+          "no such file");
+    check([](auto& j) { j["sources"][0]["scene"] = "head-craniotomy"; }, "sources[0]",
+          "exactly one");
+    check([](auto& j) { j["sources"][0] = {{"scene", "head-side"}}; }, "sources[0].scene", "");
+    check([](auto& j) { j["disable"] = {"gravity"}; }, "disable", "");
+    check([](auto& j) { j["quality"] = "best"; }, "quality", "");
+    check([](auto& j) { j["pose"]["tilt_deg"] = 90; }, "pose.tilt_deg", "");
+}
+
+TEST(DatasetSpec, AFocusBeyondADepthTheSpecAllowsIsRefusedBeforeAnyFrame) {
+    nlohmann::json j = small_spec();
+    j.erase("focus_mm");  // the linear preset's 20 mm focus, beyond the 18 mm depth
+    expect_input_error([&] { FrameMaker maker(parse_spec(j, "spec.json")); }, "spec.json", "focus",
+                       "depth 18");
+}
+
+TEST(DatasetSpec, AFramesDrawsDependOnlyOnTheSeedAndItsIndex) {
+    Spec spec = parse_spec(small_spec(), "spec");
+    Spec larger = spec;
+    larger.frames = 1000;
+    larger.frames_per_shard = 7;
+    for (uint64_t i = 0; i < 5; ++i) {
+        const FrameDraw a = draw_frame(spec, i), b = draw_frame(larger, i);
+        EXPECT_EQ(a.seed, b.seed);
+        EXPECT_EQ(a.source, b.source);
+        EXPECT_EQ(a.depth_mm, b.depth_mm);
+        EXPECT_EQ(a.gain_db, b.gain_db);
+        EXPECT_EQ(a.lateral_mm, b.lateral_mm);
+    }
+    // Different frames, different seeds.
+    EXPECT_NE(draw_frame(spec, 0).seed, draw_frame(spec, 1).seed);
+}
+
+TEST(DatasetSpec, SourcesFollowTheirWeightsAndRangesAreUniform) {
+    // 6000 frames: the sources' counts against the weights 2:1 (1 dof, p = 0.001 critical
+    // value 10.83) and the depths against 10 equal bins of [18, 24] (9 dof: 27.88).
+    Spec spec = parse_spec(small_spec(), "spec");
+    const int n = 6000, bins = 10;
+    std::vector<int> sources(2, 0), depths(bins, 0);
+    for (int i = 0; i < n; ++i) {
+        const FrameDraw d = draw_frame(spec, uint64_t(i));
+        ++sources[std::size_t(d.source)];
+        ASSERT_GE(d.depth_mm, 18.0);
+        ASSERT_LT(d.depth_mm, 24.0);
+        ++depths[std::min(bins - 1, int((d.depth_mm - 18.0) / 6.0 * bins))];
+        ASSERT_LE(std::abs(d.lateral_mm), 2.0);
+        ASSERT_LE(std::abs(d.rotation_deg), 4.0);
+    }
+    EXPECT_LT(chi_square(sources, {2.0 / 3.0, 1.0 / 3.0}, n), 10.83);
+    EXPECT_LT(chi_square(depths, std::vector<double>(bins, 1.0 / bins), n), 27.88);
+}
+
+TEST(Dataset, ShardsAreByteIdenticalOnOneAndTwoThreadsAndResumeToTheSameBytes) {
+    ScratchDir dir;
+    const Spec spec = parse_spec(small_spec(), "spec");
+    ASSERT_EQ(spec.shards(), 3u);  // 2 + 2 + 1 frames
+    auto run = [&](const std::string& out, int threads, std::function<bool()> stop = {}) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                  std::size_t(threads));
+        RunOptions o;
+        o.out_dir = out;
+        o.stop = std::move(stop);
+        return make_dataset(spec, o);
+    };
+    const RunReport one = run(dir / "one", 1);
+    EXPECT_EQ(one.shards_written, 3u);
+    run(dir / "two", 2);
+    // Stopped after the third frame (its shard, the second, abandoned), then resumed.
+    int polls = 0;
+    const RunReport stopped = run(dir / "resumed", 2, [&] { return ++polls > 3; });
+    EXPECT_TRUE(stopped.stopped);
+    EXPECT_EQ(stopped.shards_written, 1u);
+    EXPECT_TRUE(std::filesystem::exists(shard_path(dir / "resumed", 0)));
+    EXPECT_FALSE(std::filesystem::exists(shard_path(dir / "resumed", 1)));
+    EXPECT_FALSE(std::filesystem::exists(dir / "resumed/manifest.json"));
+    const RunReport resumed = run(dir / "resumed", 2);
+    EXPECT_EQ(resumed.shards_kept, 1u);
+    EXPECT_EQ(resumed.shards_written, 2u);
+    for (const char* file :
+         {"shard_00000.h5", "shard_00001.h5", "shard_00002.h5", "manifest.json"}) {
+        const std::string reference = bytes_of(dir / (std::string("one/") + file));
+        ASSERT_FALSE(reference.empty()) << file;
+        EXPECT_TRUE(bytes_of(dir / (std::string("two/") + file)) == reference) << file;
+        EXPECT_TRUE(bytes_of(dir / (std::string("resumed/") + file)) == reference) << file;
+    }
+    // Nothing else in the directory: no temporaries left by the stopped run.
+    int entries = 0;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir / "resumed"))
+        ++entries;
+    EXPECT_EQ(entries, 4);
+
+    // Frames made alone, out of order, are the run's: shard 1 (frames 2 and 3) again.
+    const FrameMaker maker(spec);
+    const DatasetFrame third = maker.make(3), second = maker.make(2);
+    write_shard(dir / "alone.h5", "alone.h5", spec, 1, {second, third});
+    EXPECT_TRUE(bytes_of(dir / "alone.h5") == bytes_of(shard_path(dir / "one", 1)));
+
+    // Another spec into the same directory is refused, naming the shard.
+    nlohmann::json changed = small_spec();
+    changed["seed"] = 4;
+    const Spec other = parse_spec(changed, "other");
+    RunOptions o;
+    o.out_dir = dir / "one";
+    expect_input_error([&] { make_dataset(other, o); }, "shard_00000.h5", "spec_digest",
+                       "not a shard of this spec");
+}
+
+}  // namespace
+}  // namespace sonotrace::imaging::dataset
