@@ -8,7 +8,8 @@
 # Not run, by kind: the set-up script (the test command itself is `setup.sh test`), the
 # build commands (cmake, ctest: the build that runs this did them), the picture scripts
 # (they rewrite docs/images). The GUI runs headless under xvfb-run (--screenshot) until it
-# has shown two frames.
+# has shown two frames. ```python blocks run as one script each, after the commands
+# before them, with Debian's python3 (h5py, numpy).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root="$PWD"
@@ -24,11 +25,16 @@ for entry in "$root"/*; do
 done
 ln -s "$build" "$scratch/build"
 
-# The commands of the ```sh blocks, continuation lines joined, one per line.
+# The commands of the ```sh blocks, continuation lines joined, one per line; a ```python
+# block becomes one line "python: <its lines joined by \x1f>".
 commands() {
-  awk '/^```sh$/ {inside = 1; next} /^```/ {inside = 0; next}
+  awk '/^```sh$/ {inside = 1; next} /^```python$/ {python = 1; script = ""; next}
+       /^```/ { if (python) print "python: " script; inside = 0; python = 0; next }
+       python { script = script $0 "\x1f"; next }
        inside { if (sub(/\\$/, "")) { held = held $0; next } print held $0; held = "" }' "$1"
 }
+python="python3"
+[ -x /usr/bin/python3 ] && python=/usr/bin/python3
 
 failed=0 ran=0
 for file in "${files[@]}"; do
@@ -44,6 +50,9 @@ for file in "${files[@]}"; do
           trimmed="xvfb-run -a ${trimmed%%#*} --screenshot out/doc-gui.png --frames 2"
         fi ;;
       build/*) ;;
+      "python: "*)
+        printf '%s' "${trimmed#python: }" | tr '\037' '\n' >"$scratch/block.py"
+        trimmed="$python block.py" ;;
       *) echo "doc_commands: $file: a command of no known kind: $trimmed" >&2
          failed=$((failed + 1)); continue ;;
     esac
