@@ -29,6 +29,8 @@ packages=(
   libglm-dev libcli11-dev nlohmann-json3-dev libtbb-dev
   # `sonotrace dataset`: HDF5 shards, read back by the Python tests with h5py
   libhdf5-dev python3 python3-h5py python3-numpy python3-pytest
+  # ... spread over MPI ranks
+  libopenmpi-dev openmpi-bin
   libgtest-dev libgmock-dev libbenchmark-dev
   # the teaching GUI (Dear ImGui ships its GLFW/OpenGL3 backends as sources), and Xvfb
   # with Mesa to run it headless in the tests

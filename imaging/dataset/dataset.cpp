@@ -50,12 +50,10 @@ nlohmann::json manifest(const Spec& spec) {
 
 }  // namespace
 
-RunReport make_dataset(const Spec& spec, const RunOptions& options) {
-    RunReport report;
-    // -- what is there already: complete shards of this spec are kept, others refused
+std::vector<uint64_t> missing_shards(const Spec& spec, const std::string& dir, uint64_t* kept) {
     std::vector<uint64_t> missing;
     for (uint64_t k = 0; k < spec.shards(); ++k) {
-        const std::string path = shard_path(options.out_dir, k);
+        const std::string path = shard_path(dir, k);
         if (!std::filesystem::exists(path)) {
             missing.push_back(k);
             continue;
@@ -65,40 +63,60 @@ RunReport make_dataset(const Spec& spec, const RunOptions& options) {
             throw base::InputError(path, "spec_digest",
                                    "is not a shard of this spec: make the dataset in another "
                                    "--out, or remove the old shards");
-        ++report.shards_kept;
+        if (kept) ++*kept;
     }
-    // -- the missing shards, frame by frame
+    return missing;
+}
+
+bool write_one_shard(const FrameMaker& maker, uint64_t k, const std::string& dir,
+                     const std::function<bool()>& stop, const std::function<void()>& frame_done) {
+    const Spec& spec = maker.spec();
+    const uint64_t first = k * spec.frames_per_shard;
+    const uint64_t end = std::min(spec.frames, first + spec.frames_per_shard);
+    std::vector<DatasetFrame> frames;
+    for (uint64_t i = first; i < end; ++i) {
+        if (stop && stop()) return false;
+        frames.push_back(maker.make(i));
+        if (frame_done) frame_done();
+    }
+    base::OutputTransaction transaction;
+    const std::string path = shard_path(dir, k);
+    write_shard(transaction.stage(path), path, spec, k, frames);
+    transaction.commit();
+    return true;
+}
+
+std::string write_manifest(const Spec& spec, const std::string& dir) {
+    base::OutputTransaction transaction;
+    const std::string path = (std::filesystem::path(dir) / "manifest.json").string();
+    const std::string text = manifest(spec).dump(2) + "\n";
+    base::write_file(transaction.stage(path), text.data(), text.size());
+    transaction.commit();
+    return path;
+}
+
+RunReport make_dataset(const Spec& spec, const RunOptions& options) {
+    RunReport report;
+    const std::vector<uint64_t> missing =
+        missing_shards(spec, options.out_dir, &report.shards_kept);
     uint64_t total = 0, done = 0;
     for (uint64_t k : missing)
         total += std::min(spec.frames, (k + 1) * spec.frames_per_shard) - k * spec.frames_per_shard;
     if (!missing.empty()) {
         const FrameMaker maker(spec);
         for (uint64_t k : missing) {
-            const uint64_t first = k * spec.frames_per_shard;
-            const uint64_t end = std::min(spec.frames, first + spec.frames_per_shard);
-            std::vector<DatasetFrame> frames;
-            for (uint64_t i = first; i < end; ++i) {
-                if (options.stop && options.stop()) {
-                    report.stopped = true;
-                    return report;
-                }
-                frames.push_back(maker.make(i));
+            const bool complete = write_one_shard(maker, k, options.out_dir, options.stop, [&] {
                 ++done;
                 if (options.progress) options.progress(done, total);
+            });
+            if (!complete) {
+                report.stopped = true;
+                return report;
             }
-            base::OutputTransaction transaction;
-            const std::string path = shard_path(options.out_dir, k);
-            write_shard(transaction.stage(path), path, spec, k, frames);
-            transaction.commit();
             ++report.shards_written;
         }
     }
-    // -- the manifest, once every shard is there
-    base::OutputTransaction transaction;
-    report.manifest = (std::filesystem::path(options.out_dir) / "manifest.json").string();
-    const std::string text = manifest(spec).dump(2) + "\n";
-    base::write_file(transaction.stage(report.manifest), text.data(), text.size());
-    transaction.commit();
+    report.manifest = write_manifest(spec, options.out_dir);
     return report;
 }
 

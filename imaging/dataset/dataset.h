@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "imaging/dataset/frames.h"
 #include "imaging/dataset/spec.h"
 
 namespace sonotrace::imaging::dataset {
@@ -32,5 +33,18 @@ struct RunReport {
 };
 
 RunReport make_dataset(const Spec& spec, const RunOptions& options);
+
+// The pieces make_dataset is made of, for runs that spread shards over processes
+// (imaging/dataset/mpi.h):
+// the shards `dir` lacks; throws InputError for a shard of another spec. `kept` counts
+// the complete ones.
+std::vector<uint64_t> missing_shards(const Spec& spec, const std::string& dir, uint64_t* kept);
+// Frames first .. end of shard k, made and written (under a hidden name, renamed when
+// complete). Returns false, writing nothing, if `stop` asks to stop between frames;
+// `frame_done` is called after each frame.
+bool write_one_shard(const FrameMaker& maker, uint64_t k, const std::string& dir,
+                     const std::function<bool()>& stop, const std::function<void()>& frame_done);
+// The manifest, once every shard is there; returns its path.
+std::string write_manifest(const Spec& spec, const std::string& dir);
 
 }  // namespace sonotrace::imaging::dataset

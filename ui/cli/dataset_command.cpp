@@ -8,7 +8,7 @@
 #include <csignal>
 #include <iostream>
 
-#include "imaging/dataset/dataset.h"
+#include "imaging/dataset/mpi.h"
 
 namespace sonotrace::ui {
 
@@ -59,6 +59,7 @@ CLI::App* add_dataset_command(CLI::App& app, DatasetOptions& o) {
 int run_dataset_command(const DatasetOptions& o) {
     const auto thread_limit = limit_threads(o.threads);
     const imaging::dataset::Spec spec = imaging::dataset::read_spec(o.spec);
+    // Under MPI only rank 0 draws the progress (make_dataset_mpi calls it there alone).
     ProgressBar bar("dataset of " + std::to_string(spec.frames) + " frames", o.quiet);
     const auto start = std::chrono::steady_clock::now();
     imaging::dataset::RunOptions run;
@@ -76,10 +77,14 @@ int run_dataset_command(const DatasetOptions& o) {
     run.stop = [] { return g_stop.load(); };
     const auto previous_int = std::signal(SIGINT, on_signal);
     const auto previous_term = std::signal(SIGTERM, on_signal);
-    const imaging::dataset::RunReport report = imaging::dataset::make_dataset(spec, run);
+    int rank = 0;
+    const imaging::dataset::RunReport report =
+        imaging::dataset::launched_by_mpi() ? imaging::dataset::make_dataset_mpi(spec, run, &rank)
+                                            : imaging::dataset::make_dataset(spec, run);
     std::signal(SIGINT, previous_int);
     std::signal(SIGTERM, previous_term);
     bar.finish();
+    if (rank != 0) return report.stopped ? 130 : 0;  // rank 0 reports for every rank
     if (report.stopped) {
         std::cerr << "sonotrace: stopped; " << report.shards_written
                   << " shards written this run, the rest follow when the same command runs "

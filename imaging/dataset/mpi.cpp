@@ -1,0 +1,164 @@
+#include "imaging/dataset/mpi.h"
+
+// The C interface only (Open MPI's and MPICH's deprecated C++ bindings need their own
+// library).
+#define OMPI_SKIP_MPICXX 1
+#define MPICH_SKIP_MPICXX 1
+#include <mpi.h>
+
+#include <cstdlib>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "tissue/base/error.h"
+
+namespace sonotrace::imaging::dataset {
+
+namespace {
+
+constexpr int kRequestTag = 1, kShardTag = 2;
+constexpr uint64_t kNone = ~uint64_t(0);
+
+// MPI initialised for the lifetime of the object; only one thread makes MPI calls at a
+// time (rank 0's dispatcher, the main thread before and after it).
+class MpiSession {
+  public:
+    MpiSession() {
+        int provided = 0;
+        MPI_Init_thread(nullptr, nullptr, MPI_THREAD_SERIALIZED, &provided);
+        MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
+        MPI_Comm_size(MPI_COMM_WORLD, &size_);
+    }
+    ~MpiSession() { MPI_Finalize(); }
+    MpiSession(const MpiSession&) = delete;
+    MpiSession& operator=(const MpiSession&) = delete;
+    int rank() const { return rank_; }
+    int size() const { return size_; }
+
+  private:
+    int rank_ = 0, size_ = 1;
+};
+
+// True on every rank if it is true on all of them.
+bool all(bool ok) {
+    int mine = ok ? 1 : 0, everyone = 0;
+    MPI_Allreduce(&mine, &everyone, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    return everyone == 1;
+}
+
+uint64_t shard_frames(const Spec& spec, uint64_t k) {
+    return std::min(spec.frames, (k + 1) * spec.frames_per_shard) - k * spec.frames_per_shard;
+}
+
+}  // namespace
+
+bool launched_by_mpi() {
+    for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "PMI_RANK"})
+        if (std::getenv(name)) return true;
+    return false;
+}
+
+RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* rank_out) {
+    MpiSession mpi;
+    if (rank_out) *rank_out = mpi.rank();
+    if (mpi.size() == 1) return make_dataset(spec, options);
+
+    // -- every rank loads the sources; rank 0 looks at the directory. Errors reach every
+    // rank (a rank that cannot start must not leave the others waiting).
+    RunReport report;
+    std::vector<uint64_t> missing;
+    std::optional<FrameMaker> maker;
+    std::optional<base::InputError> failure;
+    try {
+        if (mpi.rank() == 0) missing = missing_shards(spec, options.out_dir, &report.shards_kept);
+        maker.emplace(spec);
+    } catch (const base::InputError& e) {
+        failure = e;
+    }
+    if (!all(!failure)) {
+        if (failure) throw *failure;
+        throw base::InputError(spec.path, "",
+                               "another MPI rank could not start (its message above)");
+    }
+    // -- rank 0: a dispatcher thread answers the other ranks from the queue that rank 0's
+    // own loop also takes from.
+    uint64_t total = 0;
+    for (uint64_t k : missing) total += shard_frames(spec, k);
+    std::mutex mutex;
+    std::deque<uint64_t> queue(missing.begin(), missing.end());
+    uint64_t done = 0;
+    bool stopped = false;
+    auto next = [&]() -> std::optional<uint64_t> {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (options.stop && options.stop()) stopped = true;
+        if (stopped || queue.empty()) return std::nullopt;
+        const uint64_t k = queue.front();
+        queue.pop_front();
+        return k;
+    };
+    auto count_frames = [&](uint64_t frames) {
+        std::lock_guard<std::mutex> lock(mutex);
+        done += frames;
+        if (options.progress) options.progress(done, total);
+    };
+    if (mpi.rank() == 0) {
+        uint64_t written_elsewhere = 0;
+        std::thread dispatcher([&] {
+            int finished = 0;
+            while (finished < mpi.size() - 1) {
+                uint64_t message[2];  // {shard just written or kNone, its frames}
+                MPI_Status status;
+                MPI_Recv(message, 2, MPI_UINT64_T, MPI_ANY_SOURCE, kRequestTag, MPI_COMM_WORLD,
+                         &status);
+                if (message[0] != kNone) {
+                    ++written_elsewhere;
+                    count_frames(message[1]);
+                }
+                const uint64_t k = next().value_or(kNone);
+                if (k == kNone) ++finished;
+                MPI_Send(&k, 1, MPI_UINT64_T, status.MPI_SOURCE, kShardTag, MPI_COMM_WORLD);
+            }
+        });
+        while (const auto k = next()) {
+            if (!write_one_shard(*maker, *k, options.out_dir, options.stop,
+                                 [&] { count_frames(1); })) {
+                std::lock_guard<std::mutex> lock(mutex);
+                stopped = true;
+                break;
+            }
+            ++report.shards_written;
+        }
+        dispatcher.join();
+        report.shards_written += written_elsewhere;
+    } else {
+        uint64_t message[2] = {kNone, 0};
+        for (;;) {
+            MPI_Send(message, 2, MPI_UINT64_T, 0, kRequestTag, MPI_COMM_WORLD);
+            uint64_t k = kNone;
+            MPI_Recv(&k, 1, MPI_UINT64_T, 0, kShardTag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            if (k == kNone) break;
+            if (!write_one_shard(*maker, k, options.out_dir, options.stop, {})) {
+                // Stopped: the shard is abandoned; say so by asking once more.
+                message[0] = kNone;
+                continue;
+            }
+            message[0] = k;
+            message[1] = shard_frames(spec, k);
+        }
+    }
+    // -- every rank is done with its shards; rank 0 writes the manifest if all are there.
+    MPI_Barrier(MPI_COMM_WORLD);
+    report.stopped = !all(!stopped && !(options.stop && options.stop()));
+    if (mpi.rank() == 0 && !report.stopped) {
+        uint64_t kept = 0;
+        if (missing_shards(spec, options.out_dir, &kept).empty())
+            report.manifest = write_manifest(spec, options.out_dir);
+        else
+            report.stopped = true;
+    }
+    return report;
+}
+
+}  // namespace sonotrace::imaging::dataset
