@@ -350,18 +350,12 @@ void apply_scene_file(CLI::App& command, const std::string& path) {
     }
 }
 
-// One probe position of a run: where it is and what the scene does there.
-struct Placement {
-    imaging::ScenePlacement scene;
-    double offset_mm = 0.0;  // along the sweep
-};
-
 // --sweep: AXIS:LENGTH:STEP moves the scene's probe from -LENGTH/2 to +LENGTH/2 along
 // AXIS (elevation, lateral, axial: the probe's own axes; or X,Y,Z in world mm); or a
 // text file with one --pose per line.
-std::vector<Placement> sweep_placements(const std::string& sweep,
-                                        const imaging::ScenePlacement& base) {
-    std::vector<Placement> out;
+std::vector<SweepPlacement> sweep_placements(const std::string& sweep,
+                                             const imaging::ScenePlacement& base) {
+    std::vector<SweepPlacement> out;
     if (sweep.empty()) return {{base, 0.0}};
     if (std::filesystem::exists(sweep)) {
         std::ifstream in(sweep);
@@ -369,7 +363,7 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
         for (std::string line; std::getline(in, line);) {
             ++line_number;
             if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
-            Placement p{base, double(out.size())};
+            SweepPlacement p{base, double(out.size())};
             p.scene.pose = probe::parse_pose(line, sweep + ":" + std::to_string(line_number));
             p.scene.description = base.description + " (pose from " + sweep + ")";
             out.push_back(p);
@@ -414,7 +408,7 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
     if (frames > 10000)
         throw base::InputError("--sweep", sweep, "would make more than 10000 frames");
     for (int f = 0; f < frames; ++f) {
-        Placement p{base, -0.5 * length + f * step};
+        SweepPlacement p{base, -0.5 * length + f * step};
         p.scene.pose.position += p.offset_mm * axis;
         out.push_back(p);
     }
@@ -423,12 +417,69 @@ std::vector<Placement> sweep_placements(const std::string& sweep,
 
 }  // namespace
 
-int run_simulate_command(const SimulateOptions& o) {
-    // The scene file writes into the options bound to the command, i.e. into `o`.
-    if (!o.scene.empty() && o.command) apply_scene_file(*o.command, o.scene);
-    StageTimer timer(o.quiet);
-    const auto thread_limit = limit_threads(o.threads);
+json frame_sidecar(const SimulateOptions& o, const SimulateSetup& setup,
+                   const imaging::Frame& frame) {
+    const imaging::SimulationSettings& settings = setup.settings;
+    const imaging::Scene* scene = setup.scene.get();
+    const imaging::PhysicsSwitches& physics = setup.physics;
+    const imaging::QualityLevel level = imaging::quality_level(settings.quality);
+    return {
+        {"command", "simulate"},
+        {"version", SONOTRACE_VERSION},
+        {"seed", o.seed},
+        {"view", o.view},
+        {"scene", scene->start.description},
+        {"source", scene->phantom ? json{{"phantom", o.phantom},
+                                         {"name", scene->phantom->name},
+                                         {"description", scene->phantom->description}}
+                                  : volume_source_json(*scene->volume, o.volume)},
+        {"probe", transducer_json(settings.transducer)},
+        {"pose", pose_json(scene->start.pose)},
+        {"quality",
+         {{"name", imaging::to_string(settings.quality)},
+          {"map_pixel_mm", level.map_pixel_mm},
+          {"particles_per_line", level.particles_per_line},
+          {"step_texels", settings.step_texels > 0.0 ? settings.step_texels : level.step_texels},
+          {"refraction_smoothing_mm", imaging::refraction_smoothing_mm(settings)}}},
+        {"receive", imaging::to_string(settings.receive)},
+        {"disabled_physics",
+         [&] {
+             json off = json::array();
+             for (const auto& n : imaging::physics_switch_names())
+                 if (!(physics.*(n.member))) off.push_back(n.name);
+             return off;
+         }()},
+        {"craniotomy",
+         {{"radius_mm", scene->start.craniotomy_radius_mm},
+          {"depth_mm", scene->start.craniotomy_depth_mm}}},
+        {"image",
+         {{"width", frame.image.image.cols},
+          {"height", frame.image.image.rows},
+          {"pixel_spacing_mm", {o.pixel_mm, o.pixel_mm}},
+          {"origin_mm", {frame.image.origin.x, frame.image.origin.y}},
+          {"axes", "x = lateral, y = depth from the probe face apex (mm); row 0 at origin.y"},
+          {"gain_db", o.gain_db},
+          {"dynamic_range_db", o.dynamic_range_db},
+          {"tgc", o.tgc}}},
+        {"rf",
+         {{"lines", frame.rf.lines},
+          {"samples", frame.rf.samples},
+          {"sampling_hz", frame.rf.fs_hz}}},
+        {"stats",
+         {{"particles", frame.stats.particles},
+          {"steps", frame.stats.steps},
+          {"reflections", frame.stats.reflections},
+          {"scatter_events", frame.stats.scatter_events},
+          {"captured", frame.stats.captured},
+          {"energy_balance_error", frame.ledger.relative_error()}}},
+        {"timings_s", frame.timings},
+    };
+}
 
+SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
+    SimulateSetup setup;
+    imaging::SimulationSettings& settings = setup.settings;
+    std::shared_ptr<const imaging::Scene>& scene = setup.scene;
     // ---- validate everything before loading ----
     imaging::SceneOptions scene_options;
     static_cast<imaging::VolumeOptions&>(scene_options) = o.volume;
@@ -437,12 +488,10 @@ int run_simulate_command(const SimulateOptions& o) {
     if (o.volume.pose != "default") scene_options.pose = probe::parse_pose(o.volume.pose, "--pose");
     scene_options.validate();
     // A phantom is read first: it is small, and it names the default probe.
-    std::shared_ptr<const imaging::Scene> scene;
     if (!o.phantom.empty()) scene = imaging::load_scene(scene_options, &timer);
     const std::string preset = !o.probe.empty() ? o.probe
                                : scene          ? scene->probe_preset
                                                 : scene_options.volume_probe_preset();
-    imaging::SimulationSettings settings;
     settings.transducer = make_transducer(o, preset);
     settings.quality = parse_enum<imaging::Quality>(o.quality, "--quality",
                                                     {{"interactive", imaging::Quality::interactive},
@@ -453,8 +502,8 @@ int run_simulate_command(const SimulateOptions& o) {
                                           {{"monostatic", imaging::ReceiveModel::monostatic},
                                            {"capture", imaging::ReceiveModel::capture}});
     settings.seed = o.seed;
-    const imaging::PhysicsSwitches physics = imaging::disabled_physics(o.disable, "--disable", "");
-    imaging::apply(physics, settings);
+    setup.physics = imaging::disabled_physics(o.disable, "--disable", "");
+    imaging::apply(setup.physics, settings);
     settings.trace.deposition_maps = o.write_energy;  // the energy map is their only reader
     settings.step_texels = o.step_texels;
     if (o.refraction_smoothing_mm != -1.0)
@@ -464,6 +513,25 @@ int run_simulate_command(const SimulateOptions& o) {
     settings.imaging.pixel_mm = o.pixel_mm;
     settings.imaging.tgc = parse_tgc(o.tgc, settings.transducer);
     settings.validate("simulate options");
+    // ---- load and place the probe ----
+    if (!scene) scene = imaging::load_scene(scene_options, &timer);
+    scene->apply_to(settings);
+    setup.placements = sweep_placements(o.sweep, scene->start);
+    const std::string pose_source =
+        (scene->phantom ? o.phantom + " " : "") + (o.sweep.empty() ? "--pose" : "--sweep");
+    for (const SweepPlacement& p : setup.placements)
+        scene->require_inside(p.scene.pose, pose_source);
+
+    return setup;
+}
+
+int run_simulate_command(const SimulateOptions& o) {
+    // The scene file writes into the options bound to the command, i.e. into `o`.
+    if (!o.scene.empty() && o.command) apply_scene_file(*o.command, o.scene);
+    StageTimer timer(o.quiet);
+    const auto thread_limit = limit_threads(o.threads);
+
+    // ---- validate the outputs, then everything else, before loading ----
     base::require_in_range("simulate options", "fps", o.fps, 0.1, 240.0);
     std::vector<std::pair<std::string, int>> formats;  // file suffix, bits
     {
@@ -499,13 +567,10 @@ int run_simulate_command(const SimulateOptions& o) {
                                "rebuilds the video from the png8 frames: add png8 to --formats "
                                "or give --video ''");
 
-    // ---- load and place the probe ----
-    if (!scene) scene = imaging::load_scene(scene_options, &timer);
-    scene->apply_to(settings);
-    const std::vector<Placement> placements = sweep_placements(o.sweep, scene->start);
-    const std::string pose_source =
-        (scene->phantom ? o.phantom + " " : "") + (o.sweep.empty() ? "--pose" : "--sweep");
-    for (const Placement& p : placements) scene->require_inside(p.scene.pose, pose_source);
+    const SimulateSetup setup = prepare_simulate(o, timer);
+    const imaging::SimulationSettings& settings = setup.settings;
+    const std::shared_ptr<const imaging::Scene>& scene = setup.scene;
+    const std::vector<SweepPlacement>& placements = setup.placements;
 
     // ---- trace and form the frames; outputs staged and committed together ----
     const bool sweeping = !o.sweep.empty();
@@ -549,7 +614,7 @@ int run_simulate_command(const SimulateOptions& o) {
     const auto previous_term = sweeping ? std::signal(SIGTERM, on_sweep_signal) : SIG_DFL;
     std::size_t frames_done = 0;
     for (std::size_t f = 0; f < placements.size() && !g_stop_sweep; ++f) {
-        const Placement& placement = placements[f];
+        const SweepPlacement& placement = placements[f];
         char numbered[32];
         std::snprintf(numbered, sizeof numbered, "_%04zu", f);
         const std::string stem = o.name + (sweeping ? numbered : "");
@@ -674,60 +739,10 @@ int run_simulate_command(const SimulateOptions& o) {
                                "interrupted before the first frame: nothing written");
 
     const imaging::Frame& frame = last;
-    json record = {
-        {"command", "simulate"},
-        {"version", SONOTRACE_VERSION},
-        {"seed", o.seed},
-        {"view", o.view},
-        {"scene", scene->start.description},
-        {"source", scene->phantom ? json{{"phantom", o.phantom},
-                                         {"name", scene->phantom->name},
-                                         {"description", scene->phantom->description}}
-                                  : volume_source_json(*scene->volume, o.volume)},
-        {"probe", transducer_json(settings.transducer)},
-        {"pose", pose_json(scene->start.pose)},
-        {"quality",
-         {{"name", imaging::to_string(settings.quality)},
-          {"map_pixel_mm", level.map_pixel_mm},
-          {"particles_per_line", level.particles_per_line},
-          {"step_texels", settings.step_texels > 0.0 ? settings.step_texels : level.step_texels},
-          {"refraction_smoothing_mm", imaging::refraction_smoothing_mm(settings)}}},
-        {"receive", imaging::to_string(settings.receive)},
-        {"disabled_physics",
-         [&] {
-             json off = json::array();
-             for (const auto& n : imaging::physics_switch_names())
-                 if (!(physics.*(n.member))) off.push_back(n.name);
-             return off;
-         }()},
-        {"craniotomy",
-         {{"radius_mm", scene->start.craniotomy_radius_mm},
-          {"depth_mm", scene->start.craniotomy_depth_mm}}},
-        {"image",
-         {{"width", frame.image.image.cols},
-          {"height", frame.image.image.rows},
-          {"pixel_spacing_mm", {o.pixel_mm, o.pixel_mm}},
-          {"origin_mm", {frame.image.origin.x, frame.image.origin.y}},
-          {"axes", "x = lateral, y = depth from the probe face apex (mm); row 0 at origin.y"},
-          {"gain_db", o.gain_db},
-          {"dynamic_range_db", o.dynamic_range_db},
-          {"tgc", o.tgc}}},
-        {"rf",
-         {{"lines", frame.rf.lines},
-          {"samples", frame.rf.samples},
-          {"sampling_hz", frame.rf.fs_hz}}},
-        {"stats",
-         {{"particles", frame.stats.particles},
-          {"steps", frame.stats.steps},
-          {"reflections", frame.stats.reflections},
-          {"scatter_events", frame.stats.scatter_events},
-          {"captured", frame.stats.captured},
-          {"energy_balance_error", frame.ledger.relative_error()}}},
-        {"labels", label_record},
-        {"timings_s", frame.timings},
-        {"stage_timings_s", timer.timings()},
-        {"outputs", written},
-    };
+    json record = frame_sidecar(o, setup, frame);
+    record["labels"] = label_record;
+    record["stage_timings_s"] = timer.timings();
+    record["outputs"] = written;
     if (sweeping) {
         record["sweep"] = {{"spec", o.sweep},
                            {"frames", frames_record},

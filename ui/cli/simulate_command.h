@@ -3,6 +3,8 @@
 #include <optional>
 #include <string>
 
+#include "imaging/scene/scene.h"
+#include "imaging/simulation.h"
 #include "probe/transducer.h"
 #include "ui/cli/command_common.h"
 #include "ui/cli/volume_slice.h"
@@ -67,6 +69,29 @@ struct SimulateOptions {
 };
 
 CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& options);
+
+// One probe position of a run: where it is and what the scene does there.
+struct SweepPlacement {
+    imaging::ScenePlacement scene;
+    double offset_mm = 0.0;  // along the sweep
+};
+
+// What a simulate run is made of, every option validated and the scene loaded: the
+// settings, the scene, and the probe's placements (one without --sweep).
+struct SimulateSetup {
+    imaging::SimulationSettings settings;
+    std::shared_ptr<const imaging::Scene> scene;
+    std::vector<SweepPlacement> placements;
+    imaging::PhysicsSwitches physics;
+};
+// Everything but the output options (--formats, --name, --video, --resume, --fps), which
+// only a run that writes files checks.
+SimulateSetup prepare_simulate(const SimulateOptions& options, StageTimer& timer);
+
+// The sidecar of a frame (probe, pose, quality, physics, image geometry, statistics,
+// timings): what `simulate` writes as NAME.json, without the list of files.
+nlohmann::json frame_sidecar(const SimulateOptions& options, const SimulateSetup& setup,
+                             const imaging::Frame& frame);
 // Applies --scene to the options bound to `options.command`, then runs.
 int run_simulate_command(const SimulateOptions& options);
 
