@@ -69,6 +69,11 @@ configure_and_build() {  # <dir> <cmake args...>
 }
 
 configure_and_build "$build_dir" -DCMAKE_BUILD_TYPE=Release
+# `import sonotrace` from the repository: a link to the Python module in build/python
+# (elsewhere: PYTHONPATH=<this repository>/build/python).
+for module in "$build_dir"/python/sonotrace*.so; do
+  [ -e "$module" ] && ln -sfn "$module" "$(basename "$module")"
+done
 
 case "$mode" in
   build) ;;

@@ -1,0 +1,259 @@
+// The `sonotrace` Python module: frames and sweeps as NumPy arrays, with the options of
+// `sonotrace simulate` as keyword arguments (each documented once, in the CLI; the same
+// checks and the same messages), and dataset shards read back.
+//
+//   import sonotrace
+//   frame = sonotrace.simulate(phantom="phantoms/cyst_and_stone.json", seed=3, labels=True)
+//   frame.bmode, frame.labels, frame.envelope, frame.rf, frame.sidecar
+//   for frame in sonotrace.sweep(sweep="lateral:4:1", quality="interactive"): ...
+//
+// The GIL is released while C++ works, so Python threads can run simulations at once.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <sstream>
+
+#include <CLI/CLI.hpp>
+
+#include "sonotrace_version.h"
+#include "tissue/base/error.h"
+#include "ui/cli/simulate_command.h"
+
+namespace py = pybind11;
+using namespace sonotrace;
+
+namespace {
+
+// A NumPy array over memory that `owner` keeps alive (no copy).
+template <typename T, typename Owner>
+py::array_t<T> view(std::shared_ptr<Owner> owner, const T* data, std::vector<py::ssize_t> shape) {
+    auto* keep = new std::shared_ptr<Owner>(std::move(owner));
+    py::capsule free(keep, [](void* p) { delete static_cast<std::shared_ptr<Owner>*>(p); });
+    return py::array_t<T>(shape, data, free);
+}
+
+// Keyword arguments as the command line of `sonotrace simulate`: key -> --key (with '_'
+// as '-'), True -> the flag, False -> nothing, a list -> comma-separated.
+std::vector<std::string> command_line(const py::kwargs& kwargs) {
+    std::vector<std::string> args;
+    for (const auto& [key, value] : kwargs) {
+        std::string flag = "--" + py::str(key).cast<std::string>();
+        std::replace(flag.begin(), flag.end(), '_', '-');
+        if (py::isinstance<py::bool_>(value)) {
+            if (value.cast<bool>()) args.push_back(flag);
+            continue;
+        }
+        std::string text;
+        if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
+            for (const auto& item : value) {
+                if (!text.empty()) text += ',';
+                text += py::str(item).cast<std::string>();
+            }
+        } else {
+            text = py::str(value).cast<std::string>();
+        }
+        args.push_back(flag);
+        args.push_back(text);
+    }
+    return args;
+}
+
+// The options of `sonotrace simulate`, parsed from keyword arguments by the CLI's own
+// parser: an unknown keyword or a bad value is the CLI's error.
+struct ParsedOptions {
+    CLI::App app{"sonotrace"};
+    ui::SimulateOptions options;
+};
+std::unique_ptr<ParsedOptions> parse(const py::kwargs& kwargs) {
+    auto parsed = std::make_unique<ParsedOptions>();
+    CLI::App* command = ui::add_simulate_command(parsed->app, parsed->options);
+    ui::refuse_non_finite_numbers(parsed->app);
+    std::vector<std::string> args = command_line(kwargs);
+    args.insert(args.begin(), "simulate");
+    std::reverse(args.begin(), args.end());  // CLI11 takes a reversed vector
+    try {
+        parsed->app.parse(args);
+    } catch (const CLI::ParseError& e) {
+        throw base::InputError("sonotrace.simulate", "", e.what());
+    }
+    parsed->options.quiet = true;
+    parsed->options.command = command;
+    return parsed;
+}
+
+// One frame and what describes it, owned by the arrays that view it.
+struct FrameData {
+    imaging::SimulatedFrame simulated;
+    cv::Mat bmode;  // the png8 grey levels
+    nlohmann::json sidecar;
+};
+
+py::object to_python(const nlohmann::json& j) {
+    return py::module_::import("json").attr("loads")(j.dump());
+}
+
+class Frame {
+  public:
+    explicit Frame(std::shared_ptr<FrameData> data) : data_(std::move(data)) {}
+    py::array_t<uint8_t> bmode() const {
+        const cv::Mat& m = data_->bmode;
+        return view<uint8_t>(data_, m.ptr<uint8_t>(), {m.rows, m.cols});
+    }
+    py::array_t<float> image() const {
+        const cv::Mat& m = data_->simulated.frame.image.image;
+        return view<float>(data_, m.ptr<float>(), {m.rows, m.cols});
+    }
+    py::object labels() const {
+        if (!data_->simulated.labels) return py::none();
+        const cv::Mat& m = *data_->simulated.labels;
+        return view<uint8_t>(data_, m.ptr<uint8_t>(), {m.rows, m.cols});
+    }
+    py::array_t<float> envelope() const { return lines(data_->simulated.frame.envelope); }
+    py::array_t<float> rf() const { return lines(data_->simulated.frame.rf); }
+    py::object sidecar() const { return to_python(data_->sidecar); }
+
+  private:
+    py::array_t<float> lines(const imaging::LineData& d) const {
+        return view<float>(data_, d.values.data(), {d.lines, d.samples});
+    }
+    std::shared_ptr<FrameData> data_;
+};
+
+// The png8 grey levels of a frame, as `simulate` writes them.
+cv::Mat png8(const cv::Mat& image) {
+    cv::Mat grey(image.size(), CV_8U);
+    for (int y = 0; y < image.rows; ++y)
+        for (int x = 0; x < image.cols; ++x)
+            grey.at<uint8_t>(y, x) =
+                uint8_t(std::clamp(std::round(image.at<float>(y, x) * 255.0f), 0.0f, 255.0f));
+    return grey;
+}
+
+// A prepared run (every option checked, the scene loaded) and its placements, one frame
+// at a time.
+class Run {
+  public:
+    explicit Run(const py::kwargs& kwargs) : parsed_(parse(kwargs)) {
+        const ui::SimulateOptions& o = parsed_->options;
+        if (!o.scene.empty())
+            throw base::InputError("scene", "", "is a CLI option file; pass keywords");
+        py::gil_scoped_release release;
+        ui::StageTimer quiet(true);
+        setup_ = ui::prepare_simulate(o, quiet);
+    }
+    std::size_t size() const { return setup_.placements.size(); }
+    Frame frame(std::size_t index) const {
+        const ui::SimulateOptions& o = parsed_->options;
+        auto data = std::make_shared<FrameData>();
+        {
+            py::gil_scoped_release release;
+            const auto thread_limit = ui::limit_threads(o.threads);
+            const ui::SweepPlacement& placement = setup_.placements.at(index);
+            data->simulated = imaging::simulate_plane(setup_.scene->mapper, placement.scene,
+                                                      setup_.settings, o.write_labels);
+            data->bmode = png8(data->simulated.frame.image.image);
+            data->sidecar = ui::frame_sidecar(o, setup_, data->simulated.frame);
+            data->sidecar["pose"] = ui::pose_json(placement.scene.pose);
+            if (setup_.placements.size() > 1)
+                data->sidecar["sweep_offset_mm"] = placement.offset_mm;
+        }
+        return Frame(std::move(data));
+    }
+
+  private:
+    std::unique_ptr<ParsedOptions> parsed_;
+    ui::SimulateSetup setup_;
+};
+
+class Sweep {
+  public:
+    explicit Sweep(const py::kwargs& kwargs) : run_(std::make_shared<Run>(kwargs)) {}
+    Frame next() {
+        if (next_ >= run_->size()) throw py::stop_iteration();
+        return run_->frame(next_++);
+    }
+    std::size_t size() const { return run_->size(); }
+
+  private:
+    std::shared_ptr<Run> run_;
+    std::size_t next_ = 0;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(sonotrace, m) {
+    m.doc() =
+        "sonotrace: ultrasound frames by particle tracing through tissue maps. Keyword "
+        "arguments are the options of `sonotrace simulate` (see `sonotrace simulate --help` "
+        "for units and defaults), with '_' for '-'; errors are sonotrace.InputError naming "
+        "the option or file and field.";
+    m.attr("__version__") = SONOTRACE_VERSION;
+    static py::exception<base::InputError> input_error(m, "InputError", PyExc_ValueError);
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const base::InputError& e) {
+            PyErr_SetString(input_error.ptr(), e.what());
+        }
+    });
+
+    py::class_<Frame>(m, "Frame", "A simulated frame; its arrays share the frame's memory.")
+        .def_property_readonly("bmode", &Frame::bmode,
+                               "uint8 [rows, cols]: the grey levels `simulate` writes as png8")
+        .def_property_readonly("image", &Frame::image,
+                               "float32 [rows, cols]: the scan-converted display, 0..1")
+        .def_property_readonly(
+            "labels", &Frame::labels,
+            "uint8 [rows, cols]: tissue index per pixel (labels=True), else None")
+        .def_property_readonly("envelope", &Frame::envelope, "float32 [lines, samples]")
+        .def_property_readonly("rf", &Frame::rf, "float32 [lines, samples]")
+        .def_property_readonly("sidecar", &Frame::sidecar,
+                               "dict: the frame's JSON sidecar (probe, pose, image geometry, ...)");
+
+    m.def(
+        "simulate", [](py::kwargs kwargs) { return Run(kwargs).frame(0); },
+        "simulate(**options) -> Frame: one frame; options as `sonotrace simulate` (e.g. "
+        "phantom='phantoms/cyst_and_stone.json', probe='linear', seed=3, labels=True). With "
+        "sweep=..., the first frame of the sweep.");
+
+    m.def(
+        "read_shard",
+        [](const std::string& path) {
+            // h5py does the reading: a shard is plain HDF5 (imaging/dataset/shard.h).
+            py::object file = py::module_::import("h5py").attr("File")(path, "r");
+            py::dict out, attributes;
+            auto read_all = [](const py::object& dataset) { return dataset[py::tuple()]; };
+            for (const char* name : {"bmode", "labels", "frames"})
+                if (file.attr("__contains__")(name).cast<bool>()) out[name] = read_all(file[name]);
+            for (const char* name : {"envelope", "rf", "energy"}) {
+                if (!file.attr("__contains__")(name).cast<bool>()) continue;
+                py::dict per_frame;
+                const py::object group = file[name];
+                for (const auto& key : group.attr("keys")())
+                    per_frame[py::int_(std::stoull(py::str(key).cast<std::string>()))] =
+                        read_all(group[key]);
+                out[name] = per_frame;
+            }
+            for (const auto& item : file.attr("attrs").attr("items")()) {
+                const py::tuple pair = item.cast<py::tuple>();
+                attributes[pair[0]] = pair[1];
+            }
+            out["attributes"] = attributes;
+            file.attr("close")();
+            return out;
+        },
+        "read_shard(path) -> dict: a dataset shard (`sonotrace dataset`) as NumPy arrays: "
+        "bmode, labels, frames (a record array), envelope / rf / energy ({frame index: "
+        "array}) when written, and the shard's attributes (spec, spec_digest, ...).");
+
+    py::class_<Sweep>(m, "Sweep", "Frames of a sweep, simulated as they are asked for.")
+        .def("__iter__", [](Sweep& s) -> Sweep& { return s; })
+        .def("__next__", &Sweep::next)
+        .def("__len__", &Sweep::size);
+    m.def(
+        "sweep", [](py::kwargs kwargs) { return Sweep(kwargs); },
+        "sweep(sweep='lateral:10:1', **options) -> iterator of Frame: the frames of "
+        "`sonotrace simulate --sweep`, one at a time.");
+}
