@@ -6,6 +6,8 @@
 #   scripts/setup.sh demo      build and run the default simulation
 #   scripts/setup.sh test      build and run every test, then the ASan+UBSan build's tests
 #   scripts/setup.sh build     only install and build
+#   scripts/setup.sh install [PREFIX]   build, then install the programs, the phantom
+#                              catalogue and the Python module under PREFIX (/usr/local)
 #
 # Environment: SONOTRACE_JOBS (default: all cores), SONOTRACE_BUILD_DIR (default: build).
 set -euo pipefail
@@ -77,6 +79,12 @@ done
 
 case "$mode" in
   build) ;;
+  install)
+    prefix="${2:-/usr/local}"
+    say "installing under $prefix"
+    cmake --install "$build_dir" --prefix "$prefix"
+    say "done: $prefix/bin/sonotrace; Python: PYTHONPATH=$prefix/lib/python3/dist-packages"
+    ;;
   demo)
     say "running: $build_dir/sonotrace simulate --out out --labels"
     "$build_dir/sonotrace" simulate --out out --labels
@@ -97,7 +105,7 @@ case "$mode" in
     say "all tests passed"
     ;;
   *)
-    echo "usage: $0 [demo|test|build]" >&2
+    echo "usage: $0 [demo|test|build|install [PREFIX]]" >&2
     exit 2
     ;;
 esac

@@ -1,4 +1,5 @@
 #include "ui/cli/trace_command.h"
+#include "tissue/base/data_dir.h"
 
 #include <tbb/parallel_for.h>
 
@@ -259,7 +260,7 @@ int run_trace_command(const TraceOptions& options) {
         std::string file = options.phantom;
         for (const auto& [config, name] : phantoms::kPaperFigurePhantoms)
             if (options.config == config)
-                file = std::string(SONOTRACE_PHANTOM_DIR) + "/" + name + ".json";
+                file = base::phantom_catalogue_dir() + "/" + name + ".json";
         timer.begin("building configuration " + (file.empty() ? options.config : file));
         if (!file.empty()) {
             setup = phantoms::trace_setup(phantoms::load_phantom(file), options.particles);

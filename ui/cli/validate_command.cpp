@@ -1,4 +1,5 @@
 #include "ui/cli/validate_command.h"
+#include "tissue/base/data_dir.h"
 
 #include <chrono>
 #include <cstdio>
@@ -44,7 +45,7 @@ CLI::App* add_validate_command(CLI::App& app, ValidateOptions& options) {
         "the images, echo events or energy maps, and compares it with what physics or geometry "
         "predicts from the phantom's parameters. Prints PASS/FAIL per quantity; exit status 0 "
         "when every case passes, 2 otherwise.");
-    options.phantom_dir = SONOTRACE_PHANTOM_DIR;
+    options.phantom_dir = base::phantom_catalogue_dir();
     add_parameter(*cmd, kCaseDoc, options.cases);
     add_parameter(*cmd, kReportDoc, options.report_dir);
     add_parameter(*cmd, kJsonDoc, options.json_path);

@@ -1,4 +1,5 @@
 #include "ui/gui/gui_app.h"
+#include "tissue/base/data_dir.h"
 
 #include <GL/gl.h>
 #include <GLFW/glfw3.h>
@@ -159,7 +160,7 @@ Fit show_image(const Texture& texture, Rect* rect) {
 // ---- the application ----
 
 App::App(const AppOptions& options)
-    : options_(options), catalogue_(scene_catalogue(SONOTRACE_PHANTOM_DIR)) {
+    : options_(options), catalogue_(scene_catalogue(base::phantom_catalogue_dir())) {
     if (options.quality == "interactive")
         parameters_.quality = imaging::Quality::interactive;
     else if (options.quality == "standard")
@@ -173,7 +174,7 @@ App::App(const AppOptions& options)
     parameters_.gain_db = 36.0;  // as `sonotrace simulate`
     view_.enabled = options.context;
     // The first scene loads synchronously: without it there is nothing to show.
-    apply_scene(load_scene(options.scene, SONOTRACE_PHANTOM_DIR));
+    apply_scene(load_scene(options.scene, base::phantom_catalogue_dir()));
     if (options.slide_mm != 0.0) move_probe(options.slide_mm, 0.0, 0.0, 0.0);
     if (!options.explain.empty()) {
         std::string known;
@@ -211,8 +212,8 @@ void App::start_loading(const std::string& spec) {
     if (loading_.valid()) return;
     loading_name_ = spec;
     message_ = "loading " + spec + " ...";
-    loading_ =
-        std::async(std::launch::async, [spec] { return load_scene(spec, SONOTRACE_PHANTOM_DIR); });
+    loading_ = std::async(std::launch::async,
+                          [spec] { return load_scene(spec, base::phantom_catalogue_dir()); });
 }
 
 void App::move_probe(double lateral_mm, double elevation_mm, double rotate_deg, double tilt_deg) {

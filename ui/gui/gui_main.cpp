@@ -22,6 +22,7 @@
 #include "imaging/picture.h"
 #include "probe/transducer.h"
 #include "tissue/base/atomic_output.h"
+#include "tissue/base/data_dir.h"
 #include "tissue/base/error.h"
 #include "tissue/base/memory.h"
 #include "ui/cli/command_common.h"
@@ -226,7 +227,8 @@ int main(int argc, char** argv) {
         "head or a phantom and watch the B-mode form from traced particles; switch physics off "
         "and on to see each artifact vanish and return. Lengths in mm, angles in degrees.");
     std::vector<std::string> scenes;
-    for (const auto& e : gui::scene_catalogue(SONOTRACE_PHANTOM_DIR)) scenes.push_back(e.name);
+    for (const auto& e : gui::scene_catalogue(base::phantom_catalogue_dir()))
+        scenes.push_back(e.name);
     std::string scene_list;
     for (const auto& s : scenes) scene_list += (scene_list.empty() ? "" : ", ") + s;
     cli.add_option("--scene", o.app.scene,

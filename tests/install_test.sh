@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# `cmake --install` into a temporary prefix, then the installed programs run from a
+# directory outside the source tree: a phantom frame, a catalogue phantom by name (trace
+# --config fig2), a validation case (its default catalogue), and `import sonotrace`.
+# Nothing installed may name the source tree: the binaries are searched for its path.
+#
+#   tests/install_test.sh BUILD_DIR SOURCE_DIR
+set -euo pipefail
+build="$1" source="$2"
+prefix="$(mktemp -d)" work="$(mktemp -d)"
+trap 'rm -rf "$prefix" "$work"' EXIT
+cmake --install "$build" --prefix "$prefix" >/dev/null
+cd "$work"
+unset SONOTRACE_DATA
+fail() { echo "install_test: $*" >&2; exit 1; }
+
+for binary in "$prefix"/bin/* "$prefix"/lib/python3/dist-packages/*.so; do
+  [ -e "$binary" ] || continue
+  if grep -q -F "$source" "$binary"; then fail "$binary names the source tree $source"; fi
+done
+[ ! -e "$prefix/bin/sonotrace-source-dir" ] || fail "the build tree's marker was installed"
+
+phantoms="$prefix/share/sonotrace/phantoms"
+"$prefix/bin/sonotrace" simulate -q --phantom "$phantoms/cyst_and_stone.json" --quality interactive \
+  --out frame || fail "simulate from the prefix"
+[ -s frame/bmode.png ] || fail "no frame"
+"$prefix/bin/sonotrace" trace -q --config fig2 --particles 200 --out trace || fail "trace --config fig2"
+"$prefix/bin/sonotrace" validate --case critical_angle >/dev/null || fail "validate from the prefix"
+if [ -e "$prefix"/lib/python3/dist-packages/sonotrace*.so ]; then
+  python=python3
+  [ -x /usr/bin/python3 ] && python=/usr/bin/python3
+  PYTHONPATH="$prefix/lib/python3/dist-packages" "$python" -c "
+import sonotrace
+frame = sonotrace.simulate(phantom='$phantoms/point_grid.json', quality='interactive', depth=25)
+assert frame.bmode.size > 0
+" || fail "import sonotrace from the prefix"
+fi
+echo "install_test: installed, ran from $prefix" >&2
