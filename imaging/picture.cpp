@@ -149,6 +149,15 @@ cv::Mat montage(const std::vector<cv::Mat>& pictures, int columns) {
     return sheet;
 }
 
+cv::Mat grey_levels(const cv::Mat& display) {
+    cv::Mat grey(display.size(), CV_8U);
+    for (int y = 0; y < display.rows; ++y)
+        for (int x = 0; x < display.cols; ++x)
+            grey.at<uint8_t>(y, x) =
+                uint8_t(std::clamp(std::round(display.at<float>(y, x) * 255.0f), 0.0f, 255.0f));
+    return grey;
+}
+
 void write_png(const cv::Mat& picture, const std::string& path) {
     cv::Mat rgb;
     if (picture.channels() == 3)

@@ -31,6 +31,10 @@ cv::Mat render_field(const tissue::Volume& field, const FieldStyle& style);
 // Arranges pictures of possibly different sizes in a grid (black background).
 cv::Mat montage(const std::vector<cv::Mat>& pictures, int columns);
 
+// A frame's display (CV_32F, 0..1) as 8-bit grey levels: round(v x 255), clamped. What
+// `simulate` writes as png8, the video's frames, the dataset's bmode and the module's.
+cv::Mat grey_levels(const cv::Mat& display);
+
 // Writes an 8-bit BGR or grey cv::Mat as PNG (RGB order on disk) to `path` exactly (no
 // staging: callers stage through base::OutputTransaction).
 void write_png(const cv::Mat& picture, const std::string& path);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "imaging/picture.h"
 #include "tissue/base/error.h"
 
 namespace sonotrace::imaging::dataset {
@@ -99,10 +100,7 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     out.valid_height = std::min(image.image.rows, spec_.height);
     const cv::Rect valid(0, 0, out.valid_width, out.valid_height);
     out.bmode = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
-    for (int y = 0; y < out.valid_height; ++y)
-        for (int x = 0; x < out.valid_width; ++x)
-            out.bmode.at<uint8_t>(y, x) =
-                uint8_t(std::clamp(std::round(image.image.at<float>(y, x) * 255.0f), 0.0f, 255.0f));
+    grey_levels(image.image)(valid).copyTo(out.bmode(valid));
     out.labels = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
     if (simulated.labels) (*simulated.labels)(valid).copyTo(out.labels(valid));
     out.envelope = std::move(frame.envelope);

@@ -157,17 +157,8 @@ E parse_enum(const std::string& text, const char* flag,
     throw base::InputError(flag, "", "must be one of " + names + ", got '" + text + "'");
 }
 
-// Frame (0..1, scan converted) as an image file of the requested format.
-// The 8-bit pixels of a frame as write_frame() stores them in png8.
-cv::Mat frame_png8(const cv::Mat& image) {
-    cv::Mat grey(image.size(), CV_8U);
-    for (int y = 0; y < image.rows; ++y)
-        for (int x = 0; x < image.cols; ++x)
-            grey.at<uint8_t>(y, x) =
-                uint8_t(std::clamp(std::round(image.at<float>(y, x) * 255.0f), 0.0f, 255.0f));
-    return grey;
-}
-
+// Frame (0..1, scan converted) as an image file of the requested format (png8: the
+// grey levels of imaging::grey_levels).
 void write_frame(const cv::Mat& image, const std::string& path, int bits) {
     std::vector<float> pixels(image.begin<float>(), image.end<float>());
     const float full_scale = bits == 8 ? 255.0f : bits == 16 ? 65535.0f : 1.0f;
@@ -705,7 +696,8 @@ int run_simulate_command(const SimulateOptions& o) {
                                frame_files.stage(path));
             written.push_back(path);
         }
-        if (sweeping && !video_suffix.empty()) add_video_frame(frame_png8(frame.image.image));
+        if (sweeping && !video_suffix.empty())
+            add_video_frame(imaging::grey_levels(frame.image.image));
         frames_record.push_back({{"index", f},
                                  {"offset_mm", placement.offset_mm},
                                  {"pose", pose_json(placement.scene.pose)},

@@ -17,6 +17,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "imaging/picture.h"
 #include "sonotrace_version.h"
 #include "tissue/base/error.h"
 #include "ui/cli/simulate_command.h"
@@ -121,16 +122,6 @@ class Frame {
     std::shared_ptr<FrameData> data_;
 };
 
-// The png8 grey levels of a frame, as `simulate` writes them.
-cv::Mat png8(const cv::Mat& image) {
-    cv::Mat grey(image.size(), CV_8U);
-    for (int y = 0; y < image.rows; ++y)
-        for (int x = 0; x < image.cols; ++x)
-            grey.at<uint8_t>(y, x) =
-                uint8_t(std::clamp(std::round(image.at<float>(y, x) * 255.0f), 0.0f, 255.0f));
-    return grey;
-}
-
 // A prepared run (every option checked, the scene loaded) and its placements, one frame
 // at a time.
 class Run {
@@ -153,7 +144,7 @@ class Run {
             const ui::SweepPlacement& placement = setup_.placements.at(index);
             data->simulated = imaging::simulate_plane(setup_.scene->mapper, placement.scene,
                                                       setup_.settings, o.write_labels);
-            data->bmode = png8(data->simulated.frame.image.image);
+            data->bmode = imaging::grey_levels(data->simulated.frame.image.image);
             data->sidecar = ui::frame_sidecar(o, setup_, data->simulated.frame);
             data->sidecar["pose"] = ui::pose_json(placement.scene.pose);
             if (setup_.placements.size() > 1)
