@@ -56,7 +56,8 @@ for file in "${files[@]}"; do
         trimmed="OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 $trimmed" ;;
       "python: "*)
         printf '%s' "${trimmed#python: }" | tr '\037' '\n' >"$scratch/block.py"
-        trimmed="$python block.py" ;;
+        # The module of this build, whether or not the set-up script linked it.
+        trimmed="PYTHONPATH=$build/python $python block.py" ;;
       *) echo "doc_commands: $file: a command of no known kind: $trimmed" >&2
          failed=$((failed + 1)); continue ;;
     esac
