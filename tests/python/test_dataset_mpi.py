@@ -42,6 +42,10 @@ def test_two_ranks_make_the_same_bytes_as_one_process(tmp_path, reference):
     spec, expected = reference
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
+    # In the sanitizer build: Open MPI's components are dlclose'd by MPI_Finalize, so the
+    # leak checker cannot name what they keep (it reports "<unknown module>"). Leaks of our
+    # code are checked by the one-process runs of this file, which keep the checker on.
+    env["ASAN_OPTIONS"] = (env.get("ASAN_OPTIONS", "") + ":detect_leaks=0").lstrip(":")
     run = subprocess.run(["mpirun", "-n", "2", "--oversubscribe", BINARY, "dataset", str(spec),
                           "--out", str(tmp_path / "out"), "--threads", "1", "-q"],
                          env=env, capture_output=True, text=True, timeout=600)
