@@ -6,6 +6,7 @@
 #define MPICH_SKIP_MPICXX 1
 #include <mpi.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <deque>
 #include <mutex>
@@ -110,7 +111,15 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
             while (finished < mpi.size() - 1) {
                 uint64_t message[2];  // {shard just written or kNone, its frames}
                 MPI_Status status;
-                MPI_Recv(message, 2, MPI_UINT64_T, MPI_ANY_SOURCE, kRequestTag, MPI_COMM_WORLD,
+                // Polled, not a blocking receive: Open MPI's blocking calls spin, and this
+                // thread shares rank 0's cores with its own shard's frames.
+                int waiting = 0;
+                MPI_Iprobe(MPI_ANY_SOURCE, kRequestTag, MPI_COMM_WORLD, &waiting, &status);
+                if (!waiting) {
+                    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+                    continue;
+                }
+                MPI_Recv(message, 2, MPI_UINT64_T, status.MPI_SOURCE, kRequestTag, MPI_COMM_WORLD,
                          &status);
                 if (message[0] != kNone) {
                     ++written_elsewhere;
