@@ -52,6 +52,13 @@ struct TgcPoint {
     double gain_db = 0.0;
 };
 
+// The automatic TGC at a depth (dB): the two-way attenuation of brain, 0.6 dB/(cm MHz),
+// at the probe's centre frequency (`simulate --tgc auto`, the GUI's base curve, the
+// dataset's frames).
+inline double automatic_tgc_db(double frequency_mhz, double depth_mm) {
+    return 2.0 * 0.6 * frequency_mhz * depth_mm / 10.0;
+}
+
 // Gain of a TGC curve at a depth (dB).
 double tgc_gain_db(const std::vector<TgcPoint>& curve, double depth_mm);
 

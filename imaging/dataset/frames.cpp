@@ -81,8 +81,7 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     s.trace.deposition_maps = spec_.write_energy;
     s.imaging.gain_db = d.gain_db;
     s.imaging.dynamic_range_db = d.dynamic_range_db;
-    // The CLI's automatic TGC: the two-way attenuation of brain, 0.6 dB/(cm MHz).
-    s.imaging.tgc = {{0.0, 0.0}, {t.depth_mm, 2.0 * 0.6 * t.frequency_mhz * t.depth_mm / 10.0}};
+    s.imaging.tgc = {{0.0, 0.0}, {t.depth_mm, automatic_tgc_db(t.frequency_mhz, t.depth_mm)}};
     // Pixels that fit the scanned region into W x H.
     const auto [lo, hi] = probe::ScanGeometry(t).bounds();
     s.imaging.pixel_mm =

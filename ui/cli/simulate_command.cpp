@@ -100,8 +100,7 @@ constexpr ParameterDoc kSceneDoc = {
 std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::Transducer& t) {
     if (text == "none") return {};
     if (text == "auto") {
-        // Compensates the two-way attenuation of brain, 0.6 dB/(cm MHz).
-        return {{0.0, 0.0}, {t.depth_mm, 2.0 * 0.6 * t.frequency_mhz * t.depth_mm / 10.0}};
+        return {{0.0, 0.0}, {t.depth_mm, imaging::automatic_tgc_db(t.frequency_mhz, t.depth_mm)}};
     }
     std::vector<imaging::TgcPoint> curve;
     std::istringstream list(text);

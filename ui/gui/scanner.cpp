@@ -54,11 +54,11 @@ imaging::SimulationSettings ScanParameters::settings(const Scene& scene) const {
     s.seed = seed;
     s.imaging.gain_db = gain_db;
     s.imaging.dynamic_range_db = dynamic_range_db;
-    // TGC: the automatic curve for brain (2 x 0.6 dB/(cm MHz)) plus the sliders.
-    const double slope = 2.0 * 0.6 * transducer.frequency_mhz / 10.0;  // dB/mm
+    // TGC: the automatic curve for brain plus the sliders.
     for (int k = 0; k < kTgcSliders; ++k) {
         const double depth = transducer.depth_mm * (k + 0.5) / kTgcSliders;
-        s.imaging.tgc.push_back({depth, slope * depth + tgc_db[std::size_t(k)]});
+        s.imaging.tgc.push_back({depth, imaging::automatic_tgc_db(transducer.frequency_mhz, depth) +
+                                            tgc_db[std::size_t(k)]});
     }
     s.imaging.pixel_mm = std::max(0.1, transducer.depth_mm / 400.0);
     imaging::apply(physics, s);
