@@ -16,7 +16,7 @@ dir="${SONOTRACE_FUZZ_DIR:-build-fuzz}"
 jobs="${SONOTRACE_JOBS:-$(nproc)}"
 say() { printf '\033[1msonotrace fuzz:\033[0m %s\n' "$*" >&2; }
 
-all_targets="nifti raw_sidecar image transfer_function json phantom pose vtk frame_sidecar"
+all_targets="nifti dicom raw_sidecar image transfer_function json phantom pose vtk frame_sidecar"
 targets="${SONOTRACE_FUZZ_TARGETS:-$all_targets}"
 for target in $targets; do
   case " $all_targets " in

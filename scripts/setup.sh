@@ -33,6 +33,10 @@ packages=(
   libhdf5-dev python3 python3-h5py python3-numpy python3-pytest
   # ... spread over MPI ranks
   libopenmpi-dev openmpi-bin
+  # the Python module (pybind11 needs Python's headers)
+  pybind11-dev python3-dev
+  # DICOM series as input volumes
+  libgdcm-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   # the teaching GUI (Dear ImGui ships its GLFW/OpenGL3 backends as sources), and Xvfb
   # with Mesa to run it headless in the tests

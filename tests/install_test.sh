@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # `cmake --install` into a temporary prefix, then the installed programs run from a
 # directory outside the source tree: a phantom frame, a catalogue phantom by name (trace
-# --config fig2), a validation case (its default catalogue), and `import sonotrace`.
+# --config fig2), a validation case (its default catalogue), `import sonotrace`, and a C++
+# program built against the installed package (tests/package_consumer: find_package).
 # Nothing installed may name the source tree: the binaries are searched for its path.
 #
 #   tests/install_test.sh BUILD_DIR SOURCE_DIR [SANITIZED]
@@ -39,4 +40,10 @@ frame = sonotrace.simulate(phantom='$phantoms/point_grid.json', quality='interac
 assert frame.bmode.size > 0
 " || fail "import sonotrace from the prefix"
 fi
+# A user's CMake project: headers, libraries and dependencies from the prefix alone.
+consumer_build="$work/consumer-build"
+cmake -S "$source/tests/package_consumer" -B "$consumer_build" -G Ninja \
+  -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null || fail "find_package(sonotrace)"
+cmake --build "$consumer_build" >/dev/null || fail "building against the package"
+"$consumer_build/consumer" || fail "the C++ program built against the package"
 echo "install_test: installed, ran from $prefix" >&2

@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "tissue/base/error.h"
+#include "tissue/dicom_io.h"
 #include "tissue/image_io.h"
 #include "tissue/nifti_io.h"
 #include "tissue/raw_io.h"
@@ -52,6 +53,12 @@ LoadedVolume load_volume(const VolumeRequest& request) {
     } else if (ends_with(path, ".json") || ends_with(path, ".raw")) {
         loaded.volume = read_raw(path);
         loaded.format = "raw";
+    } else if (ends_with(path, ".dcm") || is_dicom_directory(path) ||
+               (std::filesystem::is_regular_file(path) && is_dicom_file(path))) {
+        DicomReadResult r = read_dicom(path);
+        loaded.volume = std::move(r.volume);
+        loaded.warnings = std::move(r.warnings);
+        loaded.format = "dicom";
     } else if (std::filesystem::is_directory(path) || path.find('%') != std::string::npos) {
         loaded.volume = read_image_stack(list_image_stack(path), require_spacing(request), path);
         loaded.format = "image-stack";
@@ -64,8 +71,9 @@ LoadedVolume load_volume(const VolumeRequest& request) {
     } else {
         throw base::InputError(
             path, "",
-            "unknown volume format (expected .nii, .nii.gz, .hdr, .json/.raw, an "
-            "image file, a directory of images or an image pattern)");
+            "unknown volume format (expected .nii, .nii.gz, .hdr, .json/.raw, a DICOM "
+            "file or series directory, an image file, a directory of images or an image "
+            "pattern)");
     }
     return loaded;
 }

@@ -15,7 +15,8 @@ inline constexpr const char* kDefaultVolumePath = "/usr/share/mricron/templates/
 
 struct VolumeRequest {
     // "default", a NIfTI file (.nii, .nii.gz, .hdr), a raw sidecar (.json) or raw file (.raw),
-    // a 2D image, a directory of numbered images, or a printf pattern ("img_%03d.png").
+    // a DICOM file or a directory holding one DICOM series, a 2D image, a directory of
+    // numbered images, or a printf pattern ("img_%03d.png").
     std::string spec = kDefaultVolumeName;
     // Pixel and slice spacing in mm; required for image inputs, ignored otherwise.
     std::optional<glm::dvec3> image_spacing;
@@ -24,7 +25,7 @@ struct VolumeRequest {
 struct LoadedVolume {
     Volume volume;
     std::string path;    // the file or pattern actually read
-    std::string format;  // "nifti", "image", "image-stack", "raw"
+    std::string format;  // "nifti", "dicom", "image", "image-stack", "raw"
     std::vector<std::string> warnings;
 };
 

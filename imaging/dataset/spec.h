@@ -14,6 +14,8 @@
 //     {"scene": "head-craniotomy", "weight": 2},    or head-temporal
 //     {"phantom": "phantoms/cyst_and_stone.json"},
 //     {"volume": "scan.nii.gz", "tf": "generic-soft-tissue", "spacing": "0.5,0.5"}
+//                                    a volume: anything --volume reads (NIfTI, a DICOM
+//                                    series directory, raw, images)
 //   ],
 //   "probes": ["convex", "linear"],  presets drawn uniformly; default: each source's own
 //   "frequency_mhz": [3, 5],         a number, or [low, high] drawn uniformly; default

@@ -18,12 +18,14 @@ using nlohmann::json;
 constexpr ParameterDoc kVolumeDoc = {
     "--volume", "",
     "volume to load: 'default' (Colin27 T1 head MRI from mricron-data), a NIfTI file "
-    "(.nii/.nii.gz), a raw sidecar (.json), an image (PNG/TIFF/JPEG/EXR), a directory of "
-    "numbered images or a printf pattern (img_%03d.png)"};
+    "(.nii/.nii.gz), a raw sidecar (.json), a DICOM file or a directory holding one DICOM "
+    "series (slices ordered by position; values rescaled, e.g. to Hounsfield units), an "
+    "image (PNG/TIFF/JPEG/EXR), a directory of numbered images or a printf pattern "
+    "(img_%03d.png)"};
 constexpr ParameterDoc kSpacingDoc = {
     "--spacing", "mm",
     "pixel spacing of image inputs as 'SX,SY' or 'SX,SY,SZ' (SZ = slice spacing of a stack); "
-    "required for images, ignored for NIfTI and raw volumes"};
+    "required for images, ignored for NIfTI, DICOM and raw volumes"};
 constexpr ParameterDoc kTfDoc = {
     "--tf", "",
     "transfer function: a preset name (mri-t1-head, generic-soft-tissue) or a JSON file; "
