@@ -77,6 +77,11 @@ TEST(RawIoErrors, EachProblemNamesFileAndField) {
     // fuzz finding: the size query threw a filesystem_error, an internal error).
     check(R"({"file": "", "dims": [2,2,1], "spacing": [1,1,1], "datatype": "uint8"})", "file",
           "not a regular file");
+    // A name longer than the system allows (a fuzz finding: exists() threw
+    // filesystem_error): refused naming the sidecar's field, with the system's reason.
+    check(R"({"file": ")" + std::string(300, 'v') + R"(.raw", "dims": [2,2,1], "spacing": [1,1,1],
+             "datatype": "uint8"})",
+          "file", "File name too long");
 }
 
 }  // namespace

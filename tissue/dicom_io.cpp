@@ -20,6 +20,7 @@
 #include <tuple>
 
 #include "tissue/base/error.h"
+#include "tissue/base/file_status.h"
 #include "tissue/base/memory.h"
 
 namespace fs = std::filesystem;
@@ -557,9 +558,10 @@ DicomReadResult read_dicom(const std::string& path) {
     static std::mutex one_reader;  // GDCM's warning stream is global
     const std::lock_guard<std::mutex> lock(one_reader);
     std::error_code error;
-    if (!fs::exists(path, error)) throw base::InputError(path, "", "file not found");
+    const fs::file_status status = base::file_status(path, path, "");
+    if (!fs::exists(status)) throw base::InputError(path, "", "file not found");
     std::vector<std::string> files;
-    if (fs::is_directory(path, error)) {
+    if (fs::is_directory(status)) {
         for (const auto& entry : fs::directory_iterator(path, error)) {
             if (entry.is_regular_file(error) && is_dicom_file(entry.path().string())) {
                 files.push_back(entry.path().string());

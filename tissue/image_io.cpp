@@ -13,6 +13,7 @@
 
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
+#include "tissue/base/file_status.h"
 #include "tissue/base/memory.h"
 
 namespace sonotrace::tissue {
@@ -48,7 +49,8 @@ struct ImageSlice {
 
 // Reads `path` into `out` (width*height floats). Returns the size it found.
 ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* expect) {
-    if (!fs::exists(path)) throw base::InputError(path, "", "file not found");
+    if (!fs::exists(base::file_status(path, path, "")))
+        throw base::InputError(path, "", "file not found");
     // Stored colour values, not premultiplied by alpha (which we ignore).
     OIIO::ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
@@ -154,7 +156,7 @@ bool has_image_extension(const std::string& path) {
 
 std::vector<std::string> list_image_stack(const std::string& spec) {
     std::vector<std::string> files;
-    if (fs::is_directory(spec)) {
+    if (fs::is_directory(base::file_status(spec, spec, ""))) {
         for (const auto& entry : fs::directory_iterator(spec)) {
             if (entry.is_regular_file() && has_image_extension(entry.path().string())) {
                 files.push_back(entry.path().string());

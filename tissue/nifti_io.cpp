@@ -12,6 +12,7 @@
 
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
+#include "tissue/base/file_status.h"
 #include "tissue/base/memory.h"
 
 namespace sonotrace::tissue {
@@ -169,8 +170,9 @@ glm::dmat4 to_glm(const mat44& m) {
 
 NiftiReadResult read_nifti(const std::string& path) {
     NiftiReadResult result;
-    if (!fs::exists(path)) throw base::InputError(path, "", "file not found");
-    if (fs::is_directory(path))
+    const fs::file_status status = base::file_status(path, path, "");
+    if (!fs::exists(status)) throw base::InputError(path, "", "file not found");
+    if (fs::is_directory(status))
         throw base::InputError(path, "", "is a directory, not a NIfTI file");
     nifti_set_debug_level(0);  // we report errors ourselves, naming the field
     check_header_bytes(path);

@@ -7,6 +7,7 @@
 
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
+#include "tissue/base/file_status.h"
 #include "tissue/base/json_util.h"
 #include "tissue/base/memory.h"
 
@@ -52,7 +53,7 @@ Volume read_raw(const std::string& path) {
     fs::path sidecar(path);
     if (sidecar.extension() != ".json") sidecar.replace_extension(".json");
     const std::string source = sidecar.string();
-    if (!fs::exists(sidecar)) {
+    if (!fs::exists(base::file_status(sidecar, source, ""))) {
         throw base::InputError(source, "",
                                "raw volumes need a JSON sidecar describing them; not found");
     }
@@ -105,9 +106,11 @@ Volume read_raw(const std::string& path) {
     fs::path raw = sidecar.parent_path() / (j.contains("file")
                                                 ? base::jsonio::get_string(j, "file", source, "")
                                                 : sidecar.stem().string() + ".raw");
-    if (!fs::exists(raw)) throw base::InputError(raw.string(), "", "raw data file not found");
+    const fs::file_status raw_status = base::file_status(raw, source, "file");
+    if (!fs::exists(raw_status))
+        throw base::InputError(raw.string(), "", "raw data file not found");
     // A directory (an empty "file" names the sidecar's own) or a device has no size to check.
-    if (!fs::is_regular_file(raw))
+    if (!fs::is_regular_file(raw_status))
         throw base::InputError(source, "file",
                                "'" + raw.string() + "' is not a regular file of voxel data");
     const std::size_t expected = header_bytes + g.voxel_count() * std::size_t(type->bytes);

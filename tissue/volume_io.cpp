@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "tissue/base/error.h"
+#include "tissue/base/file_status.h"
 #include "tissue/dicom_io.h"
 #include "tissue/image_io.h"
 #include "tissue/nifti_io.h"
@@ -44,6 +45,7 @@ LoadedVolume load_volume(const VolumeRequest& request) {
         loaded.path = spec;
     }
     const std::string& path = loaded.path;
+    const std::filesystem::file_status status = base::file_status(path, path, "");
     if (ends_with(path, ".nii") || ends_with(path, ".nii.gz") || ends_with(path, ".hdr") ||
         ends_with(path, ".img")) {
         NiftiReadResult r = read_nifti(path);
@@ -54,19 +56,19 @@ LoadedVolume load_volume(const VolumeRequest& request) {
         loaded.volume = read_raw(path);
         loaded.format = "raw";
     } else if (ends_with(path, ".dcm") || is_dicom_directory(path) ||
-               (std::filesystem::is_regular_file(path) && is_dicom_file(path))) {
+               (std::filesystem::is_regular_file(status) && is_dicom_file(path))) {
         DicomReadResult r = read_dicom(path);
         loaded.volume = std::move(r.volume);
         loaded.warnings = std::move(r.warnings);
         loaded.format = "dicom";
-    } else if (std::filesystem::is_directory(path) || path.find('%') != std::string::npos) {
+    } else if (std::filesystem::is_directory(status) || path.find('%') != std::string::npos) {
         loaded.volume = read_image_stack(list_image_stack(path), require_spacing(request), path);
         loaded.format = "image-stack";
     } else if (has_image_extension(path)) {
         glm::dvec3 spacing = require_spacing(request);
         loaded.volume = read_image(path, spacing);
         loaded.format = "image";
-    } else if (!std::filesystem::exists(path)) {
+    } else if (!std::filesystem::exists(status)) {
         throw base::InputError(path, "", "file not found");
     } else {
         throw base::InputError(

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "tissue/base/error.h"
+#include "tissue/base/file_status.h"
 
 namespace sonotrace::base::jsonio {
 
@@ -26,7 +27,7 @@ std::string join(const std::string& where, const std::string& key) {
 json read_file(const std::string& path) {
     namespace fs = std::filesystem;
     std::error_code ec;
-    const fs::file_status status = fs::status(path, ec);
+    const fs::file_status status = file_status(path, path, "");
     if (!fs::exists(status)) throw InputError(path, "", "file not found");
     // A device or pipe (/dev/zero) may never end: only regular files are read.
     if (!fs::is_regular_file(status)) throw InputError(path, "", "is not a regular file");

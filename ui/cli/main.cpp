@@ -1,4 +1,5 @@
 // The `sonotrace` command.
+#include <filesystem>
 #include <iostream>
 
 #include <CLI/CLI.hpp>
@@ -57,6 +58,13 @@ int main(int argc, char** argv) {
     } catch (const base::InputError& e) {
         ui::StageTimer::break_line();
         std::cerr << "sonotrace: error: " << e.what() << "\n";
+        return 1;
+    } catch (const std::filesystem::filesystem_error& e) {
+        // A path the system refuses (too long, no permission, a file where a directory
+        // should be) comes from the user or their machine, not from a bug.
+        ui::StageTimer::break_line();
+        std::cerr << "sonotrace: error: " << e.path1().string().substr(0, 300) << ": "
+                  << e.code().message() << "\n";
         return 1;
     } catch (const std::exception& e) {
         ui::StageTimer::break_line();
