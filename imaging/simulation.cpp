@@ -13,6 +13,7 @@
 
 #include "imaging/psf.h"
 #include "probe/array_geometry.h"
+#include "probe/elevation.h"
 #include "probe/placement.h"
 #include "tissue/base/error.h"
 #include "tissue/tissue_table.h"
@@ -166,26 +167,66 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
                                     const probe::Pose& pose, const probe::Transducer& t,
                                     double margin_mm) {
     const probe::ScanGeometry geometry(t);
+    const probe::ElevationBeam elevation(t);
     const glm::dvec3 lateral = pose.lateral(), axial = pose.axial(), normal = pose.elevation();
     const double lambda = t.wavelength_mm();
-    // Two-way elevation profile: a Gaussian of -6 dB full width = slice thickness, unit
-    // integral (per mm of elevation).
-    const double sigma_e = t.slice_thickness_mm / base::kFwhmPerSigma;
     const double step = 0.5 * std::min(map.spacing().x, map.spacing().y);
-    std::vector<PointEcho> echoes;
+    // What the plane sees of each target (tissue/point_target.h): a point is a piece of
+    // wire as long as its diameter, weighted by the lens's two-way elevation profile
+    // p(e, z) (probe/elevation.h); a wire is its pieces, lambda/4 apart, wherever p
+    // reaches. A wire across the plane that stays on one spot of it within the slice sums
+    // to one echo of the wire's own strength (p has unit integral).
+    struct Piece {
+        glm::dvec3 at;
+        double strength;
+        double diameter_mm;
+    };
+    std::vector<Piece> pieces;
+    auto depth_of = [&](const glm::dvec3& p) { return glm::dot(p - pose.position, axial); };
+    auto elevation_of = [&](const glm::dvec3& p) { return glm::dot(p - pose.position, normal); };
+    // No wire piece farther than this from its crossing can lie in the image.
+    const auto [scan_low, scan_high] = geometry.bounds();
+    const double plane_extent = glm::length(scan_high - scan_low) + 10.0;
     for (const tissue::PointTarget& target : targets) {
-        glm::dvec3 d = target.at - pose.position;
-        double strength =
+        const double strength =
             std::sqrt(target.backscatter_width_mm() * lambda / (2.0 * std::numbers::pi));
-        if (target.type == tissue::PointTarget::Type::wire) {
-            const double across = glm::dot(target.axis, normal);
-            if (std::abs(across) < 1e-3) continue;  // lies in the plane: not a point of it
-            d -= target.axis * (glm::dot(d, normal) / across);
-        } else {
-            const double e = glm::dot(d, normal);
-            strength *= target.diameter_mm * std::exp(-0.5 * e * e / (sigma_e * sigma_e)) /
-                        (sigma_e * std::sqrt(2.0 * std::numbers::pi));
+        const double d = target.diameter_mm;
+        if (target.type == tissue::PointTarget::Type::point) {
+            pieces.push_back(
+                {target.at,
+                 strength * d * elevation.profile(elevation_of(target.at), depth_of(target.at)),
+                 d});
+            continue;
         }
+        const double across = glm::dot(target.axis, normal);
+        const bool crosses = std::abs(across) > 1e-6;
+        // Where the wire crosses the plane; a wire parallel to it, its point at `at`.
+        const glm::dvec3 centre =
+            crosses ? target.at - target.axis * (elevation_of(target.at) / across) : target.at;
+        const double reach = elevation.reach_mm(depth_of(centre));
+        if (!crosses && std::abs(elevation_of(target.at)) > reach) continue;
+        const double half_length =
+            crosses ? std::min(reach / std::abs(across), plane_extent) : plane_extent;
+        const double drift = glm::length(target.axis - normal * across) * half_length;
+        if (drift < 0.125 * lambda) {  // one spot of the plane: the wire's whole echo
+            pieces.push_back({centre, strength, d});
+            continue;
+        }
+        const double ds = 0.25 * lambda;
+        const int n = int(std::ceil(half_length / ds));
+        for (int k = -n; k <= n; ++k) {
+            const glm::dvec3 at = centre + target.axis * (k * ds);
+            const double z = depth_of(at);
+            if (!(z > 0.0 && z < geometry.depth_mm() + 1.0)) continue;
+            const double weight = elevation.profile(elevation_of(at), z);
+            if (weight > 1e-6 * elevation.profile(0.0, z))
+                pieces.push_back({at, strength * weight * ds, d});
+        }
+    }
+    std::vector<PointEcho> echoes;
+    for (const Piece& piece : pieces) {
+        const glm::dvec3 d = piece.at - pose.position;
+        const double strength = piece.strength;
         const glm::dvec2 plane(glm::dot(d, lateral), glm::dot(d, axial));
         const glm::dvec2 line = geometry.line_and_depth(plane);
         if (!(line.x > -1.0 && line.x < geometry.lines() && line.y > 0.0 &&
@@ -195,7 +236,7 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
             geometry.point(std::clamp(line.x, 0.0, geometry.lines() - 1.0), 0.0) + grid.to_map;
         const glm::dvec2 to = plane + grid.to_map;
         // March the straight path up to the core, in double: attenuation and impedance runs.
-        const double length = glm::length(to - from) - 0.5 * target.diameter_mm - margin_mm;
+        const double length = glm::length(to - from) - 0.5 * piece.diameter_mm - margin_mm;
         const glm::dvec2 direction = glm::normalize(to - from);
         double optical = 0.0, transmission = 1.0;
         double run_start = 0.0, previous = 0.0;
@@ -227,7 +268,7 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
         }
         if (steps > 0) close_run(previous);
         echoes.push_back({to, strength * transmission * std::exp(-optical),
-                          0.5 * target.diameter_mm + margin_mm});
+                          0.5 * piece.diameter_mm + margin_mm});
     }
     return echoes;
 }

@@ -189,8 +189,8 @@ bool touches_box(const Shape& s, const glm::dvec3& size) {
 tissue::PointTarget parse_target(const json& j, const glm::dvec3& size, const std::string& source,
                                  const std::string& where) {
     jsonio::require_object(j, source, where);
-    jsonio::require_known_keys(j, {"type", "at", "diameter", "reflectivity", "comment"}, source,
-                               where);
+    jsonio::require_known_keys(j, {"type", "at", "axis", "diameter", "reflectivity", "comment"},
+                               source, where);
     tissue::PointTarget t;
     const std::string type = jsonio::get_string(j, "type", source, where);
     if (type != "point" && type != "wire")
@@ -212,6 +212,21 @@ tissue::PointTarget parse_target(const json& j, const glm::dvec3& size, const st
                                    "lies outside the phantom (size " + base::number_text(size.x) +
                                        " x " + base::number_text(size.y) + " x " +
                                        base::number_text(size.z) + " mm from the origin)");
+    if (j.contains("axis")) {
+        if (t.type != tissue::PointTarget::Type::wire)
+            throw base::InputError(source, jsonio::join(where, "axis"), "only a wire has an axis");
+        const json& axis = j.at("axis");
+        if (!axis.is_array() || axis.size() != 3 ||
+            !std::all_of(axis.begin(), axis.end(), [](const json& v) { return v.is_number(); }))
+            throw base::InputError(source, jsonio::join(where, "axis"),
+                                   "must be a direction [x, y, z]");
+        const glm::dvec3 v((axis)[0].get<double>(), axis[1].get<double>(), axis[2].get<double>());
+        const double length = glm::length(v);
+        if (!(std::isfinite(length) && length > 1e-9))
+            throw base::InputError(source, jsonio::join(where, "axis"),
+                                   "must be a non-zero, finite direction");
+        t.axis = v / length;
+    }
     if (auto d = jsonio::get_optional_number(j, "diameter", source, where, 1e-3, 2.0))
         t.diameter_mm = *d;
     if (auto r = jsonio::get_optional_number(j, "reflectivity", source, where, 1e-6, 1.0))
@@ -225,6 +240,13 @@ Shape target_core(const tissue::PointTarget& t, const Phantom& ph) {
     Shape s;
     s.type = t.type == tissue::PointTarget::Type::wire ? ShapeType::wire : ShapeType::sphere;
     s.a = t.at;
+    if (s.type == ShapeType::wire && std::abs(t.axis.z) < 1.0 - 1e-12) {
+        // A wire off the z axis: a cylinder through the whole phantom.
+        const double through = glm::length(ph.size);
+        s.type = ShapeType::cylinder;
+        s.a = t.at - t.axis * through;
+        s.b = t.at + t.axis * through;
+    }
     s.radius = 0.5 * t.diameter_mm;
     s.properties = ph.at(t.at);
     const double r = std::min(t.reflectivity, 0.99);

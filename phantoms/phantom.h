@@ -20,6 +20,8 @@
 //   tube        path [[x,y,z], ...], radius       (a bent tube along a polyline)
 //   "targets": [ {"type": "wire", "at": [x, y], "diameter": 0.1, "reflectivity": 0.3},
 //                {"type": "point", "at": [x, y, z], "diameter": 0.1, "reflectivity": 0.3} ]
+// A wire runs along z through [x, y, size_z / 2] unless "axis": [x, y, z] tilts it (a
+// needle crossing the scan plane obliquely).
 // Targets (tissue/point_target.h) are sub-resolution reflectors imaged through the
 // beam's field at their exact position; diameter in (0, 2] mm (default 0.1), reflectivity
 // the amplitude reflection coefficient of their surface in (0, 1] (default 0.3, nylon).

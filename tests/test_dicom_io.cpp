@@ -500,5 +500,13 @@ TEST(DicomIo, TruncatedAndForeignFilesAreRefused) {
     expect_input_error([&] { read_dicom(dir / "absent"); }, "absent", "", "not found");
 }
 
+TEST(DicomIo, AFileThatCrashesGdcmIsRefused) {
+    // A fuzz finding: a file meta header that trips an assertion in Debian's GDCM (an
+    // abort). The reading runs in a child process; the abort is a refusal of the file.
+    const std::string file = std::string(SONOTRACE_SOURCE_DIR) +
+                             "/tests/fuzz/seeds/dicom/gdcm_assertion_in_meta_header.dcm";
+    expect_input_error([&] { read_dicom(file); }, file, "", "malformed");
+}
+
 }  // namespace
 }  // namespace sonotrace::tissue

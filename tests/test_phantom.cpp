@@ -161,6 +161,16 @@ TEST(Phantom, BadInputNamesTheField) {
         {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
              "targets": {"type": "wire", "at": [5, 5]}})",
          "targets"},
+        // A tilted wire's axis: a direction, and only for wires.
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "targets": [{"type": "wire", "at": [5, 5], "axis": [0, 0, 0]}]})",
+         "targets[0].axis"},
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "targets": [{"type": "wire", "at": [5, 5], "axis": [1, 0]}]})",
+         "targets[0].axis"},
+        {R"({"name": "x", "size": [10, 10, 10], "background": {"tissue": "water"},
+             "targets": [{"type": "point", "at": [5, 5, 5], "axis": [1, 0, 0]}]})",
+         "targets[0].axis"},
     };
     for (const auto& c : cases) {
         try {

@@ -10,7 +10,9 @@
 #include "probe/aperture.h"
 #include "probe/array_geometry.h"
 #include "probe/beam.h"
+#include "probe/elevation.h"
 #include "probe/transducer.h"
+#include "tests/elevation_reference.h"
 #include "tests/test_util.h"
 
 namespace sonotrace {
@@ -231,6 +233,37 @@ TEST(Transducer, ElevationApertureIsTheLensThatGivesTheSliceThickness) {
 // The radial array (probe/arrays/radial.cpp). Expectations from the ring's geometry
 // alone: a circle of radius R centred at (0, -R), lines leaving it along its radii every
 // 2 pi / L, and a ring that looks the same from every line (rotational symmetry).
+// The lens's elevation profile (probe/elevation.h) against the closed form at the focus,
+// its unit integral, and the two-way -6 dB width of the independent Rayleigh-Sommerfeld
+// model (tests/elevation_reference.h) before, at and beyond the focus.
+TEST(ElevationBeam, FollowsTheLensApertureAtAndAwayFromTheFocus) {
+    constexpr double kPi = std::numbers::pi;
+    const probe::Transducer t = probe::find_transducer("linear", "test");
+    const probe::ElevationBeam beam(t);
+    const double H = t.elevation_aperture_mm(), F = t.elevation_focus_mm, lambda = t.wavelength_mm();
+    // At the focus: p = H sinc^2(H e / (lambda F)) / (lambda F).
+    for (double e : {0.0, 0.05, 0.2, 0.35, 0.6}) {
+        const double u = kPi * H * e / (lambda * F);
+        const double sinc = e == 0.0 ? 1.0 : std::sin(u) / u;
+        const double expected = H * sinc * sinc / (lambda * F);
+        EXPECT_NEAR(beam.profile(e, F), expected, 0.005 * H / (lambda * F)) << e;
+    }
+    for (double z : {0.5 * F, F, 2.0 * F, 3.0 * F}) {
+        SCOPED_TRACE(z);
+        // Unit integral over the elevation (Parseval).
+        double integral = 0.0;
+        const double reach = beam.reach_mm(z), de = lambda / 16.0;
+        for (double e = -reach; e <= reach; e += de) integral += beam.profile(e, z) * de;
+        EXPECT_NEAR(integral, 1.0, 0.02);
+        const double expected = test::half_amplitude_width(
+            [&](double e) { return test::rayleigh_elevation_two_way(t, e, z); }, 0.5 * reach,
+            lambda / 50.0);
+        const double got = test::half_amplitude_width(
+            [&](double e) { return beam.profile(e, z); }, 0.5 * reach, lambda / 50.0);
+        EXPECT_NEAR(got, expected, 0.05 * expected) << "two-way -6 dB width (mm)";
+    }
+}
+
 TEST(RadialArray, LinesLeaveTheRingAlongItsRadiiAllAround) {
     const Transducer t = probe::find_transducer("radial", "x");
     const probe::ScanGeometry g(t);

@@ -8,9 +8,10 @@
 // echo width of a large cylinder, pi a, times r^2). It holds for ka >~ 1 (a 0.1 mm wire at
 // 7.6 MHz: ka = 1.6) and overstates thinner wires, whose Rayleigh echo falls as (ka)^3.
 // A point (a small sphere of the same diameter) is a piece of that wire as long as its
-// diameter, weighted by the two-way elevation profile of the slice at its offset from
-// the scan plane (a Gaussian whose -6 dB width is the probe's slice thickness, with unit
-// integral: a wire across the slice sums its points to the wire's echo).
+// diameter, weighted by the two-way elevation profile of the lens at its offset from the
+// scan plane and its depth (probe/elevation.h; unit integral over the elevation: a wire
+// straight across the slice sums its points to the wire's echo). A wire crossing the
+// plane obliquely is its pieces: it shows wherever the slice reaches.
 #include <cmath>
 #include <numbers>
 
