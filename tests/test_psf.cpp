@@ -20,8 +20,8 @@
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
 #include "probe/aperture.h"
-#include "probe/elevation.h"
 #include "probe/beam.h"
+#include "probe/elevation.h"
 #include "probe/pulse.h"
 #include "probe/transducer.h"
 #include "tests/elevation_reference.h"
@@ -372,11 +372,8 @@ TEST(Psf, TargetEchoStrengthFollowsItsPathLosses) {
     EXPECT_NEAR(echoes[0].core_radius_mm, 0.05 + kMargin, 1e-12);
 }
 
-// The elevation beam measured on the image: a 0.1 mm point moved out of the scan plane
-// (point_echoes -> RF -> envelope, the peak over the frame), its two-way -6 dB width at
-// the elevation focus and at twice its depth within 15 % of the lens aperture's own
-// prediction (the Rayleigh-Sommerfeld sum of tests/elevation_reference.h).
-TEST(Psf, ElevationBeamWidthFollowsTheLens) {
+// Lossless water without scatterers, 40 x 64 x 10 mm, for the linear preset.
+phantoms::Phantom clear_water() {
     const nlohmann::json j = {{"name", "water"},
                               {"size", {40, 64, 10}},
                               {"resolution", 0.125},
@@ -388,7 +385,15 @@ TEST(Psf, ElevationBeamWidthFollowsTheLens) {
                                 {"scatterer_density", 0},
                                 {"roughness", 0}}},
                               {"probe", {{"preset", "linear"}}}};
-    const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
+    return phantoms::parse_phantom(j, "test");
+}
+
+// The elevation beam measured on the image: a 0.1 mm point moved out of the scan plane
+// (point_echoes -> RF -> envelope, the peak over the frame), its two-way -6 dB width at
+// the elevation focus and at twice its depth within 15 % of the lens aperture's own
+// prediction (the Rayleigh-Sommerfeld sum of tests/elevation_reference.h).
+TEST(Psf, ElevationBeamWidthFollowsTheLens) {
+    const phantoms::Phantom ph = clear_water();
     const probe::Transducer t = probe::find_transducer("linear", "test");
     const imaging::PlaneGrid grid = imaging::plane_grid(t, ph.pose, 0.125);
     const auto map = tissue::AcousticMap<2>::build(phantoms::rasterise(ph, grid.geometry));
@@ -422,18 +427,7 @@ TEST(Psf, ElevationBeamWidthFollowsTheLens) {
 // (widths in quadrature, the PSF measured on a wire straight across the plane); a wire
 // lying in the plane shows on every line it passes under.
 TEST(Psf, WiresShowWhereTheyCrossTheSlice) {
-    const nlohmann::json j = {{"name", "water"},
-                              {"size", {40, 64, 10}},
-                              {"resolution", 0.125},
-                              {"background",
-                               {{"speed_of_sound", 1540},
-                                {"density", 1000},
-                                {"attenuation", 0.0},
-                                {"backscatter", 0},
-                                {"scatterer_density", 0},
-                                {"roughness", 0}}},
-                              {"probe", {{"preset", "linear"}}}};
-    const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
+    const phantoms::Phantom ph = clear_water();
     probe::Transducer t = probe::find_transducer("linear", "test");
     t.lines = 384;  // 0.1 mm apart
     const imaging::PlaneGrid grid = imaging::plane_grid(t, ph.pose, 0.125);
@@ -449,8 +443,8 @@ TEST(Psf, WiresShowWhereTheyCrossTheSlice) {
         wire.at = pose.position + pose.axial() * F;
         wire.axis = glm::normalize(axis);
         const auto echoes = imaging::point_echoes({wire}, map, grid, pose, t, 0.3);
-        const imaging::LineData env = imaging::envelope(
-            imaging::synthesize_rf(t, {}, {}, {}, imaging::map_to_world(pose, grid), settings, echoes));
+        const imaging::LineData env = imaging::envelope(imaging::synthesize_rf(
+            t, {}, {}, {}, imaging::map_to_world(pose, grid), settings, echoes));
         std::vector<double> peaks;
         for (int l = 0; l < env.lines; ++l) {
             double peak = 0.0;
@@ -470,8 +464,9 @@ TEST(Psf, WiresShowWhereTheyCrossTheSlice) {
         [&](double e) { return test::rayleigh_elevation_two_way(t, e, F); }, 3.0,
         t.wavelength_mm() / 50.0);
     const double expected = std::hypot(slice / std::tan(tilt), psf);
-    std::printf("wire at 30 degrees: shows over %.3f mm (slice %.3f mm / tan 30 + PSF %.3f mm: %.3f)\n",
-                measured, slice, psf, expected);
+    std::printf(
+        "wire at 30 degrees: shows over %.3f mm (slice %.3f mm / tan 30 + PSF %.3f mm: %.3f)\n",
+        measured, slice, psf, expected);
     EXPECT_NEAR(measured, expected, 0.15 * expected);
     // In the plane: every line under the wire, away from the array's ends, sees it at
     // more than half the brightest line's level.

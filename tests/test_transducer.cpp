@@ -240,7 +240,8 @@ TEST(ElevationBeam, FollowsTheLensApertureAtAndAwayFromTheFocus) {
     constexpr double kPi = std::numbers::pi;
     const probe::Transducer t = probe::find_transducer("linear", "test");
     const probe::ElevationBeam beam(t);
-    const double H = t.elevation_aperture_mm(), F = t.elevation_focus_mm, lambda = t.wavelength_mm();
+    const double H = t.elevation_aperture_mm(), F = t.elevation_focus_mm,
+                 lambda = t.wavelength_mm();
     // At the focus: p = H sinc^2(H e / (lambda F)) / (lambda F).
     for (double e : {0.0, 0.05, 0.2, 0.35, 0.6}) {
         const double u = kPi * H * e / (lambda * F);
@@ -258,8 +259,8 @@ TEST(ElevationBeam, FollowsTheLensApertureAtAndAwayFromTheFocus) {
         const double expected = test::half_amplitude_width(
             [&](double e) { return test::rayleigh_elevation_two_way(t, e, z); }, 0.5 * reach,
             lambda / 50.0);
-        const double got = test::half_amplitude_width(
-            [&](double e) { return beam.profile(e, z); }, 0.5 * reach, lambda / 50.0);
+        const double got = test::half_amplitude_width([&](double e) { return beam.profile(e, z); },
+                                                      0.5 * reach, lambda / 50.0);
         EXPECT_NEAR(got, expected, 0.05 * expected) << "two-way -6 dB width (mm)";
     }
 }
