@@ -1,6 +1,7 @@
 #include "tissue/dicom_io.h"
 
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -10,6 +11,7 @@
 #include <gdcmTrace.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
@@ -145,11 +147,146 @@ struct SliceHeader {
     double along_normal = 0.0;  // position projected on the slice normal, mm
 };
 
+// Refuses a file whose elements declare more bytes than it holds, before GDCM reads it:
+// GDCM allocates a declared length before it finds the file short (a 714-byte file
+// declaring gigabytes cost 4 GB and seconds). Walks the elements flat: sequences and
+// their items are stepped into, the fragments of encapsulated pixel data skipped. Where
+// the walk cannot follow the encoding (deflated data, unknown VRs, UN of undefined
+// length) it stops and leaves the file to GDCM.
+void check_declared_lengths(const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    in.seekg(0, std::ios::end);
+    const std::uint64_t size = std::uint64_t(std::max<std::streamoff>(in.tellg(), 0));
+    std::uint64_t pos = 132;  // preamble and "DICM"
+    bool meta = true, explicit_vr = true, big_endian = false, fragments = false;
+    std::string syntax;
+    auto read_at = [&](std::uint64_t at, void* out, std::size_t n) {
+        in.clear();
+        in.seekg(std::streamoff(at));
+        return bool(in.read(static_cast<char*>(out), std::streamsize(n)));
+    };
+    auto number = [&](const unsigned char* b, int n) {
+        std::uint32_t v = 0;
+        for (int i = 0; i < n; ++i) v |= std::uint32_t(b[big_endian ? n - 1 - i : i]) << (8 * i);
+        return v;
+    };
+    while (pos + 8 <= size) {
+        unsigned char head[12] = {};
+        if (!read_at(pos, head, std::min<std::uint64_t>(12, size - pos))) return;
+        const bool meta_le = meta;  // the file meta group is always explicit little endian
+        const bool saved = big_endian;
+        if (meta_le) big_endian = false;
+        const std::uint32_t group = number(head, 2), element = number(head + 2, 2);
+        if (meta && group != 0x0002) {
+            meta = false;
+            big_endian = saved;
+            if (syntax == "1.2.840.10008.1.2.1.99") return;  // deflated: not walkable
+            explicit_vr = syntax != "1.2.840.10008.1.2";
+            big_endian = syntax == "1.2.840.10008.1.2.2";
+            continue;
+        }
+        char tag_text[16];
+        std::snprintf(tag_text, sizeof tag_text, "(%04X,%04X)", unsigned(group), unsigned(element));
+        auto require_fits = [&](std::uint64_t header, std::uint64_t length) {
+            if (pos + header + length > size) {
+                throw base::InputError(file, tag_text,
+                                       "declares " + std::to_string(length) + " bytes where " +
+                                           std::to_string(size - std::min(size, pos + header)) +
+                                           " remain: the file is truncated or corrupt");
+            }
+        };
+        if (group == 0xFFFE) {  // item and delimiters: a 4-byte length, no VR
+            const std::uint32_t length = number(head + 4, 4);
+            if (element == 0xE000 && fragments) {
+                if (length == 0xFFFFFFFFu) return;
+                require_fits(8, length);
+                pos += 8 + length;
+            } else {
+                if (element == 0xE0DD) fragments = false;
+                pos += 8;
+            }
+            if (meta_le) big_endian = saved;
+            continue;
+        }
+        std::uint64_t header = 8, length = 0;
+        std::string vr;
+        if (explicit_vr || meta_le) {
+            vr.assign(reinterpret_cast<const char*>(head + 4), 2);
+            if (!std::isupper(static_cast<unsigned char>(vr[0])) ||
+                !std::isupper(static_cast<unsigned char>(vr[1])))
+                return;  // not an encoding this walk follows
+            static const std::set<std::string> long_vrs = {"OB", "OD", "OF", "OL", "OV", "OW", "SQ",
+                                                           "SV", "UC", "UN", "UR", "UT", "UV"};
+            if (long_vrs.count(vr)) {
+                if (pos + 12 > size) require_fits(12, 0);
+                header = 12;
+                length = number(head + 8, 4);
+            } else {
+                length = number(head + 6, 2);
+            }
+        } else {
+            length = number(head + 4, 4);
+        }
+        if (meta_le) big_endian = saved;
+        if (length == 0xFFFFFFFFu) {
+            if (vr == "UN") return;  // implicit VR inside: not followed
+            fragments = group == 0x7FE0 && element == 0x0010;
+            pos += header;  // step into the sequence or the fragments
+            continue;
+        }
+        if (vr == "SQ") {
+            pos += header;  // step into its items
+            continue;
+        }
+        require_fits(header, length);
+        if (group == 0x0002 && element == 0x0010 && length < 128) {
+            syntax.resize(length);
+            if (!read_at(pos + header, syntax.data(), length)) return;
+            while (!syntax.empty() && (syntax.back() == '\0' || syntax.back() == ' '))
+                syntax.pop_back();
+        }
+        pos += header + length;
+    }
+}
+
+// GDCM allocates what a header declares, and a malformed header that the walk above
+// cannot follow may declare gigabytes in a file of a few hundred bytes. Each GDCM call
+// (made in the child process, read_dicom) runs with an address-space limit of what the
+// process already maps plus a budget from the file's size: 32 times it (decompression),
+// at least 256 MB; beyond it the allocation fails and the file is refused.
+class AllocationBudget {
+  public:
+    explicit AllocationBudget(const std::string& file) {
+        std::error_code error;
+        const double file_bytes = double(fs::file_size(file, error));
+        std::ifstream statm("/proc/self/statm");
+        double pages = 0.0;
+        if (!(statm >> pages) || ::getrlimit(RLIMIT_AS, &saved_) != 0) return;
+        const double budget = std::max(256.0 * (1 << 20), 32.0 * (error ? 0.0 : file_bytes));
+        const double limit = pages * double(::sysconf(_SC_PAGESIZE)) + budget;
+        if (saved_.rlim_cur != RLIM_INFINITY && double(saved_.rlim_cur) <= limit) return;
+        rlimit tighter = saved_;
+        tighter.rlim_cur = rlim_t(limit);
+        active_ = ::setrlimit(RLIMIT_AS, &tighter) == 0;
+    }
+    ~AllocationBudget() {
+        if (active_) ::setrlimit(RLIMIT_AS, &saved_);
+    }
+    AllocationBudget(const AllocationBudget&) = delete;
+    AllocationBudget& operator=(const AllocationBudget&) = delete;
+
+  private:
+    rlimit saved_{};
+    bool active_ = false;
+};
+
 std::optional<SliceHeader> read_header(const std::string& file) {
+    check_declared_lengths(file);
     gdcm::Reader reader;
     reader.SetFileName(file.c_str());
     bool read = false;
     try {
+        const AllocationBudget budget(file);
         read = reader.ReadUpToTag(kPixelData.tag(), std::set<gdcm::Tag>{});
     } catch (const std::exception& e) {
         throw base::InputError(file, "",
@@ -268,6 +405,7 @@ DecodedImage decode(const std::string& file) {
     reader.SetFileName(file.c_str());
     bool read = false;
     try {
+        const AllocationBudget budget(file);
         read = reader.Read();
     } catch (const std::exception& e) {
         throw base::InputError(file, kPixelData.field(), std::string("GDCM: ") + e.what());
@@ -703,6 +841,13 @@ DicomReadResult read_dicom(const std::string& path) {
         PipeWriter out(fds[1]);
         try {
             send_result(out, read_dicom_here(path));
+        } catch (const std::bad_alloc&) {
+            out.value(std::uint8_t(1));
+            out.text(path);
+            out.text("");
+            out.text(
+                "declares more data than it holds (beyond the reading's memory budget): "
+                "the file is malformed");
         } catch (const base::InputError& e) {
             out.value(std::uint8_t(1));
             out.text(e.source());
