@@ -7,6 +7,8 @@
 //   ./build/bench/bench_frame --benchmark_repetitions=20 --benchmark_report_aggregates_only
 #include "bench/benchmark_main.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <map>
@@ -78,6 +80,34 @@ BENCHMARK_CAPTURE(frame, standard, imaging::Quality::standard)
 BENCHMARK_CAPTURE(frame, high, imaging::Quality::high)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// The whole frame as `sonotrace simulate` makes it (simulate_plane: the plane's or the
+// slab's maps, then the frame), traced in the plane or in the slab of the elevation beam,
+// at the standard quality: their ratio is the cost of --trace 3d. peak_rss_mb: the
+// process's peak so far (the 3D runs come last).
+void whole_frame(benchmark::State& state, int dimensions) {
+    const imaging::Scene& s = scene();
+    imaging::SimulationSettings settings;
+    settings.transducer = probe::find_transducer("convex", "bench");
+    settings.quality = imaging::Quality::standard;
+    settings.trace_dimensions = dimensions;
+    s.apply_to(settings);
+    settings.imaging.gain_db = 36.0;
+    settings.trace.deposition_maps = false;
+    imaging::PsfTable::of(settings.transducer);
+    imaging::simulate_plane(s.mapper, s.start, settings, false);  // tables of the probe set-up
+    for (auto _ : state) {
+        const imaging::SimulatedFrame f =
+            imaging::simulate_plane(s.mapper, s.start, settings, false);
+        benchmark::DoNotOptimize(f.frame.image.image.data);
+    }
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    state.counters["peak_rss_mb"] = double(usage.ru_maxrss) / 1024.0;
+}
+
+BENCHMARK_CAPTURE(whole_frame, trace_2d, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(whole_frame, trace_3d, 3)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

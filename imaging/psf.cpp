@@ -12,6 +12,7 @@
 
 #include "probe/aperture.h"
 #include "probe/array_geometry.h"
+#include "probe/elevation.h"
 #include "tissue/acoustic_map.h"
 
 namespace sonotrace::imaging {
@@ -253,12 +254,16 @@ double PsfTable::receive_power(int l, double x, double z) const {
 
 namespace {
 
+template <int Dim>
 std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
-    const probe::Transducer& t, const probe::Sources<2>& sources, const glm::dvec2& face_in_map) {
+    const probe::Transducer& t, const probe::Sources<Dim>& sources,
+    const glm::vec<Dim, double>& face_in_map) {
     // Columns 0.25 mm of one-way range apart: |R|^2 of a focused receive changes over
     // millimetres along the line.
     const double bin_s = 0.25e-3 / tissue::kReferenceSpeed;
     const std::shared_ptr<const PsfTable> psf = PsfTable::of(t);
+    const std::shared_ptr<const probe::ElevationTable> lens =
+        Dim == 3 ? probe::ElevationTable::of(t) : nullptr;
     const probe::ScanGeometry geometry(t);
     const int L = t.lines;
     auto out = std::make_shared<simulator::ReceiveWeights>();
@@ -281,15 +286,30 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
         const auto& line = of_line[std::size_t(l)];
         struct Launch {
             double x, z, dx, dz, t0, energy;  // line frame: across, along
+            double e = 0.0, de = 0.0;         // elevation (3D)
+        };
+        // The receive's power at a point of a line's frame, in 3D times the lens's.
+        auto power = [&](double x, double z, double e) {
+            const double in_plane = psf->receive_power(l, x, z);
+            if constexpr (Dim == 3) return in_plane * lens->intensity(e, z);
+            (void)e;
+            return in_plane;
         };
         std::vector<Launch> launches;
         for (const uint32_t index : line) {
             const auto& s = sources[index];
-            const glm::dvec2 from = glm::dvec2(s.position) - face_in_map - axis.origin;
-            const glm::dvec2 d(s.direction);
-            launches.push_back({glm::dot(from, across), glm::dot(from, axis.direction),
-                                glm::dot(d, across), glm::dot(d, axis.direction), double(s.time_s),
-                                double(s.energy)});
+            const glm::dvec2 from = glm::dvec2(s.position.x, s.position.y) -
+                                    glm::dvec2(face_in_map.x, face_in_map.y) - axis.origin;
+            // In 3D the in-plane components per mm of path: slower across the plane.
+            const glm::dvec2 d(s.direction.x, s.direction.y);
+            Launch launch{glm::dot(from, across), glm::dot(from, axis.direction),
+                          glm::dot(d, across),    glm::dot(d, axis.direction),
+                          double(s.time_s),       double(s.energy)};
+            if constexpr (Dim == 3) {
+                launch.e = double(s.position.z) - face_in_map.z;
+                launch.de = double(s.direction.z);
+            }
+            launches.push_back(launch);
         }
         // The mean over the line's particles at a range (0.5 mm apart, as needed).
         std::map<long, double> mean_at;
@@ -301,7 +321,8 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
             double sum = 0.0, energy = 0.0;
             for (const Launch& p : launches) {
                 if (!(p.dz > 1e-3)) continue;
-                sum += p.energy * psf->receive_power(l, p.x + (zk - p.z) * p.dx / p.dz, zk);
+                sum += p.energy *
+                       power(p.x + (zk - p.z) * p.dx / p.dz, zk, p.e + (zk - p.z) * p.de / p.dz);
                 energy += p.energy;
             }
             it->second = energy > 0.0 ? sum / energy : 0.0;
@@ -318,7 +339,7 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
                 if (!(z > 0.0)) continue;
                 const double m = mean(z);
                 if (!(m > 0.0)) continue;  // no particle within the receive's reach: as is
-                row[b] = float(psf->receive_power(l, a.x + s * a.dx, z) / m);
+                row[b] = float(power(a.x + s * a.dx, z, a.e + s * a.de) / m);
             }
         }
     });
@@ -327,9 +348,12 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
 
 }  // namespace
 
-std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
-                                                                 const probe::Sources<2>& sources,
-                                                                 const glm::dvec2& face_in_map) {
+namespace {
+
+template <int Dim>
+std::shared_ptr<const simulator::ReceiveWeights> kept_receive_weights(
+    const probe::Transducer& t, const probe::Sources<Dim>& sources,
+    const glm::vec<Dim, double>& face_in_map) {
     // The weights are a pure function of the probe set-up (its PSF table) and of each
     // particle's line, launch point relative to the face, direction, start time and
     // energy, exactly the values the computation reads: frames of one probe set-up and
@@ -338,12 +362,17 @@ std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Tr
     // of a standard frame).
     const std::shared_ptr<const PsfTable> psf = PsfTable::of(t);
     std::vector<double> key;
-    key.reserve(sources.size() * 7 + 1);
+    key.reserve(sources.size() * (3 + 2 * Dim) + 3);
     key.push_back(double(t.lines));
-    for (const auto& s : sources)
-        key.insert(key.end(), {double(s.line), double(s.position.x) - face_in_map.x,
-                               double(s.position.y) - face_in_map.y, double(s.direction.x),
-                               double(s.direction.y), double(s.time_s), double(s.energy)});
+    key.push_back(double(Dim));
+    // The lens (3D): its aperture and focus.
+    key.push_back(Dim == 3 ? t.elevation_aperture_mm() * 1e3 + t.elevation_focus_mm : 0.0);
+    for (const auto& s : sources) {
+        key.push_back(double(s.line));
+        for (int a = 0; a < Dim; ++a) key.push_back(double(s.position[a]) - face_in_map[a]);
+        for (int a = 0; a < Dim; ++a) key.push_back(double(s.direction[a]));
+        key.insert(key.end(), {double(s.time_s), double(s.energy)});
+    }
     struct Kept {
         std::shared_ptr<const PsfTable> psf;
         std::vector<double> key;
@@ -356,11 +385,25 @@ std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Tr
         for (const Kept& k : kept)
             if (k.psf == psf && k.key == key) return k.weights;
     }
-    auto weights = compute_receive_weights(t, sources, face_in_map);
+    auto weights = compute_receive_weights<Dim>(t, sources, face_in_map);
     const std::lock_guard<std::mutex> lock(mutex);
     kept.push_back({psf, std::move(key), weights});
     if (kept.size() > 4) kept.erase(kept.begin());
     return weights;
+}
+
+}  // namespace
+
+std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
+                                                                 const probe::Sources<2>& sources,
+                                                                 const glm::dvec2& face_in_map) {
+    return kept_receive_weights<2>(t, sources, face_in_map);
+}
+
+std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
+                                                                 const probe::Sources<3>& sources,
+                                                                 const glm::dvec3& face_in_map) {
+    return kept_receive_weights<3>(t, sources, face_in_map);
 }
 
 }  // namespace sonotrace::imaging

@@ -113,9 +113,14 @@ class PsfTable {
 // particle, by reciprocity, where its echo seems to come from), over the energy-weighted
 // mean of the same over the line's particles at that range. A reflector or tissue
 // across the whole beam averages the weights to 1; a target smaller than the beam echoes
-// on the lines whose receive sees it.
+// on the lines whose receive sees it. In 3D (probe frame z = elevation) |R|^2 is times
+// the lens's one-way intensity at the path's elevation (probe/elevation.h), the mean
+// taken over both.
 std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
                                                                  const probe::Sources<2>& sources,
                                                                  const glm::dvec2& face_in_map);
+std::shared_ptr<const simulator::ReceiveWeights> receive_weights(const probe::Transducer& t,
+                                                                 const probe::Sources<3>& sources,
+                                                                 const glm::dvec3& face_in_map);
 
 }  // namespace sonotrace::imaging

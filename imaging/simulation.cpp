@@ -109,6 +109,8 @@ void SimulationSettings::validate(const std::string& source) const {
         base::require_in_range(source, field, v, lo, hi);
     };
     in_range(step_texels, 0.0, 100.0, "step");
+    if (trace_dimensions != 2 && trace_dimensions != 3)
+        throw base::InputError(source, "trace", "must be 2d or 3d");
     if (refraction_smoothing_mm)
         in_range(*refraction_smoothing_mm, 0.0, 20.0, "refraction-smoothing");
     in_range(imaging.sampling_mhz, 0.0, 1000.0, "sampling");
@@ -153,6 +155,61 @@ PlaneGrid plane_grid(const probe::Transducer& t, const probe::Pose& pose, double
     grid.to_map = {0.5 * (grid.geometry.dims.x - 1) * pixel_mm,
                    grid.top_margin_mm - 0.5 * pixel_mm};
     return grid;
+}
+
+PlaneGrid slab_grid(const probe::Transducer& t, const probe::Pose& pose, double pixel_mm,
+                    double elevation_pixel_mm) {
+    PlaneGrid grid = plane_grid(t, pose, pixel_mm);
+    const double half = probe::ElevationTable::of(t)->slab_half_mm();
+    const int side = std::max(1, int(std::ceil(half / elevation_pixel_mm)));
+    tissue::VolumeGeometry& g = grid.geometry;
+    g.dims.z = 2 * side + 1;
+    g.spacing.z = elevation_pixel_mm;
+    g.origin -= g.direction[2] * (side * elevation_pixel_mm);
+    grid.plane_slice = side;
+    grid.plane_elevation_in_map = side * elevation_pixel_mm;
+    return grid;
+}
+
+tissue::PropertyMaps plane_of_slab(const tissue::PropertyMaps& slab, const PlaneGrid& grid,
+                                   const probe::Transducer& t) {
+    const tissue::VolumeGeometry& g = slab.geometry();
+    tissue::VolumeGeometry plane = g;
+    plane.dims.z = 1;
+    plane.origin = g.index_to_world(glm::dvec3(0.0, 0.0, grid.plane_slice));
+    const std::shared_ptr<const probe::ElevationTable> lens = probe::ElevationTable::of(t);
+    tissue::PropertyMaps out;
+    for (std::size_t f = 0; f < tissue::kPropertyCount; ++f) {
+        tissue::Volume v(plane);
+        for (int j = 0; j < g.dims.y; ++j)
+            for (int i = 0; i < g.dims.x; ++i)
+                v.at(i, j) = slab.fields[f].at(i, j, grid.plane_slice);
+        out.fields[f] = std::move(v);
+    }
+    tissue::Volume& backscatter = out[tissue::Property::backscatter];
+    const tissue::Volume& slab_backscatter = slab[tissue::Property::backscatter];
+    tbb::parallel_for(0, g.dims.y, [&](int j) {
+        // The row's depth below the face, and each slice's two-way intensity there.
+        const double depth = (j + 0.5) * g.spacing.y - grid.top_margin_mm;
+        std::vector<double> w(std::size_t(g.dims.z));
+        double total = 0.0;
+        for (int k = 0; k < g.dims.z; ++k) {
+            const double one_way =
+                lens->intensity((k - grid.plane_slice) * g.spacing.z, std::max(depth, 0.0));
+            w[std::size_t(k)] = one_way * one_way;
+            total += w[std::size_t(k)];
+        }
+        if (!(total > 0.0)) return;  // above the face: the plane's own
+        for (int i = 0; i < g.dims.x; ++i) {
+            double sum = 0.0;
+            for (int k = 0; k < g.dims.z; ++k) {
+                const double b = slab_backscatter.at(i, j, k);
+                sum += w[std::size_t(k)] * b * b;
+            }
+            backscatter.at(i, j) = float(std::sqrt(sum / total));
+        }
+    });
+    return out;
 }
 
 MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid) {
@@ -273,9 +330,48 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
     return echoes;
 }
 
-Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
-                     const probe::Pose& pose, const SimulationSettings& settings,
-                     const FrameProgress& progress) {
+namespace {
+
+// An echo of the slab seen from the scan plane: its in-plane position, direction and
+// normal (as the 2D image formation reads them); a mirror tilted in elevation returns to
+// the lens by its plane response sinc^2(2 H sin(beta) / lambda) (rectangular lens of
+// height H; beta: the normal's angle out of the plane).
+simulator::EchoEvent<2> on_the_plane(const simulator::EchoEvent<3>& e, double lens_mm,
+                                     double lambda_mm) {
+    simulator::EchoEvent<2> out;
+    out.line = e.line;
+    out.particle = e.particle;
+    out.time_s = e.time_s;
+    out.energy = e.energy;
+    out.weight = e.weight;
+    out.position = glm::vec2(e.position.x, e.position.y);
+    out.bounces = e.bounces;
+    out.kind = e.kind;
+    out.cos_incidence = e.cos_incidence;
+    out.lobe_exponent = e.lobe_exponent;
+    out.return_weight = e.return_weight;
+    auto in_plane = [](const glm::vec3& v) {
+        const glm::vec2 p(v.x, v.y);
+        const float n = glm::length(p);
+        return n > 0.0f ? p / n : glm::vec2(0.0f);
+    };
+    out.normal = in_plane(e.normal);
+    out.direction = in_plane(e.direction);
+    if (e.kind == simulator::EchoKind::specular && glm::dot(e.normal, e.normal) > 0.0f) {
+        const double u = 2.0 * lens_mm * double(e.normal.z) / lambda_mm;
+        const double sinc =
+            std::abs(u) < 1e-9 ? 1.0 : std::sin(std::numbers::pi * u) / (std::numbers::pi * u);
+        out.weight = float(double(out.weight) * sinc * sinc);
+    }
+    return out;
+}
+
+// One frame: beams, trace, the image. `Dim` 2 traces the plane `map`; 3 the slab `map`,
+// whose echoes are then projected on the plane, imaged over `plane`.
+template <int Dim>
+Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const tissue::AcousticMap<2>& plane,
+                      const PlaneGrid& grid, const probe::Pose& pose,
+                      const SimulationSettings& settings, const FrameProgress& progress) {
     using clock = std::chrono::steady_clock;
     Frame frame;
     auto stage = [&](const char* name, auto&& work) {
@@ -285,11 +381,20 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     };
     const probe::Transducer& t = settings.transducer;
     const LineData layout = rf_layout(t, settings.imaging);
+    const probe::BeamSettings beam{quality_level(settings.quality).particles_per_line,
+                                   settings.seed};
+    // Where the probe plane's origin lies in the map frame.
+    glm::vec<Dim, double> to_map;
+    to_map.x = grid.to_map.x;
+    to_map.y = grid.to_map.y;
+    if constexpr (Dim == 3) to_map.z = grid.plane_elevation_in_map;
 
-    probe::Sources<2> sources;
+    probe::Sources<Dim> sources;
     stage("beams", [&] {
-        sources = probe::make_beams(
-            t, {quality_level(settings.quality).particles_per_line, settings.seed}, grid.to_map);
+        if constexpr (Dim == 2)
+            sources = probe::make_beams(t, beam, to_map);
+        else
+            sources = probe::make_beams_3d(t, beam, to_map);
     });
 
     simulator::TraceSettings trace = settings.trace;
@@ -300,8 +405,7 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     trace.record_scatter_echoes = false;
     trace.echo_profile = simulator::EchoProfileSettings{1.0 / layout.fs_hz, layout.samples};
     // The image's receive, applied once to the scattered and reflected echoes.
-    stage("receive weights",
-          [&] { trace.receive_weights = receive_weights(t, sources, grid.to_map); });
+    stage("receive weights", [&] { trace.receive_weights = receive_weights(t, sources, to_map); });
     // The echo window closes at the last sample: monostatic echoes come at twice the
     // one-way time, captured ones at the particle's own time.
     const double window_s = layout.samples / layout.fs_hz;
@@ -312,19 +416,71 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
         trace.diffuse_return_half_angle_rad =
             std::atan(0.5 * t.receive_aperture_mm(t.focus_mm) / std::max(t.focus_mm, 1.0));
     if (settings.receive == ReceiveModel::capture) {
-        trace.probe_face_2d = simulator::probe_face(t, grid.to_map);
+        if constexpr (Dim == 2)
+            trace.probe_face_2d = simulator::probe_face(t, to_map);
+        else
+            trace.probe_face_3d = simulator::probe_face(t, to_map);
     }
-    simulator::TraceResult<2> traced;
+    simulator::TraceResult<Dim> traced;
     stage("trace", [&] { traced = simulator::trace(map, sources, trace, progress); });
     frame.ledger = traced.ledger;
     frame.stats = traced.stats;
-    frame.absorbed = std::move(traced.absorbed);
-    frame.paths = std::move(traced.paths);
+
+    // What the plane's image needs of the trace: 2D as it is, 3D projected.
+    probe::Sources<2> plane_sources;
+    std::vector<simulator::EchoEvent<2>> plane_echoes;
+    simulator::EchoProfile<2> plane_profile;
+    if constexpr (Dim == 2) {
+        frame.absorbed = std::move(traced.absorbed);
+        frame.paths = std::move(traced.paths);
+        plane_sources = std::move(sources);
+        plane_echoes = std::move(traced.echoes);
+        plane_profile = std::move(traced.echo_profile);
+    } else {
+        stage("projection", [&] {
+            if (traced.absorbed.size() > 0) {  // the plane's slice
+                tissue::VolumeGeometry g = plane.geometry();
+                tissue::Volume slice(g);
+                const tissue::Volume& slab = traced.absorbed;
+                for (int j = 0; j < g.dims.y; ++j)
+                    for (int i = 0; i < g.dims.x; ++i)
+                        slice.at(i, j) = slab.at(i, j, grid.plane_slice);
+                frame.absorbed = std::move(slice);
+            }
+            for (const auto& path : traced.paths) {
+                simulator::Path<2>& p = frame.paths.emplace_back();
+                p.line = path.line;
+                p.particle = path.particle;
+                for (const auto& v : path.vertices)
+                    p.vertices.push_back({glm::vec2(v.position.x, v.position.y), v.energy});
+            }
+            // In-plane components per mm of path: the image's range and receive read the
+            // particle's progress along the plane as the trace made it.
+            plane_sources.reserve(sources.size());
+            for (const auto& s : sources)
+                plane_sources.push_back({glm::vec2(s.position.x, s.position.y),
+                                         glm::vec2(s.direction.x, s.direction.y), s.energy, s.line,
+                                         s.time_s});
+            const double lens = t.elevation_aperture_mm(), lambda = t.wavelength_mm();
+            plane_echoes.reserve(traced.echoes.size());
+            for (const auto& e : traced.echoes)
+                plane_echoes.push_back(on_the_plane(e, lens, lambda));
+            const auto& p3 = traced.echo_profile;
+            plane_profile.lines = p3.lines;
+            plane_profile.bins = p3.bins;
+            plane_profile.bin_s = p3.bin_s;
+            plane_profile.intensity = p3.intensity;
+            plane_profile.illumination = p3.illumination;
+            for (const auto& v : p3.illuminated_position)
+                plane_profile.illuminated_position.emplace_back(v.x, v.y);
+            for (const auto& v : p3.position) plane_profile.position.emplace_back(v.x, v.y);
+        });
+    }
 
     // Which reflections form the image depends on the receive model; a target's own
     // core echoes through point_echoes, not through the tracer.
     const std::vector<PointEcho> points =
-        point_echoes(settings.targets, map, grid, pose, t, settings.target_margin_mm);
+        point_echoes(settings.targets, plane, grid, pose, t, settings.target_margin_mm);
     auto in_a_core = [&](const glm::vec2& at) {
         for (std::size_t k = 0; k < points.size(); ++k)
             if (glm::length(glm::dvec2(at) - points[k].position) <= points[k].core_radius_mm)
@@ -332,7 +488,7 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
         return false;
     };
     std::vector<simulator::EchoEvent<2>> echoes;
-    for (const auto& e : traced.echoes) {
+    for (const auto& e : plane_echoes) {
         const bool returned = e.kind == simulator::EchoKind::returned_to_probe;
         if (returned == (settings.receive == ReceiveModel::capture) && !in_a_core(e.position))
             echoes.push_back(e);
@@ -341,14 +497,28 @@ Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
     imaging.seed = settings.seed;
     imaging.sub_line_sigmas = quality_level(settings.quality).sub_line_sigmas;
     stage("rf", [&] {
-        frame.rf = synthesize_rf(t, sources, echoes, traced.echo_profile, map_to_world(pose, grid),
-                                 imaging, points, trace.receive_weights, &map);
+        frame.rf = synthesize_rf(t, plane_sources, echoes, plane_profile, map_to_world(pose, grid),
+                                 imaging, points, trace.receive_weights, &plane);
     });
     stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
     stage("compression", [&] { frame.display = compress(frame.envelope, imaging); });
     stage("scan conversion",
           [&] { frame.image = scan_convert(frame.display, t, imaging.pixel_mm); });
     return frame;
+}
+
+}  // namespace
+
+Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
+                     const probe::Pose& pose, const SimulationSettings& settings,
+                     const FrameProgress& progress) {
+    return trace_and_image<2>(map, map, grid, pose, settings, progress);
+}
+
+Frame simulate_frame(const tissue::AcousticMap<3>& map, const tissue::AcousticMap<2>& plane,
+                     const PlaneGrid& grid, const probe::Pose& pose,
+                     const SimulationSettings& settings, const FrameProgress& progress) {
+    return trace_and_image<3>(map, plane, grid, pose, settings, progress);
 }
 
 tissue::AcousticProperties saline() {
@@ -482,14 +652,36 @@ SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& s
                               const SimulationSettings& settings, bool with_labels,
                               const FrameProgress& progress) {
     const QualityLevel level = quality_level(settings.quality);
-    const PlaneGrid grid = plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
+    const bool slab = settings.trace_dimensions == 3;
+    // The slab's slices are twice the map pixel apart: the elevation beam varies over
+    // millimetres, and the slab is the frame's memory and time.
+    const PlaneGrid grid = slab ? slab_grid(settings.transducer, scene.pose, level.map_pixel_mm,
+                                            2.0 * level.map_pixel_mm)
+                                : plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
     std::optional<tissue::Volume> labels;
     if (with_labels) labels.emplace();
     tissue::PropertyMaps maps = mapper(grid.geometry, labels ? &*labels : nullptr);
     prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
-    const auto map = frame_map(maps, settings);
     SimulatedFrame out;
-    out.frame = simulate_frame(map, grid, scene.pose, settings, progress);
+    if (slab) {
+        const auto map = tissue::AcousticMap<3>::build(maps, refraction_smoothing_mm(settings));
+        const auto plane = frame_map(plane_of_slab(maps, grid, settings.transducer), settings);
+        maps = {};  // the slab's fields: the map holds what the trace needs
+        out.frame = simulate_frame(map, plane, grid, scene.pose, settings, progress);
+        if (labels) {  // the plane's own
+            tissue::VolumeGeometry g = labels->geometry();
+            g.dims.z = 1;
+            g.origin = labels->geometry().index_to_world(glm::dvec3(0.0, 0.0, grid.plane_slice));
+            tissue::Volume plane_labels(g);
+            for (int j = 0; j < g.dims.y; ++j)
+                for (int i = 0; i < g.dims.x; ++i)
+                    plane_labels.at(i, j) = labels->at(i, j, grid.plane_slice);
+            *labels = std::move(plane_labels);
+        }
+    } else {
+        const auto map = frame_map(maps, settings);
+        out.frame = simulate_frame(map, grid, scene.pose, settings, progress);
+    }
     if (labels) out.labels = scan_convert_labels(*labels, grid, out.frame.image);
     return out;
 }

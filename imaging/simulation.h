@@ -98,6 +98,10 @@ struct SimulationSettings {
     // tracer's echoes within a core's radius + `target_margin_mm` are its own and dropped.
     std::vector<tissue::PointTarget> targets;
     double target_margin_mm = 0.5;
+    // 2: the particles are traced in the scan plane; 3: in the slab the elevation beam
+    // spans (slab_grid), launched over the elevation aperture through the lens, their
+    // echoes weighted by the lens's receive, so the frame integrates over the slice.
+    int trace_dimensions = 2;
 
     // Throws base::InputError naming the first bad parameter.
     void validate(const std::string& source) const;
@@ -116,11 +120,27 @@ tissue::AcousticMap<2> frame_map(const tissue::PropertyMaps& maps, const Simulat
 // The probe-aligned grid that holds a transducer's scanned region plus margins, and the
 // offset from probe-plane coordinates to the map frame (map = plane + to_map).
 struct PlaneGrid {
-    tissue::VolumeGeometry geometry;
+    tissue::VolumeGeometry geometry;  // one slice, or the slab of a 3D frame
     glm::dvec2 to_map{0.0};
     double top_margin_mm = 0.0;  // how far the grid starts above the face
+    // A slab: its slice on the scan plane, and that plane's elevation in the map frame.
+    int plane_slice = 0;
+    double plane_elevation_in_map = 0.0;
+    bool is_slab() const { return geometry.dims.z > 1; }
 };
 PlaneGrid plane_grid(const probe::Transducer& t, const probe::Pose& pose, double pixel_mm);
+// The slab a 3D frame traces: the plane grid with slices `elevation_pixel_mm` apart over
+// the lens's slab (probe::ElevationTable::slab_half_mm), an odd number so that the middle
+// one lies on the scan plane.
+PlaneGrid slab_grid(const probe::Transducer& t, const probe::Pose& pose, double pixel_mm,
+                    double elevation_pixel_mm);
+// The scan plane of a slab's maps, for the image: the plane slice's properties with the
+// backscatter the elevation beam sees, sqrt(sum over slices of w b^2) with w the lens's
+// two-way intensity |U|^4 at the slice's elevation and the row's depth, normalised over
+// the slab (probe/elevation.h): a cyst thinner than the slice lets the tissue beside it
+// light its speckle.
+tissue::PropertyMaps plane_of_slab(const tissue::PropertyMaps& slab, const PlaneGrid& grid,
+                                   const probe::Transducer& t);
 
 // Maps the tracer's map frame back to world coordinates.
 MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid);
@@ -153,6 +173,13 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
 Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                      const probe::Pose& pose, const SimulationSettings& settings,
                      const FrameProgress& progress = {});
+// The same traced in 3D: `map` over the slab of `grid` (slab_grid), `plane` the scan
+// plane's map for the image (plane_of_slab packed as frame_map). The echoes are projected
+// on the plane after the trace; a reflector tilted in elevation echoes by the lens's plane
+// response sinc^2(2 H sin(beta) / lambda).
+Frame simulate_frame(const tissue::AcousticMap<3>& map, const tissue::AcousticMap<2>& plane,
+                     const PlaneGrid& grid, const probe::Pose& pose,
+                     const SimulationSettings& settings, const FrameProgress& progress = {});
 
 // What lies on a plane grid: property maps and, on request, tissue labels.
 using PlaneMapper =

@@ -16,6 +16,8 @@
 // of diameter d images as a piece of wire of length d weighted by p, and a wire across the
 // slice sums its pieces to the wire's own echo.
 #include <complex>
+#include <memory>
+#include <vector>
 
 #include "probe/transducer.h"
 
@@ -39,6 +41,26 @@ class ElevationBeam {
 
   private:
     double aperture_mm_, focus_mm_, wavelength_mm_;
+};
+
+// The one-way intensity |U(e, z)|^2 / H^2 (1 on the axis at the focus) tabulated over the
+// imaging depth and the elevation a 3D frame traces, for the image's many look-ups
+// (receive weights, the speckle's elevation average). Built once per lens and depth.
+class ElevationTable {
+  public:
+    static std::shared_ptr<const ElevationTable> of(const Transducer& t);
+    explicit ElevationTable(const Transducer& t);
+
+    // Bilinear in depth and |e|; 0 beyond the slab.
+    double intensity(double e_mm, double z_mm) const;
+    // Half-thickness (mm) of the slab a 3D frame traces: over the imaging depth, the
+    // geometric beam H/2 |1 - z/F| plus two diffraction widths lambda z / H, and 1 mm.
+    double slab_half_mm() const { return slab_half_mm_; }
+
+  private:
+    double dz_ = 0.5, de_ = 0.05, slab_half_mm_ = 0.0;
+    int rows_ = 0, columns_ = 0;
+    std::vector<float> values_;  // [row * columns + column]
 };
 
 }  // namespace sonotrace::probe

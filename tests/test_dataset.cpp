@@ -70,6 +70,7 @@ TEST(DatasetSpec, BadSpecsNameTheFileAndField) {
     check([](auto& j) { j["sources"][0] = {{"scene", "head-side"}}; }, "sources[0].scene", "");
     check([](auto& j) { j["disable"] = {"gravity"}; }, "disable", "");
     check([](auto& j) { j["quality"] = "best"; }, "quality", "");
+    check([](auto& j) { j["trace"] = "4d"; }, "trace", "2d or 3d");
     check([](auto& j) { j["pose"]["tilt_deg"] = 90; }, "pose.tilt_deg", "");
 }
 

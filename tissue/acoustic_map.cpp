@@ -49,6 +49,24 @@ float derivative(const Volume& f, const glm::ivec3& i, int axis) {
     return float(sum / weight);
 }
 
+// derivative() at a texel with neighbours on every side of a 3D field, by direct
+// indexing: the same differences, weights and order of summation (the same float).
+float interior_derivative(const float* f, const glm::ivec3& strides, std::size_t at, int axis,
+                          double spacing) {
+    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    const std::ptrdiff_t step = strides[axis], s1 = strides[a1], s2 = strides[a2];
+    const double h = spacing * 2.0;
+    double sum = 0.0;
+    for (int u = -1; u <= 1; ++u) {
+        for (int v = -1; v <= 1; ++v) {
+            const std::ptrdiff_t j = std::ptrdiff_t(at) + u * s1 + v * s2;
+            const double w = (u == 0 ? 2.0 : 1.0) * (v == 0 ? 2.0 : 1.0);
+            sum += w * double(float((double(f[j + step]) - f[j - step]) / h));
+        }
+    }
+    return float(sum / 16.0);
+}
+
 // n = c0 / c.
 Volume refractive_index_of(const Volume& speed) {
     Volume index(speed.geometry());
@@ -150,7 +168,18 @@ AcousticMap<Dim> AcousticMap<Dim>::pack(const Volume& refractive_index, const Vo
                 }
                 continue;
             }
+            const bool interior =
+                Dim == 3 && i > 0 && i + 1 < n.x && j > 0 && j + 1 < n.y && k > 0 && k + 1 < n.z;
             for (int a = 0; a < Dim; ++a) {
+                if (interior) {
+                    const glm::ivec3 strides(1, n.x, n.x * n.y);
+                    const double h = map.geometry_.spacing[a];
+                    t.grad_refractive_index[a] =
+                        interior_derivative(refractive_index.voxels().data(), strides, v, a, h);
+                    t.grad_impedance[a] =
+                        interior_derivative(impedance.voxels().data(), strides, v, a, h);
+                    continue;
+                }
                 t.grad_refractive_index[a] = derivative(refractive_index, {i, j, k}, a);
                 t.grad_impedance[a] = derivative(impedance, {i, j, k}, a);
             }

@@ -76,6 +76,7 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     SimulationSettings s;
     s.transducer = t;
     s.quality = spec_.quality;
+    s.trace_dimensions = spec_.trace_dimensions;
     s.seed = d.seed;
     apply(disabled_physics(spec_.disable, spec_.path, "disable"), s);
     s.trace.deposition_maps = spec_.write_energy;

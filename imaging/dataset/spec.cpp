@@ -59,7 +59,7 @@ Spec parse_spec(const json& j, const std::string& source) {
     jsonio::require_known_keys(j,
                                {"comment", "frames", "frames_per_shard", "seed", "image", "sources",
                                 "probes", "frequency_mhz", "depth_mm", "focus_mm", "gain_db",
-                                "dynamic_range_db", "pose", "disable", "quality", "write"},
+                                "dynamic_range_db", "pose", "disable", "quality", "trace", "write"},
                                source, "");
     Spec spec;
     spec.path = source;
@@ -184,6 +184,12 @@ Spec parse_spec(const json& j, const std::string& source) {
             spec.disable += (spec.disable.empty() ? "" : ",") + d[n].get<std::string>();
         }
         disabled_physics(spec.disable, source, "disable");  // names checked here
+    }
+    if (j.contains("trace")) {
+        const std::string trace = jsonio::get_string(j, "trace", source, "");
+        if (trace != "2d" && trace != "3d")
+            throw InputError(source, "trace", "must be 2d or 3d, got '" + trace + "'");
+        spec.trace_dimensions = trace == "3d" ? 3 : 2;
     }
     if (j.contains("quality")) {
         const std::string q = jsonio::get_string(j, "quality", source, "");

@@ -28,6 +28,8 @@
 //                                    a moved probe is laid back on the skin or cortex
 //   "disable": ["refraction"],       physics switched off (as simulate --disable)
 //   "quality": "interactive",        interactive, standard or high (default standard)
+//   "trace": "3d",                   2d (default) or 3d: the slab of the elevation beam
+//                                    (simulate --trace)
 //   "write": ["bmode", "labels"]     also "envelope", "rf", "energy"
 // }
 #include <cstdint>
@@ -67,6 +69,7 @@ struct Spec {
     double lateral_mm = 0.0, elevation_mm = 0.0, rotation_deg = 0.0, tilt_deg = 0.0;
     std::string disable;  // comma list
     Quality quality = Quality::standard;
+    int trace_dimensions = 2;
     bool write_bmode = true, write_labels = true, write_envelope = false, write_rf = false,
          write_energy = false;
     // The spec as read, canonical (sorted keys, no whitespace): what identifies a dataset.

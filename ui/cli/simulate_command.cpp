@@ -253,6 +253,7 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     }
     add_parameter(*cmd, kQualityDoc, o.quality);
     add_parameter(*cmd, kReceiveDoc, o.receive);
+    add_parameter(*cmd, kTraceDoc, o.trace);
     {
         std::string help =
             "comma list of physics to switch off, to take an artifact apart (as the GUI's "
@@ -432,6 +433,7 @@ json frame_sidecar(const SimulateOptions& o, const SimulateSetup& setup,
           {"step_texels", settings.step_texels > 0.0 ? settings.step_texels : level.step_texels},
           {"refraction_smoothing_mm", imaging::refraction_smoothing_mm(settings)}}},
         {"receive", imaging::to_string(settings.receive)},
+        {"trace", settings.trace_dimensions == 3 ? "3d" : "2d"},
         {"disabled_physics",
          [&] {
              json off = json::array();
@@ -491,6 +493,7 @@ SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
         parse_enum<imaging::ReceiveModel>(o.receive, "--receive",
                                           {{"monostatic", imaging::ReceiveModel::monostatic},
                                            {"capture", imaging::ReceiveModel::capture}});
+    settings.trace_dimensions = parse_enum<int>(o.trace, "--trace", {{"2d", 2}, {"3d", 3}});
     settings.seed = o.seed;
     setup.physics = imaging::disabled_physics(o.disable, "--disable", "");
     imaging::apply(setup.physics, settings);

@@ -21,6 +21,12 @@ inline constexpr ParameterDoc kReceiveDoc = {
     "--receive", "",
     "echo model: 'monostatic' (each reflection echoes at twice its time, two-way loss) or "
     "'capture' (only particles that reach the probe face; the face reflects part back)"};
+inline constexpr ParameterDoc kTraceDoc = {
+    "--trace", "",
+    "'2d': particles traced in the scan plane (fast); '3d': in the slab the elevation beam "
+    "spans, launched over the element height through the lens and received through it, so "
+    "the frame integrates over the slice thickness (small cysts fill in, structures off "
+    "the plane show, the skull refracts out of the plane); slower and larger"};
 inline constexpr ParameterDoc kGainDoc = {"--gain", "dB",
                                           "overall receive gain before log compression"};
 inline constexpr ParameterDoc kRangeDoc = {"--dynamic-range", "dB",
@@ -45,6 +51,7 @@ struct SimulateOptions {
         cycles, elevation_focus, slice_thickness, depth, face_reflectivity;
     std::string quality = "standard";
     std::string receive = "monostatic";
+    std::string trace = "2d";
     std::string disable;  // physics switched off (imaging::physics_switch_names)
     double gain_db = 36.0;
     double dynamic_range_db = 60.0;
