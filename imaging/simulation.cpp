@@ -648,41 +648,49 @@ tissue::AcousticMap<2> frame_map(const tissue::PropertyMaps& maps, const Simulat
     return tissue::AcousticMap<2>::build(maps, refraction_smoothing_mm(s));
 }
 
+PlaneScan scan_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
+                     const SimulationSettings& settings, bool with_labels,
+                     const FrameProgress& progress) {
+    const QualityLevel level = quality_level(settings.quality);
+    const bool slab = settings.trace_dimensions == 3;
+    PlaneScan out;
+    // The slab's slices are twice the map pixel apart: the elevation beam varies over
+    // millimetres, and the slab is the frame's memory and time.
+    out.grid = slab ? slab_grid(settings.transducer, scene.pose, level.map_pixel_mm,
+                                2.0 * level.map_pixel_mm)
+                    : plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
+    const PlaneGrid& grid = out.grid;
+    if (with_labels) out.labels.emplace();
+    tissue::Volume* labels = out.labels ? &*out.labels : nullptr;
+    out.maps = mapper(grid.geometry, labels);
+    prepare_plane(out.maps, grid, scene, 5.0, labels);
+    if (!slab) {
+        const auto map = frame_map(out.maps, settings);
+        out.frame = simulate_frame(map, grid, scene.pose, settings, progress);
+        return out;
+    }
+    const auto map = tissue::AcousticMap<3>::build(out.maps, refraction_smoothing_mm(settings));
+    out.maps = plane_of_slab(out.maps, grid, settings.transducer);
+    const auto plane = frame_map(out.maps, settings);
+    out.frame = simulate_frame(map, plane, grid, scene.pose, settings, progress);
+    if (labels) {  // the plane's own
+        tissue::VolumeGeometry g = out.maps.geometry();
+        tissue::Volume plane_labels(g);
+        for (int j = 0; j < g.dims.y; ++j)
+            for (int i = 0; i < g.dims.x; ++i)
+                plane_labels.at(i, j) = labels->at(i, j, grid.plane_slice);
+        *labels = std::move(plane_labels);
+    }
+    return out;
+}
+
 SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
                               const SimulationSettings& settings, bool with_labels,
                               const FrameProgress& progress) {
-    const QualityLevel level = quality_level(settings.quality);
-    const bool slab = settings.trace_dimensions == 3;
-    // The slab's slices are twice the map pixel apart: the elevation beam varies over
-    // millimetres, and the slab is the frame's memory and time.
-    const PlaneGrid grid = slab ? slab_grid(settings.transducer, scene.pose, level.map_pixel_mm,
-                                            2.0 * level.map_pixel_mm)
-                                : plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
-    std::optional<tissue::Volume> labels;
-    if (with_labels) labels.emplace();
-    tissue::PropertyMaps maps = mapper(grid.geometry, labels ? &*labels : nullptr);
-    prepare_plane(maps, grid, scene, 5.0, labels ? &*labels : nullptr);
+    PlaneScan scan = scan_plane(mapper, scene, settings, with_labels, progress);
     SimulatedFrame out;
-    if (slab) {
-        const auto map = tissue::AcousticMap<3>::build(maps, refraction_smoothing_mm(settings));
-        const auto plane = frame_map(plane_of_slab(maps, grid, settings.transducer), settings);
-        maps = {};  // the slab's fields: the map holds what the trace needs
-        out.frame = simulate_frame(map, plane, grid, scene.pose, settings, progress);
-        if (labels) {  // the plane's own
-            tissue::VolumeGeometry g = labels->geometry();
-            g.dims.z = 1;
-            g.origin = labels->geometry().index_to_world(glm::dvec3(0.0, 0.0, grid.plane_slice));
-            tissue::Volume plane_labels(g);
-            for (int j = 0; j < g.dims.y; ++j)
-                for (int i = 0; i < g.dims.x; ++i)
-                    plane_labels.at(i, j) = labels->at(i, j, grid.plane_slice);
-            *labels = std::move(plane_labels);
-        }
-    } else {
-        const auto map = frame_map(maps, settings);
-        out.frame = simulate_frame(map, grid, scene.pose, settings, progress);
-    }
-    if (labels) out.labels = scan_convert_labels(*labels, grid, out.frame.image);
+    out.frame = std::move(scan.frame);
+    if (scan.labels) out.labels = scan_convert_labels(*scan.labels, scan.grid, out.frame.image);
     return out;
 }
 

@@ -191,8 +191,21 @@ struct SimulatedFrame {
     std::optional<cv::Mat> labels;  // scan-converted ground truth, on request
 };
 
-// The grid under the probe, its properties from `mapper`, prepared for the scene
-// (prepare_plane), its acoustic map, then the frame and (optionally) its labels.
+// A frame with what lies in its plane: the grid traced (a slab for a 3D trace), the
+// plane's property maps (plane_of_slab for a slab) and, on request, its tissue labels.
+struct PlaneScan {
+    PlaneGrid grid;
+    tissue::PropertyMaps maps;
+    std::optional<tissue::Volume> labels;
+    Frame frame;
+};
+// The grid under the probe (plane_grid, or slab_grid for trace_dimensions 3), its
+// properties from `mapper`, prepared for the scene (prepare_plane), its acoustic map, then
+// the frame.
+PlaneScan scan_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
+                     const SimulationSettings& settings, bool with_labels,
+                     const FrameProgress& progress = {});
+// scan_plane's frame and (optionally) its labels scan-converted.
 SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
                               const SimulationSettings& settings, bool with_labels,
                               const FrameProgress& progress = {});

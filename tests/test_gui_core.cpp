@@ -213,6 +213,23 @@ TEST(GuiScanner, FramesAreSimulatesFramesOfTheSameScene) {
     EXPECT_GT(wire, gel + 20.0 / 60.0) << "wire " << wire << ", gel " << gel;
 }
 
+TEST(GuiScanner, ThreeDimensionalFramesAreSimulatesToo) {
+    // The GUI's "trace in 3D" switch makes simulate's --trace 3d frame, and the tissue view
+    // still shows the plane (the slab's middle slice).
+    const auto scene = load_scene("phantom:cyst_and_stone", kPhantoms);
+    ScanRequest r = request_for(scene);
+    r.parameters.trace_dimensions = 3;
+    const ScanFrame gui = simulate(r);
+    ASSERT_EQ(gui.settings.trace_dimensions, 3);
+    EXPECT_TRUE(gui.grid.is_slab());
+    const imaging::Frame cli =
+        imaging::simulate_plane(scene->mapper, scene->start, gui.settings, false).frame;
+    ASSERT_EQ(gui.frame.envelope.values.size(), cli.envelope.values.size());
+    EXPECT_EQ(0, std::memcmp(gui.frame.envelope.values.data(), cli.envelope.values.data(),
+                             cli.envelope.values.size() * sizeof(float)));
+    EXPECT_FALSE(gui.slice.empty());
+}
+
 TEST(GuiScanner, MirrorImageNeedsAReflectedBeam) {
     // Beyond the mirror phantom's air interface (y = 32 + tan(20 deg) x mm under the
     // probe; air has no scatterers) the frame shows the liver seen by the reflected

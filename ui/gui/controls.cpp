@@ -99,6 +99,8 @@ std::string switch_help(Control control) {
                    "(capture receive model): reverberation between face and reflectors";
         case Control::receive:
             return ui::kReceiveDoc.description;
+        case Control::trace:
+            return ui::kTraceDoc.description;
         default:
             return {};
     }

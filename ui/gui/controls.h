@@ -21,6 +21,7 @@ enum class Control {
     multiple_bounces,
     face_reflection,
     receive,
+    trace,
     tgc,
     gain,
     dynamic_range,

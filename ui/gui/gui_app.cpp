@@ -458,6 +458,16 @@ void App::draw_controls(float x, float y, float w, float h) {
         highlight_end(pushed);
         tooltip(switch_help(Control::receive));
     }
+    {
+        bool slab = parameters_.trace_dimensions == 3;
+        const bool pushed = highlight_begin(Control::trace);
+        if (ImGui::Checkbox("trace in 3D (slice thickness)", &slab)) {
+            parameters_.trace_dimensions = slab ? 3 : 2;
+            changed = true;
+        }
+        highlight_end(pushed);
+        tooltip(switch_help(Control::trace));
+    }
     PhysicsSwitches& s = parameters_.physics;
     auto toggle = [&](Control c, const char* label, bool* value) {
         const bool pushed = highlight_begin(c);

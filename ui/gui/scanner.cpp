@@ -51,6 +51,7 @@ imaging::SimulationSettings ScanParameters::settings(const Scene& scene) const {
     s.transducer = transducer;
     s.quality = quality;
     s.receive = receive;
+    s.trace_dimensions = trace_dimensions;
     s.seed = seed;
     s.imaging.gain_db = gain_db;
     s.imaging.dynamic_range_db = dynamic_range_db;
@@ -90,18 +91,15 @@ std::optional<ScanFrame> simulate_request(const ScanRequest& request, imaging::Q
     imaging::ScenePlacement placement = scene.start;
     placement.pose = out.pose;
 
-    const imaging::QualityLevel level = imaging::quality_level(quality);
-    out.grid = imaging::plane_grid(out.settings.transducer, out.pose, level.map_pixel_mm);
-    tissue::Volume labels;
-    tissue::PropertyMaps maps = scene.mapper(out.grid.geometry, &labels);
-    imaging::prepare_plane(maps, out.grid, placement, 5.0, &labels);
-    out.slice = slice_picture(labels, maps);
-    const auto map = imaging::frame_map(maps, out.settings);
     try {
-        out.frame = imaging::simulate_frame(map, out.grid, out.pose, out.settings,
-                                            [&](std::size_t, std::size_t) {
-                                                if (cancelled && cancelled()) throw Cancelled{};
-                                            });
+        imaging::PlaneScan scan = imaging::scan_plane(scene.mapper, placement, out.settings, true,
+                                                      [&](std::size_t, std::size_t) {
+                                                          if (cancelled && cancelled())
+                                                              throw Cancelled{};
+                                                      });
+        out.grid = std::move(scan.grid);
+        out.slice = slice_picture(*scan.labels, scan.maps);
+        out.frame = std::move(scan.frame);
     } catch (const Cancelled&) {
         return std::nullopt;
     }

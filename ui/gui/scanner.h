@@ -33,6 +33,7 @@ struct ScanParameters {
     probe::Transducer transducer = probe::find_transducer("convex", "gui");
     imaging::Quality quality = imaging::Quality::interactive;
     imaging::ReceiveModel receive = imaging::ReceiveModel::monostatic;
+    int trace_dimensions = 2;  // 3: the slab of the elevation beam (slower)
     double gain_db = 0.0;
     double dynamic_range_db = 60.0;
     std::array<double, kTgcSliders> tgc_db{};  // added to the automatic TGC (0.6 dB/(cm MHz))
