@@ -171,45 +171,49 @@ PlaneGrid slab_grid(const probe::Transducer& t, const probe::Pose& pose, double 
     return grid;
 }
 
-tissue::PropertyMaps plane_of_slab(const tissue::PropertyMaps& slab, const PlaneGrid& grid,
-                                   const probe::Transducer& t) {
-    const tissue::VolumeGeometry& g = slab.geometry();
-    tissue::VolumeGeometry plane = g;
-    plane.dims.z = 1;
-    plane.origin = g.index_to_world(glm::dvec3(0.0, 0.0, grid.plane_slice));
+void light_from_slab(tissue::PropertyMaps& plane, const PlaneGrid& plane_grid,
+                     const tissue::PropertyMaps& slab, const PlaneGrid& slab_grid,
+                     const probe::Transducer& t) {
+    const tissue::VolumeGeometry& g = plane.geometry();
+    const tissue::VolumeGeometry& s = slab.geometry();
     const std::shared_ptr<const probe::ElevationTable> lens = probe::ElevationTable::of(t);
-    tissue::PropertyMaps out;
-    for (std::size_t f = 0; f < tissue::kPropertyCount; ++f) {
-        tissue::Volume v(plane);
-        for (int j = 0; j < g.dims.y; ++j)
-            for (int i = 0; i < g.dims.x; ++i)
-                v.at(i, j) = slab.fields[f].at(i, j, grid.plane_slice);
-        out.fields[f] = std::move(v);
-    }
-    tissue::Volume& backscatter = out[tissue::Property::backscatter];
+    tissue::Volume& backscatter = plane[tissue::Property::backscatter];
     const tissue::Volume& slab_backscatter = slab[tissue::Property::backscatter];
+    const int k0 = slab_grid.plane_slice;
     tbb::parallel_for(0, g.dims.y, [&](int j) {
         // The row's depth below the face, and each slice's two-way intensity there.
-        const double depth = (j + 0.5) * g.spacing.y - grid.top_margin_mm;
-        std::vector<double> w(std::size_t(g.dims.z));
+        const double depth = j * g.spacing.y - plane_grid.to_map.y;
+        std::vector<double> w(std::size_t(s.dims.z));
         double total = 0.0;
-        for (int k = 0; k < g.dims.z; ++k) {
-            const double one_way =
-                lens->intensity((k - grid.plane_slice) * g.spacing.z, std::max(depth, 0.0));
+        for (int k = 0; k < s.dims.z; ++k) {
+            const double one_way = lens->intensity((k - k0) * s.spacing.z, std::max(depth, 0.0));
             w[std::size_t(k)] = one_way * one_way;
             total += w[std::size_t(k)];
         }
         if (!(total > 0.0)) return;  // above the face: the plane's own
+        // The row in the slab's texels (bilinear, clamped to the edge).
+        const double v = std::clamp((depth + slab_grid.to_map.y) / s.spacing.y, 0.0,
+                                    double(s.dims.y - 1) - 1e-9);
+        const int j0 = int(v);
+        const double fv = v - j0;
         for (int i = 0; i < g.dims.x; ++i) {
-            double sum = 0.0;
-            for (int k = 0; k < g.dims.z; ++k) {
-                const double b = slab_backscatter.at(i, j, k);
+            const double x = i * g.spacing.x - plane_grid.to_map.x;
+            const double u = std::clamp((x + slab_grid.to_map.x) / s.spacing.x, 0.0,
+                                        double(s.dims.x - 1) - 1e-9);
+            const int i0 = int(u);
+            const double fu = u - i0;
+            const double own = backscatter.at(i, j);
+            double sum = w[std::size_t(k0)] * own * own;
+            for (int k = 0; k < s.dims.z; ++k) {
+                if (k == k0) continue;
+                auto at = [&](int a, int b) { return double(slab_backscatter.at(a, b, k)); };
+                const double b = (1.0 - fv) * ((1.0 - fu) * at(i0, j0) + fu * at(i0 + 1, j0)) +
+                                 fv * ((1.0 - fu) * at(i0, j0 + 1) + fu * at(i0 + 1, j0 + 1));
                 sum += w[std::size_t(k)] * b * b;
             }
             backscatter.at(i, j) = float(std::sqrt(sum / total));
         }
     });
-    return out;
 }
 
 MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid) {
@@ -336,15 +340,15 @@ namespace {
 // normal (as the 2D image formation reads them); a mirror tilted in elevation returns to
 // the lens by its plane response sinc^2(2 H sin(beta) / lambda) (rectangular lens of
 // height H; beta: the normal's angle out of the plane).
-simulator::EchoEvent<2> on_the_plane(const simulator::EchoEvent<3>& e, double lens_mm,
-                                     double lambda_mm) {
+simulator::EchoEvent<2> on_the_plane(const simulator::EchoEvent<3>& e, const glm::vec2& shift,
+                                     double lens_mm, double lambda_mm) {
     simulator::EchoEvent<2> out;
     out.line = e.line;
     out.particle = e.particle;
     out.time_s = e.time_s;
     out.energy = e.energy;
     out.weight = e.weight;
-    out.position = glm::vec2(e.position.x, e.position.y);
+    out.position = glm::vec2(e.position.x, e.position.y) + shift;
     out.bounces = e.bounces;
     out.kind = e.kind;
     out.cos_incidence = e.cos_incidence;
@@ -366,12 +370,14 @@ simulator::EchoEvent<2> on_the_plane(const simulator::EchoEvent<3>& e, double le
     return out;
 }
 
-// One frame: beams, trace, the image. `Dim` 2 traces the plane `map`; 3 the slab `map`,
-// whose echoes are then projected on the plane, imaged over `plane`.
+// One frame: beams, trace, the image. `Dim` 2 traces the plane `map`; 3 the slab `map`
+// over `traced`, whose echoes are then projected on the plane and moved to the map frame
+// of `grid`, where the image is made over `plane`.
 template <int Dim>
-Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const tissue::AcousticMap<2>& plane,
-                      const PlaneGrid& grid, const probe::Pose& pose,
-                      const SimulationSettings& settings, const FrameProgress& progress) {
+Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& traced_grid,
+                      const tissue::AcousticMap<2>& plane, const PlaneGrid& grid,
+                      const probe::Pose& pose, const SimulationSettings& settings,
+                      const FrameProgress& progress) {
     using clock = std::chrono::steady_clock;
     Frame frame;
     auto stage = [&](const char* name, auto&& work) {
@@ -385,9 +391,9 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const tissue::Acousti
                                    settings.seed};
     // Where the probe plane's origin lies in the map frame.
     glm::vec<Dim, double> to_map;
-    to_map.x = grid.to_map.x;
-    to_map.y = grid.to_map.y;
-    if constexpr (Dim == 3) to_map.z = grid.plane_elevation_in_map;
+    to_map.x = traced_grid.to_map.x;
+    to_map.y = traced_grid.to_map.y;
+    if constexpr (Dim == 3) to_map.z = traced_grid.plane_elevation_in_map;
 
     probe::Sources<Dim> sources;
     stage("beams", [&] {
@@ -438,13 +444,19 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const tissue::Acousti
         plane_profile = std::move(traced.echo_profile);
     } else {
         stage("projection", [&] {
-            if (traced.absorbed.size() > 0) {  // the plane's slice
-                tissue::VolumeGeometry g = plane.geometry();
+            // From the slab's map frame to the plane's: both put the probe plane's origin
+            // at their own to_map.
+            const glm::vec2 shift(grid.to_map - traced_grid.to_map);
+            auto on_plane = [&](const glm::vec3& p) { return glm::vec2(p.x, p.y) + shift; };
+            if (traced.absorbed.size() > 0) {  // the slab's slice on the plane
+                tissue::VolumeGeometry g = traced.absorbed.geometry();
+                g.dims.z = 1;
+                g.origin = traced.absorbed.geometry().index_to_world(
+                    glm::dvec3(0.0, 0.0, traced_grid.plane_slice));
                 tissue::Volume slice(g);
-                const tissue::Volume& slab = traced.absorbed;
                 for (int j = 0; j < g.dims.y; ++j)
                     for (int i = 0; i < g.dims.x; ++i)
-                        slice.at(i, j) = slab.at(i, j, grid.plane_slice);
+                        slice.at(i, j) = traced.absorbed.at(i, j, traced_grid.plane_slice);
                 frame.absorbed = std::move(slice);
             }
             for (const auto& path : traced.paths) {
@@ -452,19 +464,19 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const tissue::Acousti
                 p.line = path.line;
                 p.particle = path.particle;
                 for (const auto& v : path.vertices)
-                    p.vertices.push_back({glm::vec2(v.position.x, v.position.y), v.energy});
+                    p.vertices.push_back({on_plane(v.position), v.energy});
             }
             // In-plane components per mm of path: the image's range and receive read the
             // particle's progress along the plane as the trace made it.
             plane_sources.reserve(sources.size());
             for (const auto& s : sources)
-                plane_sources.push_back({glm::vec2(s.position.x, s.position.y),
+                plane_sources.push_back({on_plane(s.position),
                                          glm::vec2(s.direction.x, s.direction.y), s.energy, s.line,
                                          s.time_s});
             const double lens = t.elevation_aperture_mm(), lambda = t.wavelength_mm();
             plane_echoes.reserve(traced.echoes.size());
             for (const auto& e : traced.echoes)
-                plane_echoes.push_back(on_the_plane(e, lens, lambda));
+                plane_echoes.push_back(on_the_plane(e, shift, lens, lambda));
             const auto& p3 = traced.echo_profile;
             plane_profile.lines = p3.lines;
             plane_profile.bins = p3.bins;
@@ -472,8 +484,8 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const tissue::Acousti
             plane_profile.intensity = p3.intensity;
             plane_profile.illumination = p3.illumination;
             for (const auto& v : p3.illuminated_position)
-                plane_profile.illuminated_position.emplace_back(v.x, v.y);
-            for (const auto& v : p3.position) plane_profile.position.emplace_back(v.x, v.y);
+                plane_profile.illuminated_position.push_back(on_plane(v));
+            for (const auto& v : p3.position) plane_profile.position.push_back(on_plane(v));
         });
     }
 
@@ -512,13 +524,14 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const tissue::Acousti
 Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                      const probe::Pose& pose, const SimulationSettings& settings,
                      const FrameProgress& progress) {
-    return trace_and_image<2>(map, map, grid, pose, settings, progress);
+    return trace_and_image<2>(map, grid, map, grid, pose, settings, progress);
 }
 
-Frame simulate_frame(const tissue::AcousticMap<3>& map, const tissue::AcousticMap<2>& plane,
-                     const PlaneGrid& grid, const probe::Pose& pose,
-                     const SimulationSettings& settings, const FrameProgress& progress) {
-    return trace_and_image<3>(map, plane, grid, pose, settings, progress);
+Frame simulate_frame(const tissue::AcousticMap<3>& map, const PlaneGrid& slab,
+                     const tissue::AcousticMap<2>& plane, const PlaneGrid& grid,
+                     const probe::Pose& pose, const SimulationSettings& settings,
+                     const FrameProgress& progress) {
+    return trace_and_image<3>(map, slab, plane, grid, pose, settings, progress);
 }
 
 tissue::AcousticProperties saline() {
@@ -652,35 +665,30 @@ PlaneScan scan_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
                      const SimulationSettings& settings, bool with_labels,
                      const FrameProgress& progress) {
     const QualityLevel level = quality_level(settings.quality);
-    const bool slab = settings.trace_dimensions == 3;
     PlaneScan out;
-    // The slab's slices are twice the map pixel apart: the elevation beam varies over
-    // millimetres, and the slab is the frame's memory and time.
-    out.grid = slab ? slab_grid(settings.transducer, scene.pose, level.map_pixel_mm,
-                                2.0 * level.map_pixel_mm)
-                    : plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
-    const PlaneGrid& grid = out.grid;
+    out.grid = plane_grid(settings.transducer, scene.pose, level.map_pixel_mm);
     if (with_labels) out.labels.emplace();
     tissue::Volume* labels = out.labels ? &*out.labels : nullptr;
-    out.maps = mapper(grid.geometry, labels);
-    prepare_plane(out.maps, grid, scene, 5.0, labels);
-    if (!slab) {
+    out.maps = mapper(out.grid.geometry, labels);
+    prepare_plane(out.maps, out.grid, scene, 5.0, labels);
+    if (settings.trace_dimensions != 3) {
         const auto map = frame_map(out.maps, settings);
-        out.frame = simulate_frame(map, grid, scene.pose, settings, progress);
+        out.frame = simulate_frame(map, out.grid, scene.pose, settings, progress);
         return out;
     }
-    const auto map = tissue::AcousticMap<3>::build(out.maps, refraction_smoothing_mm(settings));
-    out.maps = plane_of_slab(out.maps, grid, settings.transducer);
+    // The slab at twice the map pixel in the plane and four times across it: the beam's
+    // elevation varies over millimetres, refraction follows the tissue smoothed over the
+    // Fresnel scale (millimetres), and an MRI's voxels are 1 mm; the interfaces the image
+    // shows come from the plane's own map.
+    out.slab = slab_grid(settings.transducer, scene.pose, 2.0 * level.map_pixel_mm,
+                         4.0 * level.map_pixel_mm);
+    tissue::PropertyMaps slab = mapper(out.slab->geometry, nullptr);
+    prepare_plane(slab, *out.slab, scene, 5.0, nullptr);
+    const auto map = tissue::AcousticMap<3>::build(slab, refraction_smoothing_mm(settings));
+    light_from_slab(out.maps, out.grid, slab, *out.slab, settings.transducer);
+    slab = {};  // the map holds what the trace needs
     const auto plane = frame_map(out.maps, settings);
-    out.frame = simulate_frame(map, plane, grid, scene.pose, settings, progress);
-    if (labels) {  // the plane's own
-        tissue::VolumeGeometry g = out.maps.geometry();
-        tissue::Volume plane_labels(g);
-        for (int j = 0; j < g.dims.y; ++j)
-            for (int i = 0; i < g.dims.x; ++i)
-                plane_labels.at(i, j) = labels->at(i, j, grid.plane_slice);
-        *labels = std::move(plane_labels);
-    }
+    out.frame = simulate_frame(map, *out.slab, plane, out.grid, scene.pose, settings, progress);
     return out;
 }
 

@@ -134,13 +134,15 @@ PlaneGrid plane_grid(const probe::Transducer& t, const probe::Pose& pose, double
 // one lies on the scan plane.
 PlaneGrid slab_grid(const probe::Transducer& t, const probe::Pose& pose, double pixel_mm,
                     double elevation_pixel_mm);
-// The scan plane of a slab's maps, for the image: the plane slice's properties with the
-// backscatter the elevation beam sees, sqrt(sum over slices of w b^2) with w the lens's
-// two-way intensity |U|^4 at the slice's elevation and the row's depth, normalised over
-// the slab (probe/elevation.h): a cyst thinner than the slice lets the tissue beside it
-// light its speckle.
-tissue::PropertyMaps plane_of_slab(const tissue::PropertyMaps& slab, const PlaneGrid& grid,
-                                   const probe::Transducer& t);
+// The backscatter the image lights the plane's speckle with when the trace ran in a slab:
+// sqrt(w_0 b^2 + sum over the slab's other slices of w_k b_k^2), b the plane's own (at its
+// resolution) and b_k the slab's slices at the same point, with w the lens's two-way
+// intensity |U|^4 at each slice's elevation and the depth, normalised over the slab
+// (probe/elevation.h): a cyst thinner than the slice lets the tissue beside it light
+// its speckle.
+void light_from_slab(tissue::PropertyMaps& plane, const PlaneGrid& plane_grid,
+                     const tissue::PropertyMaps& slab, const PlaneGrid& slab_grid,
+                     const probe::Transducer& t);
 
 // Maps the tracer's map frame back to world coordinates.
 MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid);
@@ -173,13 +175,14 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
 Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                      const probe::Pose& pose, const SimulationSettings& settings,
                      const FrameProgress& progress = {});
-// The same traced in 3D: `map` over the slab of `grid` (slab_grid), `plane` the scan
-// plane's map for the image (plane_of_slab packed as frame_map). The echoes are projected
-// on the plane after the trace; a reflector tilted in elevation echoes by the lens's plane
-// response sinc^2(2 H sin(beta) / lambda).
-Frame simulate_frame(const tissue::AcousticMap<3>& map, const tissue::AcousticMap<2>& plane,
-                     const PlaneGrid& grid, const probe::Pose& pose,
-                     const SimulationSettings& settings, const FrameProgress& progress = {});
+// The same traced in 3D: `map` over the slab `slab` (slab_grid), the image made on
+// `plane` over `grid` (plane_grid; its backscatter from light_from_slab). The echoes are
+// projected on the plane after the trace; a reflector tilted in elevation echoes by the
+// lens's plane response sinc^2(2 H sin(beta) / lambda).
+Frame simulate_frame(const tissue::AcousticMap<3>& map, const PlaneGrid& slab,
+                     const tissue::AcousticMap<2>& plane, const PlaneGrid& grid,
+                     const probe::Pose& pose, const SimulationSettings& settings,
+                     const FrameProgress& progress = {});
 
 // What lies on a plane grid: property maps and, on request, tissue labels.
 using PlaneMapper =
@@ -191,17 +194,20 @@ struct SimulatedFrame {
     std::optional<cv::Mat> labels;  // scan-converted ground truth, on request
 };
 
-// A frame with what lies in its plane: the grid traced (a slab for a 3D trace), the
-// plane's property maps (plane_of_slab for a slab) and, on request, its tissue labels.
+// A frame with what lies in its plane: the plane's grid, property maps (their backscatter
+// from light_from_slab after a 3D trace) and, on request, tissue labels; the slab traced.
 struct PlaneScan {
     PlaneGrid grid;
+    std::optional<PlaneGrid> slab;
     tissue::PropertyMaps maps;
     std::optional<tissue::Volume> labels;
     Frame frame;
 };
-// The grid under the probe (plane_grid, or slab_grid for trace_dimensions 3), its
-// properties from `mapper`, prepared for the scene (prepare_plane), its acoustic map, then
-// the frame.
+// The grid under the probe (plane_grid), its properties from `mapper`, prepared for the
+// scene (prepare_plane), its acoustic map, then the frame. A 3D trace (trace_dimensions
+// 3) runs in a slab (slab_grid) of twice the map pixel in the plane and four times across
+// it: an eighth of the texels of the plane's resolution, for a frame a few times the 2D
+// one's cost; the image and the labels keep the plane's resolution.
 PlaneScan scan_plane(const PlaneMapper& mapper, const ScenePlacement& scene,
                      const SimulationSettings& settings, bool with_labels,
                      const FrameProgress& progress = {});
