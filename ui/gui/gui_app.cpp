@@ -751,6 +751,7 @@ void App::save_frame() {
             {"probe", ui::transducer_json(frame_->settings.transducer)},
             {"pose", ui::pose_json(frame_->pose)},
             {"quality", imaging::to_string(frame_->quality)},
+            {"trace", frame_->settings.trace_dimensions == 3 ? "3d" : "2d"},
             {"image",
              {{"width", image.image.cols},
               {"height", image.image.rows},
