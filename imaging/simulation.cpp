@@ -9,6 +9,7 @@
 #include <iterator>
 #include <numbers>
 #include <numeric>
+#include <unordered_map>
 #include <vector>
 
 #include "imaging/psf.h"
@@ -221,6 +222,35 @@ MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid) {
     const glm::dvec3 lateral = pose.lateral(), axial = pose.axial();
     return {pose.position - lateral * grid.to_map.x - axial * grid.to_map.y, lateral, axial,
             grid.to_map};
+}
+
+TargetCores::TargetCores(const std::vector<PointEcho>& points) : points_(points) {
+    for (const PointEcho& p : points_) cell_ = std::max(cell_, p.core_radius_mm);
+    for (std::size_t k = 0; k < points_.size(); ++k)
+        cells_[key(cell_of(points_[k].position))].push_back(uint32_t(k));
+}
+
+glm::ivec2 TargetCores::cell_of(const glm::dvec2& at) const {
+    return {int(std::floor(at.x / cell_)), int(std::floor(at.y / cell_))};
+}
+
+uint64_t TargetCores::key(const glm::ivec2& c) {
+    return (uint64_t(uint32_t(c.x)) << 32) | uint64_t(uint32_t(c.y));
+}
+
+bool TargetCores::contains(const glm::dvec2& at) const {
+    if (points_.empty()) return false;
+    // A core within its radius of `at` lies in `at`'s cell or a neighbour: cells are as
+    // wide as the largest radius.
+    const glm::ivec2 c = cell_of(at);
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            const auto found = cells_.find(key(c + glm::ivec2(dx, dy)));
+            if (found == cells_.end()) continue;
+            for (const uint32_t k : found->second)
+                if (glm::length(at - points_[k].position) <= points_[k].core_radius_mm) return true;
+        }
+    return false;
 }
 
 std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targets,
@@ -493,12 +523,8 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
     // core echoes through point_echoes, not through the tracer.
     const std::vector<PointEcho> points =
         point_echoes(settings.targets, plane, grid, pose, t, settings.target_margin_mm);
-    auto in_a_core = [&](const glm::vec2& at) {
-        for (std::size_t k = 0; k < points.size(); ++k)
-            if (glm::length(glm::dvec2(at) - points[k].position) <= points[k].core_radius_mm)
-                return true;
-        return false;
-    };
+    const TargetCores cores(points);
+    auto in_a_core = [&](const glm::vec2& at) { return cores.contains(glm::dvec2(at)); };
     std::vector<simulator::EchoEvent<2>> echoes;
     for (const auto& e : plane_echoes) {
         const bool returned = e.kind == simulator::EchoKind::returned_to_probe;

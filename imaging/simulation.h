@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "imaging/bmode.h"
@@ -160,6 +161,22 @@ struct Frame {
 };
 
 using FrameProgress = std::function<void(std::size_t done, std::size_t total)>;
+
+// Whether a point of the map frame lies in a target's core (within its core radius), by
+// cells as wide as the largest radius: a tilted wire is thousands of pieces, and every
+// reflection echo of a frame asks.
+class TargetCores {
+  public:
+    explicit TargetCores(const std::vector<PointEcho>& points);
+    bool contains(const glm::dvec2& at) const;
+
+  private:
+    glm::ivec2 cell_of(const glm::dvec2& at) const;
+    static uint64_t key(const glm::ivec2& c);
+    const std::vector<PointEcho>& points_;
+    double cell_ = 1e-3;
+    std::unordered_map<uint64_t, std::vector<uint32_t>> cells_;
+};
 
 // The echoes of the targets that cross this plane (points weighted by the elevation
 // profile of the slice, tissue/point_target.h), at their map-frame positions, with the

@@ -478,6 +478,33 @@ TEST(Psf, WiresShowWhereTheyCrossTheSlice) {
     EXPECT_EQ(dim, 0) << "lines of the middle 60 % where the in-plane wire is dim";
 }
 
+// The cores' cell lookup (a speed-up) answers as the plain search over every core does:
+// random cores of mixed radii and random queries, many near the cores' edges.
+TEST(Psf, TargetCoresAnswerAsTheSearchOverEveryCore) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> at(-5.0, 5.0), radius(0.01, 0.6);
+    std::vector<imaging::PointEcho> points;
+    for (int k = 0; k < 300; ++k) points.push_back({{at(rng), at(rng)}, 1.0, radius(rng)});
+    const imaging::TargetCores cores(points);
+    int inside = 0;
+    for (int n = 0; n < 20000; ++n) {
+        glm::dvec2 q(at(rng), at(rng));
+        if (n % 2 == 0) {  // on a random core's rim, within a hair either side
+            const auto& p = points[std::size_t(n / 2) % points.size()];
+            const double a = at(rng);
+            q = p.position +
+                (p.core_radius_mm + 1e-9 * at(rng)) * glm::dvec2(std::cos(a), std::sin(a));
+        }
+        bool expected = false;
+        for (const auto& p : points)
+            expected = expected || glm::length(q - p.position) <= p.core_radius_mm;
+        ASSERT_EQ(cores.contains(q), expected) << q.x << ", " << q.y;
+        inside += expected;
+    }
+    EXPECT_GT(inside, 2000);
+    EXPECT_FALSE(imaging::TargetCores({}).contains({0.0, 0.0}));
+}
+
 TEST(Psf, ImpossibleAperturesAreRefusedNamingTheField) {
     auto refused = [](auto change, const char* field) {
         probe::Transducer t = probe::find_transducer("linear", "test");
