@@ -127,7 +127,6 @@ struct PlaneGrid {
     // A slab: its slice on the scan plane, and that plane's elevation in the map frame.
     int plane_slice = 0;
     double plane_elevation_in_map = 0.0;
-    bool is_slab() const { return geometry.dims.z > 1; }
 };
 PlaneGrid plane_grid(const probe::Transducer& t, const probe::Pose& pose, double pixel_mm);
 // The slab a 3D frame traces: the plane grid with slices `elevation_pixel_mm` apart over
