@@ -647,7 +647,7 @@ cv::Mat scan_convert_labels(const tissue::Volume& labels, const PlaneGrid& grid,
     return out;
 }
 
-cv::Mat label_picture(const cv::Mat& labels) {
+cv::Vec3b label_colour(int label) {
     // BGR per tissue_table() entry (label - 1), chosen to read like an atlas.
     static const cv::Vec3b kColours[] = {
         {200, 120, 40},   // water: blue
@@ -664,14 +664,15 @@ cv::Mat label_picture(const cv::Mat& labels) {
         {80, 230, 250},   // dura (falx): pale yellow
         {220, 80, 220},   // choroid plexus: magenta
     };
+    return label >= 1 && label <= int(std::size(kColours)) ? kColours[label - 1]
+                                                           : cv::Vec3b(0, 0, 0);
+}
+
+cv::Mat label_picture(const cv::Mat& labels) {
     cv::Mat out(labels.rows, labels.cols, CV_8UC3, cv::Scalar(0, 0, 0));
-    const int known = int(std::size(kColours));
-    for (int r = 0; r < labels.rows; ++r) {
-        for (int c = 0; c < labels.cols; ++c) {
-            const int l = labels.at<uint8_t>(r, c);
-            out.at<cv::Vec3b>(r, c) = l >= 1 && l <= known ? kColours[l - 1] : cv::Vec3b(0, 0, 0);
-        }
-    }
+    for (int r = 0; r < labels.rows; ++r)
+        for (int c = 0; c < labels.cols; ++c)
+            out.at<cv::Vec3b>(r, c) = label_colour(labels.at<uint8_t>(r, c));
     return out;
 }
 

@@ -261,5 +261,7 @@ cv::Mat scan_convert_labels(const tissue::Volume& labels, const PlaneGrid& grid,
 
 // Colour picture of a label image (one fixed colour per tissue of tissue_table()).
 cv::Mat label_picture(const cv::Mat& labels);
+// The colour (BGR) label_picture gives a tissue label; black for an unknown one.
+cv::Vec3b label_colour(int label);
 
 }  // namespace sonotrace::imaging

@@ -283,5 +283,43 @@ TEST(CliSimulate, SweepWritesNumberedFramesVideoAndLabels) {
     EXPECT_GT(histogram[0], 0);
 }
 
+// The sweep's default video is H.264 in MP4 (what browsers play), decoded back here: its
+// frame count, its size (the frame's, rounded down to even for 4:2:0) and its pictures,
+// which are the png8 frames within the codec's loss (PSNR above 30 dB).
+TEST(CliSimulate, SweepVideoIsH264ThatDecodesToTheFrames) {
+    ScratchDir dir;
+    const auto r =
+        run(dir, "simulate -q --quality interactive --sweep lateral:4:2 --out " + (dir / "o"));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    cv::VideoCapture capture(dir / "o/bmode.mp4", cv::CAP_FFMPEG);
+    ASSERT_TRUE(capture.isOpened());
+    const int fourcc = int(capture.get(cv::CAP_PROP_FOURCC));
+    const std::string codec{char(fourcc & 255), char((fourcc >> 8) & 255),
+                            char((fourcc >> 16) & 255), char((fourcc >> 24) & 255)};
+    EXPECT_TRUE(codec == "avc1" || codec == "h264") << codec;
+    const auto record = nlohmann::json::parse(slurp(dir / "o/bmode.json"));
+    EXPECT_EQ(record["sweep"]["video"]["codec"], "H.264");
+    int frames = 0;
+    for (cv::Mat decoded; capture.read(decoded); ++frames) {
+        char name[32];
+        std::snprintf(name, sizeof name, "o/bmode_%04d.png", frames);
+        const Gray png = read_gray(dir / name);
+        ASSERT_EQ(decoded.cols, png.size.x & ~1);
+        ASSERT_EQ(decoded.rows, png.size.y & ~1);
+        double squared = 0.0;
+        for (int y = 0; y < decoded.rows; ++y)
+            for (int x = 0; x < decoded.cols; ++x) {
+                const double d = decoded.at<cv::Vec3b>(y, x)[1] -
+                                 png.pixels[std::size_t(y) * png.size.x + x];  // 0..255
+                squared += d * d;
+            }
+        const double psnr =
+            10.0 * std::log10(255.0 * 255.0 / (squared / (decoded.rows * decoded.cols)));
+        std::printf("%s: PSNR %.1f dB\n", name, psnr);
+        EXPECT_GT(psnr, 30.0) << name;
+    }
+    EXPECT_EQ(frames, 3);
+}
+
 }  // namespace
 }  // namespace sonotrace

@@ -3,6 +3,8 @@
 // shows the error, and bad options fail with a message.
 #include <gtest/gtest.h>
 
+#include <chrono>
+
 #include <unistd.h>
 #include <cstdlib>
 #include <filesystem>
@@ -111,12 +113,20 @@ TEST(Gui, SavesFramesWithSidecarsAndRecordsClips) {
     EXPECT_EQ(sidecar.at("quality").get<std::string>(), "high");  // refined while still
     for (const char* key : {"pose", "seed", "version", "physics", "timings_s"})
         EXPECT_TRUE(sidecar.contains(key)) << key;
-    // The clip holds the frames shown after the first (standard and high).
-    cv::VideoCapture clip((out / "clip_0.avi").string());
+    // The clip holds the frames shown after the first (standard and high), decoded back:
+    // H.264 (what browsers play) at the frame's size, rounded down to even (4:2:0).
+    cv::VideoCapture clip((out / "clip_0.mp4").string(), cv::CAP_FFMPEG);
     ASSERT_TRUE(clip.isOpened());
+    const int fourcc = int(clip.get(cv::CAP_PROP_FOURCC));
+    const std::string codec{char(fourcc & 255), char((fourcc >> 8) & 255),
+                            char((fourcc >> 16) & 255), char((fourcc >> 24) & 255)};
+    EXPECT_TRUE(codec == "avc1" || codec == "h264" || codec == "H264") << codec;
     int frames = 0;
-    for (cv::Mat image; clip.read(image);) ++frames;
+    cv::Mat image;
+    for (cv::Mat next; clip.read(next);) ++frames, image = next;
     EXPECT_EQ(frames, 2);
+    EXPECT_EQ(image.cols, frame.geometry().dims.x & ~1);
+    EXPECT_EQ(image.rows, frame.geometry().dims.y & ~1);
 }
 
 TEST(Gui, AFileThatFailsToLoadKeepsTheSceneAndShowsTheError) {
@@ -148,6 +158,22 @@ TEST(Gui, BadOptionsFailWithAMessage) {
         << "the message lists the scene's artifacts";
     EXPECT_NE(run_gui("--frames 0 --screenshot " + (kDir / "never.png").string(), "frames.log"), 0);
     EXPECT_NE(read_text(kDir / "frames.log").find("--frames"), std::string::npos);
+    // More frames than a still probe makes (interactive, standard, high) fail at once with
+    // the reason, not after the time limit.
+    const auto start = std::chrono::steady_clock::now();
+    EXPECT_EQ(run_gui("--scene phantom:cyst_and_stone --no-context --frames 10 --time-limit 200 "
+                      "--screenshot " +
+                          (kDir / "never.png").string(),
+                      "still.log"),
+              1);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_LT(seconds, 60.0) << "waited for frames that never come";
+    const std::string still = read_text(kDir / "still.log");
+    EXPECT_NE(still.find("--frames"), std::string::npos) << still;
+    EXPECT_NE(still.find("3 frames"), std::string::npos) << still;
+    EXPECT_NE(still.find("--animate"), std::string::npos) << still;
+    EXPECT_FALSE(fs::exists(kDir / "never.png"));
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 // to the frame, the control extremes, and the explain panel.
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -13,6 +15,7 @@
 #include "phantoms/phantom.h"
 #include "probe/array_geometry.h"
 #include "tissue/base/error.h"
+#include "tissue/tissue_table.h"
 #include "ui/gui/controls.h"
 #include "ui/gui/scanner.h"
 
@@ -427,6 +430,42 @@ TEST(GuiExplain, ArtifactsFollowTheMaterialsAndSwitches) {
             EXPECT_FALSE(switch_help(a.control).empty()) << a.name;
         }
     }
+}
+
+// The explain panel quotes the scene's own materials: the head's skull at the tissue
+// table's cortical bone speed, the speed layer phantom's two layers at the speeds its
+// JSON gives (read here from the file, not from the scene).
+TEST(GuiExplain, NumbersAreTheScenesMaterials) {
+    auto why = [](const std::vector<Artifact>& list, const std::string& name) {
+        for (const auto& a : list)
+            if (a.name == name) return a.why;
+        ADD_FAILURE() << "no artifact " << name;
+        return std::string();
+    };
+    ScanParameters p;
+    const std::string head =
+        why(explain(*load_scene("head-craniotomy", kPhantoms), p), "refraction displacement");
+    const auto& bone = tissue::find_tissue("cortical_bone", "", "");
+    const std::string bone_speed =
+        std::to_string(int(bone.properties[tissue::Property::speed_of_sound])) + " m/s";
+    EXPECT_NE(head.find(std::string(bone.name) + " " + bone_speed), std::string::npos) << head;
+    EXPECT_EQ(head.find("2800"), std::string::npos) << head;
+    // The layer phantom's slowest and fastest speeds, from its JSON and the tissue table.
+    std::ifstream file(kPhantoms + "/speed_layer.json");
+    const nlohmann::json layer_json = nlohmann::json::parse(file);
+    auto speed = [](const nlohmann::json& item) {
+        if (item.contains("tissue"))
+            return int(tissue::find_tissue(item["tissue"].get<std::string>(), "", "")
+                           .properties[tissue::Property::speed_of_sound]);
+        return item["speed_of_sound"].get<int>();
+    };
+    std::set<int> speeds = {speed(layer_json["background"])};
+    for (const auto& shape : layer_json["shapes"]) speeds.insert(speed(shape));
+    ASSERT_EQ(speeds.size(), 2u);
+    const std::string layer = why(explain(*load_scene("phantom:speed_layer", kPhantoms), p),
+                                  "speed-of-sound displacement");
+    for (int c : speeds)
+        EXPECT_NE(layer.find(std::to_string(c) + " m/s"), std::string::npos) << layer;
 }
 
 }  // namespace

@@ -210,11 +210,23 @@ probe::Pose Scene::settle(const probe::Pose& pose) const {
     return out;
 }
 
-std::vector<tissue::AcousticProperties> Scene::materials() const {
-    std::vector<tissue::AcousticProperties> out;
+std::vector<Scene::Material> Scene::materials() const {
+    const auto table = tissue::tissue_table();
+    auto tissue_name = [&](int label) {
+        return label >= 1 && label <= int(table.size())
+                   ? std::string(table[std::size_t(label) - 1].name)
+                   : std::string();
+    };
+    std::vector<Material> out;
     if (phantom) {
-        out.push_back(phantom->background);
-        for (const phantoms::Shape& s : phantom->shapes) out.push_back(s.properties);
+        const std::string background = tissue_name(phantom->background_label);
+        out.push_back({background.empty() ? "background" : background, phantom->background});
+        for (std::size_t k = 0; k < phantom->shapes.size(); ++k) {
+            const phantoms::Shape& s = phantom->shapes[k];
+            const std::string tissue = tissue_name(s.label);
+            out.push_back(
+                {tissue.empty() ? "shape " + std::to_string(k + 1) : tissue, s.properties});
+        }
         return out;
     }
     // The labels of every 7th voxel (no label volume needed), and the membranes the
@@ -227,9 +239,9 @@ std::vector<tissue::AcousticProperties> Scene::materials() const {
         labels.insert(tissue::tissue_label_of("dura"));
         labels.insert(tissue::tissue_label_of("choroid_plexus"));
     }
-    const auto table = tissue::tissue_table();
     for (int l : labels)
-        if (l >= 1 && l <= int(table.size())) out.push_back(table[std::size_t(l) - 1].properties);
+        if (l >= 1 && l <= int(table.size()))
+            out.push_back({tissue_name(l), table[std::size_t(l) - 1].properties});
     return out;
 }
 

@@ -85,8 +85,12 @@ struct Scene {
     // craniotomy, else the skin); a phantom's flat top keeps the pose as it is.
     probe::Pose settle(const probe::Pose& pose) const;
     // The distinct materials present (tissues of the table or a phantom's explicit
-    // properties): what the scene can do to a beam.
-    std::vector<tissue::AcousticProperties> materials() const;
+    // properties), named: what the scene can do to a beam, and what the GUI quotes.
+    struct Material {
+        std::string name;  // the tissue's human name, or "shape N" for explicit properties
+        tissue::AcousticProperties properties;
+    };
+    std::vector<Material> materials() const;
     // A volume for a 3D view: the loaded volume, or a phantom's acoustic impedance
     // (MRayl) on a grid of at most 160 samples a side.
     std::shared_ptr<const tissue::Volume> context_volume() const;

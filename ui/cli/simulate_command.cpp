@@ -18,6 +18,7 @@
 #include "imaging/colin27.h"
 #include "imaging/picture.h"
 #include "imaging/simulation.h"
+#include "imaging/video.h"
 #include "phantoms/phantom.h"
 #include "probe/array_geometry.h"
 #include "probe/placement.h"
@@ -87,9 +88,10 @@ constexpr ParameterDoc kSweepDoc = {
     "move the probe and write a numbered frame sequence (NAME_0000.png, ...): "
     "'AXIS:LENGTH:STEP' from -LENGTH/2 to +LENGTH/2 about the pose, AXIS = elevation, lateral, "
     "axial (the probe's axes) or X,Y,Z (world); or a text file with one --pose per line"};
-constexpr ParameterDoc kVideoDoc = {"--video", "",
-                                    "container of the sweep's video (NAME.mp4 or NAME.avi); "
-                                    "empty = frames only"};
+constexpr ParameterDoc kVideoDoc = {
+    "--video", "",
+    "container of the sweep's video: mp4 (H.264, plays in browsers) or avi "
+    "(Motion JPEG); empty = frames only"};
 constexpr ParameterDoc kFpsDoc = {"--fps", "1/s", "frame rate of the sweep's video"};
 constexpr ParameterDoc kSceneDoc = {
     "--scene", "",
@@ -575,7 +577,7 @@ int run_simulate_command(const SimulateOptions& o) {
     std::vector<std::string> written;
     json frames_record = json::array();
     json label_record;
-    std::optional<cv::VideoWriter> video;
+    std::optional<imaging::VideoClip> video;
     std::string video_path;
     ProgressBar sweep_bar("sweep of " + std::to_string(placements.size()) + " frames", o.quiet);
     imaging::Frame last;
@@ -586,20 +588,15 @@ int run_simulate_command(const SimulateOptions& o) {
     std::string video_staged;
     int video_frames = 0;
     auto add_video_frame = [&](const cv::Mat& grey) {
-        cv::Mat bgr;
-        cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
         if (!video) {
             video_path = (out / (o.name + video_suffix)).string();
-            const int fourcc = o.video == "mp4" ? cv::VideoWriter::fourcc('m', 'p', '4', 'v')
-                                                : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
             video_staged = transaction.stage(video_path);
-            video.emplace(video_staged, fourcc, o.fps, bgr.size(), true);
-            if (!video->isOpened())
-                throw base::InputError(video_path, "",
-                                       "OpenCV cannot write this video format here");
+            video.emplace(video_staged, o.video, o.fps, grey.size(), video_path);
+            if (!video->note().empty() && !o.quiet)
+                std::cerr << "sonotrace: " << video_path << ": " << video->note() << "\n";
             written.push_back(video_path);
         }
-        video->write(bgr);
+        video->write(grey);
         ++video_frames;
     };
     g_stop_sweep = false;
@@ -717,7 +714,7 @@ int run_simulate_command(const SimulateOptions& o) {
     if (video) {
         // OpenCV reports no write errors: the video is read back, and a short one (a full
         // disk) is an error naming it, not a truncated file reported as written.
-        video->release();
+        video->close();
         cv::VideoCapture check(video_staged, cv::CAP_FFMPEG);
         int decoded = 0;
         for (cv::Mat image; check.isOpened() && check.read(image);) ++decoded;
@@ -742,7 +739,9 @@ int run_simulate_command(const SimulateOptions& o) {
                            {"frames", frames_record},
                            {"frames_planned", placements.size()},
                            {"interrupted", interrupted}};
-        if (video) record["sweep"]["video"] = {{"file", video_path}, {"fps", o.fps}};
+        if (video)
+            record["sweep"]["video"] = {
+                {"file", video_path}, {"fps", o.fps}, {"codec", video->codec()}};
     }
     if (!o.scene.empty()) record["scene_file"] = o.scene;
     const std::string sidecar = (out / (o.name + ".json")).string();

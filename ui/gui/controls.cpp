@@ -6,6 +6,7 @@
 
 #include "probe/array_geometry.h"
 #include "simulator/trace_settings.h"
+#include "tissue/base/error.h"
 #include "ui/cli/simulate_command.h"
 
 namespace sonotrace::gui {
@@ -18,20 +19,23 @@ std::string transducer_help(const char* key) {
     return {};
 }
 
-// What the materials of a scene can do to a beam.
+// What the materials of a scene can do to a beam, and the materials that do it (quoted
+// in the explain panel with their own numbers).
 struct Features {
     bool shadowing = false;  // strong attenuation or a strong reflector (bone, calcification)
     bool fluid = false;      // anechoic and nearly lossless (cysts, CSF, vessels)
     bool air = false;        // total reflection
     bool speed_contrast = false;
     bool rough_reflector = false;
+    imaging::Scene::Material slowest, fastest, most_attenuating;
 };
 
 Features features_of(const Scene& scene) {
     using tissue::Property;
     Features f;
-    double slowest = 1e9, fastest = 0.0;
-    for (const tissue::AcousticProperties& m : scene.materials()) {
+    double slowest = 1e9, fastest = 0.0, attenuation = -1.0;
+    for (const imaging::Scene::Material& material : scene.materials()) {
+        const tissue::AcousticProperties& m = material.properties;
         const double z = m.impedance_mrayl();
         if (z < 0.1) {
             f.air = true;
@@ -40,11 +44,20 @@ Features features_of(const Scene& scene) {
         f.shadowing |= m[Property::attenuation] >= 3.0 || z >= 3.5;
         f.fluid |= m[Property::backscatter] <= 0.05f && m[Property::attenuation] <= 0.2f;
         f.rough_reflector |= z >= 3.5 && m[Property::roughness] >= 0.3f;
-        slowest = std::min(slowest, double(m[Property::speed_of_sound]));
-        fastest = std::max(fastest, double(m[Property::speed_of_sound]));
+        const double c = m[Property::speed_of_sound];
+        if (c < slowest) slowest = c, f.slowest = material;
+        if (c > fastest) fastest = c, f.fastest = material;
+        if (m[Property::attenuation] > attenuation)
+            attenuation = m[Property::attenuation], f.most_attenuating = material;
     }
     f.speed_contrast = fastest - slowest > 50.0;
     return f;
+}
+
+std::string speed_of(const imaging::Scene::Material& m) {
+    return m.name + " " +
+           std::to_string(int(std::lround(m.properties[tissue::Property::speed_of_sound]))) +
+           " m/s";
 }
 
 }  // namespace
@@ -121,20 +134,25 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
                        "the TGC adds gain with depth to even the image out.",
                        Control::tgc, "lower the deep TGC sliders: the bottom darkens"});
     if (f.shadowing)
-        out.push_back({"acoustic shadowing",
-                       "Bone and calcifications reflect a large share of the energy at their "
-                       "surface and absorb far more than soft tissue: little reaches what lies "
-                       "behind them.",
-                       Control::attenuation, "switch attenuation off: the shadow fills in"});
+        out.push_back(
+            {"acoustic shadowing",
+             "Bone and calcifications reflect a large share of the energy at their "
+             "surface and absorb far more than soft tissue (" +
+                 f.most_attenuating.name + ": " +
+                 base::number_text(f.most_attenuating.properties[tissue::Property::attenuation]) +
+                 " dB/(cm MHz)): little reaches what lies behind them.",
+             Control::attenuation, "switch attenuation off: the shadow fills in"});
     if (f.speed_contrast)
         out.push_back({"refraction displacement",
-                       "Beams bend where the speed of sound changes obliquely (skull 2800 m/s, fat "
-                       "1450 m/s), but the image assumes straight lines: structures shift.",
+                       "Beams bend where the speed of sound changes obliquely (here " +
+                           speed_of(f.fastest) + " against " + speed_of(f.slowest) +
+                           "), but the image assumes straight lines: structures shift.",
                        Control::refraction, "switch refraction off: they move back"});
     if (f.speed_contrast)
         out.push_back({"speed-of-sound displacement",
-                       "Depth is time x 1540 m/s / 2: under slower tissue (fat 1450 m/s) echoes "
-                       "arrive late and appear deeper, under faster tissue shallower.",
+                       "Depth is time x 1540 m/s / 2: under slower tissue (" + speed_of(f.slowest) +
+                           ") echoes arrive late and appear deeper, under faster tissue (" +
+                           speed_of(f.fastest) + ") shallower.",
                        Control::none, "compare the frame with the tissue slice"});
     if (f.fluid) {
         out.push_back({"dark fluid, bright walls",

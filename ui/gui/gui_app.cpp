@@ -16,6 +16,7 @@
 #include "sonotrace_version.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
+#include "tissue/tissue_table.h"
 #include "ui/cli/simulate_command.h"
 #include "ui/cli/volume_slice.h"
 
@@ -53,6 +54,43 @@ void tooltip(const std::string& text) {
     }
 }
 
+// A vertical colour bar at `at` (top left) of `size`, `colours` from top to bottom, a
+// tick and its text at each (fraction from the top, text), written to the bar's left.
+void colour_bar(ImDrawList* draw, ImVec2 at, ImVec2 size, const std::vector<ImU32>& colours,
+                const std::vector<std::pair<float, std::string>>& ticks, const char* title) {
+    const int n = int(colours.size());
+    for (int k = 0; k + 1 < n; ++k) {
+        const float y0 = at.y + size.y * float(k) / float(n - 1);
+        const float y1 = at.y + size.y * float(k + 1) / float(n - 1);
+        draw->AddRectFilledMultiColor(ImVec2(at.x, y0), ImVec2(at.x + size.x, y1),
+                                      colours[std::size_t(k)], colours[std::size_t(k)],
+                                      colours[std::size_t(k) + 1], colours[std::size_t(k) + 1]);
+    }
+    const ImU32 text = IM_COL32(220, 220, 220, 255);
+    draw->AddRect(at, ImVec2(at.x + size.x, at.y + size.y), IM_COL32(160, 160, 160, 255));
+    for (const auto& [fraction, label] : ticks) {
+        const float y = at.y + fraction * size.y;
+        const ImVec2 extent = ImGui::CalcTextSize(label.c_str());
+        draw->AddLine(ImVec2(at.x - 4, y), ImVec2(at.x, y), text);
+        draw->AddText(ImVec2(at.x - 6 - extent.x, y - 0.5f * extent.y), text, label.c_str());
+    }
+    const ImVec2 extent = ImGui::CalcTextSize(title);
+    draw->AddText(ImVec2(at.x + size.x - extent.x, at.y - extent.y - 2), text, title);
+}
+
+// A tissue's name as a legend shows it: the table's human name without its parenthesis.
+std::string short_tissue_name(int label) {
+    const auto table = tissue::tissue_table();
+    if (label < 1 || label > int(table.size())) return "label " + std::to_string(label);
+    const std::string name(table[std::size_t(label) - 1].name);
+    return name.substr(0, name.find(" ("));
+}
+
+ImU32 label_colour_u32(int label) {
+    const cv::Vec3b bgr = imaging::label_colour(label);
+    return IM_COL32(bgr[2], bgr[1], bgr[0], 255);
+}
+
 // Where a picture went on the screen.
 struct Fit {
     ImVec2 origin, size;
@@ -77,16 +115,11 @@ std::vector<glm::dvec2> sector_outline(const probe::Transducer& t) {
     return out;
 }
 
-const char* quality_label(imaging::Quality q) {
-    switch (q) {
-        case imaging::Quality::interactive:
-            return "interactive (8 particles/line, 0.5 mm map)";
-        case imaging::Quality::standard:
-            return "standard (32 particles/line, 0.25 mm map)";
-        case imaging::Quality::high:
-            return "high (128 particles/line, 0.125 mm map)";
-    }
-    return "?";
+// The quality combo's entries, with the numbers from the quality levels themselves.
+std::string quality_label(imaging::Quality q) {
+    const imaging::QualityLevel level = imaging::quality_level(q);
+    return imaging::to_string(q) + ": " + std::to_string(level.particles_per_line) + "/line, " +
+           base::number_text(level.map_pixel_mm) + " mm";
 }
 
 cv::Mat energy_picture(const tissue::Volume& absorbed) {
@@ -192,7 +225,7 @@ App::App(const AppOptions& options)
 }
 
 App::~App() {
-    if (recording_) recording_->release();
+    if (recording_) recording_->close();
 }
 
 void App::apply_scene(std::shared_ptr<const Scene> scene) {
@@ -264,9 +297,8 @@ void App::poll() {
         ++frames_shown_;
         last_seconds_ = frame_->seconds;
         if (recording_) {
-            cv::Mat bgr, sized;
-            cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
-            cv::resize(bgr, sized, recording_size_);
+            cv::Mat sized;
+            cv::resize(grey, sized, recording_size_);
             recording_->write(sized);
             ++recorded_frames_;
         }
@@ -313,7 +345,7 @@ void App::draw(int window_width, int window_height) {
     if (dirty_ && !frozen_ && scene_) request();
 
     const float W = float(window_width), H = float(window_height);
-    const float left = std::min(380.0f, 0.3f * W), status = 28.0f;
+    const float left = std::min(420.0f, 0.3f * W), status = 28.0f;
     const float controls_h = 0.74f * (H - status);
     draw_controls(0, 0, left, controls_h);
     draw_explain(0, controls_h, left, H - status - controls_h);
@@ -338,7 +370,15 @@ void App::highlight_end(bool pushed) {
 
 void App::draw_controls(float x, float y, float w, float h) {
     begin_panel("Scanner", x, y, w, h, kPanelFlags);
-    ImGui::PushItemWidth(0.55f * w);
+    // Widgets take what the longest label leaves: no label is cut at any window size
+    // the panel allows.
+    float longest = ImGui::CalcTextSize("receive").x;
+    for (const SliderSpec& spec : slider_specs())
+        longest = std::max(
+            longest,
+            ImGui::CalcTextSize((std::string(spec.label) + " (" + spec.unit + ")").c_str()).x);
+    ImGui::PushItemWidth(std::max(
+        80.0f, ImGui::GetContentRegionAvail().x - longest - ImGui::GetStyle().ItemInnerSpacing.x));
     bool changed = false;
     // -- scene
     if (ImGui::BeginCombo("scene", scene_ ? scene_->title.c_str() : "")) {
@@ -407,22 +447,30 @@ void App::draw_controls(float x, float y, float w, float h) {
     {
         const SliderSpec& tgc = slider(Control::tgc);
         const bool pushed = highlight_begin(Control::tgc);
-        ImGui::TextUnformatted("TGC (dB), shallow to deep");
+        ImGui::TextUnformatted("TGC (dB) at depth (mm)");
         highlight_end(pushed);
         tooltip(tgc.help);
+        const float slider_w = std::max(22.0f, ImGui::CalcTextSize("160").x + 4.0f);
         for (int k = 0; k < kTgcSliders; ++k) {
             if (k) ImGui::SameLine();
             float v = float(parameters_.tgc_db[std::size_t(k)]);
+            const double at_mm = t.depth_mm * (k + 0.5) / kTgcSliders;
             ImGui::PushID(k);
+            ImGui::BeginGroup();
             const bool p2 = highlight_begin(Control::tgc);
-            if (ImGui::VSliderFloat("##tgc", ImVec2(22, 70), &v, float(tgc.min), float(tgc.max),
-                                    "")) {
+            if (ImGui::VSliderFloat("##tgc", ImVec2(slider_w, 70), &v, float(tgc.min),
+                                    float(tgc.max), v == 0.0f ? "" : "%+.0f")) {
                 parameters_.tgc_db[std::size_t(k)] = std::clamp(double(v), tgc.min, tgc.max);
                 changed = true;
             }
             highlight_end(p2);
             if (ImGui::IsItemHovered())
-                ImGui::SetTooltip("%.0f mm: %+.0f dB", t.depth_mm * (k + 0.5) / kTgcSliders, v);
+                ImGui::SetTooltip("%.0f mm: %+.0f dB on top of the automatic curve", at_mm, v);
+            const std::string depth_text = std::to_string(int(std::lround(at_mm)));
+            ImGui::SetCursorPosX(ImGui::GetCursorPosX() +
+                                 0.5f * (slider_w - ImGui::CalcTextSize(depth_text.c_str()).x));
+            ImGui::TextDisabled("%s", depth_text.c_str());
+            ImGui::EndGroup();
             ImGui::PopID();
         }
         ImGui::SameLine();
@@ -432,16 +480,17 @@ void App::draw_controls(float x, float y, float w, float h) {
         }
     }
     {
-        int q = int(parameters_.quality);
-        const char* names[] = {quality_label(imaging::Quality::interactive),
-                               quality_label(imaging::Quality::standard),
-                               quality_label(imaging::Quality::high)};
-        if (ImGui::Combo("quality", &q, names, 3)) {
-            parameters_.quality = imaging::Quality(q);
-            changed = true;
+        const int q = int(parameters_.quality);
+        if (ImGui::BeginCombo("quality", quality_label(parameters_.quality).c_str())) {
+            for (int k = 0; k <= int(imaging::Quality::high); ++k)
+                if (ImGui::Selectable(quality_label(imaging::Quality(k)).c_str(), k == q)) {
+                    parameters_.quality = imaging::Quality(k);
+                    changed = true;
+                }
+            ImGui::EndCombo();
         }
         tooltip(
-            "particles per scan line and map resolution while the probe moves; a still "
+            "particles per scan line and map pixel (mm) while the probe moves; a still "
             "probe refines up to high by itself");
     }
 
@@ -520,7 +569,7 @@ void App::draw_controls(float x, float y, float w, float h) {
     tooltip("PNG + JSON sidecar in " + options_.out_dir + " (Ctrl+S)");
     ImGui::SameLine();
     if (ImGui::Button(recording_ ? "stop clip" : "record clip")) toggle_recording();
-    tooltip("MJPEG AVI of the B-mode frames in " + options_.out_dir + " (R)");
+    tooltip("H.264 MP4 of the B-mode frames in " + options_.out_dir + " (R)");
     if (ImGui::Checkbox("3D context view", &view_.enabled)) changed = true;
     ImGui::TextDisabled("keys: arrows slide, Q/E rotate, W/S tilt, shift = larger steps");
     ImGui::TextDisabled("mouse: drag the slice to slide, wheel rotates (shift: tilts);");
@@ -611,6 +660,32 @@ void App::draw_slice(float x, float y, float w, float h) {
             draw->AddRect(to_screen(face + glm::dvec2(-half, -frame_->grid.top_margin_mm)),
                           to_screen(face + glm::dvec2(half, 0.0)), kProbeColour, 0.0f, 0, 2.0f);
         }
+        // Legend: the tissues of this slice, largest first, over the image's lower left.
+        {
+            const float line = ImGui::GetTextLineHeight(), pad = 4.0f;
+            std::vector<std::pair<int, std::string>> rows;
+            for (const auto& [label, share] : frame_->tissues)
+                if (rows.size() < 10 && share > 1e-4)
+                    rows.emplace_back(label, short_tissue_name(label));
+            float widest = 0.0f;
+            for (const auto& row : rows)
+                widest = std::max(widest, ImGui::CalcTextSize(row.second.c_str()).x);
+            const ImVec2 box(widest + line + 3 * pad, float(rows.size()) * line + 2 * pad);
+            const ImVec2 corner(fit.origin.x + pad, fit.origin.y + size.y - box.y - pad);
+            draw->AddRectFilled(corner, ImVec2(corner.x + box.x, corner.y + box.y),
+                                IM_COL32(20, 20, 24, 200), 3.0f);
+            for (std::size_t k = 0; k < rows.size(); ++k) {
+                const float yy = corner.y + pad + float(k) * line;
+                draw->AddRectFilled(ImVec2(corner.x + pad, yy + 2),
+                                    ImVec2(corner.x + pad + line - 4, yy + line - 2),
+                                    label_colour_u32(rows[k].first));
+                draw->AddRect(ImVec2(corner.x + pad, yy + 2),
+                              ImVec2(corner.x + pad + line - 4, yy + line - 2),
+                              IM_COL32(120, 120, 120, 255));
+                draw->AddText(ImVec2(corner.x + 2 * pad + line, yy), IM_COL32(230, 230, 230, 255),
+                              rows[k].second.c_str());
+            }
+        }
         // Drag to slide the probe along the surface; the wheel rotates (shift: tilts).
         ImGui::SetCursorScreenPos(fit.origin);
         ImGui::InvisibleButton("slice_drag", size);
@@ -646,6 +721,37 @@ void App::draw_bmode(float x, float y, float w, float h) {
                 draw->AddText(ImVec2(fit.origin.x + 8, yy - 7), IM_COL32(200, 200, 200, 255),
                               (std::to_string(d) + " mm").c_str());
         }
+        // Echo level: the grey scale's dB below the level that shows white (the dynamic
+        // range maps linearly in dB onto black..white).
+        const double range_db = frame_->settings.imaging.dynamic_range_db;
+        const float bar_h = std::min(200.0f, 0.45f * size.y);
+        std::vector<std::pair<float, std::string>> ticks;
+        const int step = range_db > 60.0 ? 20 : 10;
+        for (int db = 0; db <= int(range_db); db += step)
+            ticks.emplace_back(float(db / range_db), db == 0 ? "0 dB" : "-" + std::to_string(db));
+        colour_bar(
+            draw, ImVec2(fit.origin.x + size.x - 18, fit.origin.y + ImGui::GetTextLineHeight() + 6),
+            ImVec2(12, bar_h), {IM_COL32(255, 255, 255, 255), IM_COL32(0, 0, 0, 255)}, ticks,
+            "echo");
+        // The depth gain the frame was made with (gain + automatic TGC + sliders): what
+        // brightens the deep image is drawn beside it, 1 px per dB from the depth scale.
+        std::vector<ImVec2> curve;
+        const probe::Transducer& tr = frame_->settings.transducer;
+        const double gain_db = frame_->settings.imaging.gain_db;
+        double deepest_db = 0.0;
+        for (int k = 0; k <= 64; ++k) {
+            const double d = tr.depth_mm * k / 64.0;
+            const double db = gain_db + imaging::tgc_gain_db(frame_->settings.imaging.tgc, d);
+            deepest_db = db;
+            const float yy =
+                fit.origin.y + float((d - image.origin.y) / image.pixel_mm) * fit.scale;
+            curve.push_back(ImVec2(fit.origin.x + 60 + float(std::max(0.0, db)), yy));
+        }
+        draw->AddPolyline(curve.data(), int(curve.size()), IM_COL32(255, 200, 60, 220), 0, 1.5f);
+        char gain_text[48];
+        std::snprintf(gain_text, sizeof gain_text, "gain + TGC %+.0f dB", deepest_db);
+        draw->AddText(ImVec2(curve.back().x + 4, curve.back().y - ImGui::GetTextLineHeight()),
+                      IM_COL32(255, 200, 60, 255), gain_text);
     } else {
         ImGui::TextDisabled("scanning ...");
     }
@@ -698,9 +804,26 @@ void App::draw_context(float x, float y, float w, float h) {
 }
 
 void App::draw_energy(float x, float y, float w, float h) {
-    begin_panel("Energy deposition (sedimentation), 40 dB", x, y, w, h, kViewFlags);
+    begin_panel("Energy deposition (sedimentation)", x, y, w, h, kViewFlags);
     if (frame_ && !energy_texture_.empty()) {
-        show_image(energy_texture_, &energy_rect_);
+        const Fit fit = show_image(energy_texture_, &energy_rect_);
+        // The colour map's scale: 40 dB below the peak deposit (energy_picture).
+        static const std::vector<ImU32> inferno = [] {
+            cv::Mat ramp(1, 9, CV_8U), bgr;
+            for (int k = 0; k < 9; ++k) ramp.at<uint8_t>(0, k) = uint8_t(255 - 255 * k / 8);
+            cv::applyColorMap(ramp, bgr, cv::COLORMAP_INFERNO);
+            std::vector<ImU32> out;
+            for (int k = 0; k < 9; ++k) {
+                const cv::Vec3b c = bgr.at<cv::Vec3b>(0, k);
+                out.push_back(IM_COL32(c[2], c[1], c[0], 255));
+            }
+            return out;
+        }();
+        colour_bar(
+            ImGui::GetWindowDrawList(),
+            ImVec2(fit.origin.x + fit.size.x - 18, fit.origin.y + ImGui::GetTextLineHeight() + 6),
+            ImVec2(12, std::min(160.0f, 0.4f * fit.size.y)), inferno,
+            {{0.0f, "peak"}, {0.5f, "-20"}, {1.0f, "-40 dB"}}, "deposit");
     }
     ImGui::End();
 }
@@ -778,32 +901,38 @@ void App::save_frame() {
 
 void App::toggle_recording() {
     if (recording_) {
-        recording_->release();
+        recording_->close();
+        message_ = "wrote " + recording_path_ + " (" + std::to_string(recorded_frames_) +
+                   " frames, " + recording_->codec() + ")";
         recording_.reset();
-        message_ =
-            "wrote " + recording_path_ + " (" + std::to_string(recorded_frames_) + " frames)";
         return;
     }
     if (!frame_) return;
     std::error_code error;
     std::filesystem::create_directories(options_.out_dir, error);
-    int n = 0;
-    while (std::filesystem::exists(std::filesystem::path(options_.out_dir) /
-                                   ("clip_" + std::to_string(n) + ".avi")))
-        ++n;
-    recording_path_ =
-        (std::filesystem::path(options_.out_dir) / ("clip_" + std::to_string(n) + ".avi")).string();
-    recording_size_ =
-        cv::Size(frame_->frame.image.image.cols & ~1, frame_->frame.image.image.rows & ~1);
-    recording_.emplace(recording_path_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0,
-                       recording_size_, true);
-    if (!recording_->isOpened()) {
-        recording_.reset();
-        error_ = "cannot write " + recording_path_;
-        return;
+    recording_size_ = frame_->frame.image.image.size();
+    // H.264 in MP4 plays in browsers and slides; Motion JPEG in AVI where FFmpeg writes
+    // no MP4 at all.
+    for (const char* container : {"mp4", "avi"}) {
+        int n = 0;
+        auto name = [&] {
+            return (std::filesystem::path(options_.out_dir) /
+                    ("clip_" + std::to_string(n) + "." + container))
+                .string();
+        };
+        while (std::filesystem::exists(name())) ++n;
+        recording_path_ = name();
+        try {
+            recording_.emplace(recording_path_, container, 10.0, recording_size_);
+            break;
+        } catch (const std::exception& e) {
+            error_ = e.what();
+        }
     }
+    if (!recording_) return;
     recorded_frames_ = 0;
-    message_ = "recording " + recording_path_;
+    message_ = "recording " + recording_path_ + " (" + recording_->codec() + ")" +
+               (recording_->note().empty() ? "" : ": " + recording_->note());
 }
 
 }  // namespace sonotrace::gui

@@ -9,8 +9,7 @@
 #include <optional>
 #include <string>
 
-#include <opencv2/videoio.hpp>
-
+#include "imaging/video.h"
 #include "ui/gui/controls.h"
 #include "ui/gui/scanner.h"
 
@@ -61,7 +60,8 @@ class App {
 
     // Saves the frame shown (PNG + JSON sidecar) in the output directory.
     void save_frame();
-    // Starts or stops recording the B-mode frames into an MJPEG AVI there.
+    // Starts or stops recording the B-mode frames into a clip there (H.264 MP4; Motion
+    // JPEG AVI where FFmpeg writes no MP4).
     void toggle_recording();
     bool recording() const { return recording_.has_value(); }
 
@@ -122,7 +122,7 @@ class App {
     int context_repetitions_ = 0;
     double last_seconds_ = 0.0;
 
-    std::optional<cv::VideoWriter> recording_;
+    std::optional<imaging::VideoClip> recording_;
     std::string recording_path_;
     cv::Size recording_size_;
     int recorded_frames_ = 0;

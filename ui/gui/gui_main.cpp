@@ -71,6 +71,20 @@ double median(std::vector<double> v) {
 
 int run(const Options& o) {
     if (o.frames < 1) throw base::InputError("--frames", "", "must be at least 1");
+    // A still probe refines from its quality up to high, then waits for a move: more
+    // frames than that never come (an --open scene refines once more).
+    if (!o.app.animate && !o.screenshot.empty()) {
+        const std::vector<std::string> stages = {"interactive", "standard", "high"};
+        const auto at = std::find(stages.begin(), stages.end(), o.app.quality);
+        const int still = int(stages.end() - at) * (o.app.open_later.empty() ? 1 : 2);
+        if (at != stages.end() && o.frames > still)
+            throw base::InputError("--frames", std::to_string(o.frames),
+                                   "a still probe shows " + std::to_string(still) + " frames (" +
+                                       o.app.quality + " refined up to high" +
+                                       (o.app.open_later.empty() ? "" : ", twice with --open") +
+                                       "), then waits for the probe to move: ask for at most " +
+                                       std::to_string(still) + ", or add --animate");
+    }
     if (o.width < 640 || o.height < 480 || o.width > 8192 || o.height > 8192)
         throw base::InputError("--size", "", "window must be 640x480 to 8192x8192 pixels");
     if (!o.screenshot.empty()) {
@@ -257,7 +271,7 @@ int main(int argc, char** argv) {
                  "(PNG + JSON sidecar in --out)");
     cli.add_flag("--record", o.record,
                  "with --screenshot: record the frames shown into a clip as the 'record clip' "
-                 "button does (MJPEG AVI in --out)");
+                 "button does (H.264 MP4 in --out)");
     cli.add_option("--explain", o.app.explain,
                    "highlight this artifact of the explain panel and its control at start "
                    "(e.g. 'acoustic shadowing')");

@@ -1,6 +1,8 @@
 #include "ui/gui/scanner.h"
 
+#include <algorithm>
 #include <chrono>
+#include <map>
 #include <opencv2/imgproc.hpp>
 
 #include "imaging/pbvr/overlay.h"
@@ -42,6 +44,17 @@ cv::Mat slice_picture(const tissue::Volume& labels, const tissue::PropertyMaps& 
     cv::Mat rgb;
     cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
     return rgb;
+}
+
+std::vector<std::pair<int, double>> tissues_present(const tissue::Volume& labels) {
+    std::map<int, std::size_t> count;
+    for (float v : labels.voxels()) ++count[int(v)];
+    std::vector<std::pair<int, double>> out;
+    for (const auto& [label, n] : count)
+        if (label > 0) out.emplace_back(label, double(n) / double(labels.size()));
+    std::stable_sort(out.begin(), out.end(),
+                     [](const auto& a, const auto& b) { return a.second > b.second; });
+    return out;
 }
 
 }  // namespace
@@ -99,6 +112,7 @@ std::optional<ScanFrame> simulate_request(const ScanRequest& request, imaging::Q
                                                       });
         out.grid = std::move(scan.grid);
         out.slice = slice_picture(*scan.labels, scan.maps);
+        out.tissues = tissues_present(*scan.labels);
         out.frame = std::move(scan.frame);
     } catch (const Cancelled&) {
         return std::nullopt;

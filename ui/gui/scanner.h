@@ -13,6 +13,8 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -70,6 +72,9 @@ struct ScanFrame {
     imaging::PlaneGrid grid;
     imaging::Frame frame;  // B-mode, energy map, paths, statistics, timings
     cv::Mat slice;         // CV_8UC3 RGB on the plane grid: the tissues under the probe
+    // The tissue labels in the slice, with the share of its texels each covers, largest
+    // first (the tissue view's legend).
+    std::vector<std::pair<int, double>> tissues;
     double seconds = 0.0;  // wall time to simulate it
 };
 
