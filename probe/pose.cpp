@@ -40,9 +40,11 @@ double parse_degrees(const std::string& text, const std::string& source, const s
     return v;
 }
 
+// Six significant digits; rounding residue of the rotations (2e-16) shown as 0.
 std::string format_vec(const glm::dvec3& v) {
+    auto clean = [](double c) { return std::abs(c) < 1e-9 ? 0.0 : c; };
     std::ostringstream s;
-    s << v.x << "," << v.y << "," << v.z;
+    s << clean(v.x) << "," << clean(v.y) << "," << clean(v.z);
     return s.str();
 }
 

@@ -129,6 +129,30 @@ TEST(Gui, SavesFramesWithSidecarsAndRecordsClips) {
     EXPECT_EQ(image.rows, frame.geometry().dims.y & ~1);
 }
 
+// An opened MRI (Colin27's file by its path: not the embedded scene) is scanned from the
+// vertex looking down, as its sform's RAS axes say, with the transfer function asked for
+// (the generic one otherwise); the saved frame's sidecar records both.
+TEST(Gui, AnOpenedVolumeTakesItsTransferFunctionAndLooksDownFromTheTop) {
+    const std::string volume = "/usr/share/mricron/templates/ch2.nii.gz";
+    for (const std::string tf : {"mri-t1-head", ""}) {
+        const fs::path out = kDir / ("volume_" + (tf.empty() ? std::string("default") : tf));
+        fs::remove_all(out);
+        ASSERT_EQ(run_gui("--scene " + volume + (tf.empty() ? "" : " --tf " + tf) +
+                              " --frames 1 --no-context --save --out " + out.string() +
+                              " --screenshot " + (out.string() + ".png"),
+                          "volume.log"),
+                  0)
+            << read_text(kDir / "volume.log");
+        const auto sidecar = nlohmann::json::parse(read_text(out / "frame_0.json"));
+        EXPECT_EQ(sidecar.at("transfer_function").at("name").get<std::string>(),
+                  tf.empty() ? "generic-soft-tissue" : tf);
+        const auto& beam = sidecar.at("pose").at("axial");
+        EXPECT_NEAR(beam[2].get<double>(), -1.0, 1e-9) << sidecar.at("pose");
+        const auto& lateral = sidecar.at("pose").at("lateral");
+        EXPECT_NEAR(lateral[0].get<double>(), 1.0, 1e-9) << sidecar.at("pose");
+    }
+}
+
 TEST(Gui, AFileThatFailsToLoadKeepsTheSceneAndShowsTheError) {
     const fs::path corrupt = kDir / "corrupt.nii";
     fs::create_directories(kDir);

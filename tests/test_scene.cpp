@@ -4,6 +4,7 @@
 
 #include "imaging/scene/scene.h"
 #include "tissue/base/error.h"
+#include "tissue/nifti_io.h"
 
 namespace sonotrace::imaging {
 namespace {
@@ -83,6 +84,43 @@ TEST(Scene, APhantomsContextIsItsImpedance) {
     std::vector<float> values(context->voxels().begin(), context->voxels().end());
     std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
     EXPECT_NEAR(values[values.size() / 2], 993.0 * 1524.0 * 1e-6, 1e-3);
+}
+
+// A volume whose file names its world axes (NIfTI with an sform) is scanned from the
+// subject's top, looking down; the same voxels without anatomical axes from the top face
+// of the index box. The "head" is a ball of radius 15 mm in air whose voxel axes are
+// permuted against the world's (i -> +y, j -> +z, k -> +x), so index and world directions
+// disagree: its top, by construction, is the ball's centre + 15 mm along world z.
+TEST(Scene, AnAnatomicalVolumeIsScannedFromTheTopLookingDown) {
+    tissue::VolumeGeometry g;
+    g.dims = {40, 60, 50};
+    g.spacing = glm::dvec3(1.0);
+    g.direction = glm::dmat3(glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1), glm::dvec3(1, 0, 0));
+    g.origin = {-25.0, -20.0, -30.0};
+    tissue::Volume ball(g);
+    const glm::dvec3 centre = g.index_to_world(glm::dvec3(g.dims - 1) * 0.5);
+    for (int k = 0; k < g.dims.z; ++k)
+        for (int j = 0; j < g.dims.y; ++j)
+            for (int i = 0; i < g.dims.x; ++i)
+                ball.at(i, j, k) =
+                    glm::length(g.index_to_world({i, j, k}) - centre) < 15.0 ? 100.0f : 0.0f;
+    const std::string path = ::testing::TempDir() + "/anatomical_ball.nii.gz";
+    tissue::write_nifti(ball, path);
+    SceneOptions options;
+    options.volume = path;
+    options.tf = "mri-t1-head";  // 0 is air, the ball is tissue: its surface is the skin
+    const auto scene = load_scene(options);
+    const probe::Pose pose = scene->start.pose;
+    EXPECT_NEAR(glm::dot(pose.axial(), glm::dvec3(0, 0, -1)), 1.0, 1e-9);   // inferior
+    EXPECT_NEAR(glm::dot(pose.lateral(), glm::dvec3(1, 0, 0)), 1.0, 1e-9);  // left to right
+    const glm::dvec3 top = centre + glm::dvec3(0, 0, 15);
+    // The skin search steps 0.5 mm through a voxelised, interpolated surface.
+    EXPECT_NEAR(glm::length(pose.position - top), 0.0, 1.0) << pose.to_string();
+    // Without anatomical axes the same voxels keep the index box's top face (+j).
+    VolumeSource plain = load_volume_source(options);
+    plain.loaded.anatomical = false;
+    const probe::Pose indexed = default_volume_pose(plain);
+    EXPECT_NEAR(glm::dot(indexed.axial(), g.direction[1]), 1.0, 1e-9);
 }
 
 }  // namespace

@@ -230,6 +230,7 @@ NiftiReadResult read_nifti(const std::string& path) {
     // Index -> world: sform, else qform, else pixdim scaling (NIfTI "method 1").
     const double to_mm = unit_to_mm(XYZT_TO_SPACE(hdr->xyzt_units));
     glm::dmat4 affine(1.0);
+    result.anatomical = nim->sform_code > 0 || nim->qform_code > 0;
     if (nim->sform_code > 0) {
         affine = to_glm(nim->sto_xyz);
         for (int r = 0; r < 3; ++r) {

@@ -16,6 +16,8 @@ namespace sonotrace::tissue {
 struct NiftiReadResult {
     Volume volume;
     std::vector<std::string> warnings;  // e.g. "4D file: only volume 0 was read"
+    // The world axes are the subject's (RAS: a qform or sform names them), not pixdim's.
+    bool anatomical = false;
 };
 
 // Throws base::InputError naming the file and header field on any problem (missing file,

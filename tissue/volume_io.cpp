@@ -51,6 +51,7 @@ LoadedVolume load_volume(const VolumeRequest& request) {
         NiftiReadResult r = read_nifti(path);
         loaded.volume = std::move(r.volume);
         loaded.warnings = std::move(r.warnings);
+        loaded.anatomical = r.anatomical;
         loaded.format = "nifti";
     } else if (ends_with(path, ".json") || ends_with(path, ".raw")) {
         loaded.volume = read_raw(path);
@@ -60,6 +61,7 @@ LoadedVolume load_volume(const VolumeRequest& request) {
         DicomReadResult r = read_dicom(path);
         loaded.volume = std::move(r.volume);
         loaded.warnings = std::move(r.warnings);
+        loaded.anatomical = true;  // patient coordinates (LPS), read as RAS
         loaded.format = "dicom";
     } else if (std::filesystem::is_directory(status) || path.find('%') != std::string::npos) {
         loaded.volume = read_image_stack(list_image_stack(path), require_spacing(request), path);

@@ -27,6 +27,9 @@ struct LoadedVolume {
     std::string path;    // the file or pattern actually read
     std::string format;  // "nifti", "dicom", "image", "image-stack", "raw"
     std::vector<std::string> warnings;
+    // World axes are the subject's, RAS (x to the right, y anterior, z superior): NIfTI
+    // with a qform or sform, DICOM. Other formats have only their index axes.
+    bool anatomical = false;
 };
 
 // Throws base::InputError naming the file/field on every failure.

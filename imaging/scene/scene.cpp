@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <set>
 
 #include "imaging/colin27.h"
@@ -65,8 +66,11 @@ std::shared_ptr<Scene> volume_scene(std::shared_ptr<const VolumeSource> source,
             scene->start = temporal ? temporal_scene(volume, *source->tf)
                                     : craniotomy_scene(volume, *source->tf);
         } else {
-            scene->start.pose = top_centre_pose(g);
-            scene->start.description = "probe on the top face of the volume";
+            scene->start.pose = default_volume_pose(*source);
+            scene->start.description =
+                source->loaded.anatomical
+                    ? "probe on the superior surface, looking down (coronal plane)"
+                    : "probe on the top face of the volume";
         }
     }
     scene->description = scene->start.description;
@@ -80,6 +84,26 @@ probe::Pose top_centre_pose(const tissue::VolumeGeometry& g) {
     const glm::dvec3 centre = glm::dvec3(g.dims - 1) * 0.5;
     const glm::dvec3 top = g.index_to_world({centre.x, -0.5, centre.z});
     return probe::Pose::looking(top, g.direction[1], g.direction[0]);
+}
+
+probe::Pose default_volume_pose(const VolumeSource& source) {
+    const tissue::Volume& v = source.loaded.volume;
+    const tissue::VolumeGeometry& g = v.geometry();
+    if (!source.loaded.anatomical) return top_centre_pose(g);
+    glm::dvec3 low(std::numeric_limits<double>::max()), high(-std::numeric_limits<double>::max());
+    for (int corner = 0; corner < 8; ++corner) {
+        const glm::dvec3 ijk((corner & 1) ? g.dims.x - 1 : 0, (corner & 2) ? g.dims.y - 1 : 0,
+                             (corner & 4) ? g.dims.z - 1 : 0);
+        low = glm::min(low, g.index_to_world(ijk));
+        high = glm::max(high, g.index_to_world(ijk));
+    }
+    const glm::dvec3 inferior(0.0, 0.0, -1.0), right(1.0, 0.0, 0.0);
+    const glm::dvec3 above(0.5 * (low.x + high.x), 0.5 * (low.y + high.y), high.z);
+    probe::Pose pose = probe::Pose::looking(above, inferior, right);
+    if (const auto hit = probe::skin_surface(v, *source.tf, above, inferior, high.z - low.z, 0.5,
+                                             source.outside))
+        pose.position = hit->point;
+    return pose;
 }
 
 VolumeSource load_volume_source(const VolumeOptions& options, StageObserver* stages) {

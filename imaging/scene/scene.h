@@ -49,11 +49,17 @@ struct VolumeSource {
                                           tissue::Volume* labels) const;
 };
 
+// Default pose for a volume other than the embedded head. With anatomical axes (NIfTI
+// with a qform or sform, DICOM): on the skin at the top of the volume, above the centre
+// of its box, the beam pointing inferior and the array from the subject's left to right (a
+// coronal image, as a probe laid on the vertex of a head). Otherwise top_centre_pose.
+probe::Pose default_volume_pose(const VolumeSource& source);
+
 // Validates the volume options, loads the volume and binds the transfer function.
 VolumeSource load_volume_source(const VolumeOptions& options, StageObserver* stages = nullptr);
 
-// Default pose for a volume other than the embedded head: on the top face of its
-// bounding box, centred, beam along +j, lateral along +i.
+// Default pose for a volume without anatomical axes: on the top face of its bounding
+// box, centred, beam along +j, lateral along +i.
 probe::Pose top_centre_pose(const tissue::VolumeGeometry& g);
 
 struct Scene {

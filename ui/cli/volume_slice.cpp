@@ -104,13 +104,16 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     // ---- grid under the probe ----
     if (!pose)
         pose = source.is_default ? probe::colin27_temporal_pose()
-                                 : imaging::top_centre_pose(volume.geometry());
+                                 : imaging::default_volume_pose(source);
     tissue::GridExtent extent;
     const glm::dvec3 size_mm = glm::dvec3(volume.dims()) * volume.geometry().spacing;
     extent.width_mm =
         options.width_mm > 0 ? options.width_mm : (source.is_default ? 140.0 : size_mm.x);
-    extent.depth_mm =
-        options.depth_mm > 0 ? options.depth_mm : (source.is_default ? 160.0 : size_mm.y);
+    // The default pose of an anatomical volume looks down its world z (the vertex).
+    const double default_depth_mm = source.is_default          ? 160.0
+                                    : source.loaded.anatomical ? size_mm.z
+                                                               : size_mm.y;
+    extent.depth_mm = options.depth_mm > 0 ? options.depth_mm : default_depth_mm;
     extent.elevation_mm = options.elevation_mm;
     extent.pixel_mm = options.resolution_mm;
     const tissue::VolumeGeometry grid =

@@ -13,10 +13,12 @@
 
 #include "imaging/picture.h"
 #include "probe/array_geometry.h"
+#include "probe/pose.h"
 #include "sonotrace_version.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
 #include "tissue/tissue_table.h"
+#include "tissue/transfer_function.h"
 #include "ui/cli/simulate_command.h"
 #include "ui/cli/volume_slice.h"
 
@@ -207,7 +209,7 @@ App::App(const AppOptions& options)
     parameters_.gain_db = 36.0;  // as `sonotrace simulate`
     view_.enabled = options.context;
     // The first scene loads synchronously: without it there is nothing to show.
-    apply_scene(load_scene(options.scene, base::phantom_catalogue_dir()));
+    apply_scene(load_scene(options.scene, base::phantom_catalogue_dir(), options.tf));
     if (options.slide_mm != 0.0) move_probe(options.slide_mm, 0.0, 0.0, 0.0);
     if (!options.explain.empty()) {
         std::string known;
@@ -235,18 +237,69 @@ void App::apply_scene(std::shared_ptr<const Scene> scene) {
     probe_preset_ = preset;
     parameters_.transducer = probe::find_transducer(preset, "probe");
     pose_ = scene_->start.pose;
+    pose_text_.clear();
+    tf_choice_.clear();
     view_.zoom = scene_->context_zoom;
     frame_.reset();
     context_.reset();
     dirty_ = true;
 }
 
-void App::start_loading(const std::string& spec) {
+void App::start_loading(const std::string& spec, const std::string& tf) {
     if (loading_.valid()) return;
-    loading_name_ = spec;
-    message_ = "loading " + spec + " ...";
-    loading_ = std::async(std::launch::async,
-                          [spec] { return load_scene(spec, base::phantom_catalogue_dir()); });
+    loading_name_ = spec + (tf.empty() ? "" : " with " + tf);
+    message_ = "loading " + loading_name_ + " ...";
+    loading_ = std::async(std::launch::async, [spec, tf] {
+        return load_scene(spec, base::phantom_catalogue_dir(), tf);
+    });
+}
+
+void App::draw_volume_controls() {
+    const auto& source = scene_->volume;
+    if (!source || source->is_default) return;
+    section("volume");
+    if (tf_choice_.empty()) tf_choice_ = source->tf->describe().value("name", "custom");
+    if (ImGui::BeginCombo("transfer function", tf_choice_.c_str())) {
+        for (const std::string& preset : tissue::transfer_function_presets())
+            if (ImGui::Selectable(preset.c_str(), preset == tf_choice_)) {
+                tf_choice_ = preset;
+                start_loading(scene_->name, preset);
+            }
+        ImGui::EndCombo();
+    }
+    tooltip("how the volume's intensities become tissues: a preset, or a JSON file typed below");
+    ImGui::InputText("##tf_file", &tf_file_);
+    tooltip("a transfer function JSON file (docs/guide/volumes.md)");
+    ImGui::SameLine();
+    if (ImGui::Button("use file") && !tf_file_.empty()) {
+        tf_choice_ = tf_file_;
+        start_loading(scene_->name, tf_file_);
+    }
+    // The pose as --pose writes it: edit and apply, or go back to the volume's default.
+    std::string shown = pose_text_.empty() ? pose_.to_string() : pose_text_;
+    if (ImGui::InputText("pose", &shown)) pose_text_ = shown;
+    tooltip(probe::kPoseHelp);
+    if (ImGui::Button("apply pose") && !pose_text_.empty()) {
+        try {
+            const probe::Pose p = probe::parse_pose(pose_text_, "pose");
+            scene_->require_inside(p, "pose");
+            pose_ = scene_->clamp(p);
+            pose_text_.clear();
+            dirty_ = true;
+            error_.clear();
+        } catch (const std::exception& e) {
+            error_ = e.what();
+        }
+    }
+    ImGui::SameLine();
+    if (ImGui::Button("default pose")) {
+        pose_ = imaging::default_volume_pose(*source);
+        pose_text_.clear();
+        dirty_ = true;
+    }
+    tooltip(source->loaded.anatomical
+                ? "on the superior surface looking down (the file names its axes: RAS)"
+                : "on the top face of the volume's box (the file names no anatomical axes)");
 }
 
 void App::move_probe(double lateral_mm, double elevation_mm, double rotate_deg, double tilt_deg) {
@@ -393,6 +446,7 @@ void App::draw_controls(float x, float y, float w, float h) {
     ImGui::SameLine();
     if (ImGui::Button("open file") && !open_path_.empty()) start_loading(open_path_);
     if (loading_.valid()) ImGui::TextDisabled("loading %s ...", loading_name_.c_str());
+    if (scene_) draw_volume_controls();
 
     // -- probe
     section("probe");
@@ -875,6 +929,8 @@ void App::save_frame() {
             {"pose", ui::pose_json(frame_->pose)},
             {"quality", imaging::to_string(frame_->quality)},
             {"trace", frame_->settings.trace_dimensions == 3 ? "3d" : "2d"},
+            {"transfer_function",
+             scene_->volume ? scene_->volume->tf->describe() : nlohmann::json(nullptr)},
             {"image",
              {{"width", image.image.cols},
               {"height", image.image.rows},

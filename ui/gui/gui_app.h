@@ -25,6 +25,7 @@ struct AppOptions {
     bool context = true;
     std::string open_later;  // opened like the "open file" field once a frame is shown
     std::string explain;     // an artifact of the explain panel to highlight at start
+    std::string tf;          // the scene's transfer function if it is a volume; empty: its own
 };
 
 // A GL texture holding an RGB(A) picture.
@@ -82,7 +83,10 @@ class App {
     void poll();
     void request();
     void move_probe(double lateral_mm, double elevation_mm, double rotate_deg, double tilt_deg);
-    void start_loading(const std::string& spec);
+    // Loads a scene in the background; `tf` as gui::load_scene takes it.
+    void start_loading(const std::string& spec, const std::string& tf = "");
+    // A volume's transfer function and the probe's pose as text (the --pose format).
+    void draw_volume_controls();
     void apply_scene(std::shared_ptr<const Scene> scene);
     void handle_keys();
 
@@ -103,6 +107,9 @@ class App {
     std::string loading_name_;
     std::vector<SceneEntry> catalogue_;
     std::string open_path_;
+    std::string tf_choice_;  // the opened volume's transfer function: preset or file
+    std::string tf_file_;    // a transfer function file typed in
+    std::string pose_text_;  // being edited; empty: shows the live pose
 
     ScanParameters parameters_;
     std::string probe_preset_;

@@ -25,6 +25,7 @@
 #include "tissue/base/data_dir.h"
 #include "tissue/base/error.h"
 #include "tissue/base/memory.h"
+#include "tissue/transfer_function.h"
 #include "ui/cli/command_common.h"
 #include "ui/gui/gui_app.h"
 
@@ -272,6 +273,13 @@ int main(int argc, char** argv) {
     cli.add_flag("--record", o.record,
                  "with --screenshot: record the frames shown into a clip as the 'record clip' "
                  "button does (H.264 MP4 in --out)");
+    cli.add_option(
+        "--tf", o.app.tf, "transfer function of a volume scene: a preset (" + [] {
+            std::string list;
+            for (const std::string& p : tissue::transfer_function_presets())
+                list += (list.empty() ? "" : ", ") + p;
+            return list;
+        }() + ") or a JSON file; empty = the volume's default");
     cli.add_option("--explain", o.app.explain,
                    "highlight this artifact of the explain panel and its control at start "
                    "(e.g. 'acoustic shadowing')");

@@ -48,8 +48,10 @@ std::vector<SceneEntry> scene_catalogue(const std::string& phantom_dir) {
     return out;
 }
 
-std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::string& phantom_dir) {
+std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::string& phantom_dir,
+                                        const std::string& tf) {
     imaging::SceneOptions options;
+    options.tf = tf;
     if (spec == "head-craniotomy" || spec == "head" || spec == "default")
         return load(options, "head-craniotomy");
     if (spec == "head-temporal") {

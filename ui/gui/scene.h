@@ -30,9 +30,11 @@ struct Scene : imaging::Scene {
 };
 
 // "head-craniotomy", "head-temporal", "phantom:NAME" (NAME.json in phantom_dir), or a
-// path: a phantom (.json) or a volume (NIfTI, raw with header, image stack; see
-// tissue/volume_io.h), scanned from the top face. Throws base::InputError naming the
-// file on any failure; nothing is half-loaded.
-std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::string& phantom_dir);
+// path: a phantom (.json) or a volume (NIfTI, DICOM, raw with header, image stack; see
+// tissue/volume_io.h), placed by imaging::default_volume_pose. `tf` is a volume's transfer
+// function (a preset name or a JSON file; empty: the volume's default). Throws
+// base::InputError naming the file on any failure; nothing is half-loaded.
+std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::string& phantom_dir,
+                                        const std::string& tf = "");
 
 }  // namespace sonotrace::gui
