@@ -688,6 +688,118 @@ void PbvrRenderer::set_overlay(std::vector<uint64_t> layer) {
     overlay_ = std::move(layer);
 }
 
+template <typename Draw>
+void PbvrRenderer::generate(uint32_t repetition, Draw& draw,
+                            tbb::enumerable_thread_specific<uint64_t>& counts) const {
+    const glm::vec3 h = volume_.spacing();
+    const glm::vec3 inverse_h = 1.0f / h;
+
+    // Blocks of 2048 cells: a block's particles come in one fixed order whatever the
+    // threads (splats() keeps them per block).
+    const std::size_t blocks = (cells_.size() + kCellBlock - 1) / kCellBlock;
+    tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t block) {
+        if (cancelled()) return;  // polled per 2048 cells: a Ctrl-C stops within ms
+        uint64_t& drawn = counts.local();
+        const std::size_t last = std::min(cells_.size(), (block + 1) * kCellBlock);
+        for (std::size_t c = block * kCellBlock; c != last; ++c) {
+            const Cell& cell = cells_[c];
+            const glm::vec3 origin = glm::vec3(float(cell.i), float(cell.j), float(cell.k)) * h;
+            // the cell's particle radius and 1 / (pi r^2) of eq. 12
+            const float cell_radius_mm =
+                cell_radius((glm::vec3(float(cell.i), float(cell.j), float(cell.k)) + 0.5f) * h);
+            const float inverse_area =
+                1.0f / (std::numbers::pi_v<float> * cell_radius_mm * cell_radius_mm);
+            CellRandom random(settings_.seed, repetition, cell.index);
+            uint32_t emitted = 0;
+            // -- density: rho = sigma / (pi r^2) of the generation transfer function,
+            // the value interpolated from the cell's corners (loaded once per cell)
+            float corner[8];
+            for (int v = 0; v < 8; ++v)
+                corner[v] =
+                    volume_.value(cell.i + (v & 1), cell.j + (v >> 1 & 1), cell.k + (v >> 2));
+            auto density = [&](const glm::vec3& q) {
+                const glm::vec3 f = (q - origin) * inverse_h;
+                const float x0 = corner[0] + f.x * (corner[1] - corner[0]);
+                const float x1 = corner[2] + f.x * (corner[3] - corner[2]);
+                const float x2 = corner[4] + f.x * (corner[5] - corner[4]);
+                const float x3 = corner[6] + f.x * (corner[7] - corner[6]);
+                const float y0 = x0 + f.y * (x1 - x0), y1 = x2 + f.y * (x3 - x2);
+                const float value = y0 + f.z * (y1 - y0);
+                return std::pair{generation_tf_.extinction(value) * inverse_area, value};
+            };
+            auto emit = [&](const glm::vec3& q, float value) {
+                const uint32_t id = particle_id(cell.index, emitted++);
+                if (settings_.removed(q)) return;
+                float radius = cell_radius_mm;
+                if (adapt_radius_) {
+                    // Eq. 13 keeps the density and changes the radius. As printed the
+                    // ratio is inverted: from eq. 12 with rho fixed,
+                    // r' = r sqrt(ln(1 - alpha') / ln(1 - alpha)) = r sqrt(sigma'/sigma).
+                    const float before = generation_tf_.extinction(value);
+                    const float after = tf_.extinction(value);
+                    if (!(after > 0.0f) || !(before > 0.0f)) return;
+                    radius *= std::sqrt(after / before);
+                }
+                // -- project
+                const glm::vec3 e = to_camera_ * q + camera_offset_;
+                if (e.z <= radius) return;  // behind or at the eye
+                const float inverse_z = 1.0f / e.z;
+                const float px = centre_x_ + focal_ * e.x * inverse_z;
+                const float py = centre_y_ + focal_ * e.y * inverse_z;
+                // Off the axis a sphere's image is an ellipse, stretched radially by
+                // 1 / cos(theta) = |e| / e.z; a disc of its area keeps each ray's chance
+                // of a hit sigma per mm of the ray, not of depth (the image-plane disc
+                // alone gave exp(-sigma l cos theta): 3 % too little optical depth in a
+                // 30-degree view, and the fog test failed by 5-8 standard errors).
+                const float stretch = std::sqrt(std::sqrt(glm::dot(e, e)) * inverse_z);
+                const float rp = focal_ * radius * inverse_z * stretch;
+                draw(Projected{q, value, id, uint32_t(c), e.z, px, py, rp}, drawn);
+            };
+            const glm::vec3 size = h;
+            if (settings_.sampling == Sampling::uniform && cell.candidates <= 100.0f) {
+                CellSequence sequence(settings_.seed, repetition, cell.index);
+                thin_stratified(origin, size, cell.majorant * inverse_area, cell.candidates,
+                                cell.no_candidate, density, sequence, emit);
+            } else if (settings_.sampling == Sampling::uniform) {
+                const int candidates =
+                    cell.candidates <= 100.0f
+                        ? poisson_count_inversion(cell.candidates, cell.no_candidate, random)
+                        : poisson_count(cell.candidates, random);
+                thin_candidates(origin, size, cell.majorant * inverse_area, candidates, density,
+                                random, emit);
+            } else
+                sample_cell_metropolis(origin, size, density, random, emit);
+        }
+    });
+}
+
+std::vector<Splat> PbvrRenderer::splats(uint32_t repetition) const {
+    // Per block of cells, in the generator's order; then the blocks in order.
+    std::vector<std::vector<Splat>> per_block((cells_.size() + kCellBlock - 1) / kCellBlock);
+    tbb::enumerable_thread_specific<uint64_t> counts(0);
+    auto keep = [&](const Projected& p, uint64_t& drawn) {
+        // The sub-pixels the disc can reach: none, and it is not drawn (as the Z-buffer).
+        int x0, x1, y0, y1;
+        centres_within(p.px - p.rp, p.px + p.rp, sub_width_, &x0, &x1);
+        centres_within(p.py - p.rp, p.py + p.rp, sub_height_, &y0, &y1);
+        if (x0 > x1 || y0 > y1) return;
+        const uint64_t entry = zbuffer_entry(
+            p.depth,
+            shade(tf_.colour(p.value), volume_.sample(p.q).gradient, to_eye_, settings_.shading),
+            p.id);
+        const std::size_t block = std::size_t(p.cell) / kCellBlock;
+        per_block[block].push_back({p.px, p.py, p.rp, p.depth, uint32_t(entry >> 8 & 0xFFFFFFu)});
+        ++drawn;
+    };
+    generate(repetition, keep, counts);
+    std::size_t total = 0;
+    for (const auto& b : per_block) total += b.size();
+    std::vector<Splat> out;
+    out.reserve(total);
+    for (const auto& b : per_block) out.insert(out.end(), b.begin(), b.end());
+    return out;
+}
+
 bool PbvrRenderer::add_repetition() {
     const std::size_t subpixels = std::size_t(sub_width_) * std::size_t(sub_height_);
     if (zbuffer_.size() != subpixels) zbuffer_ = decltype(zbuffer_)(subpixels);
@@ -695,117 +807,42 @@ bool PbvrRenderer::add_repetition() {
         zbuffer_[s].store(overlay_.empty() ? kEmptyEntry : overlay_[s], std::memory_order_relaxed);
     });
     tbb::enumerable_thread_specific<uint64_t> counts(0);
-    const glm::vec3 h = volume_.spacing();
-    const glm::vec3 inverse_h = 1.0f / h;
-    const uint32_t repetition = uint32_t(repetitions_);
-
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, cells_.size(), 2048),
-        [&](const tbb::blocked_range<std::size_t>& range) {
-            if (cancelled()) return;  // polled per 2048 cells: a Ctrl-C stops within ms
-            uint64_t& drawn = counts.local();
-            for (std::size_t c = range.begin(); c != range.end(); ++c) {
-                const Cell& cell = cells_[c];
-                const glm::vec3 origin = glm::vec3(float(cell.i), float(cell.j), float(cell.k)) * h;
-                // the cell's particle radius and 1 / (pi r^2) of eq. 12
-                const float cell_radius_mm = cell_radius(
-                    (glm::vec3(float(cell.i), float(cell.j), float(cell.k)) + 0.5f) * h);
-                const float inverse_area =
-                    1.0f / (std::numbers::pi_v<float> * cell_radius_mm * cell_radius_mm);
-                CellRandom random(settings_.seed, repetition, cell.index);
-                uint32_t emitted = 0;
-                // -- density: rho = sigma / (pi r^2) of the generation transfer function,
-                // the value interpolated from the cell's corners (loaded once per cell)
-                float corner[8];
-                for (int v = 0; v < 8; ++v)
-                    corner[v] =
-                        volume_.value(cell.i + (v & 1), cell.j + (v >> 1 & 1), cell.k + (v >> 2));
-                auto density = [&](const glm::vec3& q) {
-                    const glm::vec3 f = (q - origin) * inverse_h;
-                    const float x0 = corner[0] + f.x * (corner[1] - corner[0]);
-                    const float x1 = corner[2] + f.x * (corner[3] - corner[2]);
-                    const float x2 = corner[4] + f.x * (corner[5] - corner[4]);
-                    const float x3 = corner[6] + f.x * (corner[7] - corner[6]);
-                    const float y0 = x0 + f.y * (x1 - x0), y1 = x2 + f.y * (x3 - x2);
-                    const float value = y0 + f.z * (y1 - y0);
-                    return std::pair{generation_tf_.extinction(value) * inverse_area, value};
-                };
-                auto emit = [&](const glm::vec3& q, float value) {
-                    const uint32_t id = particle_id(cell.index, emitted++);
-                    if (settings_.removed(q)) return;
-                    float radius = cell_radius_mm;
-                    if (adapt_radius_) {
-                        // Eq. 13 keeps the density and changes the radius. As printed the
-                        // ratio is inverted: from eq. 12 with rho fixed,
-                        // r' = r sqrt(ln(1 - alpha') / ln(1 - alpha)) = r sqrt(sigma'/sigma).
-                        const float before = generation_tf_.extinction(value);
-                        const float after = tf_.extinction(value);
-                        if (!(after > 0.0f) || !(before > 0.0f)) return;
-                        radius *= std::sqrt(after / before);
-                    }
-                    // -- project
-                    const glm::vec3 e = to_camera_ * q + camera_offset_;
-                    if (e.z <= radius) return;  // behind or at the eye
-                    const float inverse_z = 1.0f / e.z;
-                    const float px = centre_x_ + focal_ * e.x * inverse_z;
-                    const float py = centre_y_ + focal_ * e.y * inverse_z;
-                    // Off the axis a sphere's image is an ellipse, stretched radially by
-                    // 1 / cos(theta) = |e| / e.z; a disc of its area keeps each ray's chance
-                    // of a hit sigma per mm of the ray, not of depth (the image-plane disc
-                    // alone gave exp(-sigma l cos theta): 3 % too little optical depth in a
-                    // 30-degree view, and the fog test failed by 5-8 standard errors).
-                    const float stretch = std::sqrt(std::sqrt(glm::dot(e, e)) * inverse_z);
-                    const float rp = focal_ * radius * inverse_z * stretch;
-                    int x0, x1, y0, y1;
-                    centres_within(px - rp, px + rp, sub_width_, &x0, &x1);
-                    centres_within(py - rp, py + rp, sub_height_, &y0, &y1);
-                    if (x0 > x1 || y0 > y1) return;
-                    const uint32_t depth_bits = std::bit_cast<uint32_t>(e.z);
-                    uint64_t entry = 0;  // packed once the particle wins a sub-pixel
-                    // -- the disc, row by row: sub-pixel centres within rp, nearest wins
-                    for (int y = y0; y <= y1; ++y) {
-                        const float dy = float(y) + 0.5f - py;
-                        const float half = std::sqrt(std::max(rp * rp - dy * dy, 0.0f));
-                        int xa, xb;
-                        centres_within(px - half, px + half, sub_width_, &xa, &xb);
-                        xa = std::max(xa, x0), xb = std::min(xb, x1);
-                        std::atomic<uint64_t>* row =
-                            &zbuffer_[std::size_t(y) * std::size_t(sub_width_)];
-                        for (int x = xa; x <= xb; ++x) {
-                            uint64_t current = row[x].load(std::memory_order_relaxed);
-                            if (uint32_t(current >> 32) < depth_bits) continue;
-                            if (entry ==
-                                0) {  // the gradient and shading only for visible particles
-                                entry = zbuffer_entry(
-                                    e.z,
-                                    shade(tf_.colour(value), volume_.sample(q).gradient, to_eye_,
-                                          settings_.shading),
-                                    id);
-                            }
-                            while (entry < current &&
-                                   !row[x].compare_exchange_weak(current, entry,
-                                                                 std::memory_order_relaxed)) {
-                            }
-                        }
-                    }
-                    ++drawn;
-                };
-                const glm::vec3 size = h;
-                if (settings_.sampling == Sampling::uniform && cell.candidates <= 100.0f) {
-                    CellSequence sequence(settings_.seed, repetition, cell.index);
-                    thin_stratified(origin, size, cell.majorant * inverse_area, cell.candidates,
-                                    cell.no_candidate, density, sequence, emit);
-                } else if (settings_.sampling == Sampling::uniform) {
-                    const int candidates =
-                        cell.candidates <= 100.0f
-                            ? poisson_count_inversion(cell.candidates, cell.no_candidate, random)
-                            : poisson_count(cell.candidates, random);
-                    thin_candidates(origin, size, cell.majorant * inverse_area, candidates, density,
-                                    random, emit);
-                } else
-                    sample_cell_metropolis(origin, size, density, random, emit);
+    // The particle's disc into the Z-buffer: sub-pixel centres within rp, nearest wins.
+    auto splat = [&](const Projected& p, uint64_t& drawn) {
+        const glm::vec3& q = p.q;
+        const float value = p.value, px = p.px, py = p.py, rp = p.rp;
+        const uint32_t id = p.id;
+        int x0, x1, y0, y1;
+        centres_within(px - rp, px + rp, sub_width_, &x0, &x1);
+        centres_within(py - rp, py + rp, sub_height_, &y0, &y1);
+        if (x0 > x1 || y0 > y1) return;
+        const uint32_t depth_bits = std::bit_cast<uint32_t>(p.depth);
+        uint64_t entry = 0;  // packed once the particle wins a sub-pixel
+        // -- the disc, row by row: sub-pixel centres within rp, nearest wins
+        for (int y = y0; y <= y1; ++y) {
+            const float dy = float(y) + 0.5f - py;
+            const float half = std::sqrt(std::max(rp * rp - dy * dy, 0.0f));
+            int xa, xb;
+            centres_within(px - half, px + half, sub_width_, &xa, &xb);
+            xa = std::max(xa, x0), xb = std::min(xb, x1);
+            std::atomic<uint64_t>* row = &zbuffer_[std::size_t(y) * std::size_t(sub_width_)];
+            for (int x = xa; x <= xb; ++x) {
+                uint64_t current = row[x].load(std::memory_order_relaxed);
+                if (uint32_t(current >> 32) < depth_bits) continue;
+                if (entry == 0) {  // the gradient and shading only for visible particles
+                    entry = zbuffer_entry(p.depth,
+                                          shade(tf_.colour(value), volume_.sample(q).gradient,
+                                                to_eye_, settings_.shading),
+                                          id);
+                }
+                while (entry < current &&
+                       !row[x].compare_exchange_weak(current, entry, std::memory_order_relaxed)) {
+                }
             }
-        });
+        }
+        ++drawn;
+    };
+    generate(uint32_t(repetitions_), splat, counts);
 
     for (std::size_t m = 0; m < meshes_.size() && !cancelled(); ++m) rasterize_mesh(*meshes_[m], m);
     if (cancelled()) return false;  // the ensemble is left as it was

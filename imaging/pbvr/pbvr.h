@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include <tbb/enumerable_thread_specific.h>
 #include <glm/glm.hpp>
 #include <opencv2/core.hpp>
 
@@ -260,6 +261,15 @@ float specular_power(float facing, float shininess);
 enum class DepthSampling { cdf, entry, middle, exit, random };
 std::string to_string(DepthSampling depth);
 
+// A particle as the projection drew it, for a renderer elsewhere (the GUI's OpenGL
+// path): its disc of radius `radius` sub-pixels centred at (x, y) (sub-pixel units from
+// the image's top left; it covers the sub-pixels whose centres lie within), its camera
+// depth (mm) and its shaded colour as the Z-buffer stores it (RGB8: R in bits 16-23).
+struct Splat {
+    float x, y, radius, depth;
+    uint32_t rgb;
+};
+
 class PbvrRenderer {
   public:
     // `tf` gives colours and opacity. With `generation_tf`, particles are generated from
@@ -291,6 +301,13 @@ class PbvrRenderer {
     int repetitions_done() const { return repetitions_; }
     // The ensemble average so far (background where nothing was ever drawn).
     RgbImage image() const;
+    // The particles repetition `repetition` draws (add_repetition draws repetition
+    // repetitions_done()), in an order that does not depend on the threads, without
+    // drawing them; meshes are not included. Each is the particle add_repetition
+    // depth-tests: the same disc, depth and colour.
+    std::vector<Splat> splats(uint32_t repetition) const;
+    int subpixel_width() const { return sub_width_; }
+    int subpixel_height() const { return sub_height_; }
 
     // The particle radius at the orbit target's depth (a cell's scales with its depth).
     float particle_radius_mm() const { return radius_per_depth_ * float(camera_.distance_mm); }
@@ -302,6 +319,21 @@ class PbvrRenderer {
     std::size_t skipped_bricks() const { return skipped_bricks_; }  // transparent or hidden
 
   private:
+    // A generated particle, projected: what a renderer needs to draw it.
+    struct Projected {
+        glm::vec3 q;  // local frame, mm
+        float value;  // normalized scalar there
+        uint32_t id;
+        uint32_t cell;     // index into cells_
+        float depth;       // camera depth, mm
+        float px, py, rp;  // disc centre and radius, sub-pixels
+    };
+    static constexpr std::size_t kCellBlock = 2048;
+    // Generates repetition `repetition`'s particles cell block by cell block in parallel,
+    // calling draw(Projected, drawn counter) for each in front of the eye.
+    template <typename Draw>
+    void generate(uint32_t repetition, Draw& draw,
+                  tbb::enumerable_thread_specific<uint64_t>& counts) const;
     static constexpr int kOcclusionTile = 4;        // pixels between occlusion rays
     static constexpr float kOcclusionDepth = 5.0f;  // transmittance e^-5 < 0.7 % beyond
     // mm a cell must lie behind the occlusion depth to be hidden: guards cells seen
