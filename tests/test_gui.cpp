@@ -93,6 +93,33 @@ TEST(Gui, ScreenshotsShowEveryViewAndTheBmodeFollowsTheProbe) {
     EXPECT_GT(cv::mean(cv::abs(pa - pb))[0], 10.0);
 }
 
+// The 3D context drawn in OpenGL (--context-renderer gpu) shows what the CPU renderer
+// shows: the same particles (test_gl_pbvr compares the two renderers exactly); here the
+// whole program's view, whose repetitions at the moment of the screenshot may differ by
+// one (2 against 1 halves the noise), so a loose bound on the mean difference. Under
+// Xvfb, auto picks the CPU renderer (Mesa rasterizes in software, slower than the cores).
+TEST(Gui, TheContextViewOnTheGpuShowsWhatTheCpuShows) {
+    const std::string scene = "--scene phantom:cyst_and_stone --frames 1 ";
+    ASSERT_EQ(run_gui(scene + "--context-renderer gpu --screenshot " +
+                          (kDir / "context_gpu.png").string(),
+                      "gpu.log"),
+              0)
+        << read_text(kDir / "gpu.log");
+    ASSERT_EQ(run_gui(scene + "--screenshot " + (kDir / "context_auto.png").string(), "auto.log"),
+              0)
+        << read_text(kDir / "auto.log");
+    const Screenshot gpu = load("context_gpu"), cpu = load("context_auto");
+    EXPECT_EQ(gpu.layout.at("context_renderer"), "gpu");
+    EXPECT_EQ(cpu.layout.at("context_renderer"), "cpu");
+    EXPECT_GT(gpu.layout.at("context_repetitions").get<int>(), 0);
+    const cv::Mat a = gpu.region("context"), b = cpu.region("context");
+    EXPECT_GT(stddev(a), 10.0);
+    ASSERT_EQ(a.size(), b.size());
+    const double difference = cv::mean(cv::abs(a - b))[0];
+    std::printf("context view, GPU against CPU: mean |difference| %.2f grey levels\n", difference);
+    EXPECT_LT(difference, 6.0);
+}
+
 TEST(Gui, SavesFramesWithSidecarsAndRecordsClips) {
     const fs::path out = kDir / "saved";
     fs::remove_all(out);

@@ -176,18 +176,22 @@ namespace {
 
 // Draws a picture as large as the window's content region allows, at its aspect,
 // centred horizontally; `rect` receives its screen rectangle.
-Fit show_image(const Texture& texture, Rect* rect) {
+Fit show_image(void* texture, int width, int height, Rect* rect) {
     const ImVec2 avail = ImGui::GetContentRegionAvail();
     const ImVec2 cursor = ImGui::GetCursorScreenPos();
-    const float w = float(texture.width()), h = float(texture.height());
+    const float w = float(width), h = float(height);
     Fit f;
     f.scale = std::max(1e-3f, std::min(avail.x / w, avail.y / h));
     f.origin = ImVec2(cursor.x + 0.5f * (avail.x - f.scale * w), cursor.y);
     f.size = ImVec2(f.scale * w, f.scale * h);
     ImGui::SetCursorScreenPos(f.origin);
-    ImGui::Image(texture.imgui_id(), f.size);
+    ImGui::Image(texture, f.size);
     *rect = {f.origin.x, f.origin.y, f.size.x, f.size.y};
     return f;
+}
+
+Fit show_image(const Texture& texture, Rect* rect) {
+    return show_image(texture.imgui_id(), texture.width(), texture.height(), rect);
 }
 
 }  // namespace
@@ -208,6 +212,19 @@ App::App(const AppOptions& options)
     if (!options.probe.empty()) probe::find_transducer(options.probe, "--probe");  // validates
     parameters_.gain_db = 36.0;  // as `sonotrace simulate`
     view_.enabled = options.context;
+    if (options.context_renderer != "auto" && options.context_renderer != "gpu" &&
+        options.context_renderer != "cpu")
+        throw base::InputError("--context-renderer", options.context_renderer,
+                               "must be auto, gpu or cpu");
+    // Mesa's software rasterizer projects on the same cores as the CPU renderer, and
+    // slower (bench/README.md): auto keeps the CPU renderer there.
+    const char* gl_renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+    const std::string name = gl_renderer ? gl_renderer : "";
+    const bool software = name.find("llvmpipe") != std::string::npos ||
+                          name.find("softpipe") != std::string::npos ||
+                          name.find("Software") != std::string::npos;
+    view_.gpu = options.context_renderer == "gpu" ||
+                (options.context_renderer == "auto" && !software && !name.empty());
     // The first scene loads synchronously: without it there is nothing to show.
     apply_scene(load_scene(options.scene, base::phantom_catalogue_dir(), options.tf));
     if (options.slide_mm != 0.0) move_probe(options.slide_mm, 0.0, 0.0, 0.0);
@@ -361,6 +378,30 @@ void App::poll() {
         context_ = std::move(c);
         context_texture_.upload(context_->rgb);
         context_repetitions_ = context_->repetitions;
+    }
+    // The GPU path: draw the repetitions the worker generated (the worker waits for them).
+    // One repetition per UI frame: drawing is the UI thread's time.
+    for (int k = 0; k < 1; ++k) {
+        std::optional<ContextSplats> batch = scanner_.take_context_splats();
+        if (!batch) break;
+        try {
+            if (!gl_context_ || batch->ensemble != gl_ensemble_ ||
+                gl_context_->width() != batch->width || gl_context_->height() != batch->height) {
+                gl_context_ = std::make_unique<GlPbvr>(batch->width, batch->height,
+                                                       batch->subpixel_level, batch->background);
+                gl_ensemble_ = batch->ensemble;
+            }
+            if (!batch->overlay.empty()) gl_context_->set_overlay(batch->overlay);
+            gl_context_->add_repetition(batch->splats);
+            gl_camera_ = batch->camera;
+            gl_seconds_ = batch->seconds;
+            context_repetitions_ = gl_context_->repetitions();
+        } catch (const std::exception& e) {
+            error_ = std::string("3D context on the GPU: ") + e.what();
+            view_.gpu = false;  // the worker's CPU renderer from the next request on
+            gl_context_.reset();
+            dirty_ = true;
+        }
     }
 }
 
@@ -816,13 +857,19 @@ void App::draw_context(float x, float y, float w, float h) {
     begin_panel("3D context (particle-based volume rendering)", x, y, w, h, kViewFlags);
     if (!view_.enabled) {
         ImGui::TextDisabled("off (probe pose panel)");
-    } else if (context_ && !context_texture_.empty()) {
-        ImGui::Text("%d repetitions, %.1f s", context_->repetitions, context_->seconds);
-        const Fit fit = show_image(context_texture_, &context_rect_);
+    } else if ((gl_context_ && gl_context_->repetitions() > 0) ||
+               (context_ && !context_texture_.empty())) {
+        const bool gpu = gl_context_ && gl_context_->repetitions() > 0;
+        ImGui::Text("%d repetitions, %.1f s (%s)", context_repetitions_,
+                    gpu ? gl_seconds_ : context_->seconds, gpu ? "GPU" : "CPU");
+        const Fit fit =
+            gpu ? show_image(reinterpret_cast<void*>(uintptr_t(gl_context_->texture())),
+                             gl_context_->width(), gl_context_->height(), &context_rect_)
+                : show_image(context_texture_, &context_rect_);
         const ImVec2 size = fit.size;
         // The live probe sector, projected with the image's camera (drawn at once, before
         // the renderer catches up).
-        const imaging::pbvr::OrbitCamera& cam = context_->camera;
+        const imaging::pbvr::OrbitCamera& cam = gpu ? gl_camera_ : context_->camera;
         const glm::dvec3 eye = cam.eye(), fwd = cam.forward(), right = cam.right(), up = cam.up();
         const double focal = cam.focal_px();
         std::vector<ImVec2> points;

@@ -11,6 +11,7 @@
 
 #include "imaging/video.h"
 #include "ui/gui/controls.h"
+#include "ui/gui/gl_pbvr.h"
 #include "ui/gui/scanner.h"
 
 namespace sonotrace::gui {
@@ -26,6 +27,9 @@ struct AppOptions {
     std::string open_later;  // opened like the "open file" field once a frame is shown
     std::string explain;     // an artifact of the explain panel to highlight at start
     std::string tf;          // the scene's transfer function if it is a volume; empty: its own
+    // Where the 3D context is projected and averaged: "gpu" (OpenGL), "cpu" (the worker's
+    // renderer), "auto" (OpenGL unless it runs in software, where the cores do it faster).
+    std::string context_renderer = "auto";
 };
 
 // A GL texture holding an RGB(A) picture.
@@ -68,6 +72,7 @@ class App {
 
     uint64_t frames_shown() const { return frames_shown_; }  // B-mode frames displayed
     int context_repetitions() const { return context_repetitions_; }
+    bool context_on_gpu() const { return view_.gpu; }
     // True while a scene loads, or until --open's file has been tried.
     bool loading() const {
         return loading_.valid() || (!options_.open_later.empty() && !opened_later_);
@@ -125,6 +130,10 @@ class App {
     std::optional<ScanFrame> frame_;  // what the views show
     std::optional<ContextImage> context_;
     Texture slice_texture_, bmode_texture_, context_texture_, energy_texture_;
+    std::unique_ptr<GlPbvr> gl_context_;  // the GPU path's ensemble
+    uint64_t gl_ensemble_ = 0;
+    imaging::pbvr::OrbitCamera gl_camera_;
+    double gl_seconds_ = 0.0;
     uint64_t frames_shown_ = 0;
     int context_repetitions_ = 0;
     double last_seconds_ = 0.0;

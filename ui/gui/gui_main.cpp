@@ -178,15 +178,17 @@ int run(const Options& o) {
                 if (app.recording()) app.toggle_recording();
                 base::OutputTransaction transaction;
                 imaging::write_png(read_window(fw, fh), transaction.stage(o.screenshot));
-                const nlohmann::json layout = {{"width", fw},
-                                               {"height", fh},
-                                               {"slice", rect_json(app.slice_rect())},
-                                               {"bmode", rect_json(app.bmode_rect())},
-                                               {"context", rect_json(app.context_rect())},
-                                               {"energy", rect_json(app.energy_rect())},
-                                               {"frames_shown", app.frames_shown()},
-                                               {"context_repetitions", app.context_repetitions()},
-                                               {"error", app.last_error()}};
+                const nlohmann::json layout = {
+                    {"width", fw},
+                    {"height", fh},
+                    {"slice", rect_json(app.slice_rect())},
+                    {"bmode", rect_json(app.bmode_rect())},
+                    {"context", rect_json(app.context_rect())},
+                    {"energy", rect_json(app.energy_rect())},
+                    {"frames_shown", app.frames_shown()},
+                    {"context_repetitions", app.context_repetitions()},
+                    {"context_renderer", app.context_on_gpu() ? "gpu" : "cpu"},
+                    {"error", app.last_error()}};
                 std::filesystem::path sidecar(o.screenshot);
                 sidecar.replace_extension(".json");
                 ui::write_json(layout, transaction.stage(sidecar.string()));
@@ -264,6 +266,11 @@ int main(int argc, char** argv) {
     cli.add_flag("--animate", o.app.animate,
                  "slide the probe back and forth by itself (+-15 mm; demos and benchmarks)");
     cli.add_flag("!--no-context", o.app.context, "no 3D context view (saves CPU)");
+    cli.add_option("--context-renderer", o.app.context_renderer,
+                   "where the 3D context's particles are projected and averaged: gpu (OpenGL), "
+                   "cpu (the reference renderer, on the cores), auto (OpenGL unless it is Mesa's "
+                   "software rasterizer, which is slower than the cores)")
+        ->capture_default_str();
     cli.add_option("--open", o.app.open_later,
                    "once the first frame is shown, open this volume or phantom file as the "
                    "'open file' field does (a file that fails to load leaves the scene as it was)");

@@ -135,6 +135,7 @@ Scanner::~Scanner() {
         stop_ = true;
     }
     wake_.notify_all();
+    drained_.notify_all();
     thread_.join();
 }
 
@@ -154,6 +155,15 @@ std::optional<ScanFrame> Scanner::take_frame() {
 std::optional<ContextImage> Scanner::take_context() {
     std::lock_guard lock(mutex_);
     return std::exchange(context_, std::nullopt);
+}
+
+std::optional<ContextSplats> Scanner::take_context_splats() {
+    std::lock_guard lock(mutex_);
+    if (context_splats_.empty()) return std::nullopt;
+    ContextSplats out = std::move(context_splats_.front());
+    context_splats_.pop_front();
+    drained_.notify_all();
+    return out;
 }
 
 std::optional<std::string> Scanner::take_error() {
@@ -198,8 +208,12 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
     // The requested quality first; then, while the probe is still, finer frames with
     // the 3D context's repetitions in between (its image shows the frame).
     const int context_repetitions[] = {2, 8, 24};  // per quality
+    constexpr int kContextSubpixels = 1;
     std::unique_ptr<imaging::pbvr::PbvrRenderer> renderer;
     std::optional<imaging::pbvr::FrameOverlay> overlay;
+    int generated = 0;  // GPU path: repetitions handed to the UI for this renderer
+    uint64_t ensemble = 0;
+    std::vector<uint64_t> layer;
     const auto context_start = clock_type::now();
     const int requested = int(request.parameters.quality);
     for (int stage = requested; stage <= int(imaging::Quality::high); ++stage) {
@@ -229,7 +243,8 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
             frame_ = std::move(frame);
         }
         if (!overlay) continue;
-        while (!renderer || renderer->repetitions_done() < context_repetitions[stage]) {
+        auto done = [&] { return request.context.gpu ? generated : renderer->repetitions_done(); };
+        while (!renderer || done() < context_repetitions[stage]) {
             if (superseded()) return;
             if (!renderer) {
                 if (cache_->scene != request.scene) {
@@ -241,15 +256,41 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
                 const imaging::pbvr::OrbitCamera camera =
                     context_camera(*request.scene, request.context);
                 imaging::pbvr::RenderSettings settings;
-                settings.subpixel_level = 1;
+                settings.subpixel_level = kContextSubpixels;
                 settings.seed = request.parameters.seed;
                 settings.clip_plane = imaging::pbvr::camera_side_of_plane(
                     *overlay, request.scene->context->geometry(), camera);
                 renderer = std::make_unique<imaging::pbvr::PbvrRenderer>(
                     *cache_->volume, request.scene->context_tf, camera, settings);
-                renderer->set_overlay(
-                    imaging::pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
+                layer = imaging::pbvr::overlay_layer(*overlay, camera, settings.subpixel_level);
+                if (request.context.gpu) {
+                    generated = 0;
+                    std::lock_guard lock(mutex_);
+                    ensemble = ++ensembles_;
+                } else {
+                    renderer->set_overlay(layer);
+                }
                 continue;  // a new request may have come meanwhile
+            }
+            if (request.context.gpu) {
+                ContextSplats batch;
+                batch.request = id;
+                batch.ensemble = ensemble;
+                batch.camera = context_camera(*request.scene, request.context);
+                batch.width = batch.camera.width;
+                batch.height = batch.camera.height;
+                batch.subpixel_level = kContextSubpixels;
+                if (generated == 0) batch.overlay = layer;
+                batch.splats = renderer->splats(uint32_t(generated));
+                batch.seconds = seconds_since(context_start);
+                std::unique_lock lock(mutex_);
+                drained_.wait(lock, [&] {
+                    return stop_ || pending_.has_value() || context_splats_.size() < 3;
+                });
+                if (stop_ || pending_.has_value()) return;
+                context_splats_.push_back(std::move(batch));
+                ++generated;
+                continue;
             }
             renderer->add_repetition();
             ContextImage image;

@@ -8,6 +8,7 @@
 #include <array>
 #include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -19,6 +20,7 @@
 #include <opencv2/core.hpp>
 
 #include "imaging/pbvr/camera.h"
+#include "imaging/pbvr/pbvr.h"
 #include "imaging/simulation.h"
 #include "ui/gui/scene.h"
 
@@ -49,6 +51,9 @@ struct ScanParameters {
 // The 3D context view's camera: an orbit about the volume, zoom as a distance factor.
 struct ContextView {
     bool enabled = true;
+    // The worker only generates the particles (ContextSplats) and the UI thread projects
+    // and averages them in OpenGL (gl_pbvr.h); false: the worker's CPU renderer does it all.
+    bool gpu = false;
     double azimuth_deg = 235.0, elevation_deg = 18.0, zoom = 1.0;
     int width = 320, height = 320;
     bool operator==(const ContextView&) const = default;
@@ -86,6 +91,19 @@ struct ContextImage {
     double seconds = 0.0;  // since the request began
 };
 
+// One repetition of the context's particles for the GPU path (ContextView::gpu): the
+// UI thread draws them into a gui::GlPbvr, a new one whenever `ensemble` changes.
+struct ContextSplats {
+    uint64_t request = 0;
+    uint64_t ensemble = 0;  // a new camera, frame or scene starts a new ensemble
+    int width = 0, height = 0, subpixel_level = 1;
+    glm::vec3 background{0.0f};
+    std::vector<uint64_t> overlay;  // the frame's layer (PbvrRenderer::set_overlay)
+    std::vector<imaging::pbvr::Splat> splats;
+    imaging::pbvr::OrbitCamera camera;
+    double seconds = 0.0;  // since the request began
+};
+
 // The camera of a context view of a scene (the orbit fitted to its volume).
 imaging::pbvr::OrbitCamera context_camera(const Scene& scene, const ContextView& view);
 
@@ -101,6 +119,9 @@ class Scanner {
     // The newest finished frame / context image not taken yet.
     std::optional<ScanFrame> take_frame();
     std::optional<ContextImage> take_context();
+    // The oldest repetition of particles not drawn yet (GPU path). The worker waits while
+    // a few are queued, so it never runs far ahead of the screen.
+    std::optional<ContextSplats> take_context_splats();
     // The last error (bad parameters, a failed frame), with the request it belongs to.
     std::optional<std::string> take_error();
     // True while a request is being worked on or refined.
@@ -116,6 +137,9 @@ class Scanner {
     uint64_t next_id_ = 0, pending_id_ = 0;
     std::optional<ScanFrame> frame_;
     std::optional<ContextImage> context_;
+    std::deque<ContextSplats> context_splats_;
+    std::condition_variable drained_;  // context_splats_ shrank
+    uint64_t ensembles_ = 0;
     std::optional<std::string> error_;
     bool working_ = false, stop_ = false;
     struct ContextCache;
