@@ -209,6 +209,7 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
     // the 3D context's repetitions in between (its image shows the frame).
     const int context_repetitions[] = {2, 8, 24};  // per quality
     constexpr int kContextSubpixels = 1;
+    constexpr int kContextRestMs = 150;  // a still probe's pause before the context starts
     std::unique_ptr<imaging::pbvr::PbvrRenderer> renderer;
     std::optional<imaging::pbvr::FrameOverlay> overlay;
     int generated = 0;  // GPU path: repetitions handed to the UI for this renderer
@@ -247,6 +248,15 @@ void Scanner::work(const ScanRequest& request, uint64_t id) {
         while (!renderer || done() < context_repetitions[stage]) {
             if (superseded()) return;
             if (!renderer) {
+                // Setting a renderer up takes longer than a frame and cannot be cut short:
+                // while the probe moves (a request every UI frame) the frames come first,
+                // and the context waits until the probe has rested for a moment.
+                {
+                    std::unique_lock lock(mutex_);
+                    if (wake_.wait_for(lock, std::chrono::milliseconds(kContextRestMs),
+                                       [&] { return stop_ || pending_.has_value(); }))
+                        return;
+                }
                 if (cache_->scene != request.scene) {
                     cache_->volume.reset();
                     cache_->volume = std::make_unique<imaging::pbvr::RenderVolume>(
