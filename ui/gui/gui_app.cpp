@@ -474,16 +474,21 @@ void App::draw_controls(float x, float y, float w, float h) {
     ImGui::PushItemWidth(std::max(
         80.0f, ImGui::GetContentRegionAvail().x - longest - ImGui::GetStyle().ItemInnerSpacing.x));
     bool changed = false;
-    // -- scene
-    if (ImGui::BeginCombo("scene", scene_ ? scene_->title.c_str() : "")) {
+    // -- scene: the whole width, titles are long
+    ImGui::TextDisabled("scene");
+    ImGui::PushItemWidth(-FLT_MIN);
+    if (ImGui::BeginCombo("##scene", scene_ ? scene_->title.c_str() : "")) {
         for (const SceneEntry& e : catalogue_)
             if (ImGui::Selectable(e.title.c_str(), scene_ && scene_->name == e.name))
                 start_loading(e.name);
         ImGui::EndCombo();
     }
+    ImGui::PopItemWidth();
     tooltip(scene_ ? scene_->description : "");
     ImGui::InputText("##open", &open_path_);
-    tooltip("a volume (NIfTI .nii/.nii.gz, raw .json header, image stack) or a phantom .json");
+    tooltip(
+        "a volume (NIfTI .nii/.nii.gz, DICOM, raw .json header, image stack) or a phantom "
+        ".json");
     ImGui::SameLine();
     if (ImGui::Button("open file") && !open_path_.empty()) start_loading(open_path_);
     if (loading_.valid()) ImGui::TextDisabled("loading %s ...", loading_name_.c_str());
