@@ -112,19 +112,28 @@ void main() {
 }
 )";
 
+// Throws with the object's info log (and deletes it) unless its `status` is true.
+void require_status(GLuint object, GLenum status, bool is_shader, const char* failure) {
+    GLint ok = 0;
+    is_shader ? glGetShaderiv(object, status, &ok) : glGetProgramiv(object, status, &ok);
+    if (ok) return;
+    char log[2048] = "";
+    if (is_shader) {
+        glGetShaderInfoLog(object, sizeof log, nullptr, log);
+        glDeleteShader(object);
+    } else {
+        glGetProgramInfoLog(object, sizeof log, nullptr, log);
+        glDeleteProgram(object);
+    }
+    throw std::runtime_error(std::string("GPU PBVR: ") + failure + ": " + log);
+}
+
 unsigned compile(GLenum type, const std::string& source) {
     const GLuint shader = glCreateShader(type);
     const char* text = source.c_str();
     glShaderSource(shader, 1, &text, nullptr);
     glCompileShader(shader);
-    GLint ok = 0;
-    glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        char log[2048];
-        glGetShaderInfoLog(shader, sizeof log, nullptr, log);
-        glDeleteShader(shader);
-        throw std::runtime_error(std::string("GPU PBVR: a shader does not compile: ") + log);
-    }
+    require_status(shader, GL_COMPILE_STATUS, true, "a shader does not compile");
     return shader;
 }
 
@@ -136,28 +145,8 @@ unsigned program(const std::string& vertex, const std::string& fragment) {
     glLinkProgram(p);
     glDeleteShader(v);
     glDeleteShader(f);
-    GLint ok = 0;
-    glGetProgramiv(p, GL_LINK_STATUS, &ok);
-    if (!ok) {
-        char log[2048];
-        glGetProgramInfoLog(p, sizeof log, nullptr, log);
-        glDeleteProgram(p);
-        throw std::runtime_error(std::string("GPU PBVR: a program does not link: ") + log);
-    }
+    require_status(p, GL_LINK_STATUS, false, "a program does not link");
     return p;
-}
-
-unsigned texture_2d(GLint internal, int w, int h, GLenum format, GLenum type, const void* data) {
-    GLuint t = 0;
-    glGenTextures(1, &t);
-    glBindTexture(GL_TEXTURE_2D, t);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTexImage2D(GL_TEXTURE_2D, 0, internal, w, h, 0, format, type, data);
-    return t;
 }
 
 unsigned framebuffer(unsigned colour, unsigned depth) {
@@ -208,6 +197,21 @@ class StateGuard {
 
 }  // namespace
 
+unsigned texture_2d(int internal, int width, int height, unsigned format, unsigned type,
+                    const void* data, bool linear, unsigned reuse) {
+    GLuint t = reuse;
+    if (!t) glGenTextures(1, &t);
+    glBindTexture(GL_TEXTURE_2D, t);
+    const GLint filter = linear ? GL_LINEAR : GL_NEAREST;
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexImage2D(GL_TEXTURE_2D, 0, internal, width, height, 0, format, type, data);
+    return t;
+}
+
 GlPbvr::GlPbvr(int width, int height, int subpixel_level, const glm::vec3& background)
     : width_(width),
       height_(height),
@@ -248,10 +252,8 @@ GlPbvr::GlPbvr(int width, int height, int subpixel_level, const glm::vec3& backg
     sub_fbo_ = framebuffer(sub_colour_, sub_depth_);
     accumulation_ = texture_2d(GL_RGBA32F, width, height, GL_RGBA, GL_FLOAT, nullptr);
     accumulation_fbo_ = framebuffer(accumulation_, 0);
-    display_texture_ = texture_2d(GL_RGBA8, width, height, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
-    glBindTexture(GL_TEXTURE_2D, display_texture_);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    display_texture_ =
+        texture_2d(GL_RGBA8, width, height, GL_RGBA, GL_UNSIGNED_BYTE, nullptr, true);
     display_fbo_ = framebuffer(display_texture_, 0);
     glBindFramebuffer(GL_FRAMEBUFFER, display_fbo_);
     glViewport(0, 0, width_, height_);

@@ -22,6 +22,12 @@
 
 namespace sonotrace::gui {
 
+// A 2D texture (`reuse`'s name, or a new one) of `internal` format filled from `data`
+// (null: left undefined), clamped at the edges, nearest or linear filtering, tightly
+// packed rows; left bound to GL_TEXTURE_2D. A current OpenGL context is needed.
+unsigned texture_2d(int internal, int width, int height, unsigned format, unsigned type,
+                    const void* data, bool linear = false, unsigned reuse = 0);
+
 class GlPbvr {
   public:
     static constexpr int kMargin = 32;  // sub-pixels round the image

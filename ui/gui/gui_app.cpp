@@ -159,15 +159,8 @@ void Texture::upload(const cv::Mat& picture) {
         cv::cvtColor(picture, rgba, cv::COLOR_GRAY2RGBA);
     else
         cv::cvtColor(picture, rgba, cv::COLOR_RGB2RGBA);
-    if (!id_) glGenTextures(1, &id_);
-    glBindTexture(GL_TEXTURE_2D, id_);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA, rgba.cols, rgba.rows, 0, GL_RGBA, GL_UNSIGNED_BYTE,
-                 rgba.data);
+    id_ =
+        texture_2d(GL_RGBA, rgba.cols, rgba.rows, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data, true, id_);
     width_ = rgba.cols;
     height_ = rgba.rows;
 }
