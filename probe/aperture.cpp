@@ -116,12 +116,20 @@ inline float directivity(float sin_theta, float cos_theta, float half_width_in_l
 
 std::complex<double> LineFields::sum(const glm::dvec2& q, const std::vector<double>& weights,
                                      const glm::dvec2& focus) const {
-    const std::size_t n = weights.size();
-    std::vector<float> w(n), re(n), im(n);
-    for (std::size_t e = 0; e < n; ++e) w[e] = float(weights[e]);
-    field_terms(n, x_.data(), y_.data(), nx_.data(), ny_.data(), w.data(), float(q.x), float(q.y),
-                float(focus.x), float(focus.y), float(1.0 / t_.wavelength_mm()),
-                float(0.5 * element_width_), re.data(), im.data());
+    // An aperture narrower than the array (F-number, the dynamic receive's growth) leaves
+    // zero weights at its ends, whose terms are +-0 and change no sum: the span between
+    // them is all that is summed. The PSF table's build was half these sums, over every
+    // element. Scratch per thread: a call per table sample allocated three vectors.
+    std::size_t first = 0, last = weights.size();
+    while (first < last && weights[first] == 0.0) ++first;
+    while (last > first && weights[last - 1] == 0.0) --last;
+    const std::size_t n = last - first;
+    thread_local std::vector<float> w, re, im;
+    w.resize(n), re.resize(n), im.resize(n);
+    for (std::size_t e = 0; e < n; ++e) w[e] = float(weights[first + e]);
+    field_terms(n, x_.data() + first, y_.data() + first, nx_.data() + first, ny_.data() + first,
+                w.data(), float(q.x), float(q.y), float(focus.x), float(focus.y),
+                float(1.0 / t_.wavelength_mm()), float(0.5 * element_width_), re.data(), im.data());
     double sum_re = 0.0, sum_im = 0.0;  // in order, in double: the same on every build
     for (std::size_t e = 0; e < n; ++e) sum_re += re[e], sum_im += im[e];
     return {sum_re, sum_im};

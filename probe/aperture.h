@@ -84,10 +84,13 @@ class LineFields {
     // gathers from the whole width that both apertures light.
     std::complex<double> plane_echo(double z, double sin_tilt) const;
     const LineArray& array() const { return array_; }
-
-  private:
+    // sum_e w_e D_e exp(-i k (|q - e| - |f - e| + f_y - q_y)) / sqrt(|q - e|), unnormalised:
+    // the sum transmit and receive take, over the elements of `weights` (one per element).
+    // Elements of zero weight at either end add nothing and are skipped.
     std::complex<double> sum(const glm::dvec2& q, const std::vector<double>& weights,
                              const glm::dvec2& focus) const;
+
+  private:
     Transducer t_;
     LineArray array_;
     std::vector<double> tx_weights_;
