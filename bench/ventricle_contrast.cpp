@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "imaging/anatomy_truth.h"
 #include "imaging/colin27.h"
 #include "imaging/psf.h"
 #include "imaging/scene/scene.h"
@@ -109,12 +110,10 @@ double measure(const imaging::Scene& head, const char* what,
         interior.clear();
         const probe::ScanGeometry g(s.transducer);
         const int csf = tissue::tissue_label_of("csf"), brain = tissue::tissue_label_of("brain");
-        const glm::dvec3 h = labels.geometry().spacing;
         const glm::ivec3 dims = labels.geometry().dims;
         auto label_at = [&](int i, int j) {
             return i < 0 || j < 0 || i >= dims.x || j >= dims.y ? -1 : int(labels.at(i, j, 0));
         };
-        const int r = int(std::ceil(o.clear_mm / h.x));
         for (const glm::dvec2& m : o.points) {  // the map at given points
             const auto tx = map.sample(glm::vec2(m));
             std::printf("  map (%.2f %.2f): Z %.4f  n %.4f  b %.3f  att %.2f\n", m.x, m.y,
@@ -144,48 +143,31 @@ double measure(const imaging::Scene& head, const char* what,
                             10.0 * std::log10(std::norm(fields.two_way({x, z})) / h0),
                             10.0 * std::log10(std::norm(fields.two_way({-x, z})) / h0));
         }
-        std::vector<double> depth(std::size_t(env.samples));
-        for (int l = 0; l < env.lines; ++l) {
-            double travelled = 0.0, optical = 0.0;
-            constexpr double ds = 0.02;
-            for (int i = 0; i < env.samples; ++i) {
-                const double displayed = env.depth_mm(i);
-                while (!o.nominal && optical < displayed) {
-                    const glm::dvec2 q = g.point(l, travelled + 0.5 * ds) + grid.to_map;
-                    optical += ds * map.sample_refractive_index(glm::vec2(q));
-                    travelled += ds;
-                }
-                depth[std::size_t(i)] = o.nominal ? displayed : travelled;
-            }
-            for (int i = 0; i < env.samples; ++i) {
-                const double d = depth[std::size_t(i)];
-                const int b = int(d / kBandMm);
-                if (d < o.from_mm || d > o.to_mm || b >= kBands) continue;
-                const glm::dvec2 m = g.point(l, d) + grid.to_map;
-                const int ti = int(std::floor(m.x / h.x + 0.5)),
-                          tj = int(std::floor(m.y / h.y + 0.5));
-                const int lab = label_at(ti, tj);
-                if (lab != csf && lab != brain) continue;
-                bool clear = true;
-                for (int dj = -r; dj <= r && clear; ++dj)
-                    for (int di = -r; di <= r && clear; ++di)
-                        clear = di * di + dj * dj > r * r || label_at(ti + di, tj + dj) == lab;
-                if (!clear) continue;
+        const imaging::ClearSamples samples = imaging::clear_samples(
+            env, g, grid.to_map, map, labels, csf, brain, o.clear_mm, o.from_mm,
+            std::min(o.to_mm, kBands * kBandMm - 1e-6), o.nominal);
+        for (const auto* list : {&samples.inside, &samples.outside}) {
+            const bool inside = list == &samples.inside;
+            for (const imaging::TruthSample& t : *list) {
+                const int l = t.line, i = t.sample;
+                const std::size_t b = std::size_t(t.depth_mm / kBandMm);
                 const double v = double(env.at(l, i)) * env.at(l, i);
                 if (o.ideal) {  // linear acoustics alone: the map's b^2 seen through |H|^2
                     const glm::dvec2 dir = g.line(l).direction, across(dir.y, -dir.x);
                     double ideal = 0.0;
                     for (double x = -10.0; x <= 10.0; x += 0.05) {
-                        const float bs = map.sample_backscatter(glm::vec2(m + x * across));
+                        const float bs = map.sample_backscatter(glm::vec2(t.map + x * across));
                         ideal += std::norm(psf->at(l, x, env.depth_mm(i))) * double(bs * bs);
                     }
-                    if (lab == csf) in_ideal[std::size_t(b)] += ideal;
-                    if (lab == brain) out_ideal[std::size_t(b)] += ideal;
+                    (inside ? in_ideal : out_ideal)[b] += ideal;
                 }
-                if (lab == csf) interior.push_back(std::size_t(l) * env.samples + i);
-                if (lab == csf) in[std::size_t(b)] += v, ++n_in[std::size_t(b)];
-                if (lab == csf && o.brightest > 0) brightest.push_back({v, seed, l, d});
-                if (lab == brain) out[std::size_t(b)] += v, ++n_out[std::size_t(b)];
+                if (inside) {
+                    interior.push_back(std::size_t(l) * env.samples + i);
+                    in[b] += v, ++n_in[b];
+                    if (o.brightest > 0) brightest.push_back({v, seed, l, t.depth_mm});
+                } else {
+                    out[b] += v, ++n_out[b];
+                }
             }
         }
     }

@@ -1,0 +1,45 @@
+#include "imaging/anatomy_truth.h"
+
+#include <cmath>
+
+namespace sonotrace::imaging {
+
+ClearSamples clear_samples(const LineData& envelope, const probe::ScanGeometry& geometry,
+                           const glm::dvec2& to_map, const tissue::AcousticMap<2>& map,
+                           const tissue::Volume& labels, int inside_label, int outside_label,
+                           double clear_mm, double from_mm, double to_mm, bool nominal) {
+    ClearSamples out;
+    const glm::dvec3 h = labels.geometry().spacing;
+    const glm::ivec3 dims = labels.geometry().dims;
+    auto label_at = [&](int i, int j) {
+        return i < 0 || j < 0 || i >= dims.x || j >= dims.y ? -1 : int(labels.at(i, j, 0));
+    };
+    const int r = int(std::ceil(clear_mm / h.x));
+    for (int l = 0; l < envelope.lines; ++l) {
+        double travelled = 0.0, optical = 0.0;
+        constexpr double ds = 0.02;  // mm of the walk
+        for (int i = 0; i < envelope.samples; ++i) {
+            const double displayed = envelope.depth_mm(i);
+            while (!nominal && optical < displayed) {
+                const glm::dvec2 q = geometry.point(l, travelled + 0.5 * ds) + to_map;
+                optical += ds * map.sample_refractive_index(glm::vec2(q));
+                travelled += ds;
+            }
+            const double d = nominal ? displayed : travelled;
+            if (d < from_mm || d > to_mm) continue;
+            const glm::dvec2 m = geometry.point(l, d) + to_map;
+            const int ti = int(std::floor(m.x / h.x + 0.5)), tj = int(std::floor(m.y / h.y + 0.5));
+            const int label = label_at(ti, tj);
+            if (label != inside_label && label != outside_label) continue;
+            bool clear = true;
+            for (int dj = -r; dj <= r && clear; ++dj)
+                for (int di = -r; di <= r && clear; ++di)
+                    clear = di * di + dj * dj > r * r || label_at(ti + di, tj + dj) == label;
+            if (!clear) continue;
+            (label == inside_label ? out.inside : out.outside).push_back({l, i, d, m});
+        }
+    }
+    return out;
+}
+
+}  // namespace sonotrace::imaging
