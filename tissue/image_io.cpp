@@ -48,23 +48,53 @@ struct ImageSlice {
 };
 
 // Reads `path` into `out` (width*height floats). Returns the size it found.
+// The format a file's first bytes declare, of those image volumes are read from (the
+// documentation's, volume_io.h), or "" for any other.
+std::string image_format_of(const std::string& path) {
+    unsigned char head[8] = {};
+    if (std::FILE* f = std::fopen(path.c_str(), "rb")) {
+        const std::size_t n = std::fread(head, 1, sizeof head, f);
+        std::fclose(f);
+        if (n < 4) return "";
+    } else {
+        return "";
+    }
+    auto starts = [&](std::initializer_list<int> magic) {
+        int k = 0;
+        for (const int byte : magic)
+            if (head[k++] != byte) return false;
+        return true;
+    };
+    if (starts({0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A})) return "png";
+    if (starts({'I', 'I', 42, 0}) || starts({'M', 'M', 0, 42}) || starts({'I', 'I', 43, 0}) ||
+        starts({'M', 'M', 0, 43}))
+        return "tiff";
+    if (starts({0xFF, 0xD8, 0xFF})) return "jpeg";
+    if (starts({0x76, 0x2F, 0x31, 0x01})) return "openexr";
+    return "";
+}
+
 ImageSlice read_into(const std::string& path, Voxels* out, const ImageSlice* expect) {
     if (!fs::exists(base::file_status(path, path, "")))
         throw base::InputError(path, "", "file not found");
+    // The formats the documentation promises, whatever the file's name, told by their
+    // first bytes and opened by their own reader alone. OpenImageIO's open() tries every
+    // reader it has on a file its named one refuses: the others (WebP, RLA, ...) declare
+    // sizes a few bytes can claim (a 21-byte WebP of 16384 x 16384 pixels took 2.2 GB),
+    // RLA's aborts the process on a malformed header, and none is what scans come in.
+    const std::string file_format = image_format_of(path);
+    if (file_format.empty())
+        throw base::InputError(path, "format",
+                               "is not a PNG, TIFF, JPEG or EXR file (by its first bytes); image "
+                               "volumes are read from those");
     // Stored colour values, not premultiplied by alpha (which we ignore).
     OIIO::ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
-    auto in = OIIO::ImageInput::open(path, &config);
-    if (!in) throw base::InputError(path, "", "cannot read image: " + OIIO::geterror());
-    // The formats the documentation promises (volume_io.h), whatever the file's name: the
-    // others OpenImageIO would read (WebP, RLA, ...) declare sizes a few bytes can claim
-    // (a 21-byte WebP of 16384 x 16384 pixels took 2.2 GB) and are not what scans come in.
-    const std::string_view file_format = in->format_name();
-    if (file_format != "png" && file_format != "tiff" && file_format != "jpeg" &&
-        file_format != "openexr")
-        throw base::InputError(path, "format",
-                               "is a '" + std::string(file_format) +
-                                   "' image; image volumes are read from PNG, TIFF, JPEG or EXR");
+    auto in = OIIO::ImageInput::create(file_format, false, &config);
+    OIIO::ImageSpec opened;
+    if (!in || !in->open(path, opened, config))
+        throw base::InputError(path, "",
+                               "cannot read image: " + (in ? in->geterror() : OIIO::geterror()));
     const OIIO::ImageSpec& spec = in->spec();
     ImageSlice slice{spec.width, spec.height, spec.nchannels};
     if (spec.depth > 1)
