@@ -2,8 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
-#include <OpenImageIO/imageio.h>
-
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -13,6 +12,7 @@
 #include "probe/array_geometry.h"
 #include "tissue/base/error.h"
 #include "tissue/base/json_util.h"
+#include "tissue/image_io.h"
 
 namespace sonotrace::imaging::pbvr {
 
@@ -29,20 +29,16 @@ glm::dvec3 unit_vector(const nlohmann::json& object, const std::string& key,
     return glm::normalize(v);
 }
 
+// The frame's grey levels, through the image reader volumes use (its formats told by
+// their first bytes, sizes checked before decoding).
 cv::Mat read_grey_png(const std::string& path) {
-    auto in = OIIO::ImageInput::open(path);
-    if (!in) throw InputError(path, "", "cannot read the frame: " + OIIO::geterror());
-    const OIIO::ImageSpec& spec = in->spec();
-    cv::Mat grey(spec.height, spec.width, CV_8UC1);
-    std::vector<unsigned char> pixels(std::size_t(spec.width) * std::size_t(spec.height) *
-                                      std::size_t(spec.nchannels));
-    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, pixels.data()))
-        throw InputError(path, "", "cannot read the frame: " + in->geterror());
-    for (int y = 0; y < spec.height; ++y)
-        for (int x = 0; x < spec.width; ++x)
+    const tissue::Volume image = tissue::read_image(path, glm::dvec3(1.0));
+    const glm::ivec3 n = image.geometry().dims;
+    cv::Mat grey(n.y, n.x, CV_8UC1);
+    for (int y = 0; y < n.y; ++y)
+        for (int x = 0; x < n.x; ++x)
             grey.at<unsigned char>(y, x) =
-                pixels[(std::size_t(y) * std::size_t(spec.width) + std::size_t(x)) *
-                       std::size_t(spec.nchannels)];
+                uint8_t(std::clamp(std::lround(image.at(x, y, 0)), 0L, 255L));
     return grey;
 }
 
