@@ -41,6 +41,7 @@ struct SliceSpec {
     std::optional<std::string> frames;
     std::optional<std::string> spacing_between_slices;
     std::string photometric = "MONOCHROME2";
+    std::string modality = "MR";
     int samples_per_pixel = 1;
     int rows = 3, columns = 4;
     int instance_number = 1;
@@ -70,7 +71,7 @@ void write_slice(const std::string& path, const SliceSpec& s) {
     put_text(data, 0x0008, 0x0016, gdcm::VR::UI, "1.2.840.10008.5.1.4.1.1.4");  // MR Image
     put_text(data, 0x0008, 0x0018, gdcm::VR::UI,
              "1.2.826.0.1.3680043.2.1125.2." + std::to_string(++instance));
-    put_text(data, 0x0008, 0x0060, gdcm::VR::CS, "MR");
+    put_text(data, 0x0008, 0x0060, gdcm::VR::CS, s.modality);
     put_text(data, 0x0008, 0x103E, gdcm::VR::LO, "test series");
     put_text(data, 0x0020, 0x000D, gdcm::VR::UI, "1.2.826.0.1.3680043.2.1125.3");
     put_text(data, 0x0020, 0x000E, gdcm::VR::UI, s.series_uid);
@@ -258,6 +259,15 @@ TEST(DicomIo, LoadVolumeRecognisesSeriesDirectoriesAndFilesWithoutExtension) {
     const LoadedVolume one = load_volume({dir / "IM1", std::nullopt});
     EXPECT_EQ(one.format, "dicom");
     EXPECT_TRUE(one.volume.is_2d());
+    // Patient coordinates and the modality travel with the volume: the default pose and
+    // transfer function follow them (a CT series is read in Hounsfield units).
+    EXPECT_TRUE(series.anatomical);
+    EXPECT_EQ(series.modality, "MR");
+    ScratchDir ct;
+    SliceSpec spec;
+    spec.modality = "CT";
+    write_series(ct, ObliquePlane(), glm::dvec3(0.0), glm::dvec3(0, 0, 1), 2, spec);
+    EXPECT_EQ(load_volume({ct.path().string(), std::nullopt}).modality, "CT");
 }
 
 TEST(DicomIo, MultiFrameFileIsAVolume) {

@@ -133,6 +133,31 @@ TEST(TransferFunctionPresets, MriT1HeadGivesColin27PlausibleAcoustics) {
     EXPECT_GT(at(-30, 0, 18)[Property::backscatter], 0.2) << "parenchyma scatters";
 }
 
+// Hounsfield units are defined by two points, air -1000 and water 0; the other tissues'
+// ranges are the clinical ones (fat about -100, soft tissue 20-80, cortical bone 700 and
+// more). The preset must give each the tissue table's acoustics, on raw values.
+TEST(TransferFunctionPresets, CtHounsfieldGivesEachTissueOfItsRange) {
+    auto tf = load_transfer_function("ct-hounsfield");
+    tissue::VolumeGeometry g;
+    g.dims = {2, 1, 1};
+    Volume any(g);  // raw values: binding looks at nothing
+    tf->bind(any);
+    auto label_at = [&](float hu) { return tissue_label_name(tf->tissue_label(hu)); };
+    EXPECT_EQ(label_at(-1000.0f), "air");
+    EXPECT_EQ(label_at(-700.0f), "air") << "lung reflects totally";
+    EXPECT_EQ(label_at(-100.0f), "fat");
+    EXPECT_EQ(label_at(5.0f), "water");
+    EXPECT_EQ(label_at(55.0f), "soft_tissue");
+    EXPECT_EQ(label_at(1200.0f), "cortical_bone");
+    const auto& bone = find_tissue("cortical_bone", "", "").properties;
+    EXPECT_FLOAT_EQ(speed(tf->evaluate(1200.0f)), bone[Property::speed_of_sound]);
+    EXPECT_LT(speed(tf->evaluate(-1000.0f)), 400.0);
+    // Partial volume between soft tissue and bone: in between.
+    const double trabecular = speed(tf->evaluate(400.0f));
+    EXPECT_GT(trabecular, 1700.0);
+    EXPECT_LT(trabecular, bone[Property::speed_of_sound]);
+}
+
 TEST(TransferFunctionErrors, EachProblemNamesFileAndField) {
     auto check = [](const std::string& text, const std::string& field, const std::string& what) {
         expect_input_error([&] { parse_transfer_function(text, "tf.json"); }, "tf.json", field,

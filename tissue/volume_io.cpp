@@ -62,6 +62,7 @@ LoadedVolume load_volume(const VolumeRequest& request) {
         loaded.volume = std::move(r.volume);
         loaded.warnings = std::move(r.warnings);
         loaded.anatomical = true;  // patient coordinates (LPS), read as RAS
+        loaded.modality = r.modality;
         loaded.format = "dicom";
     } else if (std::filesystem::is_directory(status) || path.find('%') != std::string::npos) {
         loaded.volume = read_image_stack(list_image_stack(path), require_spacing(request), path);

@@ -30,6 +30,7 @@ struct LoadedVolume {
     // World axes are the subject's, RAS (x to the right, y anterior, z superior): NIfTI
     // with a qform or sform, DICOM. Other formats have only their index axes.
     bool anatomical = false;
+    std::string modality;  // DICOM (0008,0060), e.g. "CT", "MR"; empty for other formats
 };
 
 // Throws base::InputError naming the file/field on every failure.

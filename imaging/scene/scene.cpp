@@ -119,16 +119,23 @@ VolumeSource load_volume_source(const VolumeOptions& options, StageObserver* sta
     if (!std::isnan(options.outside) && !std::isfinite(options.outside)) {
         throw base::InputError("--outside", "", "must be finite");
     }
-    const std::string tf_spec = !options.tf.empty()
-                                    ? options.tf
-                                    : (source.is_default ? "mri-t1-head" : "generic-soft-tissue");
-    {
-        const Stage stage(stages, "transfer function " + tf_spec);
-        source.tf = tissue::load_transfer_function(tf_spec);
+    // A transfer function asked for is read before the volume (its errors come first);
+    // the default depends on what the volume is: the head's, CT's Hounsfield units for a
+    // CT series, else the generic one.
+    if (!options.tf.empty()) {
+        const Stage stage(stages, "transfer function " + options.tf);
+        source.tf = tissue::load_transfer_function(options.tf);
     }
     {
         const Stage stage(stages, "loading " + options.volume);
         source.loaded = tissue::load_volume(request);
+    }
+    if (!source.tf) {
+        const std::string tf_spec = source.is_default                ? "mri-t1-head"
+                                    : source.loaded.modality == "CT" ? "ct-hounsfield"
+                                                                     : "generic-soft-tissue";
+        const Stage stage(stages, "transfer function " + tf_spec);
+        source.tf = tissue::load_transfer_function(tf_spec);
     }
     for (const auto& w : source.loaded.warnings) std::cerr << "sonotrace: warning: " << w << "\n";
     const auto [vmin, vmax] = source.loaded.volume.value_range();

@@ -28,8 +28,9 @@ constexpr ParameterDoc kSpacingDoc = {
     "required for images, ignored for NIfTI, DICOM and raw volumes"};
 constexpr ParameterDoc kTfDoc = {
     "--tf", "",
-    "transfer function: a preset name (mri-t1-head, generic-soft-tissue) or a JSON file; "
-    "empty = mri-t1-head for the default volume, generic-soft-tissue otherwise"};
+    "transfer function: a preset name (mri-t1-head, ct-hounsfield, generic-soft-tissue) or a "
+    "JSON file; empty = mri-t1-head for the default volume, ct-hounsfield for a CT DICOM "
+    "series, generic-soft-tissue otherwise"};
 constexpr ParameterDoc kPoseDoc = {"--pose", "mm, degrees", probe::kPoseHelp};
 constexpr ParameterDoc kWidthDoc = {"--width", "mm",
                                     "lateral extent of the slice, centred on the probe; 0 = "
