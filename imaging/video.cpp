@@ -2,6 +2,8 @@
 
 #include <malloc.h>
 
+#include <cstdlib>
+
 #include <opencv2/imgproc.hpp>
 
 #include "tissue/base/error.h"
@@ -39,7 +41,7 @@ VideoClip::VideoClip(const std::string& path, const std::string& container, doub
     };
     if (container == "avi") {
         if (open('M', 'J', 'P', 'G')) codec_ = "Motion JPEG";
-    } else if (open('a', 'v', 'c', '1')) {
+    } else if (!std::getenv("SONOTRACE_NO_H264") && open('a', 'v', 'c', '1')) {
         codec_ = "H.264";
     } else if (open('m', 'p', '4', 'v')) {
         codec_ = "MPEG-4 Part 2";

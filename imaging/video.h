@@ -1,7 +1,9 @@
 #pragma once
 // Clips of B-mode frames for people: H.264 in MP4 (what browsers and presentation
 // software play) through OpenCV's FFmpeg backend, or Motion JPEG in AVI. Where Debian's
-// FFmpeg has no H.264 encoder, MP4 falls back to MPEG-4 Part 2 and says so.
+// FFmpeg has no H.264 encoder, MP4 falls back to MPEG-4 Part 2 and says so (with the
+// environment variable SONOTRACE_NO_H264 set, H.264 is not tried: the machine without the
+// encoder, for the test of the fallback).
 #include <string>
 
 #include <opencv2/core.hpp>

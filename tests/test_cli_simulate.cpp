@@ -321,5 +321,26 @@ TEST(CliSimulate, SweepVideoIsH264ThatDecodesToTheFrames) {
     EXPECT_EQ(frames, 3);
 }
 
+// Without an H.264 encoder (as SONOTRACE_NO_H264 makes it) the MP4 is MPEG-4 Part 2: it
+// still decodes to every frame, the sidecar says which codec, and the user is told why.
+TEST(CliSimulate, WithoutAnH264EncoderTheSweepVideoFallsBackAndSaysSo) {
+    ScratchDir dir;
+    setenv("SONOTRACE_NO_H264", "1", 1);
+    const auto r =
+        run(dir, "simulate --quality interactive --sweep lateral:2:2 --out " + (dir / "o"));
+    unsetenv("SONOTRACE_NO_H264");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("no H.264 encoder"), std::string::npos) << r.err;
+    cv::VideoCapture capture(dir / "o/bmode.mp4", cv::CAP_FFMPEG);
+    ASSERT_TRUE(capture.isOpened());
+    const int fourcc = int(capture.get(cv::CAP_PROP_FOURCC));
+    const std::string codec{char(fourcc & 255), char((fourcc >> 8) & 255),
+                            char((fourcc >> 16) & 255), char((fourcc >> 24) & 255)};
+    EXPECT_EQ(codec, "mp4v");
+    EXPECT_EQ(nlohmann::json::parse(slurp(dir / "o/bmode.json"))["sweep"]["video"]["codec"],
+              "MPEG-4 Part 2");
+    EXPECT_EQ(video_frame_count(dir / "o/bmode.mp4"), 2);
+}
+
 }  // namespace
 }  // namespace sonotrace
