@@ -203,6 +203,9 @@ TEST(Gui, BadOptionsFailWithAMessage) {
     EXPECT_NE(read_text(kDir / "missing.log").find("/nonexistent/volume.nii"), std::string::npos);
     EXPECT_FALSE(fs::exists(kDir / "never.png"));
     EXPECT_NE(run_gui("--quality ultra", "quality.log"), 0);
+    EXPECT_EQ(run_gui("--context-renderer fast", "renderer.log"), 1);
+    EXPECT_NE(read_text(kDir / "renderer.log").find("--context-renderer"), std::string::npos);
+    EXPECT_EQ(run_gui("--max-fps 0", "fps.log"), 1);
     EXPECT_NE(read_text(kDir / "quality.log").find("--quality"), std::string::npos);
     EXPECT_NE(run_gui("--scene phantom:cyst_and_stone --explain bogus", "explain.log"), 0);
     EXPECT_NE(read_text(kDir / "explain.log").find("acoustic shadowing"), std::string::npos)

@@ -270,7 +270,8 @@ int main(int argc, char** argv) {
                    "where the 3D context's particles are projected and averaged: gpu (OpenGL), "
                    "cpu (the reference renderer, on the cores), auto (OpenGL unless it is Mesa's "
                    "software rasterizer, which is slower than the cores)")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "gpu", "cpu"}));
     cli.add_option("--open", o.app.open_later,
                    "once the first frame is shown, open this volume or phantom file as the "
                    "'open file' field does (a file that fails to load leaves the scene as it was)");
@@ -316,7 +317,8 @@ int main(int argc, char** argv) {
             throw base::InputError("--size", size, "expected WIDTHxHEIGHT");
         return run(o);
     } catch (const CLI::ParseError& e) {
-        return cli.exit(e);
+        // The help (0), or the message naming the option: bad input exits 1, as `sonotrace`.
+        return cli.exit(e) == 0 ? 0 : 1;
     } catch (const std::exception& e) {
         std::cerr << "sonotrace-gui: error: " << e.what() << "\n";
         return 1;
