@@ -52,8 +52,6 @@ class GlPbvr {
     int repetitions() const { return repetitions_; }
     // Splats whose discs reached beyond the margin (partly lost), over all repetitions.
     uint64_t clipped() const { return clipped_; }
-    // Starts a new ensemble (the overlay stays).
-    void reset() { repetitions_ = 0; }
 
     // The ensemble average read back (background before the first repetition).
     imaging::pbvr::RgbImage image() const;
