@@ -439,7 +439,9 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
     trace.frequency_mhz = t.frequency_mhz;
     trace.seed = settings.seed;
     trace.record_scatter_echoes = false;
+    // The speckle is lit by the plane's map (synthesize_rf): the illumination alone.
     trace.echo_profile = simulator::EchoProfileSettings{1.0 / layout.fs_hz, layout.samples};
+    trace.echo_profile->scattered = false;
     // The image's receive, applied once to the scattered and reflected echoes.
     stage("receive weights", [&] { trace.receive_weights = receive_weights(t, sources, to_map); });
     // The echo window closes at the last sample: monostatic echoes come at twice the

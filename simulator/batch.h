@@ -78,6 +78,9 @@ struct Batch {
     std::array<int32_t, N> graded_steps{};     // steps since the last interface check in kGraded
     LaneVectors<Dim, kSize> interface_normal;  // normal of the interface being crossed
     std::array<uint32_t, N> particle{};
+    // The particle's receive weights (TraceSettings::receive_weights), looked up once:
+    // every step's echo profile reads them.
+    std::array<const float*, N> receive_row{};
     std::array<int, N> path{};  // index into LineOutput::paths or -1
     std::array<RandomStream, N> random{};
     int count = 0;
@@ -97,6 +100,7 @@ struct Batch {
         bounces[to] = bounces[from], in_interface[to] = in_interface[from];
         graded_steps[to] = graded_steps[from];
         particle[to] = particle[from], path[to] = path[from], random[to] = random[from];
+        receive_row[to] = receive_row[from];
     }
 };
 

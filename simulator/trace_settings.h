@@ -74,6 +74,10 @@ struct RingDetector {
 struct EchoProfileSettings {
     double bin_s = 5e-8;  // echo-time bin width (s)
     int bins = 0;         // bins per line (echo times beyond are dropped)
+    // Also the scattered intensity and its centroid (EchoProfile::intensity, position);
+    // without, those stay zero. A frame lit by its map needs only the illumination, and
+    // the two sums were a third of the profile's cost.
+    bool scattered = true;
 };
 
 // The image's receive sensitivity for each particle's echoes by the particle's one-way
@@ -86,23 +90,24 @@ struct ReceiveWeights {
     std::vector<uint32_t> first_of_line;
     std::vector<float> weight;  // [row * bins + bin]
     void set_bin_s(double s) { bin_s = s, inverse_bin_s = 1.0 / s; }
-    float at(uint32_t line, uint32_t particle, double time_s) const {
-        if (line + 1 >= first_of_line.size()) return 1.0f;
-        const std::size_t row = std::size_t(first_of_line[line]) + particle;
-        if (row >= first_of_line[line + 1]) return 1.0f;
-        return weight[row * std::size_t(bins) + std::size_t(column(time_s))];
+    // A particle's weights by column, or null where it has none (every echo counts fully).
+    const float* row(uint32_t line, uint32_t particle) const {
+        if (std::size_t(line) + 1 >= first_of_line.size()) return nullptr;
+        const std::size_t r = std::size_t(first_of_line[line]) + particle;
+        if (r >= first_of_line[line + 1]) return nullptr;
+        return weight.data() + r * std::size_t(bins);
     }
-    // floor(time_s / bin_s), clamped to the columns. Every step of a frame's trace asks
-    // (the division was a fifth of the trace): by a multiply, and by the division only
-    // where the product lies within 1e-6 of a column's edge, which the two roundings
-    // (<= 3 ulp apart) cannot cross otherwise: the column is always the division's.
+    float at(uint32_t line, uint32_t particle, double time_s) const {
+        const float* w = row(line, particle);
+        return w != nullptr ? w[column(time_s)] : 1.0f;
+    }
+    // floor(time_s / bin_s), clamped to the columns, by the multiply: every step of a
+    // frame's trace asks (the division was a fifth of the trace, and checking the
+    // product against the division's rounding near an edge a tenth of the frame). NaN
+    // gives column 0.
     int column(double time_s) const {
-        double u = time_s * inverse_bin_s;
-        if (u > 0.0 && u < double(bins)) {
-            const double fraction = u - double(int(u));
-            if (fraction < 1e-6 || fraction > 1.0 - 1e-6) u = time_s / bin_s;
-        }
-        return u <= 0.0 ? 0 : (u >= double(bins) ? bins - 1 : std::min(int(u), bins - 1));
+        const double u = time_s * inverse_bin_s;
+        return u > 0.0 ? (u < double(bins) ? int(u) : bins - 1) : 0;
     }
 };
 

@@ -282,7 +282,10 @@ class LineTracer {
         scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
         profile_enabled_ = settings.echo_profile.has_value();
         deposit_maps_ = settings.deposition_maps;
-        if (profile_enabled_) inverse_profile_bin_ = 1.0 / settings.echo_profile->bin_s;
+        if (profile_enabled_) {
+            inverse_profile_bin_ = 1.0 / settings.echo_profile->bin_s;
+            profile_scattered_ = settings.echo_profile->scattered;
+        }
         profile_scale_ = float(settings.scattering_rate_per_mm) * step_mm_ *
                          float(settings.scatter_echo_fraction);
         threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
@@ -502,6 +505,8 @@ class LineTracer {
         b.in_interface[k] = kOutside;
         b.graded_steps[k] = 0;
         b.particle[k] = index;
+        b.receive_row[std::size_t(k)] =
+            settings_.receive_weights ? settings_.receive_weights->row(s.line, index) : nullptr;
         b.random[k] = RandomStream{ParticleRng(settings_.seed, s.line, index)};
         b.scatter_target[k] = -std::log(std::max(b.random[k].next(), 1e-12f));
         b.path[k] = -1;
@@ -524,14 +529,23 @@ class LineTracer {
         // rate * step * echo fraction, each proportional to the backscatter
         const float scattered = profile_scale_ * backscatter * backscatter;
         const float two_way = E / b.initial_energy[k] * b.return_factor[k];
-        const float receive = settings_.receive_weights
-                                  ? settings_.receive_weights->at(line_, b.particle[k], time)
-                                  : 1.0f;
+        // The particle's next weights and bins, fetched ahead: 64 particles walk their own
+        // rows and the line's bins, too many streams for the hardware's prefetcher.
+        const float* receive_row = b.receive_row[std::size_t(k)];
+        float receive = 1.0f;
+        if (receive_row != nullptr) {
+            const int column = settings_.receive_weights->column(time);
+            receive = receive_row[column];
+            if (column + 16 < settings_.receive_weights->bins)
+                __builtin_prefetch(receive_row + column + 16);
+        }
+        if (std::size_t(bin) + 8 < out_->profile.size())
+            __builtin_prefetch(out_->profile.data() + std::size_t(bin) + 8);
         ProfileBin<Dim>& p = out_->profile[std::size_t(bin)];
         const double lit = double(E * profile_scale_ * two_way * receive);
         p.illumination += lit;
         for (int a = 0; a < Dim; ++a) p.lit_first[std::size_t(a)] += lit * double(x[a]);
-        if (!(backscatter > 0.0f)) return;
+        if (!profile_scattered_ || !(backscatter > 0.0f)) return;
         const double intensity = double(E * scattered * two_way * receive);
         p.weight += intensity;
         for (int a = 0; a < Dim; ++a) p.first[std::size_t(a)] += intensity * double(x[a]);
@@ -1257,6 +1271,7 @@ class LineTracer {
     float threshold2_ = 0.0f, inverse_texel2_ = 1.0f, follow_reflections_above_ = 0.0f;
     int plateau_steps_ = 16;
     double inverse_profile_bin_ = 0.0;
+    bool profile_scattered_ = true;  // EchoProfileSettings::scattered
     float profile_scale_ = 0.0f;
     DepositTiles<Dim>* deposits_ = nullptr;
     InterfaceCache<Dim>* interfaces_ = nullptr;

