@@ -236,15 +236,13 @@ class InterfaceCache {
     InterfaceSides<Dim>* entries_ = nullptr;
 };
 
-// One bin of a line's echo profile: intensity w, the illumination and their first
-// moments, in double (sums of millions of small steps). One record per bin: a step
-// updates one cache line, not several.
+// One bin of a line's echo profile: a sum and its first moment, in double (sums of
+// millions of small steps). The illumination's and the scattered intensity's bins lie in
+// two arrays: a frame lit by its map touches only the first, which then stays in L1.
 template <int Dim>
 struct ProfileBin {
-    double weight;
-    double illumination;                // the same without the backscatter^2 (EchoProfile)
-    std::array<double, Dim> lit_first;  // sum of illumination x
-    std::array<double, Dim> first;      // sum of w x
+    double sum;
+    std::array<double, Dim> first;  // sum of value x
 };
 
 // Everything one scan line produces; lines are merged in order afterwards.
@@ -253,7 +251,9 @@ struct LineOutput {
     std::vector<EchoEvent<Dim>> echoes;
     std::vector<Path<Dim>> paths;
     std::vector<double> ring;
-    std::vector<ProfileBin<Dim>> profile;  // echo profile bins of this line
+    // The echo profile's bins of this line: the illumination and the scattered intensity
+    // w (EchoProfile); the second empty without EchoProfileSettings::scattered.
+    std::vector<ProfileBin<Dim>> lit, scattered;
     EnergyLedger ledger;
     TraceStats stats;
 };
@@ -354,7 +354,9 @@ class LineTracer {
         out_ = &out;
         if (settings_.ring) out.ring.assign(std::size_t(settings_.ring->bins), 0.0);
         if (settings_.echo_profile) {
-            out.profile.assign(std::size_t(settings_.echo_profile->bins), ProfileBin<Dim>{});
+            const auto bins = std::size_t(settings_.echo_profile->bins);
+            out.lit.assign(bins, ProfileBin<Dim>{});
+            out.scattered.assign(profile_scattered_ ? bins : 0, ProfileBin<Dim>{});
         }
         auto batch = std::make_unique<Batch<Dim>>();
         std::size_t next = begin;
@@ -525,7 +527,7 @@ class LineTracer {
         const double echo_time = 2.0 * time;
         if (!(echo_time >= 0.0)) return;
         const double bin = echo_time * inverse_profile_bin_;
-        if (bin >= double(out_->profile.size())) return;
+        if (bin >= double(out_->lit.size())) return;
         // rate * step * echo fraction, each proportional to the backscatter
         const float scattered = profile_scale_ * backscatter * backscatter;
         const float two_way = E / b.initial_energy[k] * b.return_factor[k];
@@ -539,16 +541,17 @@ class LineTracer {
             if (column + 16 < settings_.receive_weights->bins)
                 __builtin_prefetch(receive_row + column + 16);
         }
-        if (std::size_t(bin) + 8 < out_->profile.size())
-            __builtin_prefetch(out_->profile.data() + std::size_t(bin) + 8);
-        ProfileBin<Dim>& p = out_->profile[std::size_t(bin)];
+        const auto at = std::size_t(bin);
+        if (at + 8 < out_->lit.size()) __builtin_prefetch(out_->lit.data() + at + 8);
+        ProfileBin<Dim>& l = out_->lit[at];
         const double lit = double(E * profile_scale_ * two_way * receive);
-        p.illumination += lit;
-        for (int a = 0; a < Dim; ++a) p.lit_first[std::size_t(a)] += lit * double(x[a]);
+        l.sum += lit;
+        for (int a = 0; a < Dim; ++a) l.first[std::size_t(a)] += lit * double(x[a]);
         if (!profile_scattered_ || !(backscatter > 0.0f)) return;
+        ProfileBin<Dim>& w = out_->scattered[at];
         const double intensity = double(E * scattered * two_way * receive);
-        p.weight += intensity;
-        for (int a = 0; a < Dim; ++a) p.first[std::size_t(a)] += intensity * double(x[a]);
+        w.sum += intensity;
+        for (int a = 0; a < Dim; ++a) w.first[std::size_t(a)] += intensity * double(x[a]);
     }
 
     void flush_deposits(Batch<Dim>& b, int k) {
@@ -1423,19 +1426,21 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         tbb::parallel_for(std::size_t(0), lines, [&](std::size_t l) {
             const std::size_t row =
                 std::size_t(sources[order[starts[l]]].line) * std::size_t(p.bins);
+            const LineOutput<Dim>& o = outputs[l];
             for (int i = 0; i < p.bins; ++i) {
-                const ProfileBin<Dim>& bin = outputs[l].profile[std::size_t(i)];
                 const std::size_t at = row + std::size_t(i);
-                p.intensity[at] = float(bin.weight);
-                p.illumination[at] = float(bin.illumination);
-                if (bin.illumination > 0.0)
+                const ProfileBin<Dim>& lit = o.lit[std::size_t(i)];
+                p.illumination[at] = float(lit.sum);
+                if (lit.sum > 0.0)
                     for (int a = 0; a < Dim; ++a)
-                        p.illuminated_position[at][a] =
-                            float(bin.lit_first[std::size_t(a)] / bin.illumination);
-                if (!(bin.weight > 0.0)) continue;
-                const double inverse_w = 1.0 / bin.weight;
+                        p.illuminated_position[at][a] = float(lit.first[std::size_t(a)] / lit.sum);
+                if (o.scattered.empty()) continue;
+                const ProfileBin<Dim>& w = o.scattered[std::size_t(i)];
+                p.intensity[at] = float(w.sum);
+                if (!(w.sum > 0.0)) continue;
+                const double inverse_w = 1.0 / w.sum;
                 for (int a = 0; a < Dim; ++a)
-                    p.position[at][a] = float(bin.first[std::size_t(a)] * inverse_w);
+                    p.position[at][a] = float(w.first[std::size_t(a)] * inverse_w);
             }
         });
     }
