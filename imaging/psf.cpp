@@ -148,10 +148,10 @@ std::complex<double> PsfTable::plane_echo(int l, double z, double sin_tilt) cons
     const int tilt = int(std::lround(std::clamp(sin_tilt, -1.0, 1.0) * kTiltSteps));
     const int id = row_id(l, i);
     const uint64_t key = (uint64_t(uint32_t(id)) << 32) | uint32_t(tilt + 1000000);
+    if (auto it = plane_echoes_.find(key); it != plane_echoes_.end()) return it->second;
     std::shared_ptr<const probe::LineFields> fields;
     {
         const std::lock_guard<std::mutex> lock(cache_mutex_);
-        if (auto it = plane_echoes_.find(key); it != plane_echoes_.end()) return it->second;
         auto& slot = row_fields_[row_line_[std::size_t(id)]];
         if (!slot)
             slot =
@@ -160,9 +160,7 @@ std::complex<double> PsfTable::plane_echo(int l, double z, double sin_tilt) cons
     }
     // Computed outside the lock (two threads may both compute one: the same value).
     const std::complex<double> value = fields->plane_echo(row_depth_mm(i), tilt / kTiltSteps);
-    const std::lock_guard<std::mutex> lock(cache_mutex_);
-    if (plane_echoes_.size() > (std::size_t(1) << 22)) plane_echoes_.clear();  // ~100 MB
-    plane_echoes_.emplace(key, value);
+    if (plane_echoes_.size() < kMaxPlaneEchoes) plane_echoes_.emplace(key, value);
     return value;
 }
 

@@ -16,10 +16,13 @@
 #include <unordered_map>
 #include <vector>
 
+#include <tbb/concurrent_unordered_map.h>
+
 #include "probe/aperture.h"
 #include "probe/source_particle.h"
 #include "probe/transducer.h"
 #include "simulator/trace_settings.h"
+#include "tissue/base/hash.h"
 
 namespace sonotrace::imaging {
 
@@ -100,9 +103,18 @@ class PsfTable {
     std::vector<int> row_of_;    // [line * depths + i] -> rows_
     std::vector<int> row_line_;  // rows_ -> the line that made it
     probe::Transducer t_;
-    // Plane echoes by row and tilt step, and the fields of the lines that made rows.
+    // Plane echoes by row and tilt step: read by every reflection of every frame from
+    // all threads at once, so without a lock (behind one mutex the lookups were most of
+    // the reflections' cost). Filled up to kMaxPlaneEchoes, computed afresh beyond.
+    static constexpr std::size_t kMaxPlaneEchoes = std::size_t(1) << 22;  // ~100 MB
+    // Mixed keys: the table's buckets are a power of two, and the row sits in the key's
+    // high half.
+    struct MixedKey {
+        std::size_t operator()(uint64_t key) const { return std::size_t(base::mix64(key)); }
+    };
+    mutable tbb::concurrent_unordered_map<uint64_t, std::complex<double>, MixedKey> plane_echoes_;
+    // The fields of the lines that made rows, and the sub-line weights.
     mutable std::mutex cache_mutex_;
-    mutable std::unordered_map<uint64_t, std::complex<double>> plane_echoes_;
     mutable std::unordered_map<int, std::shared_ptr<const probe::LineFields>> row_fields_;
     mutable std::unordered_map<int, std::shared_ptr<const SubLineWeights>> sub_line_weights_;
 };
