@@ -140,7 +140,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                        std::shared_ptr<const simulator::ReceiveWeights> receive = nullptr,
                        const tissue::AcousticMap<2>* map = nullptr);
 
-// Envelope of every line: magnitude of the analytic signal (FFT Hilbert transform).
+// Envelope of every line: magnitude of the analytic signal (a finite Hilbert transformer,
+// accurate across the RF band; nothing of an echo reaches farther than 48 samples).
 LineData envelope(const LineData& rf);
 
 // TGC and log compression, per sample.
