@@ -58,5 +58,75 @@ TEST(HeadContrast, TheTemporalViewsVentriclesAreDarkerThanTheParenchymaBy12dB) {
     EXPECT_LT(db, -12.0);
 }
 
+// The far side of the skull in the temporal view is a bright curve where the anatomy
+// puts it. Colin27 is 174 mm from temple to temple at this level (MNI x = +87 to -87), so
+// the far skull's inner table lies 155-162 mm deep on the central lines: the frame goes to
+// 175 mm (the issue's 150 mm ends short of it). Expected from the labels alone: on each
+// line, the first cortical bone beyond 110 mm (true depth, walking the speed map). The
+// deep region's brightest sample must lie within 3 mm of it on most such lines, and the
+// curve must stand 10 dB above the parenchyma 10-20 mm in front of it on the same lines.
+// Seeds 1 and 2.
+// Not met yet (issue 29), so not run by default: the brightest sample lies within 3 mm on
+// 57 of 254 lines and the curve stands 8.9 dB above the brain; too few of a line's 32
+// particles reach the far skull through the near one (the high quality's 4x shows more
+// of the curve). Run it with --gtest_also_run_disabled_tests.
+TEST(HeadContrast, DISABLED_TheTemporalViewShowsTheFarSkullWhereTheAnatomyPutsIt) {
+    SceneOptions options;
+    options.view = "temporal";
+    const auto head = load_scene(options);
+    SimulationSettings s;
+    s.transducer = probe::find_transducer("phased", "test");
+    s.transducer.depth_mm = 175.0;
+    head->apply_to(s);
+    const int bone = tissue::tissue_label_of("cortical_bone"),
+              brain = tissue::tissue_label_of("brain");
+    int lines_with_skull = 0, hits = 0;
+    double curve = 0.0, front = 0.0;
+    int n_curve = 0, n_front = 0;
+    for (uint64_t seed = 1; seed <= 2; ++seed) {
+        s.seed = seed;
+        const PlaneGrid grid =
+            plane_grid(s.transducer, head->start.pose, quality_level(s.quality).map_pixel_mm);
+        tissue::Volume labels;
+        tissue::PropertyMaps maps = head->mapper(grid.geometry, &labels);
+        prepare_plane(maps, grid, head->start, 5.0, &labels);
+        const auto map = frame_map(maps, s);
+        const Frame frame = simulate_frame(map, grid, head->start.pose, s);
+        const ClearSamples samples =
+            clear_samples(frame.envelope, probe::ScanGeometry(s.transducer), grid.to_map, map,
+                          labels, bone, brain, 0.0, 110.0, 175.0);
+        const int L = frame.envelope.lines;
+        std::vector<double> skull(std::size_t(L), 1e9);
+        for (const TruthSample& t : samples.inside)
+            skull[std::size_t(t.line)] = std::min(skull[std::size_t(t.line)], t.depth_mm);
+        std::vector<double> brightest(std::size_t(L), -1.0), at_depth(std::size_t(L), 0.0);
+        for (const auto* list : {&samples.inside, &samples.outside})
+            for (const TruthSample& t : *list) {
+                const double e = frame.envelope.at(t.line, t.sample);
+                if (e > brightest[std::size_t(t.line)])
+                    brightest[std::size_t(t.line)] = e, at_depth[std::size_t(t.line)] = t.depth_mm;
+                const double to_skull = skull[std::size_t(t.line)] - t.depth_mm;
+                if (std::abs(to_skull) <= 1.5) curve += e * e, ++n_curve;
+                if (list == &samples.outside && to_skull >= 10.0 && to_skull <= 20.0)
+                    front += e * e, ++n_front;
+            }
+        for (int l = 0; l < L; ++l) {
+            if (skull[std::size_t(l)] > 170.0) continue;  // no far skull in the frame
+            ++lines_with_skull;
+            hits += std::abs(at_depth[std::size_t(l)] - skull[std::size_t(l)]) <= 3.0;
+        }
+    }
+    ASSERT_GT(lines_with_skull, 100) << "the frame should reach the far skull on most lines";
+    ASSERT_GT(n_curve, 0);
+    ASSERT_GT(n_front, 0);
+    const double contrast_db = 10.0 * std::log10((curve / n_curve) / (front / n_front));
+    std::printf(
+        "far skull: brightest within 3 mm on %d of %d lines; %.1f dB over the brain "
+        "in front\n",
+        hits, lines_with_skull, contrast_db);
+    EXPECT_GT(hits, lines_with_skull / 2);
+    EXPECT_GT(contrast_db, 10.0);
+}
+
 }  // namespace
 }  // namespace sonotrace::imaging
