@@ -47,13 +47,7 @@ for target in $targets; do
   extra="$(seeds "$target")"
   [ -n "$extra" ] && inputs+=("$extra")
   log="$dir/fuzz_$target.log"
-  # DICOM is read in a child process under a memory budget (tissue/dicom_io.cpp): there a
-  # header declaring gigabytes makes GDCM's allocation fail with bad_alloc, a refusal.
-  # ASan's allocator aborts instead, and the child's abort left a crash file per input
-  # (the fuzzer's death callback) for what production refuses cleanly.
-  asan=detect_leaks=1
-  [ "$target" = dicom ] && asan="$asan:allocator_may_return_null=1"
-  if ASAN_OPTIONS=$asan LSAN_OPTIONS=suppressions=tests/fuzz/lsan.supp \
+  if ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=tests/fuzz/lsan.supp \
       UBSAN_OPTIONS=print_stacktrace=1 "$dir/tests/fuzz/fuzz_$target" \
       -seed="$seed" -max_total_time="$seconds" -max_len=65536 -timeout=10 -rss_limit_mb=4096 \
       -artifact_prefix="$dir/crashes/${target}-" -print_final_stats=1 "${inputs[@]}" >"$log" 2>&1; then

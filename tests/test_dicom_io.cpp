@@ -23,6 +23,16 @@
 #include <vector>
 
 #include "test_util.h"
+#if defined(__SANITIZE_ADDRESS__)
+#define SONOTRACE_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define SONOTRACE_TEST_ASAN 1
+#endif
+#endif
+#ifdef SONOTRACE_TEST_ASAN
+#include <sanitizer/common_interface_defs.h>
+#endif
 #include "tissue/dicom_io.h"
 #include "tissue/volume_io.h"
 
@@ -520,6 +530,25 @@ TEST(DicomIo, FilesThatCrashOrExhaustGdcmAreRefused) {
             std::string(SONOTRACE_SOURCE_DIR) + "/tests/fuzz/seeds/dicom/" + name;
         expect_input_error([&] { read_dicom(file); }, file, "");
     }
+}
+
+// In a sanitizer build, the reading child's death (ASan's operator new dies where the
+// memory budget makes GDCM's gigabyte allocation fail) must not run the parent's death
+// callback: a fuzzer's recorded every such refusal as a crash of its own.
+TEST(DicomIo, UnderASanTheReadingChildsDeathStaysTheChilds) {
+#ifdef SONOTRACE_TEST_ASAN
+    static std::string marker;
+    ScratchDir dir;
+    marker = dir / "death_callback_ran";
+    __sanitizer_set_death_callback([] { std::ofstream(marker) << "ran"; });
+    const std::string file =
+        std::string(SONOTRACE_SOURCE_DIR) + "/tests/fuzz/seeds/dicom/gdcm_allocates_gigabytes.dcm";
+    expect_input_error([&] { read_dicom(file); }, file, "");
+    __sanitizer_set_death_callback(nullptr);
+    EXPECT_FALSE(std::filesystem::exists(marker));
+#else
+    GTEST_SKIP() << "only a sanitizer build has death callbacks";
+#endif
 }
 
 }  // namespace
