@@ -20,6 +20,25 @@
 namespace sonotrace::imaging {
 namespace {
 
+// One frame of the head scene with seed `seed`, and the truth to measure it against: the
+// tissue labels and the acoustic map of its plane.
+struct TruthFrame {
+    PlaneGrid grid;
+    tissue::Volume labels;
+    tissue::AcousticMap<2> map;
+    Frame frame;
+};
+TruthFrame truth_frame(const Scene& head, SimulationSettings s, uint64_t seed) {
+    s.seed = seed;
+    TruthFrame t;
+    t.grid = plane_grid(s.transducer, head.start.pose, quality_level(s.quality).map_pixel_mm);
+    tissue::PropertyMaps maps = head.mapper(t.grid.geometry, &t.labels);
+    prepare_plane(maps, t.grid, head.start, 5.0, &t.labels);
+    t.map = frame_map(maps, s);
+    t.frame = simulate_frame(t.map, t.grid, head.start.pose, s);
+    return t;
+}
+
 TEST(HeadContrast, TheTemporalViewsVentriclesAreDarkerThanTheParenchymaBy12dB) {
     SceneOptions options;
     options.view = "temporal";
@@ -31,17 +50,11 @@ TEST(HeadContrast, TheTemporalViewsVentriclesAreDarkerThanTheParenchymaBy12dB) {
     ClearSamples all;  // every seed's samples, `sample` indexing `intensities`
     std::vector<double> intensities;
     for (uint64_t seed = 1; seed <= 4; ++seed) {
-        s.seed = seed;
-        const PlaneGrid grid =
-            plane_grid(s.transducer, head->start.pose, quality_level(s.quality).map_pixel_mm);
-        tissue::Volume labels;
-        tissue::PropertyMaps maps = head->mapper(grid.geometry, &labels);
-        prepare_plane(maps, grid, head->start, 5.0, &labels);
-        const auto map = frame_map(maps, s);
-        const Frame frame = simulate_frame(map, grid, head->start.pose, s);
+        const TruthFrame truth = truth_frame(*head, s, seed);
+        const Frame& frame = truth.frame;
         const ClearSamples samples =
-            clear_samples(frame.envelope, probe::ScanGeometry(s.transducer), grid.to_map, map,
-                          labels, csf, brain, 1.0, 40.0, 100.0);
+            clear_samples(frame.envelope, probe::ScanGeometry(s.transducer), truth.grid.to_map,
+                          truth.map, truth.labels, csf, brain, 1.0, 40.0, 100.0);
         for (const auto* list : {&samples.inside, &samples.outside})
             for (TruthSample t : *list) {
                 const double e = frame.envelope.at(t.line, t.sample);
@@ -84,17 +97,11 @@ TEST(HeadContrast, DISABLED_TheTemporalViewShowsTheFarSkullWhereTheAnatomyPutsIt
     double curve = 0.0, front = 0.0;
     int n_curve = 0, n_front = 0;
     for (uint64_t seed = 1; seed <= 2; ++seed) {
-        s.seed = seed;
-        const PlaneGrid grid =
-            plane_grid(s.transducer, head->start.pose, quality_level(s.quality).map_pixel_mm);
-        tissue::Volume labels;
-        tissue::PropertyMaps maps = head->mapper(grid.geometry, &labels);
-        prepare_plane(maps, grid, head->start, 5.0, &labels);
-        const auto map = frame_map(maps, s);
-        const Frame frame = simulate_frame(map, grid, head->start.pose, s);
+        const TruthFrame truth = truth_frame(*head, s, seed);
+        const Frame& frame = truth.frame;
         const ClearSamples samples =
-            clear_samples(frame.envelope, probe::ScanGeometry(s.transducer), grid.to_map, map,
-                          labels, bone, brain, 0.0, 110.0, 175.0);
+            clear_samples(frame.envelope, probe::ScanGeometry(s.transducer), truth.grid.to_map,
+                          truth.map, truth.labels, bone, brain, 0.0, 110.0, 175.0);
         const int L = frame.envelope.lines;
         std::vector<double> skull(std::size_t(L), 1e9);
         for (const TruthSample& t : samples.inside)
