@@ -27,7 +27,26 @@ struct TruthFrame {
     tissue::Volume labels;
     tissue::AcousticMap<2> map;
     Frame frame;
+    probe::Transducer transducer;
+    // clear_samples() of the frame's envelope against these labels.
+    ClearSamples samples(int inside, int outside, double clear_mm, double from_mm,
+                         double to_mm) const {
+        return clear_samples(frame.envelope, probe::ScanGeometry(transducer), grid.to_map, map,
+                             labels, inside, outside, clear_mm, from_mm, to_mm);
+    }
 };
+// The temporal view's scene and its settings: the phased probe, imaging to `depth_mm`
+// (0: the preset's depth).
+std::shared_ptr<const Scene> temporal_head(SimulationSettings* s, double depth_mm = 0.0) {
+    SceneOptions options;
+    options.view = "temporal";
+    auto head = load_scene(options);
+    s->transducer = probe::find_transducer("phased", "test");
+    if (depth_mm > 0.0) s->transducer.depth_mm = depth_mm;
+    head->apply_to(*s);
+    return head;
+}
+
 TruthFrame truth_frame(const Scene& head, SimulationSettings s, uint64_t seed) {
     s.seed = seed;
     TruthFrame t;
@@ -36,25 +55,20 @@ TruthFrame truth_frame(const Scene& head, SimulationSettings s, uint64_t seed) {
     prepare_plane(maps, t.grid, head.start, 5.0, &t.labels);
     t.map = frame_map(maps, s);
     t.frame = simulate_frame(t.map, t.grid, head.start.pose, s);
+    t.transducer = s.transducer;
     return t;
 }
 
 TEST(HeadContrast, TheTemporalViewsVentriclesAreDarkerThanTheParenchymaBy12dB) {
-    SceneOptions options;
-    options.view = "temporal";
-    const auto head = load_scene(options);
     SimulationSettings s;
-    s.transducer = probe::find_transducer("phased", "test");
-    head->apply_to(s);
+    const auto head = temporal_head(&s);
     const int csf = tissue::tissue_label_of("csf"), brain = tissue::tissue_label_of("brain");
     ClearSamples all;  // every seed's samples, `sample` indexing `intensities`
     std::vector<double> intensities;
     for (uint64_t seed = 1; seed <= 4; ++seed) {
         const TruthFrame truth = truth_frame(*head, s, seed);
         const Frame& frame = truth.frame;
-        const ClearSamples samples =
-            clear_samples(frame.envelope, probe::ScanGeometry(s.transducer), truth.grid.to_map,
-                          truth.map, truth.labels, csf, brain, 1.0, 40.0, 100.0);
+        const ClearSamples samples = truth.samples(csf, brain, 1.0, 40.0, 100.0);
         for (const auto* list : {&samples.inside, &samples.outside})
             for (TruthSample t : *list) {
                 const double e = frame.envelope.at(t.line, t.sample);
@@ -84,13 +98,8 @@ TEST(HeadContrast, TheTemporalViewsVentriclesAreDarkerThanTheParenchymaBy12dB) {
 // particles reach the far skull through the near one (the high quality's 4x shows more
 // of the curve). Run it with --gtest_also_run_disabled_tests.
 TEST(HeadContrast, DISABLED_TheTemporalViewShowsTheFarSkullWhereTheAnatomyPutsIt) {
-    SceneOptions options;
-    options.view = "temporal";
-    const auto head = load_scene(options);
     SimulationSettings s;
-    s.transducer = probe::find_transducer("phased", "test");
-    s.transducer.depth_mm = 175.0;
-    head->apply_to(s);
+    const auto head = temporal_head(&s, 175.0);
     const int bone = tissue::tissue_label_of("cortical_bone"),
               brain = tissue::tissue_label_of("brain");
     int lines_with_skull = 0, hits = 0;
@@ -99,9 +108,7 @@ TEST(HeadContrast, DISABLED_TheTemporalViewShowsTheFarSkullWhereTheAnatomyPutsIt
     for (uint64_t seed = 1; seed <= 2; ++seed) {
         const TruthFrame truth = truth_frame(*head, s, seed);
         const Frame& frame = truth.frame;
-        const ClearSamples samples =
-            clear_samples(frame.envelope, probe::ScanGeometry(s.transducer), truth.grid.to_map,
-                          truth.map, truth.labels, bone, brain, 0.0, 110.0, 175.0);
+        const ClearSamples samples = truth.samples(bone, brain, 0.0, 110.0, 175.0);
         const int L = frame.envelope.lines;
         std::vector<double> skull(std::size_t(L), 1e9);
         for (const TruthSample& t : samples.inside)
