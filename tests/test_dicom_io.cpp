@@ -530,6 +530,13 @@ TEST(DicomIo, FilesThatCrashOrExhaustGdcmAreRefused) {
             std::string(SONOTRACE_SOURCE_DIR) + "/tests/fuzz/seeds/dicom/" + name;
         expect_input_error([&] { read_dicom(file); }, file, "");
     }
+    // A 680-byte file declaring 12546 x 19716 pixels with 72 bytes of native pixel data:
+    // GDCM decodes it "successfully" into the declared buffer (27 s and 14 GB before the
+    // slice failed); refused from the element's own length: 12546 x 19716 x 2 bytes.
+    const std::string short_pixels = std::string(SONOTRACE_SOURCE_DIR) +
+                                     "/tests/fuzz/seeds/dicom/gdcm_short_native_pixel_data.dcm";
+    expect_input_error([&] { read_dicom(short_pixels); }, short_pixels, "PixelData",
+                       "holds 72 bytes where its header implies 494713872");
 }
 
 // In a sanitizer build, the reading child's death (ASan's operator new dies where the
