@@ -756,9 +756,8 @@ namespace {
 // - x[i + k]), c_k = 2 / (pi k) times a Blackman window over |k| <= K. Within 0.07-0.43
 // of the sampling rate (the RF's band: fs = 4 f0 with the presets' bandwidths, and down
 // to 8 f0) its gain is 1 to within 1e-4. A finite filter rather than the DFT's ideal
-// one: the ideal kernel falls as 1/t, so with DC and Nyquist cut at once the skull's
-// echo near the face left a floor 69 dB down along the whole line (wrapping round the
-// transform), which the TGC at 150 mm raised into bright radial stripes.
+// one: the ideal kernel falls as 1/t, so a strong echo near the face leaves a floor along
+// the whole line (wrapping round the transform), which a deep TGC raises into stripes.
 constexpr int kHilbertReach = 48;
 const std::array<float, kHilbertReach / 2>& hilbert_taps() {
     static const std::array<float, kHilbertReach / 2> taps = [] {

@@ -104,8 +104,8 @@ class PsfTable {
     std::vector<int> row_line_;  // rows_ -> the line that made it
     probe::Transducer t_;
     // Plane echoes by row and tilt step: read by every reflection of every frame from
-    // all threads at once, so without a lock (behind one mutex the lookups were most of
-    // the reflections' cost). Filled up to kMaxPlaneEchoes, computed afresh beyond.
+    // all threads at once, so without a lock (behind one mutex the threads queued at
+    // every reflection). Filled up to kMaxPlaneEchoes, computed afresh beyond.
     static constexpr std::size_t kMaxPlaneEchoes = std::size_t(1) << 22;  // ~100 MB
     // Mixed keys: the table's buckets are a power of two, and the row sits in the key's
     // high half.

@@ -75,8 +75,8 @@ struct EchoProfileSettings {
     double bin_s = 5e-8;  // echo-time bin width (s)
     int bins = 0;         // bins per line (echo times beyond are dropped)
     // Also the scattered intensity and its centroid (EchoProfile::intensity, position);
-    // without, those stay zero. A frame lit by its map needs only the illumination, and
-    // the two sums were a third of the profile's cost.
+    // without, those stay zero. A frame lit by its map needs only the illumination: the
+    // two sums at every step would be wasted there.
     bool scattered = true;
 };
 
@@ -102,9 +102,8 @@ struct ReceiveWeights {
         return w != nullptr ? w[column(time_s)] : 1.0f;
     }
     // floor(time_s / bin_s), clamped to the columns, by the multiply: every step of a
-    // frame's trace asks (the division was a fifth of the trace, and checking the
-    // product against the division's rounding near an edge a tenth of the frame). NaN
-    // gives column 0.
+    // frame's trace asks, and the division, or checking the product against it near a
+    // column's edge, was a large share of the frame. NaN gives column 0.
     int column(double time_s) const {
         const double u = time_s * inverse_bin_s;
         return u > 0.0 ? (u < double(bins) ? int(u) : bins - 1) : 0;
