@@ -238,7 +238,7 @@ class InterfaceCache {
 
 // One bin of a line's echo profile: a sum and its first moment, in double (sums of
 // millions of small steps). The illumination's and the scattered intensity's bins lie in
-// two arrays: a frame lit by its map touches only the first, which then stays in L1.
+// two arrays: a frame lit by its map touches only the first, half the memory.
 template <int Dim>
 struct ProfileBin {
     double sum;
