@@ -457,24 +457,21 @@ DecodedImage decode(const std::string& file) {
     const double sample_bytes = image.GetPixelFormat().GetPixelSize();
     const double expected = double(decoded.dims.x) * decoded.dims.y * decoded.dims.z * sample_bytes;
     base::check_allocation(expected, file, kPixelData.field());
-    if (double(image.GetBufferLength()) != expected) {
-        throw base::InputError(file, kPixelData.field(),
-                               "holds " + std::to_string(image.GetBufferLength()) +
-                                   " bytes where its header implies " +
-                                   std::to_string(std::uint64_t(expected)));
-    }
+    auto short_of = [&](std::uint64_t holds) {
+        return base::InputError(file, kPixelData.field(),
+                                "holds " + std::to_string(holds) +
+                                    " bytes where its header implies " +
+                                    std::to_string(std::uint64_t(expected)));
+    };
+    if (double(image.GetBufferLength()) != expected) throw short_of(image.GetBufferLength());
     // Native (uncompressed) pixel data must hold what the header declares: GDCM decodes
     // a short element "successfully" into the declared buffer, so a file of a few hundred
     // bytes could cost the gigabytes its header declares.
     const gdcm::DataElement& pixels =
         reader.GetFile().GetDataSet().GetDataElement(kPixelData.tag());
     if (const gdcm::ByteValue* native = pixels.GetByteValue();
-        native != nullptr && double(native->GetLength()) < expected) {
-        throw base::InputError(file, kPixelData.field(),
-                               "holds " + std::to_string(native->GetLength()) +
-                                   " bytes where its header implies " +
-                                   std::to_string(std::uint64_t(expected)));
-    }
+        native != nullptr && double(native->GetLength()) < expected)
+        throw short_of(native->GetLength());
     decoded.buffer.resize(image.GetBufferLength());
     bool decoded_ok = false;
     try {
