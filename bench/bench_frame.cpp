@@ -28,7 +28,9 @@ const imaging::Scene& scene() {
     return *s;
 }
 
-void frame(benchmark::State& state, imaging::Quality quality) {
+// new_seeds: each frame with its own seed, as a dataset makes them: the receive weights
+// (kept between frames of one seed) are made again every frame.
+void frame(benchmark::State& state, imaging::Quality quality, bool new_seeds = false) {
     const imaging::Scene& s = scene();
     imaging::SimulationSettings settings;
     settings.transducer = probe::find_transducer("convex", "bench");
@@ -44,6 +46,7 @@ void frame(benchmark::State& state, imaging::Quality quality) {
     // not part of a frame.
     imaging::PsfTable::of(settings.transducer);
     for (auto _ : state) {
+        if (new_seeds) settings.seed++;
         const auto start = std::chrono::steady_clock::now();
         const imaging::PlaneGrid grid =
             imaging::plane_grid(settings.transducer, s.start.pose, level.map_pixel_mm);
@@ -75,6 +78,9 @@ BENCHMARK_CAPTURE(frame, interactive, imaging::Quality::interactive)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_CAPTURE(frame, standard, imaging::Quality::standard)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(frame, standard_new_seeds, imaging::Quality::standard, true)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_CAPTURE(frame, high, imaging::Quality::high)

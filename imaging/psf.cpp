@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -236,18 +237,12 @@ double PsfTable::power(int l, double z) const {
     return (1.0 - f) * row(l, i).power + f * row(l, i + 1).power;
 }
 
-double PsfTable::receive_power(int l, double x, double z) const {
-    const double u = std::clamp(z / dz_, 0.0, double(depths_ - 1));
-    const int i = std::min(int(u), depths_ - 2);
-    const double f = u - i;
-    auto one = [&](const Row& r) {
-        const double v = x / r.dx + r.half;
-        if (!(v >= 0.0) || v >= double(2 * r.half)) return 0.0;
-        const auto j = std::size_t(v);
-        const double g = v - double(j);
-        return double(r.receive_power[j]) * (1.0 - g) + double(r.receive_power[j + 1]) * g;
-    };
-    return (1.0 - f) * one(row(l, i)) + f * one(row(l, i + 1));
+PsfTable::LineReceive::LineReceive(const PsfTable& table, int l)
+    : dz_(table.dz_), depths_(table.depths_), rows_(std::size_t(table.depths_)) {
+    for (int i = 0; i < depths_; ++i) {
+        const Row& r = table.row(l, i);
+        rows_[std::size_t(i)] = {r.dx, double(r.half), double(2 * r.half), r.receive_power.data()};
+    }
 }
 
 namespace {
@@ -287,8 +282,9 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
             double e = 0.0, de = 0.0;         // elevation (3D)
         };
         // The receive's power at a point of a line's frame, in 3D times the lens's.
+        const PsfTable::LineReceive receive(*psf, l);
         auto power = [&](double x, double z, double e) {
-            const double in_plane = psf->receive_power(l, x, z);
+            const double in_plane = receive.power(x, z);
             if constexpr (Dim == 3) return in_plane * lens->intensity(e, z);
             (void)e;
             return in_plane;
@@ -309,12 +305,15 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
             }
             launches.push_back(launch);
         }
-        // The mean over the line's particles at a range (0.5 mm apart, as needed).
-        std::map<long, double> mean_at;
+        // The mean over the line's particles at a range (0.5 mm apart, as needed; NaN: not
+        // yet). Ranges are positive: keys from 0.
+        std::vector<double> mean_at;
         auto mean = [&](double z) {
-            const long key = std::lround(z / 0.5);
-            auto [it, added] = mean_at.try_emplace(key, 0.0);
-            if (!added) return it->second;
+            const auto key = std::size_t(std::lround(z / 0.5));
+            if (key >= mean_at.size())
+                mean_at.resize(key + 1 + key / 4, std::numeric_limits<double>::quiet_NaN());
+            double& value = mean_at[key];
+            if (!std::isnan(value)) return value;
             const double zk = std::max(0.5 * double(key), 0.25);
             double sum = 0.0, energy = 0.0;
             for (const Launch& p : launches) {
@@ -323,8 +322,8 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
                        power(p.x + (zk - p.z) * p.dx / p.dz, zk, p.e + (zk - p.z) * p.de / p.dz);
                 energy += p.energy;
             }
-            it->second = energy > 0.0 ? sum / energy : 0.0;
-            return it->second;
+            value = energy > 0.0 ? sum / energy : 0.0;
+            return value;
         };
         for (std::size_t p = 0; p < launches.size(); ++p) {
             const Launch& a = launches[p];

@@ -60,8 +60,36 @@ class PsfTable {
     // Lateral power integral at depth z (1/mm), linear between rows.
     double power(int l, double z) const;
     // The receive sensitivity |R|^2 of line l at (x, z) (1/mm; linear between rows and
-    // samples, 0 beyond a row's reach).
-    double receive_power(int l, double x, double z) const;
+    // samples, 0 beyond a row's reach): power(x, z). The line's rows are looked up once,
+    // when it is made: the receive weights ask millions of times per frame.
+    class LineReceive {
+      public:
+        LineReceive(const PsfTable& table, int l);
+        double power(double x, double z) const {
+            const double u = std::clamp(z / dz_, 0.0, double(depths_ - 1));
+            const int i = std::min(int(u), depths_ - 2);
+            const double f = u - i;
+            return (1.0 - f) * across(rows_[std::size_t(i)], x) +
+                   f * across(rows_[std::size_t(i) + 1], x);
+        }
+
+      private:
+        // What power() reads of a row, side by side (one load less than through Row).
+        struct RowView {
+            double dx, half, end;  // Row::dx, Row::half, 2 Row::half
+            const float* receive_power;
+        };
+        static double across(const RowView& r, double x) {
+            const double v = x / r.dx + r.half;
+            if (!(v >= 0.0) || v >= r.end) return 0.0;
+            const auto j = std::size_t(v);
+            const double g = v - double(j);
+            return double(r.receive_power[j]) * (1.0 - g) + double(r.receive_power[j + 1]) * g;
+        }
+        double dz_;
+        int depths_;
+        std::vector<RowView> rows_;  // by depth index
+    };
     // The echo of a planar reflector through depth z on line l whose normal, pointing away
     // from the probe, is tilted by theta from the line (probe::LineFields::plane_echo),
     // at the nearest of the table's depth rows (lambda or less apart: the echo's phase is

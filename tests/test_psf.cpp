@@ -7,6 +7,7 @@
 // uniform aperture's two-way focal response, sinc^2.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -639,6 +640,43 @@ TEST(Psf, SubLineWeightsAreTheRowsAtTheSubLineOffsets) {
             EXPECT_EQ(differing, 0) << preset << ", K " << K;
         }
     }
+}
+
+// A line's receive sensitivity with its rows looked up once (PsfTable::LineReceive, an
+// optimisation that claims to change nothing) against the plain form: linear in depth
+// between rows i = floor(z / dz) and i + 1, linear across within each row, 0 beyond a
+// row's samples. Bit for bit, over points inside, at and beyond the rows' reach.
+TEST(Psf, LineReceiveIsTheRowsInterpolatedBitForBit) {
+    probe::Transducer t = probe::find_transducer("convex", "test");
+    t.lines = 16;
+    const auto psf = imaging::PsfTable::of(t);
+    auto plain = [&](int l, double x, double z) {
+        const double u = std::clamp(z / psf->dz(), 0.0, double(psf->depths() - 1));
+        const int i = std::min(int(u), psf->depths() - 2);
+        const double f = u - i;
+        auto across = [&](const imaging::PsfTable::Row& r) {
+            const double v = x / r.dx + r.half;
+            if (!(v >= 0.0) || v >= double(2 * r.half)) return 0.0;
+            const auto j = std::size_t(v);
+            const double g = v - double(j);
+            return double(r.receive_power[j]) * (1.0 - g) + double(r.receive_power[j + 1]) * g;
+        };
+        return (1.0 - f) * across(psf->row(l, i)) + f * across(psf->row(l, i + 1));
+    };
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> depth(-1.0, t.depth_mm + 5.0), across(-12.0, 12.0);
+    long differing = 0, nonzero = 0;
+    for (int l : {0, 7, 15}) {
+        const imaging::PsfTable::LineReceive receive(*psf, l);
+        for (int n = 0; n < 20000; ++n) {
+            const double x = across(rng), z = depth(rng);
+            const double expected = plain(l, x, z), got = receive.power(x, z);
+            differing += std::memcmp(&expected, &got, sizeof got) != 0;
+            nonzero += expected != 0.0;
+        }
+    }
+    EXPECT_EQ(differing, 0);
+    EXPECT_GT(nonzero, 10000) << "most points should lie within the rows' reach";
 }
 
 TEST(Speckle, FourSubLinesAtATimeAddAsOneAtATime) {
