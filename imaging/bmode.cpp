@@ -489,9 +489,8 @@ void add_pulse(const probe::PulseEcho& pulse, double at, double fs, std::complex
     const int lo = std::max(0, int(std::ceil(at - reach))),
               hi = std::min(n - 1, int(std::floor(at + reach)));
     for (int i = lo; i <= hi; ++i) {
-        const double tau = (i - at) / fs;
-        out[i] += float(amplitude.real() * pulse.in_phase(tau) -
-                        amplitude.imag() * pulse.quadrature(tau));
+        const std::complex<double> p = pulse.analytic((i - at) / fs);
+        out[i] += float(amplitude.real() * p.real() - amplitude.imag() * p.imag());
     }
 }
 

@@ -103,6 +103,15 @@ double PulseEcho::sample(const std::vector<double>& table, double t) const {
     return table[i] + f * (table[i + 1] - table[i]);
 }
 
+std::complex<double> PulseEcho::analytic(double t) const {
+    const double x = t / dt_ + centre_;
+    if (!(x >= 0.0) || x >= double(in_phase_.size() - 1)) return 0.0;
+    const auto i = std::size_t(x);
+    const double f = x - double(i);
+    return {in_phase_[i] + f * (in_phase_[i + 1] - in_phase_[i]),
+            quadrature_[i] + f * (quadrature_[i + 1] - quadrature_[i])};
+}
+
 double PulseEcho::axial_fwhm_mm() const {
     return 0.5 * tissue::kReferenceSpeed * fwhm_ * 1e3;
 }

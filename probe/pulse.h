@@ -33,6 +33,8 @@ class PulseEcho {
     // [-half_length, half_length].
     double in_phase(double t) const { return sample(in_phase_, t); }
     double quadrature(double t) const { return sample(quadrature_, t); }
+    // Both at once: in_phase(t) + i quadrature(t), the table position found once.
+    std::complex<double> analytic(double t) const;
     double envelope(double t) const {
         return std::abs(std::complex<double>(in_phase(t), quadrature(t)));
     }
