@@ -138,6 +138,68 @@ TEST(Volume, FreshVolumesReadZeroAndFillsReachEveryVoxel) {
     }
 }
 
+// gaussian_smoothed_coarse against the Gaussian itself: each expected voxel is the
+// direct sum over the whole volume of exp(-|d|^2 / 2 sigma^2) (normalised, edges
+// replicated out to 4 sigma), in double, independent of either smoothing's code. Tissue
+// as it comes: regions of constant value with steps of 1, a disc, a stripe thinner than
+// sigma (a sulcus), a disc that meets an edge. In a plane (m = 4 at sigma = 12 voxels)
+// and in a slab (m = 2, 2, 1). Within 1 % of a step of 1 everywhere, edges included
+// (measured: 0.74 % at the disc's centre, where the interpolation's error is largest).
+TEST(Volume, GaussianOnACoarseGridIsTheGaussian) {
+    struct Case {
+        glm::ivec3 dims;
+        glm::dvec3 spacing;
+        double sigma_mm;
+    };
+    for (const Case& c :
+         {Case{{150, 130, 1}, {0.25, 0.25, 1.0}, 3.0}, Case{{60, 50, 7}, {0.5, 0.5, 1.0}, 3.0}}) {
+        VolumeGeometry g;
+        g.dims = c.dims;
+        g.spacing = c.spacing;
+        Volume v(g);
+        for (int k = 0; k < g.dims.z; ++k)
+            for (int j = 0; j < g.dims.y; ++j)
+                for (int i = 0; i < g.dims.x; ++i) {
+                    const glm::dvec3 x = glm::dvec3(i, j, k) * g.spacing;
+                    float value = x.x + 0.3 * x.y < 20.0 ? 0.0f : 1.0f;  // a tilted interface
+                    if (glm::length(glm::dvec2(x.x - 12.0, x.y - 20.0)) < 5.0) value = 2.0f;
+                    if (std::abs(x.y - 8.0) < 0.5) value = 1.0f;  // 1 mm stripe
+                    v.at(i, j, k) = value;
+                }
+        const Volume coarse = gaussian_smoothed_coarse(v, c.sigma_mm);
+        // The direct Gaussian: separable, so one axis at a time in double.
+        std::vector<double> field(v.voxels().begin(), v.voxels().end());
+        for (int axis = 0; axis < 3; ++axis) {
+            const int n = g.dims[axis];
+            if (n < 2) continue;
+            const double s = c.sigma_mm / g.spacing[axis];
+            const int reach = int(std::ceil(4.0 * s));
+            std::vector<double> w(std::size_t(2 * reach + 1));
+            double total = 0.0;
+            for (int o = -reach; o <= reach; ++o)
+                total += w[std::size_t(o + reach)] = std::exp(-0.5 * o * o / (s * s));
+            const std::vector<double> in = field;
+            for (int k = 0; k < g.dims.z; ++k)
+                for (int j = 0; j < g.dims.y; ++j)
+                    for (int i = 0; i < g.dims.x; ++i) {
+                        double sum = 0.0;
+                        for (int o = -reach; o <= reach; ++o) {
+                            glm::ivec3 at(i, j, k);
+                            at[axis] = std::clamp(at[axis] + o, 0, n - 1);
+                            sum += w[std::size_t(o + reach)] * in[v.linear_index(at.x, at.y, at.z)];
+                        }
+                        field[v.linear_index(i, j, k)] = sum / total;
+                    }
+        }
+        double worst = 0.0;
+        for (std::size_t q = 0; q < field.size(); ++q)
+            worst = std::max(worst, std::abs(double(coarse.voxels()[q]) - field[q]));
+        std::printf("dims %d x %d x %d: largest difference %.4f of a step of 1\n", c.dims.x,
+                    c.dims.y, c.dims.z, worst);
+        EXPECT_LT(worst, 0.01);
+    }
+}
+
 // gaussian_smoothed sums blocks of samples in registers (an optimisation that claims to
 // change nothing): it must equal, bit for bit, the plain separable sum it replaced: along
 // x, then y, then z, each output 0 + w_0 v_-r + w_1 v_-r+1 + ... in tap order, edges

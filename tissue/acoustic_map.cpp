@@ -92,11 +92,12 @@ Volume soft_tissue_smoothed_index(const Volume& speed, double sigma_mm) {
             weighted.voxels()[v] = soft ? index.voxels()[v] : 0.0f;
         }
     });
-    const Volume sum = gaussian_smoothed(weighted, sigma_mm),
-                 total = gaussian_smoothed(weight, sigma_mm);
+    const Volume sum = gaussian_smoothed_coarse(weighted, sigma_mm),
+                 total = gaussian_smoothed_coarse(weight, sigma_mm);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, speed.size(), 4096), [&](const auto& r) {
         for (std::size_t v = r.begin(); v != r.end(); ++v)
-            if (weight.voxels()[v] > 0.0f) index.voxels()[v] = sum.voxels()[v] / total.voxels()[v];
+            if (weight.voxels()[v] > 0.0f && total.voxels()[v] > 0.0f)
+                index.voxels()[v] = sum.voxels()[v] / total.voxels()[v];
     });
     return index;
 }

@@ -1,6 +1,7 @@
 #include "tissue/volume.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <sstream>
@@ -173,13 +174,17 @@ namespace {
 }  // namespace
 
 Volume gaussian_smoothed(const Volume& volume, double sigma_mm) {
+    return gaussian_smoothed(volume, glm::dvec3(sigma_mm));
+}
+
+Volume gaussian_smoothed(const Volume& volume, const glm::dvec3& sigma_mm) {
     Volume out = volume;
     const glm::ivec3 dims = volume.dims();
     const std::size_t nx = std::size_t(dims.x),
                       row_count = std::size_t(dims.y) * std::size_t(dims.z);
     for (int axis = 0; axis < 3; ++axis) {
         const int n = dims[axis];
-        const double sigma = sigma_mm / volume.geometry().spacing[axis];
+        const double sigma = sigma_mm[axis] / volume.geometry().spacing[axis];
         if (n < 2 || !(sigma > 0.0)) continue;
         const int radius = std::max(1, int(std::ceil(3.0 * sigma)));
         std::vector<float> kernel(std::size_t(2 * radius + 1));
@@ -217,6 +222,101 @@ Volume gaussian_smoothed(const Volume& volume, double sigma_mm) {
             weighted_sum_of_rows(sources.data(), kernel.data(), int(kernel.size()), nx, target);
         });
     }
+    return out;
+}
+
+Volume gaussian_smoothed_coarse(const Volume& volume, double sigma_mm) {
+    const VolumeGeometry& fine = volume.geometry();
+    const glm::ivec3 n = fine.dims;
+    glm::ivec3 m(1);
+    for (int a = 0; a < 3; ++a)
+        if (n[a] > 1 && sigma_mm > 0.0)
+            m[a] = std::clamp(int(sigma_mm / fine.spacing[a] / 3.0), 1, n[a]);
+    if (m == glm::ivec3(1)) return gaussian_smoothed(volume, sigma_mm);
+
+    // The coarse grid reaches `pad` fine voxels beyond each edge (the Gaussian's reach,
+    // whole blocks), filled by repeating the edge voxels: near an edge the result is the
+    // fine Gaussian's with its edges replicated, not a block mean's.
+    VolumeGeometry coarse_geometry = fine;
+    glm::dvec3 coarse_sigma_mm;
+    glm::ivec3 pad(0);
+    for (int a = 0; a < 3; ++a) {
+        const double s = sigma_mm / fine.spacing[a], mm = double(m[a]);
+        // Variance (fine voxels^2) the blocks add, and the interpolation on average over
+        // a block's voxels (|d| (m - |d|) at offset d from the nearest centre).
+        const double blocks = (mm * mm - 1.0) / 12.0;
+        const double interpolation =
+            m[a] % 2 == 0 ? (2.0 * mm * mm + 1.0) / 12.0 : (mm * mm - 1.0) / 6.0;
+        const double coarse_sigma = std::sqrt(std::max(s * s - blocks - interpolation, 0.0));
+        coarse_sigma_mm[a] = coarse_sigma * fine.spacing[a];
+        if (m[a] > 1) pad[a] = m[a] * (int(std::ceil(3.0 * coarse_sigma / mm)) + 1);
+        coarse_geometry.dims[a] = (n[a] + 2 * pad[a] + m[a] - 1) / m[a];
+        coarse_geometry.spacing[a] = fine.spacing[a] * m[a];
+    }
+    const glm::ivec3 nc = coarse_geometry.dims;
+    // Block means, a coarse row at a time: the fine rows of its blocks added along x
+    // first (through a table of the clamped fine x of each padded position).
+    std::vector<int> fine_x(std::size_t(nc.x) * std::size_t(m.x));
+    for (std::size_t q = 0; q < fine_x.size(); ++q)
+        fine_x[q] = std::clamp(int(q) - pad.x, 0, n.x - 1);
+    Volume coarse(coarse_geometry);
+    const float inverse_count = float(1.0 / (double(m.x) * m.y * m.z));
+    tbb::parallel_for(0, nc.y * nc.z, [&](int row) {
+        const int jc = row % nc.y, kc = row / nc.y;
+        std::vector<float> sums(std::size_t(nc.x), 0.0f);
+        for (int k = kc * m.z - pad.z; k < (kc + 1) * m.z - pad.z; ++k)
+            for (int j = jc * m.y - pad.y; j < (jc + 1) * m.y - pad.y; ++j) {
+                const float* source =
+                    volume.voxels().data() +
+                    volume.linear_index(0, std::clamp(j, 0, n.y - 1), std::clamp(k, 0, n.z - 1));
+                const int* x = fine_x.data();
+                for (int ic = 0; ic < nc.x; ++ic) {
+                    float block = 0.0f;
+                    for (int u = 0; u < m.x; ++u) block += source[*x++];
+                    sums[std::size_t(ic)] += block;
+                }
+            }
+        float* target = &coarse.at(0, jc, kc);
+        for (int ic = 0; ic < nc.x; ++ic) target[ic] = sums[std::size_t(ic)] * inverse_count;
+    });
+    const Volume smoothed = gaussian_smoothed(coarse, coarse_sigma_mm);
+    // Back by linear interpolation between the blocks' centres, at fine coordinate
+    // m c - pad + (m - 1) / 2: per fine row the coarse row between its neighbours in y
+    // and z, then along x.
+    struct Tap {
+        int lo, hi;
+        float f;
+    };
+    std::array<std::vector<Tap>, 3> taps;
+    for (int a = 0; a < 3; ++a) {
+        taps[std::size_t(a)].resize(std::size_t(n[a]));
+        for (int i = 0; i < n[a]; ++i) {
+            const double u = std::clamp((i + pad[a] - 0.5 * (m[a] - 1)) / m[a], 0.0,
+                                        double(std::max(nc[a] - 1, 0)));
+            const int lo = std::min(int(u), std::max(nc[a] - 2, 0));
+            taps[std::size_t(a)][std::size_t(i)] = {lo, std::min(lo + 1, nc[a] - 1), float(u - lo)};
+        }
+    }
+    Volume out(fine);
+    tbb::parallel_for(0, n.y * n.z, [&](int row) {
+        const int j = row % n.y, k = row / n.y;
+        const Tap ty = taps[1][std::size_t(j)], tz = taps[2][std::size_t(k)];
+        std::vector<float> between(std::size_t(nc.x));
+        auto coarse_row = [&](int jc, int kc) {
+            return smoothed.voxels().data() + smoothed.linear_index(0, jc, kc);
+        };
+        const float *a0 = coarse_row(ty.lo, tz.lo), *a1 = coarse_row(ty.hi, tz.lo),
+                    *b0 = coarse_row(ty.lo, tz.hi), *b1 = coarse_row(ty.hi, tz.hi);
+        for (int c = 0; c < nc.x; ++c)
+            between[std::size_t(c)] = (1.0f - tz.f) * ((1.0f - ty.f) * a0[c] + ty.f * a1[c]) +
+                                      tz.f * ((1.0f - ty.f) * b0[c] + ty.f * b1[c]);
+        float* target = &out.at(0, j, k);
+        for (int i = 0; i < n.x; ++i) {
+            const Tap tx = taps[0][std::size_t(i)];
+            target[i] =
+                (1.0f - tx.f) * between[std::size_t(tx.lo)] + tx.f * between[std::size_t(tx.hi)];
+        }
+    });
     return out;
 }
 

@@ -88,5 +88,15 @@ class Volume {
 // The volume convolved with a Gaussian of standard deviation sigma_mm along every axis of
 // more than one voxel (separable, truncated at 3 sigma, edges replicated).
 Volume gaussian_smoothed(const Volume& volume, double sigma_mm);
+// The same with a standard deviation per axis (mm; i, j, k).
+Volume gaussian_smoothed(const Volume& volume, const glm::dvec3& sigma_mm);
+
+// gaussian_smoothed() for a sigma of many voxels, on a grid m times coarser along each axis
+// where sigma spans 3 m voxels or more: block means (the grid reaching the Gaussian's
+// reach beyond the edges, which are replicated), the Gaussian there, linear interpolation
+// back. The coarse Gaussian is narrowed by what the blocks and the interpolation add, so
+// the whole has sigma's second moment. Within 1 % of a step's height of the full
+// Gaussian; its cost falls as m^2 in a plane. Where every m is 1 it is gaussian_smoothed().
+Volume gaussian_smoothed_coarse(const Volume& volume, double sigma_mm);
 
 }  // namespace sonotrace::tissue
