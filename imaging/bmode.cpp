@@ -625,7 +625,15 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         const auto& line = of_line[std::size_t(l)];
         const ScanLine axis = geometry.line(l);
         const glm::dvec2 across(axis.direction.y, -axis.direction.x);
-        for (uint32_t n = event_start[std::size_t(l)]; n < event_start[std::size_t(l) + 1]; ++n) {
+        const uint32_t events_end = event_start[std::size_t(l) + 1];
+        for (uint32_t n = event_start[std::size_t(l)]; n < events_end; ++n) {
+            // The receive weight of an event a few ahead, fetched now: the weights are
+            // megabytes, read at random, and the wait for each was half of this loop.
+            if (receive && n + 6 < events_end) {
+                const auto& ahead = events[event_order[n + 6]];
+                if (const float* w = receive->row(uint32_t(l), ahead.particle))
+                    __builtin_prefetch(w + receive->column(ahead.time_s));
+            }
             const auto& e = events[event_order[n]];
             if (e.particle >= line.size()) continue;
             const auto& source = sources[line[e.particle]];
