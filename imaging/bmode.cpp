@@ -679,13 +679,15 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                 auto angle_from = [](const glm::dvec2& v, const glm::dvec2& from) {
                     return std::atan2(glm::dot(v, glm::dvec2(from.y, -from.x)), glm::dot(v, from));
                 };
-                const double tilt =
-                    glm::dot(away, away) > 0.0
-                        ? angle_from(away, arriving) +
-                              (direct ? angle_from(glm::dvec2(source.direction), axis.direction)
-                                      : 0.0)
-                        : 0.0;
-                const double sin_tilt = std::sin(tilt);
+                // Only where it is used (not by a direct diffuse echo, most of them).
+                auto tilt = [&] {
+                    return glm::dot(away, away) > 0.0
+                               ? angle_from(away, arriving) +
+                                     (direct
+                                          ? angle_from(glm::dvec2(source.direction), axis.direction)
+                                          : 0.0)
+                               : 0.0;
+                };
                 if (e.kind == simulator::EchoKind::diffuse) {
                     // The share of the lobe that heads back the way the particle came (by
                     // reciprocity, to the aperture): a direct echo by the particle's own
@@ -693,13 +695,14 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                     // incidence sends next to nothing back, whatever the plane's tilt to
                     // the line.
                     const double aperture = t.receive_aperture_mm(range_mm);
-                    const double cos_incidence = direct ? double(e.cos_incidence) : std::cos(tilt);
+                    const double cos_incidence =
+                        direct ? double(e.cos_incidence) : std::cos(tilt());
                     response =
                         psf->plane_echo(l, range_mm, 0.0) *
                         std::sqrt(reflection_back_fraction(cos_incidence, e.lobe_exponent,
                                                            std::atan(0.5 * aperture / range_mm)));
                 } else {
-                    response = psf->plane_echo(l, range_mm, sin_tilt);
+                    response = psf->plane_echo(l, range_mm, std::sin(tilt()));
                 }
                 // Receive, once (receive_weights): a reflector across the whole beam
                 // averages it to 1, so its plane echo above stays exact; a target smaller
