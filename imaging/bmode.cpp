@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <numbers>
@@ -625,6 +626,11 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         const auto& line = of_line[std::size_t(l)];
         const ScanLine axis = geometry.line(l);
         const glm::dvec2 across(axis.direction.y, -axis.direction.x);
+        // The line's echo of an untilted plane by depth row, as diffuse echoes ask it
+        // (NaN: not yet): most of a line's echoes, and few rows.
+        std::vector<std::complex<double>> untilted(
+            psf ? std::size_t(psf->depths()) : 0,
+            std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0));
         const uint32_t events_end = event_start[std::size_t(l) + 1];
         for (uint32_t n = event_start[std::size_t(l)]; n < events_end; ++n) {
             // The receive weight of an event a few ahead, fetched now: the weights are
@@ -697,10 +703,11 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                     const double aperture = t.receive_aperture_mm(range_mm);
                     const double cos_incidence =
                         direct ? double(e.cos_incidence) : std::cos(tilt());
-                    response =
-                        psf->plane_echo(l, range_mm, 0.0) *
-                        std::sqrt(reflection_back_fraction(cos_incidence, e.lobe_exponent,
-                                                           std::atan(0.5 * aperture / range_mm)));
+                    std::complex<double>& plane = untilted[std::size_t(psf->depth_index(range_mm))];
+                    if (std::isnan(plane.real())) plane = psf->plane_echo(l, range_mm, 0.0);
+                    response = plane * std::sqrt(reflection_back_fraction(
+                                           cos_incidence, e.lobe_exponent,
+                                           std::atan(0.5 * aperture / range_mm)));
                 } else {
                     response = psf->plane_echo(l, range_mm, std::sin(tilt()));
                 }

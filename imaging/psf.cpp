@@ -142,11 +142,21 @@ double PsfTable::largest_sin_tilt(double z) const {
     return std::sin(std::min(2.0 * theta, 0.5 * std::numbers::pi));
 }
 
+namespace {
+constexpr double kTiltSteps = 2000.0;
+}
+
+int PsfTable::depth_index(double z) const {
+    return std::clamp(int(std::lround(z / dz_)), 0, depths_ - 1);
+}
+
 std::complex<double> PsfTable::plane_echo(int l, double z, double sin_tilt) const {
-    constexpr double kTiltSteps = 2000.0;
     if (std::abs(sin_tilt) > largest_sin_tilt(z)) return 0.0;
-    const int i = std::clamp(int(std::lround(z / dz_)), 0, depths_ - 1);
-    const int tilt = int(std::lround(std::clamp(sin_tilt, -1.0, 1.0) * kTiltSteps));
+    return plane_echo_at(l, depth_index(z),
+                         int(std::lround(std::clamp(sin_tilt, -1.0, 1.0) * kTiltSteps)));
+}
+
+std::complex<double> PsfTable::plane_echo_at(int l, int i, int tilt) const {
     const int id = row_id(l, i);
     const uint64_t key = (uint64_t(uint32_t(id)) << 32) | uint32_t(tilt + 1000000);
     if (auto it = plane_echoes_.find(key); it != plane_echoes_.end()) return it->second;

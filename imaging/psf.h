@@ -98,6 +98,8 @@ class PsfTable {
     // aperture), or finer). 0 beyond the apertures' angular span (largest_sin_tilt).
     // Kept once computed, for the next events and frames of the same probe set-up.
     std::complex<double> plane_echo(int l, double z, double sin_tilt) const;
+    // The nearest depth row to depth z (mm), as plane_echo() takes it.
+    int depth_index(double z) const;
     // Beyond this tilt a plane at depth z sends its mirror image of the transmit aperture
     // past the receive aperture: the reflected beam lands 2 z tan(2 theta) aside, so it
     // misses once that exceeds (D_tx + D_rx) / 2, and diffraction widens the span by
@@ -124,6 +126,9 @@ class PsfTable {
 
   private:
     friend struct PsfTableBuilder;
+    // plane_echo() at depth index i and tilt step round(2000 sin(theta)), with no check
+    // of the angular span.
+    std::complex<double> plane_echo_at(int l, int i, int tilt_step) const;
     double dz_ = 1.0, k_ = 0.0;
     int lines_ = 0, depths_ = 0;
     double focal_power_ = 1.0;
