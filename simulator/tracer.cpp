@@ -383,34 +383,9 @@ class LineTracer {
                 }
             }
         }
-        lit_sum_.store();
-        scattered_sum_.store();
     }
 
   private:
-    // One bin of the profile held in registers while consecutive adds go to it, stored
-    // when they move on: the batch's lanes, stepped together, mostly share a bin, and
-    // each add waited for the previous one's store. The additions keep their order (the
-    // same bits).
-    struct BinSum {
-        std::vector<ProfileBin<Dim>>* bins = nullptr;
-        std::size_t at = 0;
-        ProfileBin<Dim> value{};
-        void add(std::vector<ProfileBin<Dim>>& to, std::size_t i, double v, const V& x) {
-            if (i != at || &to != bins) {
-                store();
-                bins = &to, at = i, value = to[i];
-            }
-            value.sum += v;
-            for (int a = 0; a < Dim; ++a) value.first[std::size_t(a)] += v * double(x[a]);
-        }
-        void store() {
-            if (bins != nullptr) (*bins)[at] = value;
-            bins = nullptr;
-        }
-    };
-    BinSum lit_sum_, scattered_sum_;
-
     static V to_vec(const LaneVec<float, Dim>& v) {
         V out;
         for (int a = 0; a < Dim; ++a) out[a] = v[std::size_t(a)];
@@ -568,9 +543,15 @@ class LineTracer {
         }
         const auto at = std::size_t(bin);
         if (at + 8 < out_->lit.size()) __builtin_prefetch(out_->lit.data() + at + 8);
-        lit_sum_.add(out_->lit, at, double(E * profile_scale_ * two_way * receive), x);
+        ProfileBin<Dim>& l = out_->lit[at];
+        const double lit = double(E * profile_scale_ * two_way * receive);
+        l.sum += lit;
+        for (int a = 0; a < Dim; ++a) l.first[std::size_t(a)] += lit * double(x[a]);
         if (!profile_scattered_ || !(backscatter > 0.0f)) return;
-        scattered_sum_.add(out_->scattered, at, double(E * scattered * two_way * receive), x);
+        ProfileBin<Dim>& w = out_->scattered[at];
+        const double intensity = double(E * scattered * two_way * receive);
+        w.sum += intensity;
+        for (int a = 0; a < Dim; ++a) w.first[std::size_t(a)] += intensity * double(x[a]);
     }
 
     void flush_deposits(Batch<Dim>& b, int k) {
