@@ -254,35 +254,35 @@ Volume gaussian_smoothed_coarse(const Volume& volume, double sigma_mm) {
         coarse_geometry.spacing[a] = fine.spacing[a] * m[a];
     }
     const glm::ivec3 nc = coarse_geometry.dims;
-    // Block means, a coarse row at a time: the fine rows of its blocks added along x
-    // first (through a table of the clamped fine x of each padded position).
-    std::vector<int> fine_x(std::size_t(nc.x) * std::size_t(m.x));
-    for (std::size_t q = 0; q < fine_x.size(); ++q)
-        fine_x[q] = std::clamp(int(q) - pad.x, 0, n.x - 1);
+    // Block means, a coarse row at a time: its blocks' fine rows, padded with their edge
+    // voxels, added up first, then each block's run of m.x along x.
+    const std::size_t padded_x = std::size_t(nc.x) * std::size_t(m.x);
     Volume coarse(coarse_geometry);
     const float inverse_count = float(1.0 / (double(m.x) * m.y * m.z));
     tbb::parallel_for(0, nc.y * nc.z, [&](int row) {
         const int jc = row % nc.y, kc = row / nc.y;
-        std::vector<float> sums(std::size_t(nc.x), 0.0f);
+        std::vector<float> rows(padded_x, 0.0f);
         for (int k = kc * m.z - pad.z; k < (kc + 1) * m.z - pad.z; ++k)
             for (int j = jc * m.y - pad.y; j < (jc + 1) * m.y - pad.y; ++j) {
                 const float* source =
                     volume.voxels().data() +
                     volume.linear_index(0, std::clamp(j, 0, n.y - 1), std::clamp(k, 0, n.z - 1));
-                const int* x = fine_x.data();
-                for (int ic = 0; ic < nc.x; ++ic) {
-                    float block = 0.0f;
-                    for (int u = 0; u < m.x; ++u) block += source[*x++];
-                    sums[std::size_t(ic)] += block;
-                }
+                const std::size_t before = std::size_t(pad.x),
+                                  inside = std::min(std::size_t(n.x), padded_x - before);
+                for (std::size_t q = 0; q < before; ++q) rows[q] += source[0];
+                for (std::size_t q = 0; q < inside; ++q) rows[before + q] += source[q];
+                for (std::size_t q = before + inside; q < padded_x; ++q) rows[q] += source[n.x - 1];
             }
         float* target = &coarse.at(0, jc, kc);
-        for (int ic = 0; ic < nc.x; ++ic) target[ic] = sums[std::size_t(ic)] * inverse_count;
+        for (int ic = 0; ic < nc.x; ++ic) {
+            float block = 0.0f;
+            for (int u = 0; u < m.x; ++u) block += rows[std::size_t(ic * m.x + u)];
+            target[ic] = block * inverse_count;
+        }
     });
     const Volume smoothed = gaussian_smoothed(coarse, coarse_sigma_mm);
     // Back by linear interpolation between the blocks' centres, at fine coordinate
-    // m c - pad + (m - 1) / 2: per fine row the coarse row between its neighbours in y
-    // and z, then along x.
+    // m c - pad + (m - 1) / 2.
     struct Tap {
         int lo, hi;
         float f;
@@ -297,25 +297,32 @@ Volume gaussian_smoothed_coarse(const Volume& volume, double sigma_mm) {
             taps[std::size_t(a)][std::size_t(i)] = {lo, std::min(lo + 1, nc[a] - 1), float(u - lo)};
         }
     }
+    // Along x on the coarse rows first, then each fine row a blend of the two (four)
+    // rows around it: loops over contiguous samples.
+    const std::size_t fine_x = std::size_t(n.x);
+    std::vector<float> along_x(std::size_t(nc.y) * std::size_t(nc.z) * fine_x);
+    tbb::parallel_for(0, nc.y * nc.z, [&](int row) {
+        const float* source = smoothed.voxels().data() + std::size_t(row) * std::size_t(nc.x);
+        float* target = along_x.data() + std::size_t(row) * fine_x;
+        for (std::size_t i = 0; i < fine_x; ++i) {
+            const Tap tx = taps[0][i];
+            target[i] = (1.0f - tx.f) * source[tx.lo] + tx.f * source[tx.hi];
+        }
+    });
     Volume out(fine);
     tbb::parallel_for(0, n.y * n.z, [&](int row) {
         const int j = row % n.y, k = row / n.y;
         const Tap ty = taps[1][std::size_t(j)], tz = taps[2][std::size_t(k)];
-        std::vector<float> between(std::size_t(nc.x));
         auto coarse_row = [&](int jc, int kc) {
-            return smoothed.voxels().data() + smoothed.linear_index(0, jc, kc);
+            return along_x.data() +
+                   (std::size_t(kc) * std::size_t(nc.y) + std::size_t(jc)) * fine_x;
         };
         const float *a0 = coarse_row(ty.lo, tz.lo), *a1 = coarse_row(ty.hi, tz.lo),
                     *b0 = coarse_row(ty.lo, tz.hi), *b1 = coarse_row(ty.hi, tz.hi);
-        for (int c = 0; c < nc.x; ++c)
-            between[std::size_t(c)] = (1.0f - tz.f) * ((1.0f - ty.f) * a0[c] + ty.f * a1[c]) +
-                                      tz.f * ((1.0f - ty.f) * b0[c] + ty.f * b1[c]);
         float* target = &out.at(0, j, k);
-        for (int i = 0; i < n.x; ++i) {
-            const Tap tx = taps[0][std::size_t(i)];
-            target[i] =
-                (1.0f - tx.f) * between[std::size_t(tx.lo)] + tx.f * between[std::size_t(tx.hi)];
-        }
+        for (std::size_t i = 0; i < fine_x; ++i)
+            target[i] = (1.0f - tz.f) * ((1.0f - ty.f) * a0[i] + ty.f * a1[i]) +
+                        tz.f * ((1.0f - ty.f) * b0[i] + ty.f * b1[i]);
     });
     return out;
 }
