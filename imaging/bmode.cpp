@@ -463,8 +463,10 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
             const double d0 = std::max(geometry.line_spacing_mm(z0), 1e-6) / K,
                          d1 = std::max(geometry.line_spacing_mm(z1), 1e-6) / K;
             const PsfTable::Row& nearest = psf.row(l, k);
-            const int reach =
-                std::min(max_reach, int(std::ceil(nearest.half * nearest.dx / std::min(d0, d1))));
+            // Sub-lines 50 dB below the peak weight at both rows add nothing visible.
+            const int reach = std::min(
+                {max_reach, int(std::ceil(nearest.half * nearest.dx / std::min(d0, d1))),
+                 std::max(weights->significant_reach(l, k), weights->significant_reach(l, k + 1))});
             const std::complex<float>*w0 = weights->at(l, k), *w1 = weights->at(l, k + 1);
             const int j_first = std::max(-reach, -centre),
                       j_last = std::min(reach, sub_lines - 1 - centre);

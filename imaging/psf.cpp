@@ -229,12 +229,20 @@ std::shared_ptr<const PsfTable::SubLineWeights> PsfTable::sub_line_weights(int K
         }
     }
     w->values.resize(slots.size() * std::size_t(width));
+    w->significant.resize(slots.size());
     const probe::ScanGeometry geometry(t_);
     tbb::parallel_for(0, int(slots.size()), [&](int s) {
         const auto [l, i] = slots[std::size_t(s)];
         const double d = std::max(geometry.line_spacing_mm(i * dz_), 1e-6) / K;
         std::complex<float>* row = w->values.data() + std::size_t(s) * std::size_t(width);
         for (int j = -w->reach; j <= w->reach; ++j) row[j + w->reach] = at_row(l, i, j * d);
+        float peak = 0.0f;
+        for (int j = 0; j < width; ++j) peak = std::max(peak, std::norm(row[j]));
+        int significant = 0;
+        for (int j = -w->reach; j <= w->reach; ++j)
+            if (std::norm(row[j + w->reach]) >= SubLineWeights::kSpeckleFloor * peak)
+                significant = std::max(significant, std::abs(j));
+        w->significant[std::size_t(s)] = significant;
     });
     const std::lock_guard<std::mutex> lock(cache_mutex_);
     return sub_line_weights_.try_emplace(K, std::move(w)).first->second;

@@ -113,11 +113,18 @@ class PsfTable {
         int reach = 0, depths = 0;
         std::vector<int> slot_of;                 // [l * (depths + 1) + i] -> slot
         std::vector<std::complex<float>> values;  // [slot * (2 reach + 1) + j + reach]
-        const std::complex<float>* at(int l, int i) const {
-            const auto slot =
-                std::size_t(slot_of[std::size_t(l) * std::size_t(depths + 1) + std::size_t(i)]);
-            return values.data() + slot * std::size_t(2 * reach + 1) + std::size_t(reach);
+        // Per slot: the largest |j| whose |H|^2 is within kSpeckleFloor (50 dB) of the
+        // slot's peak. The speckle sums stop there: what lies beyond holds a few 1e-5 of
+        // the row's power (test: Speckle.SubLinesBeyondTheFloorHoldNoVisiblePower).
+        std::vector<int> significant;
+        static constexpr float kSpeckleFloor = 1e-5f;
+        std::size_t slot(int l, int i) const {
+            return std::size_t(slot_of[std::size_t(l) * std::size_t(depths + 1) + std::size_t(i)]);
         }
+        const std::complex<float>* at(int l, int i) const {
+            return values.data() + slot(l, i) * std::size_t(2 * reach + 1) + std::size_t(reach);
+        }
+        int significant_reach(int l, int i) const { return significant[slot(l, i)]; }
     };
     std::shared_ptr<const SubLineWeights> sub_line_weights(int K) const;
     // The lateral power integral on the central line at the transmit focus: speckle is

@@ -696,6 +696,33 @@ TEST(Psf, PulseAnalyticIsInPhaseAndQuadratureBitForBit) {
     EXPECT_GT(nonzero, 7000);
 }
 
+// The speckle sums stop where the sub-line weights fall 50 dB below their peak
+// (SubLineWeights::significant). A line's speckle intensity is the sum of |H_j|^2 over its
+// sub-lines, so what is left out changes it by the weights' power beyond that reach: at
+// most 1e-4 of the row's (-40 dB), on every row of the three presets.
+TEST(Speckle, SubLinesBeyondTheFloorHoldNoVisiblePower) {
+    for (const char* preset : {"convex", "linear", "phased"}) {
+        probe::Transducer t = probe::find_transducer(preset, "test");
+        t.lines = 16;
+        const auto psf = imaging::PsfTable::of(t);
+        const auto w = psf->sub_line_weights(3);
+        double worst = 0.0;
+        long trimmed = 0;
+        for (int l = 0; l < t.lines; ++l)
+            for (int i = 0; i <= psf->depths(); ++i) {
+                const int reach = w->significant_reach(l, i);
+                double kept = 0.0, dropped = 0.0;
+                for (int j = -w->reach; j <= w->reach; ++j)
+                    (std::abs(j) <= reach ? kept : dropped) += std::norm(w->at(l, i)[j]);
+                worst = std::max(worst, dropped / std::max(kept + dropped, 1e-300));
+                trimmed += reach < w->reach;
+            }
+        std::printf("%s: worst dropped power %.2e of a row's\n", preset, worst);
+        EXPECT_LT(worst, 1e-4) << preset;
+        EXPECT_GT(trimmed, 0) << preset << ": the floor should trim some rows";
+    }
+}
+
 TEST(Speckle, FourSubLinesAtATimeAddAsOneAtATime) {
     std::mt19937 rng(11);
     std::normal_distribution<float> normal;
