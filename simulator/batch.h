@@ -8,6 +8,7 @@
 
 #include "simulator/interactions.h"
 #include "simulator/rng.h"
+#include "simulator/trace_settings.h"
 
 namespace sonotrace::simulator::detail {
 
@@ -185,9 +186,9 @@ struct LaneResults {
     alignas(32) std::array<uint32_t, N> flush_texel{};
     alignas(32) std::array<float, N> flush_fluence{}, flush_absorbed{};
     // For the echo profile (StepConstants::profile): the step's start position and time,
-    // and the energy after absorption.
+    // and what it adds to the illumination and the scattered intensity (profile_terms).
     alignas(32) std::array<std::array<float, N>, Dim> start_position{};
-    alignas(32) std::array<float, N> profile_energy{};
+    alignas(32) std::array<float, N> profile_lit{}, profile_scattered{};
     alignas(32) std::array<double, N> start_time{};
 };
 
@@ -204,6 +205,8 @@ struct StepConstants {
     std::array<float, Dim> extent{};  // the domain [0, extent] per axis
     bool deposition_maps = true, absorption = true, scattering = true, refraction = true;
     bool profile = false;
+    float profile_scale = 0.0f;               // rate * step * echo fraction per backscatter^2
+    const ReceiveWeights* receive = nullptr;  // TraceSettings::receive_weights
 };
 
 // Takes the general step (what LineTracer::step does when nothing but absorption,

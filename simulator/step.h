@@ -54,6 +54,27 @@ struct StepFields {
     typename Lane::I texel;  // read only with StepConstants::deposition_maps
 };
 
+// What a step adds to the echo profile (EchoProfileSettings): to the illumination E s w
+// and to the scattered intensity E s b^2 w, with s the profile's scale, b the backscatter
+// and w = (E / E0) x return factor x receive weight the way back; in this order of
+// operations wherever a step is taken (the same bits).
+template <class Lane>
+struct ProfileTerms {
+    typename Lane::F lit, scattered;
+};
+template <class Lane>
+SONOTRACE_LANE_INLINE ProfileTerms<Lane> profile_terms(const typename Lane::F& E,
+                                                       const typename Lane::F& initial_energy,
+                                                       const typename Lane::F& return_factor,
+                                                       const typename Lane::F& receive,
+                                                       const typename Lane::F& backscatter,
+                                                       float scale) {
+    using F = typename Lane::F;
+    const F scattered = scale * backscatter * backscatter;
+    const F two_way = E / initial_energy * return_factor;
+    return {E * scale * two_way * receive, E * scattered * two_way * receive};
+}
+
 // -- the stages, in the order of a step
 
 // Deposits of the step go to the texel the particle is in: the sums of the old one are

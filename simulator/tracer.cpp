@@ -329,6 +329,8 @@ class LineTracer {
         c.scattering = scatter_enabled_;
         c.refraction = settings.refraction;
         c.profile = profile_enabled_;
+        c.profile_scale = profile_scale_;
+        c.receive = settings.receive_weights.get();
         MapView<Dim>& m = map_view_;
         m.texels = reinterpret_cast<const float*>(map.texels());
         for (int a = 0; a < Dim; ++a) {
@@ -452,8 +454,9 @@ class LineTracer {
                 const auto i = std::size_t(k);
                 V start;
                 for (std::size_t a = 0; a < Dim; ++a) start[int(a)] = results_.start_position[a][i];
-                add_to_profile(b, k, start, results_.profile_energy[i], f.backscatter[i],
-                               results_.start_time[i]);
+                add_profile_terms(start, results_.start_time[i],
+                                  {results_.profile_lit[i], results_.profile_scattered[i]},
+                                  f.backscatter[i]);
             }
         }
         if (settings_.record_paths > 0) {
@@ -524,15 +527,8 @@ class LineTracer {
     // the echo.
     void add_to_profile(const Batch<Dim>& b, int k, const V& x, float E, float backscatter,
                         double time) {
-        const double echo_time = 2.0 * time;
-        if (!(echo_time >= 0.0)) return;
-        const double bin = echo_time * inverse_profile_bin_;
-        if (bin >= double(out_->lit.size())) return;
-        // rate * step * echo fraction, each proportional to the backscatter
-        const float scattered = profile_scale_ * backscatter * backscatter;
-        const float two_way = E / b.initial_energy[k] * b.return_factor[k];
-        // The particle's next weights and bins, fetched ahead: 64 particles walk their own
-        // rows and the line's bins, too many streams for the hardware's prefetcher.
+        // The particle's next weights fetched ahead: 64 particles walk their own rows,
+        // too many streams for the hardware's prefetcher.
         const float* receive_row = b.receive_row[std::size_t(k)];
         float receive = 1.0f;
         if (receive_row != nullptr) {
@@ -541,15 +537,29 @@ class LineTracer {
             if (column + 16 < settings_.receive_weights->bins)
                 __builtin_prefetch(receive_row + column + 16);
         }
+        add_profile_terms(x, time,
+                          profile_terms<ScalarLane>(E, b.initial_energy[k], b.return_factor[k],
+                                                    receive, backscatter, profile_scale_),
+                          backscatter);
+    }
+
+    // The terms into the bin of the echo's time (twice the step's), with the position.
+    void add_profile_terms(const V& x, double time, const ProfileTerms<ScalarLane>& terms,
+                           float backscatter) {
+        const double echo_time = 2.0 * time;
+        if (!(echo_time >= 0.0)) return;
+        const double bin = echo_time * inverse_profile_bin_;
+        if (bin >= double(out_->lit.size())) return;
+        // The line's next bins fetched ahead, as the weights above.
         const auto at = std::size_t(bin);
         if (at + 8 < out_->lit.size()) __builtin_prefetch(out_->lit.data() + at + 8);
         ProfileBin<Dim>& l = out_->lit[at];
-        const double lit = double(E * profile_scale_ * two_way * receive);
+        const double lit = double(terms.lit);
         l.sum += lit;
         for (int a = 0; a < Dim; ++a) l.first[std::size_t(a)] += lit * double(x[a]);
         if (!profile_scattered_ || !(backscatter > 0.0f)) return;
         ProfileBin<Dim>& w = out_->scattered[at];
-        const double intensity = double(E * scattered * two_way * receive);
+        const double intensity = double(terms.scattered);
         w.sum += intensity;
         for (int a = 0; a < Dim; ++a) w.first[std::size_t(a)] += intensity * double(x[a]);
     }

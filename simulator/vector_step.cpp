@@ -339,7 +339,8 @@ struct VectorEvents {
     vi flush = vi{};
     LaneResults<Dim>& out;
     std::size_t at;
-    bool profile;
+    const Batch<Dim>& batch;
+    const StepConstants<Dim>& constants;
     [[gnu::always_inline]] void flush_deposits(const vi& changed, const State& p) {
         flush = changed;
         store(&out.flush_texel[at], p.pending_texel);
@@ -347,12 +348,28 @@ struct VectorEvents {
         store(&out.flush_absorbed[at], p.absorbed);
     }
     [[gnu::always_inline]] void beyond_series(const vi& m, const vf&, vf&) { to_step |= m; }
-    [[gnu::always_inline]] void scatter_profile(const State& p, const vf&) {
-        if (!profile) return;
+    [[gnu::always_inline]] void scatter_profile(const State& p, const vf& backscatter) {
+        if (!constants.profile) return;
         for (std::size_t a = 0; a < Dim; ++a) store(&out.start_position[a][at], p.x[a]);
-        store(&out.profile_energy[at], p.E);
         store(&out.start_time[at], p.time.low);
         store(&out.start_time[at + 4], p.time.high);
+        // Each lane's receive weight from its own row, and its next ones fetched ahead:
+        // 64 particles walk their own rows, too many streams for the hardware's prefetcher.
+        vf receive = vf{} + 1.0f;
+        if (const ReceiveWeights* weights = constants.receive) {
+            for (int l = 0; l < kLanes; ++l) {
+                const float* row = batch.receive_row[at + std::size_t(l)];
+                if (row == nullptr) continue;
+                const int column = weights->column(out.start_time[at + std::size_t(l)]);
+                receive[l] = row[column];
+                if (column + 16 < weights->bins) __builtin_prefetch(row + column + 16);
+            }
+        }
+        const ProfileTerms<VectorLane> terms = profile_terms<VectorLane>(
+            p.E, load<vf>(&batch.initial_energy[at]), load<vf>(&batch.return_factor[at]), receive,
+            backscatter, constants.profile_scale);
+        store(&out.profile_lit[at], terms.lit);
+        store(&out.profile_scattered[at], terms.scattered);
     }
     [[gnu::always_inline]] void scattering_event(const vi& m, State&, const vf&) { to_step |= m; }
     [[gnu::always_inline]] void interface_event(const vi& m, State&) { to_step |= m; }
@@ -394,7 +411,7 @@ template <int Dim>
         fields.backscatter = load<vf>(&f.backscatter[at]);
         fields.texel = load<vi>(&f.texel[at]);
 
-        VectorEvents<Dim> events{~load<vi>(&f.eligible[at]), vi{}, out, at, c.profile};
+        VectorEvents<Dim> events{~load<vi>(&f.eligible[at]), vi{}, out, at, b, c};
         take_step(p, fields, c, events);
         const vi to_step = events.to_step;
 
