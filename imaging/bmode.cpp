@@ -21,6 +21,7 @@
 #include "tissue/acoustic_map.h"
 #include "tissue/base/fast_math.h"
 #include "tissue/base/hash.h"
+#include "tissue/volume.h"
 
 namespace sonotrace::imaging {
 
@@ -85,11 +86,10 @@ constexpr double kC0 = tissue::kReferenceSpeed;  // m/s
 using base::mix64;
 using probe::ScanLine;
 
-// out = in (*) kernel (centred), zero outside. The interior tap by tap over all samples
-// (a loop that vectorises; each sum still adds its terms in tap order), the edges as
-// they come.
-template <typename T>
-void convolve(const T* in, int n, const std::vector<float>& kernel, T* out) {
+// out = in (*) kernel (centred), zero outside. The interior as a weighted sum of shifted
+// rows (each sum adds its terms in tap order), the edges as they come.
+void convolve(const float* in, int n, const std::vector<float>& kernel, float* out) {
+    using T = float;
     const int half = int(kernel.size() / 2), taps = int(kernel.size());
     auto edge = [&](int i) {
         const int lo = std::max(0, i - half), hi = std::min(n - 1, i + half);
@@ -100,12 +100,11 @@ void convolve(const T* in, int n, const std::vector<float>& kernel, T* out) {
     const int first = std::min(half, n),
               last = std::max(first, n - half);  // interior [first, last)
     for (int i = 0; i < first; ++i) edge(i);
-    for (int i = first; i < last; ++i) out[i] = 0;
-    for (int k = 0; k < taps; ++k) {
-        const T tap = kernel[std::size_t(k)];
-        const T* shifted = in + (k - half);
-        for (int i = first; i < last; ++i) out[i] += shifted[i] * tap;
-    }
+    // The interior: tap k's row is the input shifted by k - half, summed in tap order.
+    std::vector<const float*> rows(static_cast<std::size_t>(taps));
+    for (int k = 0; k < taps; ++k) rows[std::size_t(k)] = in + first + (k - half);
+    tissue::weighted_sum_of_rows(rows.data(), kernel.data(), taps, std::size_t(last - first),
+                                 out + first);
     for (int i = last; i < n; ++i) edge(i);
 }
 

@@ -136,11 +136,10 @@ float Volume::quantile(double q) const {
     return hi;
 }
 
-namespace {
-// out[i] = sum over taps o of w[o] rows[o][i], added in the order of o from 0. In blocks of
-// 32 samples whose sums stay in registers through all the taps (one load per tap and
-// sample, where adding each tap into `out` took a load and a store more); the order of
-// the additions is that of one tap at a time. Built for AVX2 too (no FMA: the same numbers).
+// In blocks of 32 samples whose sums stay in registers through all the taps (one load per
+// tap and sample, where adding each tap into `out` took a load and a store more); the
+// order of the additions is that of one tap at a time. Built for AVX2 too (no FMA: the
+// same numbers).
 [[gnu::target_clones("avx2", "default")]] void weighted_sum_of_rows(const float* const* rows,
                                                                     const float* w, int taps,
                                                                     std::size_t n, float* out) {
@@ -171,7 +170,6 @@ namespace {
     }
     std::copy_n(sum, rest, out + first);
 }
-}  // namespace
 
 Volume gaussian_smoothed(const Volume& volume, double sigma_mm) {
     return gaussian_smoothed(volume, glm::dvec3(sigma_mm));

@@ -85,6 +85,11 @@ class Volume {
     Voxels voxels_;
 };
 
+// out[i] = sum over taps o of w[o] rows[o][i] for i < n, added in the order of o from 0
+// (so it equals adding one tap at a time into zeros, bit for bit).
+void weighted_sum_of_rows(const float* const* rows, const float* w, int taps, std::size_t n,
+                          float* out);
+
 // The volume convolved with a Gaussian of standard deviation sigma_mm along every axis of
 // more than one voxel (separable, truncated at 3 sigma, edges replicated).
 Volume gaussian_smoothed(const Volume& volume, double sigma_mm);
