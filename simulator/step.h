@@ -14,7 +14,6 @@
 //   scatter_profile(const StepState&, F backscatter)   track-length echo and illumination
 //   scattering_event(Mask m, StepState&, F backscatter)   the optical depth reached its draw
 //   interface_event(Mask m, StepState&)                a steep gradient to search
-//   total_reflection_while_crossing(Mask m)            a bounce at a sharp interface
 //
 // The scalar step's events do the work there and then (LineTracer::ScalarEvents); the
 // vector stage's mark the lane for the scalar step, which then takes the whole step again
@@ -217,12 +216,19 @@ SONOTRACE_LANE_INLINE void take_step(StepState<Lane, Dim>& p, const StepFields<L
                                    f.grad_refractive_index[a] * inverse_length);
             const LaneRefraction<Lane, Dim> bent = refract<Lane, Dim>(p.r, normal, n0 / n1);
             p.r = select(bends, bent.direction, p.r);
-            // Total reflection at a sharp interface is a bounce; in a graded medium it is
-            // the ray's turning point (the fibre's particles turn at every period). Either
-            // way the particle stays on the n0 side.
+            // No solution is the ray's turning point in a graded medium (the fibre's
+            // particles turn at every period): the particle stays on the n0 side. Inside
+            // a sharp crossing too: the interface's one decision was to transmit (total
+            // reflection there is decide_reflection's bounce), so a turn means the index
+            // changes off the interface normal (bone's own texture, or a smoothed soft
+            // side); the crossing ends and the field's gradient bends from there. Were it
+            // a bounce, the fixed normal would turn the particle at every step and the
+            // bounce limit would end it after a distance set by the step length.
             const auto turns = bends & bent.total_reflection;
             p.previous_index = select(turns, n0, n1);
-            events.total_reflection_while_crossing(turns & crossing);
+            const auto ends_crossing = turns & crossing;
+            p.state = select(ends_crossing, I{} + int32_t(kGraded), p.state);
+            p.graded_steps = select(ends_crossing, I{}, p.graded_steps);
         }
     }
     move(p, s, step_time<Lane>(n1, c));

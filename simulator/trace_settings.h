@@ -121,6 +121,11 @@ struct TraceSettings {
     bool diffuse_reflection = true;
     bool scattering = true;
     bool absorption = true;
+    // At a solid's interface (faster than kSolidSpeedMin: bone, wires) part of the energy
+    // converts into the solid's shear wave (fluid_solid_fractions), which its attenuation
+    // absorbs within millimetres at imaging frequencies: absorbed where it converts. Off:
+    // fluid interfaces everywhere (total reflection past the longitudinal critical angle).
+    bool shear_conversion = true;
     int max_bounces = 64;  // reflections before a particle is retired
 
     LobeExponent lobe_exponent = LobeExponent::roughness;

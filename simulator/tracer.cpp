@@ -731,6 +731,7 @@ class LineTracer {
         // d(ln Z)/dx). Echoes and reflections are timed there, or every echo would come
         // early by that much.
         sides.middle = halfway_point(low_end, high_end, low, high);
+        sides.normal = map_.zone_normal(sides.middle, sides.normal);
         // The lobe's roughness: the rougher of the plateaus (a map of its own, sampled
         // here only).
         sides.roughness =
@@ -814,15 +815,20 @@ class LineTracer {
         // The direction the particle had on the near plateau: undo the slight
         // refraction it met in the fringe, using the conserved n sin(theta).
         const float cos_now = glm::dot(r, forward);
-        const V tangential =
-            (r - cos_now * forward) * (t.refractive_index / near_side.refractive_index);
-        const float sin_i = std::min(glm::length(tangential), 1.0f);
+        V tangential = (r - cos_now * forward) * (t.refractive_index / near_side.refractive_index);
+        // Beyond 1 the fringe's index is not the near side's (the particle came through
+        // another transition): it met the interface at grazing incidence. Kept a unit
+        // vector, or the reflected particle would fly faster than its clock.
+        const float tangential_length = glm::length(tangential);
+        if (tangential_length > 1.0f) tangential /= tangential_length;
+        const float sin_i = std::min(tangential_length, 1.0f);
         const float cos_i = std::sqrt(1.0f - sin_i * sin_i);
         const V incoming = tangential + cos_i * forward;
         const float sin_t = sin_i * near_side.refractive_index / far_side.refractive_index;
         const float cos_t = sin_t >= 1.0f ? 0.0f : std::sqrt(1.0f - sin_t * sin_t);
         if (!partial_reflection && cos_t > 0.0f) return;
-        const float R2 = reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
+        const auto [R2, converted] =
+            reflected_and_converted(near_side, far_side, sin_i, sin_t, cos_i, cos_t);
         const float c =
             settings_.diffuse_reflection ? lobe_exponent(near_side, far_side, roughness) : 1e6f;
         const double to_middle_s =
@@ -837,6 +843,11 @@ class LineTracer {
         }
         if (!(b.random[k].next() < R2)) {
             b.return_factor[k] *= 1.0f - R2;
+            if (converted > 0.0f) {  // the solid's shear wave: absorbed where it converts
+                const float lost = E * std::min(converted / (1.0f - R2), 1.0f);
+                E -= lost;
+                deposit(uint32_t(texel_index(x)), 0.0f, lost);
+            }
             return;
         }
         b.return_factor[k] *= R2;
@@ -864,6 +875,37 @@ class LineTracer {
         b.bounces[k]++;
         out_->stats.reflections++;
         if (cos_t == 0.0f) out_->stats.total_reflections++;
+    }
+
+    // The fractions of the energy an interface reflects and converts into a solid's shear
+    // wave (0 between fluids). From the fluid side, fluid_solid_fractions at the incidence;
+    // from inside the solid, by reciprocity the fluid side's at the transmitted angle:
+    // the same longitudinal share crosses, the same shear share converts (the solid-side
+    // split of the rest between reflected longitudinal and shear waves is taken as the
+    // fluid side's).
+    struct Fractions {
+        float reflected, converted;
+    };
+    Fractions reflected_and_converted(const Plateau& near_side, const Plateau& far_side,
+                                      float sin_i, float sin_t, float cos_i, float cos_t) const {
+        const float fluid_r2 =
+            reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
+        if (!settings_.shear_conversion || settings_.mode != PhysicsMode::acoustic)
+            return {fluid_r2, 0.0f};
+        auto speed = [](const Plateau& p) {
+            return tissue::kReferenceSpeed / std::max(double(p.refractive_index), 1e-9);
+        };
+        const double c_near = speed(near_side), c_far = speed(far_side);
+        const bool near_solid = c_near > kSolidSpeedMin, far_solid = c_far > kSolidSpeedMin;
+        if (near_solid == far_solid) return {fluid_r2, 0.0f};
+        const Plateau& fluid = far_solid ? near_side : far_side;
+        const Plateau& solid = far_solid ? far_side : near_side;
+        const double c_fluid = far_solid ? c_near : c_far, c_solid = far_solid ? c_far : c_near;
+        const double sin_fluid = far_solid ? double(sin_i) : double(sin_t);
+        const SolidFractions f = fluid_solid_fractions(
+            double(fluid.impedance) / c_fluid, c_fluid, double(solid.impedance) / c_solid, c_solid,
+            kShearToLongitudinalSpeed * c_solid, sin_fluid);
+        return {float(f.reflected), float(f.shear)};
     }
 
     [[gnu::noinline]] void record_echo(const Batch<Dim>& b, int k, const V& x, const V& direction,
@@ -990,12 +1032,6 @@ class LineTracer {
         }
         SONOTRACE_LANE_INLINE void interface_event(bool happens, ScalarState& p) {
             if (happens) tracer.enter_interface(b, k, t, p);
-        }
-        SONOTRACE_LANE_INLINE void total_reflection_while_crossing(bool happens) {
-            if (!happens) return;
-            b.bounces[std::size_t(k)]++;
-            tracer.out_->stats.reflections++;
-            tracer.out_->stats.total_reflections++;
         }
     };
 

@@ -373,7 +373,6 @@ struct VectorEvents {
     }
     [[gnu::always_inline]] void scattering_event(const vi& m, State&, const vf&) { to_step |= m; }
     [[gnu::always_inline]] void interface_event(const vi& m, State&) { to_step |= m; }
-    [[gnu::always_inline]] void total_reflection_while_crossing(const vi& m) { to_step |= m; }
 };
 
 // step.h's take_step() for lanes [0, lanes) in groups of eight, then the endings' masks;

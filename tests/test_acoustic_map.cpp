@@ -3,7 +3,10 @@
 // linear fields, domain test.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <numbers>
 #include <random>
 
 #include "tissue/acoustic_map.h"
@@ -337,6 +340,101 @@ TEST(SoftTissueSmoothedIndex, ZeroSigmaOrAUniformMediumChangesNothing) {
     const Volume uniform = speed_profile(64, 32, 0.25, [](double) { return 1560.0; });
     const Volume smoothed = soft_tissue_smoothed_index(uniform, 2.0);
     for (float v : smoothed.voxels()) ASSERT_NEAR(v, kReferenceSpeed / 1560.0, 1e-6);
+}
+
+// Brain with bone where `bone(x, y)` (mm) says, on a 2D grid of h = 0.25 mm, as a map of
+// the Fresnel-zone normals at sigma (AcousticMap::build's refraction smoothing).
+template <class Bone>
+AcousticMap<2> bone_in_brain(int nx, int ny, Bone bone, double sigma_mm) {
+    VolumeGeometry g;
+    g.dims = {nx, ny, 1};
+    g.spacing = glm::dvec3(0.25);
+    PropertyMaps maps;
+    for (Volume& f : maps.fields) f = Volume(g, 0.0f);
+    for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+            const bool in_bone = bone(i * 0.25, j * 0.25);
+            maps[Property::speed_of_sound].at(i, j) = in_bone ? 3500.0f : 1560.0f;
+            maps[Property::density].at(i, j) = in_bone ? 1900.0f : 1040.0f;
+        }
+    return AcousticMap<2>::build(maps, sigma_mm);
+}
+
+glm::vec2 local_normal(const AcousticMap<2>& map, glm::vec2 p) {
+    const auto t = map.sample(p);
+    return glm::normalize(glm::vec2(t.grad_impedance[0], t.grad_impedance[1]));
+}
+
+double degrees_between(glm::vec2 a, glm::vec2 b) {
+    return glm::degrees(std::acos(std::clamp(double(glm::dot(a, b)), -1.0, 1.0)));
+}
+
+// A bone surface tilted by 12 or 45 degrees as an MRI gives it, in steps of its 1 mm
+// voxels: the texels' own normals point along the steps (up to 30-45 degrees off the
+// surface's); the zone normal is the surface's, (-sin t, cos t), within 2 degrees (the
+// steps' residue over a zone of sigma = 3 mm), with the local normal's sign.
+TEST(ZoneNormal, AVoxelStaircaseTurnsToItsPlane) {
+    for (const double degrees : {12.0, 45.0}) {
+        const double tilt = glm::radians(degrees);
+        auto surface_y = [&](double x) {  // the step's middle above 1 mm voxel columns
+            return 25.0 + std::floor((std::floor(x) + 0.5 - 30.0) * std::tan(tilt)) + 0.5;
+        };
+        const auto map = bone_in_brain(
+            240, 240, [&](double x, double y) { return y > surface_y(x); }, 3.0);
+        const glm::vec2 plane(float(-std::sin(tilt)), float(std::cos(tilt)));
+        double worst_local = 0.0, worst_zone = 0.0;
+        for (double x = 22.0; x <= 38.0; x += 0.37) {
+            const glm::vec2 p{float(x), float(surface_y(x))};
+            const glm::vec2 local = local_normal(map, p);
+            const glm::vec2 zone = map.zone_normal(p, local);
+            worst_local = std::max(worst_local, degrees_between(local, plane));
+            worst_zone = std::max(worst_zone, degrees_between(zone, plane));
+            ASSERT_GT(glm::dot(zone, local), 0.0f) << "the local normal's sign";
+        }
+        std::printf(
+            "%.0f degree staircase: texels' normals up to %.1f deg off the plane, zone "
+            "normals %.2f\n",
+            degrees, worst_local, worst_zone);
+        EXPECT_GT(worst_local, 10.0) << "the steps should turn the texels' normals";
+        EXPECT_LT(worst_zone, 2.0) << degrees;
+    }
+}
+
+// A plate of bone 1.5 mm thick tilted by 20 degrees (a thin temporal squama): the zone
+// normal of each face is the plate's, pointing as that face's own (grad Z into the bone:
+// opposite on the two faces), not cancelled by the other face within the zone.
+TEST(ZoneNormal, AThinPlateKeepsEachFacesSign) {
+    const double tilt = glm::radians(20.0), c = std::cos(tilt), s = std::sin(tilt);
+    auto across = [&](double x, double y) { return -s * (x - 30.0) + c * (y - 25.0); };
+    const auto map = bone_in_brain(
+        240, 200, [&](double x, double y) { return std::abs(across(x, y)) < 0.75; }, 3.0);
+    const glm::vec2 plane(float(-s), float(c));
+    for (double t = -8.0; t <= 8.0; t += 1.3) {
+        for (const double face : {-0.75, 0.75}) {
+            const glm::vec2 p(float(30.0 + c * t - s * face), float(25.0 + s * t + c * face));
+            const glm::vec2 local = local_normal(map, p);
+            const glm::vec2 zone = map.zone_normal(p, local);
+            const glm::vec2 expected = face < 0.0 ? plane : -plane;  // into the bone
+            EXPECT_LT(degrees_between(zone, expected), 2.0) << "t " << t << ", face " << face;
+        }
+    }
+}
+
+// A bone body smaller than the zone (a disc 1.5 mm across, sigma 3 mm) has no orientation
+// of its own at that scale: its texels keep their normals. A map built without smoothing
+// has no zone normals at all.
+TEST(ZoneNormal, ABodySmallerThanTheZoneAndAnUnsmoothedMapKeepTheirOwnNormals) {
+    auto disc = [](double x, double y) { return std::hypot(x - 20.0, y - 20.0) < 0.75; };
+    for (const double sigma : {3.0, 0.0}) {
+        const auto map = bone_in_brain(160, 160, disc, sigma);
+        for (int k = 0; k < 16; ++k) {
+            const double a = 2.0 * std::numbers::pi * k / 16.0;
+            const glm::vec2 p(float(20.0 + 0.75 * std::cos(a)), float(20.0 + 0.75 * std::sin(a)));
+            const glm::vec2 local = local_normal(map, p);
+            const glm::vec2 zone = map.zone_normal(p, local);
+            EXPECT_EQ(zone, local) << "sigma " << sigma << ", angle " << k;
+        }
+    }
 }
 
 }  // namespace

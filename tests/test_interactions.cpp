@@ -116,6 +116,50 @@ TEST(ReflectedFraction, LimitsAndReciprocity) {
     }
 }
 
+// A fluid onto a solid (fluid_solid_fractions). Soft tissue (1060 kg/m^3, 1540 m/s) onto
+// cortical bone (1900 kg/m^3, 3500 m/s, shear 0.53 x 3500 m/s); critical angles 26.1
+// (longitudinal) and 56.1 degrees (shear).
+TEST(FluidSolid, LimitsConservationAndTheWindowBetweenTheCriticalAngles) {
+    const double rho1 = 1060.0, c1 = 1540.0, rho2 = 1900.0, c_l = 3500.0, c_s = 0.53 * 3500.0;
+    // Normal incidence: no shear, the fluid's ((Z2 - Z1) / (Z2 + Z1))^2.
+    const SolidFractions normal = fluid_solid_fractions(rho1, c1, rho2, c_l, c_s, 0.0);
+    const double z1 = rho1 * c1, z2 = rho2 * c_l;
+    EXPECT_NEAR(normal.reflected, std::pow((z2 - z1) / (z2 + z1), 2), 1e-12);
+    EXPECT_NEAR(normal.shear, 0.0, 1e-12);
+    // The three shares are separate formulas: their sum is 1 at every angle only if each
+    // is right (the energy fluxes across the interface balance).
+    for (int degrees = 0; degrees < 90; ++degrees) {
+        const double sin1 = std::sin(degrees * std::numbers::pi / 180.0);
+        const SolidFractions f = fluid_solid_fractions(rho1, c1, rho2, c_l, c_s, sin1);
+        EXPECT_NEAR(f.reflected + f.longitudinal + f.shear, 1.0, 1e-9) << degrees;
+        // Past the longitudinal critical angle the solid's longitudinal wave carries
+        // nothing; past the shear one, everything reflects.
+        if (degrees > 27) {
+            EXPECT_NEAR(f.longitudinal, 0.0, 1e-12) << degrees;
+        }
+        if (degrees > 57) {
+            EXPECT_NEAR(f.reflected, 1.0, 1e-9) << degrees;
+        }
+    }
+    // Between them, most goes into shear: at 40 degrees 0.186 reflects and 0.814 converts
+    // (the same formulas evaluated separately in Python's complex arithmetic).
+    const SolidFractions window =
+        fluid_solid_fractions(rho1, c1, rho2, c_l, c_s, std::sin(40.0 * std::numbers::pi / 180.0));
+    EXPECT_NEAR(window.reflected, 0.18596, 1e-4);
+    EXPECT_NEAR(window.shear, 0.81404, 1e-4);
+    // A solid without rigidity (c_s -> 0) is a fluid: the fluid interface's R^2 before
+    // the critical angle, total reflection after it.
+    for (int degrees = 0; degrees < 90; degrees += 3) {
+        const double t1 = degrees * std::numbers::pi / 180.0, sin_t = std::sin(t1) * c_l / c1;
+        const SolidFractions f = fluid_solid_fractions(rho1, c1, rho2, c_l, 1e-6, std::sin(t1));
+        const double expected =
+            sin_t >= 1.0 ? 1.0
+                         : double(reflected_fraction(float(z1), float(z2), float(std::cos(t1)),
+                                                     float(std::sqrt(1.0 - sin_t * sin_t))));
+        EXPECT_NEAR(f.reflected, expected, 1e-5) << degrees;
+    }
+}
+
 using test::chi_square;
 
 class Lobe2D : public ::testing::TestWithParam<float> {};

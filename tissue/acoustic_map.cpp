@@ -105,11 +105,140 @@ Volume soft_tissue_smoothed_index(const Volume& speed, double sigma_mm) {
 template <int Dim>
 AcousticMap<Dim> AcousticMap<Dim>::build(const PropertyMaps& maps, double refraction_smoothing_mm) {
     const Volume& speed = maps[Property::speed_of_sound];
-    return pack(refraction_smoothing_mm > 0.0
-                    ? soft_tissue_smoothed_index(speed, refraction_smoothing_mm)
-                    : refractive_index_of(speed),
-                maps.impedance(), &maps[Property::attenuation], &maps[Property::backscatter],
-                &maps[Property::roughness]);
+    AcousticMap map = pack(refraction_smoothing_mm > 0.0
+                               ? soft_tissue_smoothed_index(speed, refraction_smoothing_mm)
+                               : refractive_index_of(speed),
+                           maps.impedance(), &maps[Property::attenuation],
+                           &maps[Property::backscatter], &maps[Property::roughness]);
+    if (refraction_smoothing_mm > 0.0) map.average_zone_gradients(refraction_smoothing_mm);
+    return map;
+}
+
+template <int Dim>
+void AcousticMap<Dim>::average_zone_gradients(double sigma_mm) {
+    constexpr int kTensor = Dim * (Dim + 1) / 2;  // xx, xy, yy or xx, xy, xz, yy, yz, zz
+    // On a grid of the MRI's scale (kZoneCell): the zone spans millimetres, and the map's
+    // own texels made these averages most of a frame's map.
+    VolumeGeometry coarse;
+    coarse.dims = glm::ivec3(1);
+    for (int a = 0; a < Dim; ++a) {
+        zone_block_[a] = std::max(1, int(std::lround(kZoneCell / spacing_[a])));
+        coarse.dims[a] = (dims_[a] + zone_block_[a] - 1) / zone_block_[a];
+        coarse.spacing[a] = double(spacing_[a]) * zone_block_[a];
+        zone_dims_[a] = coarse.dims[a];
+    }
+    const std::size_t cells = coarse.voxel_count();
+    auto parallel = [&](auto body) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cells, 1024), [&](const auto& r) {
+            for (std::size_t v = r.begin(); v != r.end(); ++v) body(v);
+        });
+    };
+    // grad Z at the MRI's scale: each cell's mean over its texels, smoothed by a
+    // millimetre, so a voxel staircase is the slope it steps along.
+    std::array<Volume, Dim> g0;
+    for (auto& part : g0) part = Volume(coarse);
+    parallel([&](std::size_t c) {
+        IVec cell, lo, hi;
+        std::size_t rest = c;
+        for (int a = 0; a < Dim; ++a) {
+            cell[a] = int(rest % std::size_t(zone_dims_[a]));
+            rest /= std::size_t(zone_dims_[a]);
+            lo[a] = cell[a] * zone_block_[a];
+            hi[a] = std::min(lo[a] + zone_block_[a], dims_[a]);
+        }
+        Vec sum(0.0f);
+        int count = 0;
+        IVec i = lo;
+        while (true) {
+            for (int a = 0; a < Dim; ++a) sum[a] += texel(i).grad_impedance[a];
+            ++count;
+            int a = 0;
+            for (; a < Dim; ++a) {
+                if (++i[a] < hi[a]) break;
+                i[a] = lo[a];
+            }
+            if (a == Dim) break;
+        }
+        for (int a = 0; a < Dim; ++a) g0[std::size_t(a)].voxels()[c] = sum[a] / float(count);
+    });
+    for (auto& part : g0) part = gaussian_smoothed_coarse(part, std::min(1.0, sigma_mm));
+    auto gradient = [&](std::size_t c) {
+        Vec g;
+        for (int a = 0; a < Dim; ++a) g[a] = g0[std::size_t(a)].voxels()[c];
+        return g;
+    };
+    // The zone's orientation: the smoothed structure tensor.
+    std::array<Volume, kTensor> tensor;
+    for (auto& part : tensor) part = Volume(coarse);
+    parallel([&](std::size_t c) {
+        const Vec g = gradient(c);
+        int k = 0;
+        for (int a = 0; a < Dim; ++a)
+            for (int b = a; b < Dim; ++b) tensor[std::size_t(k++)].voxels()[c] = g[a] * g[b];
+    });
+    for (auto& part : tensor) part = gaussian_smoothed_coarse(part, sigma_mm);
+    // Each cell's gradient turned into the half-space of that orientation (its axis by
+    // power iteration from the gradient itself, signed by a fixed rule), and |grad Z|,
+    // then averaged.
+    std::array<Volume, Dim + 1> turned;
+    for (auto& part : turned) part = Volume(coarse);
+    parallel([&](std::size_t c) {
+        const Vec g = gradient(c);
+        glm::mat<Dim, Dim, float> J;
+        int k = 0;
+        for (int a = 0; a < Dim; ++a)
+            for (int b = a; b < Dim; ++b) J[a][b] = J[b][a] = tensor[std::size_t(k++)].voxels()[c];
+        Vec axis = g;
+        for (int n = 0; n < 8 && glm::dot(axis, axis) > 0.0f; ++n) axis = glm::normalize(J * axis);
+        // One sign for the axis wherever it points about the same way: into +y (the
+        // frames' depth), or where it lies across y, into +x (then +z).
+        const int leading = std::abs(axis[1]) >= 0.2f                ? 1
+                            : (Dim == 3 && std::abs(axis[0]) < 0.2f) ? Dim - 1
+                                                                     : 0;
+        if (axis[leading] < 0.0f) axis = -axis;
+        const float side = glm::dot(g, axis) < 0.0f ? -1.0f : 1.0f;
+        for (int a = 0; a < Dim; ++a) turned[std::size_t(a)].voxels()[c] = side * g[a];
+        turned[Dim].voxels()[c] = glm::length(g);
+    });
+    for (auto& part : turned) part = gaussian_smoothed_coarse(part, sigma_mm);
+    zone_gradient_.resize(cells);
+    for (std::size_t c = 0; c < cells; ++c)
+        for (int k = 0; k <= Dim; ++k)
+            zone_gradient_[c][std::size_t(k)] = turned[std::size_t(k)].voxels()[c];
+}
+
+template <int Dim>
+typename AcousticMap<Dim>::Vec AcousticMap<Dim>::zone_normal(const Vec& p_mm,
+                                                             const Vec& local) const {
+    if (zone_gradient_.empty()) return local;
+    // Interpolated between the cells' centres (multilinear, clamped to the edge cells).
+    IVec i0;
+    Vec f;
+    for (int a = 0; a < Dim; ++a) {
+        const float cell_mm = spacing_[a] * float(zone_block_[a]);
+        const float centre_offset = 0.5f * float(zone_block_[a] - 1) * spacing_[a];
+        const float u =
+            std::clamp((p_mm[a] - centre_offset) / cell_mm, 0.0f, float(zone_dims_[a] - 1));
+        i0[a] = std::min(int(u), std::max(zone_dims_[a] - 2, 0));
+        f[a] = u - float(i0[a]);
+    }
+    std::array<float, Dim + 1> z{};
+    for (int corner = 0; corner < (1 << Dim); ++corner) {
+        float w = 1.0f;
+        std::size_t at = 0, stride = 1;
+        for (int a = 0; a < Dim; ++a) {
+            const bool upper = (corner >> a) & 1;
+            w *= upper ? f[a] : 1.0f - f[a];
+            at += std::size_t(std::min(i0[a] + int(upper), zone_dims_[a] - 1)) * stride;
+            stride *= std::size_t(zone_dims_[a]);
+        }
+        for (int k = 0; k <= Dim; ++k) z[std::size_t(k)] += w * zone_gradient_[at][std::size_t(k)];
+    }
+    Vec mean;
+    for (int a = 0; a < Dim; ++a) mean[a] = z[std::size_t(a)];
+    const float length = glm::length(mean);
+    if (!(length >= kZoneCoherence * z[Dim]) || !(length > 0.0f)) return local;
+    return glm::dot(mean, local) >= 0.0f ? mean / length : -mean / length;
 }
 
 template <int Dim>

@@ -19,6 +19,7 @@
 // border, and averaged over the neighbours across the other axes with weights 1/4, 1/2,
 // 1/4 (Sobel) for direction accuracy at oblique interfaces (see acoustic_map.cpp).
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstring>
 #include <vector>
@@ -149,6 +150,23 @@ class AcousticMap {
     // Fraction of blocks that are uniform (for benchmarks and logs).
     double uniform_block_fraction() const;
 
+    // A sharp interface's normal as a beam sees it: the orientation of the interfaces
+    // around p averaged over the Fresnel zone (build's refraction_smoothing_mm), signed
+    // like `local` (the interface's own normal at p), or `local` itself where no
+    // orientation dominates there (a body smaller than the zone) or the map has none.
+    // Why: a ray stands for a beam whose wavefront spans the zone; the MRI's voxel-scale
+    // jags in a skull surface aberrate that wavefront's phase, they do not turn the beam
+    // by the jags' own angles. The average is of grad Z, each texel's turned into the
+    // half-space of the zone's dominant orientation (the axis of the smoothed structure
+    // tensor g g^T) first: the two faces of a thin plate then add where they would cancel,
+    // and the steps of a staircase keep their mean tilt, which the tensor's axis alone
+    // pulls towards the grid's axes. Gradients are taken at the MRI's scale (1 mm), so a
+    // voxel staircase is the slope it steps along. Dominant: the average holds at least
+    // kZoneCoherence of the average of |grad Z| (directions spread evenly over a circle
+    // and turned into one half hold 2 / pi).
+    static constexpr float kZoneCoherence = 0.8f;
+    Vec zone_normal(const Vec& p_mm, const Vec& local) const;
+
   private:
     std::size_t linear(const IVec& i) const;
     void locate(const Vec& p_mm, IVec* i0, Vec* f) const;
@@ -178,6 +196,13 @@ class AcousticMap {
     std::vector<int32_t> block_record_;
     std::vector<AcousticTexel<Dim>> uniform_records_;
     void find_uniform_blocks();
+    // Per cell of a grid of blocks of zone_block_ texels (about kZoneCell), over the
+    // Fresnel zone (zone_normal): the average of the turned grad Z (Dim components) and of
+    // |grad Z|; empty without smoothing.
+    static constexpr float kZoneCell = 1.0f;  // mm: the MRI's voxel, which the zone averages
+    IVec zone_block_{}, zone_dims_{};
+    std::vector<std::array<float, Dim + 1>> zone_gradient_;
+    void average_zone_gradients(double sigma_mm);
 };
 
 // ---- inline hot path: sampling is called once per particle step ----
