@@ -10,6 +10,9 @@
 //   --clear MM                 how far from other labels the interior and parenchyma lie (1)
 //   --temporal, --depth MM     the temporal view (phased probe through the skull), its depth
 //   --smoothing MM             SimulationSettings::refraction_smoothing_mm (the probe's)
+//   --step T                   the tracer's step in map texels (0: the quality's)
+//   --max-bounces N            reflections before a particle is retired (TraceSettings)
+//   --stats                    each frame's trace counts (steps, interfaces, reflections)
 //   --nominal                  the truth at c0 t / 2 instead of through the speed map
 //   --variant K                only the K-th variant of the list in main()
 // What is shown besides:
@@ -20,6 +23,9 @@
 //                              below the 99.5th percentile), interior samples marked
 //   --line L FROM TO           labels and map fields along line L, and its |H|^2 across
 //   --at X Y                   the map's fields at a point of the map frame (repeatable)
+//   --paths L FILE             line L's particle paths over the impedance (PNG, first seed)
+//   --events L FROM TO         line L's strongest reflection echoes placed FROM-TO mm deep
+//                              (L = 9999: every line), and their sum by bounce count
 //
 // Truth: each envelope sample's position is found by walking its scan line through the
 // map's speed of sound (echo time = 2/c0 x the integral of n = c0/c), not at c0 t / 2:
@@ -40,9 +46,11 @@
 
 #include "imaging/anatomy_truth.h"
 #include "imaging/colin27.h"
+#include "imaging/picture.h"
 #include "imaging/psf.h"
 #include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
+#include "imaging/trace_pictures.h"
 #include "probe/aperture.h"
 #include "tissue/image_io.h"
 #include "tissue/tissue_table.h"
@@ -55,6 +63,9 @@ struct Options {
     double from_mm = 40.0;
     bool nominal = false;                // truth at c0 t / 2 instead of through the speed map
     std::optional<double> smoothing_mm;  // the refraction smoothing; unset: the probe's
+    double step_texels = 0.0;            // the tracer's step; 0: the quality's
+    int max_bounces = -1;                // --max-bounces; -1: the tracer's
+    bool stats = false;                  // --stats: the trace's counts per frame
     int seeds = 1;                       // frames of seeds first_seed.., their intensities summed
     int first_seed = 1;                  // --first-seed
     int variant = -1;                    // only this variant (index into the list in main), -1: all
@@ -68,9 +79,21 @@ struct Options {
     double depth_mm = 0.0;  // imaging depth; 0: the preset's
     double clear_mm = 1.0;  // the interior's and the parenchyma's distance from other labels
     int probe_line = -1;    // print labels and map fields along this line
+    int path_line = -1;     // --paths: draw this line's particle paths
+    std::string path_picture;
+    int event_line = -1;  // --events
+    double event_from = 0.0, event_to = 0.0;
     double probe_from = 0.0,
            probe_to = 0.0;  // a PNG of the first variant's envelope (dB), interior samples marked
 };
+
+// The largest launch energy of a set of paths (the colour scale's full blue).
+float path_energy(const std::vector<simulator::Path<2>>& paths) {
+    float e = 0.0f;
+    for (const auto& p : paths)
+        if (!p.vertices.empty()) e = std::max(e, p.vertices.front().energy);
+    return e;
+}
 
 double measure(const imaging::Scene& head, const char* what,
                const imaging::PhysicsSwitches& physics, const Options& o) {
@@ -81,6 +104,8 @@ double measure(const imaging::Scene& head, const char* what,
     head.apply_to(s);
     imaging::apply(physics, s);
     s.refraction_smoothing_mm = o.smoothing_mm;
+    s.step_texels = o.step_texels;
+    if (o.max_bounces >= 0) s.trace.max_bounces = o.max_bounces;
     constexpr int kBands = 60;
     constexpr double kBandMm = 2.0;
     std::vector<double> in(kBands), out(kBands);
@@ -104,8 +129,68 @@ double measure(const imaging::Scene& head, const char* what,
         imaging::prepare_plane(maps, grid, scene, 5.0, &labels);
         const auto map = imaging::frame_map(maps, s);
         const auto psf = imaging::PsfTable::of(s.transducer);
+        if (o.path_line >= 0) {
+            s.trace.record_paths = imaging::quality_level(s.quality).particles_per_line;
+            s.trace.record_paths_line_stride = 1;
+        }
+        s.keep_echoes = o.event_line >= 0;
         const imaging::Frame f = imaging::simulate_frame(map, grid, scene.pose, s);
+        if (o.event_line >= 0 && seed == o.first_seed) {  // E R^2 (return) of the echoes there
+            std::vector<simulator::EchoEvent<2>> there;
+            for (const auto& e : f.echoes) {
+                const double depth = tissue::kReferenceSpeed * 1e3 * e.time_s;
+                if ((o.event_line == 9999 || int(e.line) == o.event_line) &&
+                    depth >= o.event_from && depth <= o.event_to)
+                    there.push_back(e);
+            }
+            double by_bounces[3] = {0.0, 0.0, 0.0};  // 0, 1, more
+            for (const auto& e : there)
+                by_bounces[std::min<int>(e.bounces, 2)] +=
+                    double(e.energy) * e.weight * e.return_weight;
+            std::printf("  E R^2 return by bounces: 0: %.3g  1: %.3g  more: %.3g\n", by_bounces[0],
+                        by_bounces[1], by_bounces[2]);
+            int non_unit = 0;
+            for (const auto& e : f.echoes) non_unit += glm::length(e.direction) > 1.01f;
+            std::printf("  %d of %zu echoes arrive with a direction longer than 1\n", non_unit,
+                        f.echoes.size());
+            auto strength = [](const simulator::EchoEvent<2>& e) {
+                return double(e.energy) * e.weight * e.return_weight;
+            };
+            std::sort(there.begin(), there.end(),
+                      [&](const auto& a, const auto& b) { return strength(a) > strength(b); });
+            for (std::size_t n = 0; n < std::min<std::size_t>(there.size(), 15); ++n) {
+                const auto& e = there[n];
+                std::printf(
+                    "  echo: particle %2u at %6.2f mm, kind %d, bounces %u, E R^2 return %.3g "
+                    "(E %.3g, R^2 %.3g, return %.3g), at map (%.1f %.1f), cos %.2f, lobe %.3g, "
+                    "arriving (%.2f %.2f)\n",
+                    e.particle, tissue::kReferenceSpeed * 1e3 * e.time_s, int(e.kind),
+                    unsigned(e.bounces), strength(e), e.energy, e.weight, e.return_weight,
+                    e.position.x, e.position.y, e.cos_incidence, e.lobe_exponent, e.direction.x,
+                    e.direction.y);
+            }
+        }
+        if (o.path_line >= 0 && seed == o.first_seed) {
+            std::vector<simulator::Path<2>> paths;
+            for (const auto& path : f.paths)
+                if (int(path.line) == o.path_line) paths.push_back(path);
+            imaging::PathStyle style;
+            style.reference_energy =
+                paths.empty() || path_energy(paths) <= 0.0f ? 1.0f : path_energy(paths);
+            imaging::write_png(imaging::draw_paths(maps.impedance(), paths, style), o.path_picture);
+            std::printf("  %zu paths of line %d drawn to %s\n", paths.size(), o.path_line,
+                        o.path_picture.c_str());
+        }
         const imaging::LineData& env = f.envelope;
+        if (o.stats)
+            std::printf(
+                "  stats: particles %llu steps %llu interface %llu reflections %llu total %llu "
+                "scatter %llu\n",
+                (unsigned long long)f.stats.particles, (unsigned long long)f.stats.steps,
+                (unsigned long long)f.stats.interface_events,
+                (unsigned long long)f.stats.reflections,
+                (unsigned long long)f.stats.total_reflections,
+                (unsigned long long)f.stats.scatter_events);
         picture = env;
         interior.clear();
         const probe::ScanGeometry g(s.transducer);
@@ -237,6 +322,12 @@ int main(int argc, char** argv) {
             o.from_mm = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--smoothing") && a + 1 < argc) {
             o.smoothing_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--stats")) {
+            o.stats = true;
+        } else if (!std::strcmp(argv[a], "--max-bounces") && a + 1 < argc) {
+            o.max_bounces = std::atoi(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--step") && a + 1 < argc) {
+            o.step_texels = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--first-seed") && a + 1 < argc) {
             o.first_seed = std::max(1, std::atoi(argv[++a]));
         } else if (!std::strcmp(argv[a], "--seeds") && a + 1 < argc) {
@@ -247,6 +338,13 @@ int main(int argc, char** argv) {
             o.probe_line = std::atoi(argv[++a]);
             o.probe_from = std::atof(argv[++a]);
             o.probe_to = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--paths") && a + 2 < argc) {
+            o.path_line = std::atoi(argv[++a]);
+            o.path_picture = argv[++a];
+        } else if (!std::strcmp(argv[a], "--events") && a + 3 < argc) {
+            o.event_line = std::atoi(argv[++a]);
+            o.event_from = std::atof(argv[++a]);
+            o.event_to = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--clear") && a + 1 < argc) {
             o.clear_mm = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--at") && a + 2 < argc) {

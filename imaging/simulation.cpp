@@ -61,6 +61,9 @@ const std::vector<PhysicsSwitchName>& physics_switch_names() {
         {"diffuse", &PhysicsSwitches::diffuse_reflection, "the rough interfaces' reflection lobes"},
         {"scattering", &PhysicsSwitches::scattering, "sub-resolution scattering events"},
         {"attenuation", &PhysicsSwitches::attenuation, "absorption along the paths"},
+        {"shear", &PhysicsSwitches::shear_conversion,
+         "the shear wave a solid (bone) takes at its interfaces (off: total reflection past "
+         "the critical angle)"},
         {"bounces", &PhysicsSwitches::multiple_bounces,
          "paths after the first reflection (reverberation, mirror images)"},
         {"face", &PhysicsSwitches::face_reflection, "the probe face's reflection (capture model)"},
@@ -98,6 +101,7 @@ void apply(const PhysicsSwitches& physics, SimulationSettings& s) {
     t.diffuse_reflection = physics.diffuse_reflection;
     t.scattering = physics.scattering;
     t.absorption = physics.attenuation;
+    t.shear_conversion = physics.shear_conversion;
     t.max_bounces = physics.multiple_bounces ? 64 : 0;  // 0: retired at the first reflection
     if (!physics.face_reflection) s.transducer.face_reflectivity = 0.0;
     s.imaging.speckle = physics.speckle;
@@ -540,6 +544,7 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
         frame.rf = synthesize_rf(t, plane_sources, echoes, plane_profile, map_to_world(pose, grid),
                                  imaging, points, trace.receive_weights, &plane);
     });
+    if (settings.keep_echoes) frame.echoes = std::move(echoes);
     stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
     stage("compression", [&] { frame.display = compress(frame.envelope, imaging); });
     stage("scan conversion",

@@ -49,6 +49,7 @@ struct PhysicsSwitches {
     bool diffuse_reflection = true;
     bool scattering = true;
     bool attenuation = true;
+    bool shear_conversion = true;  // solids' shear waves take their share at interfaces
     bool multiple_bounces = true;  // off: a particle ends at its first reflection (echo kept)
     bool face_reflection = true;   // capture receive model: the face reflects part back
     bool speckle = true;           // the image's sub-resolution scatterer field
@@ -103,6 +104,9 @@ struct SimulationSettings {
     // spans (slab_grid), launched over the elevation aperture through the lens, their
     // echoes weighted by the lens's receive, so the frame integrates over the slice.
     int trace_dimensions = 2;
+    // Keep the reflection echoes the image is made from in Frame::echoes (analysis:
+    // which events light a region).
+    bool keep_echoes = false;
 
     // Throws base::InputError naming the first bad parameter.
     void validate(const std::string& source) const;
@@ -155,7 +159,8 @@ struct Frame {
     // Energy deposition map on the grid of the plane, up to the close of the echo window
     // (empty if SimulationSettings::trace.deposition_maps is off).
     tissue::Volume absorbed;
-    std::vector<simulator::Path<2>> paths;  // SimulationSettings::trace.record_paths per line
+    std::vector<simulator::Path<2>> paths;        // SimulationSettings::trace.record_paths per line
+    std::vector<simulator::EchoEvent<2>> echoes;  // SimulationSettings::keep_echoes
     nlohmann::json timings = nlohmann::json::object();  // seconds per stage
 };
 

@@ -89,12 +89,15 @@ void apply_disable(const std::string& disable, simulator::TraceSettings& s) {
             s.scattering = false;
         else if (item == "absorption")
             s.absorption = false;
+        else if (item == "shear")
+            s.shear_conversion = false;
         else if (item == "bounces")
             s.max_bounces = 1;
         else if (!item.empty()) {
             throw base::InputError(
                 "--disable", item,
-                "unknown switch (refraction, specular, diffuse, scattering, absorption, bounces)");
+                "unknown switch (refraction, specular, diffuse, scattering, absorption, shear, "
+                "bounces)");
         }
     }
 }
