@@ -289,8 +289,9 @@ double measure(const imaging::Scene& head, const char* what,
         const std::size_t u = std::size_t(b);
         if (n_in[u] < 20 || n_out[u] < 20) continue;
         sum_in += in[u], expected += n_in[u] * out[u] / n_out[u];
-        std::printf("  %3.0f-%3.0f mm: %5d interior, %6d parenchyma samples: %6.1f dB", b * kBandMm,
-                    (b + 1) * kBandMm, n_in[u], n_out[u],
+        std::printf("  %3.0f-%3.0f mm: %5d interior, %6d parenchyma samples (%6.1f dB): %6.1f dB",
+                    b * kBandMm, (b + 1) * kBandMm, n_in[u], n_out[u],
+                    10.0 * std::log10(out[u] / n_out[u] + 1e-30),
                     10.0 * std::log10(in[u] / n_in[u] / (out[u] / n_out[u]) + 1e-30));
         if (o.ideal)
             std::printf(

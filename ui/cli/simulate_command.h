@@ -15,7 +15,7 @@ namespace sonotrace::ui {
 inline constexpr ParameterDoc kQualityDoc = {
     "--quality", "",
     "interactive (0.5 mm map, 8 particles per line, whole-texel steps, speckle sub-lines 1.5 "
-    "beam sigmas apart), standard (0.25 mm, 32, half-texel steps, 1 sigma), high (0.125 mm, "
+    "beam sigmas apart), standard (0.25 mm, 32, whole-texel steps, 1 sigma), high (0.125 mm, "
     "128, half-texel steps, 1 sigma)"};
 inline constexpr ParameterDoc kReceiveDoc = {
     "--receive", "",
