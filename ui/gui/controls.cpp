@@ -104,6 +104,9 @@ std::string switch_help(Control control) {
             return simulator::doc::kScatteringRate;
         case Control::attenuation:
             return "absorption alpha f along the path (dB/(cm MHz) of each tissue)";
+        case Control::shear_conversion:
+            return "bone takes part of the energy as its shear wave at its interfaces, absorbed "
+                   "within millimetres; off: total reflection past the critical angle";
         case Control::multiple_bounces:
             return "off: a particle ends at its first reflection (whose echo still counts): "
                    "no mirror images, no reverberation, only direct echoes";

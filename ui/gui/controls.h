@@ -18,6 +18,7 @@ enum class Control {
     diffuse_reflection,
     scattering,
     attenuation,
+    shear_conversion,
     multiple_bounces,
     face_reflection,
     receive,

@@ -629,6 +629,8 @@ void App::draw_controls(float x, float y, float w, float h) {
         ImGui::TableNextColumn();
         toggle(Control::attenuation, "attenuation", &s.attenuation);
         ImGui::TableNextColumn();
+        toggle(Control::shear_conversion, "shear waves in bone", &s.shear_conversion);
+        ImGui::TableNextColumn();
         toggle(Control::multiple_bounces, "multiple bounces", &s.multiple_bounces);
         ImGui::TableNextColumn();
         ImGui::BeginDisabled(parameters_.receive != imaging::ReceiveModel::capture);
@@ -989,6 +991,7 @@ void App::save_frame() {
               {"diffuse_reflection", parameters_.physics.diffuse_reflection},
               {"scattering", parameters_.physics.scattering},
               {"attenuation", parameters_.physics.attenuation},
+              {"shear_conversion", parameters_.physics.shear_conversion},
               {"multiple_bounces", parameters_.physics.multiple_bounces},
               {"receive", imaging::to_string(frame_->settings.receive)}}},
             {"timings_s", frame_->frame.timings}};
