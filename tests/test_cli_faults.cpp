@@ -157,15 +157,16 @@ TEST(CliFaults, AResumedSweepIsByteIdenticalToAnUninterruptedOne) {
     ScratchDir dir;
     const std::string phantom = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/cyst_and_stone.json";
     const std::string args =
-        "simulate -q --quality interactive --phantom " + phantom + " --sweep lateral:8:0.5 --out ";
+        "simulate -q --quality interactive --phantom " + phantom + " --sweep lateral:8:0.25 --out ";
     ASSERT_EQ(test::run(dir, args + (dir / "whole")).exit_code, 0);
     const std::string out = dir / "resumed";
     std::string interrupted = "(";  // appended piecewise: GCC 12's -Wrestrict misfires on a chain
     interrupted += SONOTRACE_BINARY;
     interrupted += " " + args + out;
     interrupted += " 2> /dev/null & pid=$!; i=0; while [ $(ls " + out;
-    // Polled every 20 ms: a frame of this phantom takes a few, so a slower poll could see
-    // the sweep of 17 frames finish first.
+    // Polled every 20 ms: a frame of this phantom takes a few tens, so a slower poll (or
+    // a poll starved by other tests on the cores) could see a short sweep finish first;
+    // 33 frames leave it most of a second.
     interrupted += " 2> /dev/null | grep -c png) -lt 3 ] && [ $i -lt 3000 ]; do sleep 0.02; ";
     interrupted += "i=$((i+1)); done; kill -INT $pid; wait $pid)";
     const int status = std::system(("sh -c '" + interrupted + "'").c_str());
@@ -185,7 +186,7 @@ TEST(CliFaults, AResumedSweepIsByteIdenticalToAnUninterruptedOne) {
         EXPECT_EQ(slurp(e.path().string()), slurp(twin.string())) << e.path().filename();
         ++compared;
     }
-    EXPECT_EQ(compared, 18) << "17 frames and the video";
+    EXPECT_EQ(compared, 34) << "33 frames and the video";
     // --resume without a sweep is refused.
     const auto bad = test::run(dir, "simulate -q --quality interactive --resume --out " + out);
     EXPECT_EQ(bad.exit_code, 1);
