@@ -21,7 +21,8 @@
 //   --brightest N              the N brightest interior samples (seed, line, depth)
 //   --picture FILE             the first variant's envelope by line and depth (PNG, 60 dB
 //                              below the 99.5th percentile), interior samples marked
-//   --line L FROM TO           labels and map fields along line L, and its |H|^2 across
+//   --line L FROM TO           labels, map fields and envelope (dB) along line L, and its
+//                              |H|^2 across
 //   --at X Y                   the map's fields at a point of the map frame (repeatable)
 //   --paths L FILE             line L's particle paths over the impedance (PNG, first seed)
 //   --events L FROM TO         line L's strongest reflection echoes placed FROM-TO mm deep
@@ -208,13 +209,17 @@ double measure(const imaging::Scene& head, const char* what,
             for (double d = o.probe_from; d <= o.probe_to; d += 0.25) {
                 const glm::dvec2 m = g.point(o.probe_line, d) + grid.to_map;
                 const auto tx = map.sample(glm::vec2(m));
+                // The envelope at the sample timed at this depth (c0 t / 2, not walked).
+                const int sample =
+                    std::clamp(int(std::lround(d / env.depth_mm(1))), 0, env.samples - 1);
                 std::printf(
                     "  line %d at %.2f mm (map %.2f %.2f): label %d  Z %.4f  n %.4f  "
-                    "b %.3f  att %.2f\n",
+                    "b %.3f  att %.2f  envelope %.1f dB\n",
                     o.probe_line, d, m.x, m.y,
                     label_at(int(std::floor(m.x / labels.geometry().spacing.x + 0.5)),
                              int(std::floor(m.y / labels.geometry().spacing.y + 0.5))),
-                    tx.impedance, tx.refractive_index, tx.backscatter, tx.attenuation);
+                    tx.impedance, tx.refractive_index, tx.backscatter, tx.attenuation,
+                    20.0 * std::log10(double(env.at(o.probe_line, sample)) + 1e-30));
             }
         }
         if (o.probe_line >= 0 &&
