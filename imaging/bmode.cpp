@@ -695,6 +695,14 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                                           : 0.0)
                                : 0.0;
                 };
+                // The amplitude share of the reflector's lobe that heads back the way the
+                // particle came, within the receive's half-angle at this range.
+                auto heads_back = [&] {
+                    const double half_angle =
+                        std::atan(0.5 * t.receive_aperture_mm(range_mm) / range_mm);
+                    return std::sqrt(reflection_back_fraction(double(e.cos_incidence),
+                                                              e.lobe_exponent, half_angle));
+                };
                 if (e.kind == simulator::EchoKind::diffuse) {
                     // The share of the lobe that heads back the way the particle came (by
                     // reciprocity, to the aperture), by the particle's own incidence, so a
@@ -702,13 +710,9 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                     // next to nothing back, whatever the plane's tilt to the line; after
                     // reflections too (bone met at grazing incidence after a bounce lit the
                     // temporal view's ventricles 37 dB above the brain).
-                    const double aperture = t.receive_aperture_mm(range_mm);
-                    const double cos_incidence = double(e.cos_incidence);
                     std::complex<double>& plane = untilted[std::size_t(psf->depth_index(range_mm))];
                     if (std::isnan(plane.real())) plane = psf->plane_echo(l, range_mm, 0.0);
-                    response = plane * std::sqrt(reflection_back_fraction(
-                                           cos_incidence, e.lobe_exponent,
-                                           std::atan(0.5 * aperture / range_mm)));
+                    response = plane * heads_back();
                 } else {
                     response = psf->plane_echo(l, range_mm, std::sin(tilt()));
                     // After reflections the plane is judged from the line (above), but the
@@ -716,10 +720,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                     // mirror sends it back the way it came: a mirror met obliquely sends
                     // it on (gel or bone met at 30 degrees after a bounce lit a far line
                     // 47 dB above the brain at 100 mm).
-                    if (!direct)
-                        response *= std::sqrt(reflection_back_fraction(
-                            e.cos_incidence, e.lobe_exponent,
-                            std::atan(0.5 * t.receive_aperture_mm(range_mm) / range_mm)));
+                    if (!direct) response *= heads_back();
                 }
                 // Receive, once (receive_weights): a reflector across the whole beam
                 // averages it to 1, so its plane echo above stays exact; a target smaller
