@@ -13,6 +13,7 @@
 //   --step T                   the tracer's step in map texels (0: the quality's)
 //   --max-bounces N            reflections before a particle is retired (TraceSettings)
 //   --stats                    each frame's trace counts (steps, interfaces, reflections)
+//   --trace3d                  traced in the slab the elevation beam spans (--trace 3d)
 //   --nominal                  the truth at c0 t / 2 instead of through the speed map
 //   --variant K                only the K-th variant of the list in main()
 // What is shown besides:
@@ -67,6 +68,7 @@ struct Options {
     double step_texels = 0.0;            // the tracer's step; 0: the quality's
     int max_bounces = -1;                // --max-bounces; -1: the tracer's
     bool stats = false;                  // --stats: the trace's counts per frame
+    bool trace_3d = false;               // --trace3d: traced in the elevation beam's slab
     int seeds = 1;                       // frames of seeds first_seed.., their intensities summed
     int first_seed = 1;                  // --first-seed
     int variant = -1;                    // only this variant (index into the list in main), -1: all
@@ -135,7 +137,14 @@ double measure(const imaging::Scene& head, const char* what,
             s.trace.record_paths_line_stride = 1;
         }
         s.keep_echoes = o.event_line >= 0;
-        const imaging::Frame f = imaging::simulate_frame(map, grid, scene.pose, s);
+        // --trace3d: the slab's trace (scan_plane), imaged on this plane's map as above.
+        const imaging::Frame f =
+            o.trace_3d ? [&] {
+                imaging::SimulationSettings s3 = s;
+                s3.trace_dimensions = 3;
+                return imaging::scan_plane(head.mapper, scene, s3, false).frame;
+            }()
+                       : imaging::simulate_frame(map, grid, scene.pose, s);
         if (o.event_line >= 0 && seed == o.first_seed) {  // E R^2 (return) of the echoes there
             std::vector<simulator::EchoEvent<2>> there;
             for (const auto& e : f.echoes) {
@@ -328,6 +337,8 @@ int main(int argc, char** argv) {
             o.from_mm = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--smoothing") && a + 1 < argc) {
             o.smoothing_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--trace3d")) {
+            o.trace_3d = true;
         } else if (!std::strcmp(argv[a], "--stats")) {
             o.stats = true;
         } else if (!std::strcmp(argv[a], "--max-bounces") && a + 1 < argc) {
