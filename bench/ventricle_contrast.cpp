@@ -231,6 +231,21 @@ double measure(const imaging::Scene& head, const char* what,
                     20.0 * std::log10(double(env.at(o.probe_line, sample)) + 1e-30));
             }
         }
+        if (o.probe_line >= 0 && o.trace_3d && seed == o.first_seed) {  // the slab's map too
+            const imaging::PlaneGrid slab = imaging::slab_grid(
+                s.transducer, scene.pose, 2.0 * level.map_pixel_mm, 4.0 * level.map_pixel_mm);
+            tissue::PropertyMaps slab_maps = head.mapper(slab.geometry, nullptr);
+            imaging::prepare_plane(slab_maps, slab, scene, 5.0, nullptr);
+            const auto slab_map =
+                tissue::AcousticMap<3>::build(slab_maps, imaging::refraction_smoothing_mm(s));
+            for (double d = o.probe_from; d <= o.probe_to; d += 0.25) {
+                const glm::dvec2 m = g.point(o.probe_line, d) + slab.to_map;
+                const auto tx = slab_map.sample(
+                    glm::vec3(float(m.x), float(m.y), float(slab.plane_elevation_in_map)));
+                std::printf("  slab: line %d at %.2f mm: Z %.4f  n %.4f\n", o.probe_line, d,
+                            tx.impedance, tx.refractive_index);
+            }
+        }
         if (o.probe_line >= 0 &&
             seed == o.first_seed) {  // the line's two-way PSF across, mid-range
             const probe::LineFields fields(s.transducer,
