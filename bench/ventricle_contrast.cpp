@@ -157,8 +157,12 @@ double measure(const imaging::Scene& head, const char* what,
             for (const auto& e : there)
                 by_bounces[std::min<int>(e.bounces, 2)] +=
                     double(e.energy) * e.weight * e.return_weight;
-            std::printf("  E R^2 return by bounces: 0: %.3g  1: %.3g  more: %.3g\n", by_bounces[0],
-                        by_bounces[1], by_bounces[2]);
+            int strong = 0;  // reflectors as strong as bone's (R^2 > 0.1)
+            for (const auto& e : there) strong += e.weight > 0.1f;
+            std::printf(
+                "  E R^2 return by bounces: 0: %.3g  1: %.3g  more: %.3g; %d of %zu with R^2 > "
+                "0.1\n",
+                by_bounces[0], by_bounces[1], by_bounces[2], strong, there.size());
             int non_unit = 0;
             for (const auto& e : f.echoes) non_unit += glm::length(e.direction) > 1.01f;
             std::printf("  %d of %zu echoes arrive with a direction longer than 1\n", non_unit,
