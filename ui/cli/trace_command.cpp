@@ -60,7 +60,8 @@ constexpr ParameterDoc kFaceDoc = {
 constexpr ParameterDoc kDisableDoc = {
     "--disable", "",
     "comma-separated physics to switch off: refraction, specular, diffuse, "
-    "scattering, absorption, bounces (= single reflection)"};
+    "scattering, absorption, shear (solids' shear waves: total reflection past the critical "
+    "angle), bounces (= single reflection)"};
 constexpr ParameterDoc kLobeExponentDoc = {"--lobe-exponent", "", simulator::doc::kLobeExponent};
 constexpr ParameterDoc kLobeWeightDoc = {"--lobe-weight", "", simulator::doc::kLobeWeight};
 constexpr ParameterDoc kLobeScaleDoc = {
