@@ -205,6 +205,15 @@ double measure(const imaging::Scene& head, const char* what,
                 (unsigned long long)f.stats.reflections,
                 (unsigned long long)f.stats.total_reflections,
                 (unsigned long long)f.stats.scatter_events);
+        if (o.stats) {
+            const simulator::EnergyLedger& e = f.ledger;
+            const double injected = std::max(e.injected, 1e-30);
+            std::printf(
+                "  ledger (of the injected): absorbed %.3f escaped %.3f recorded %.3f "
+                "remaining %.3f roulette killed %.3f added %.3f\n",
+                e.absorbed / injected, e.escaped / injected, e.recorded / injected,
+                e.remaining / injected, e.roulette_killed / injected, e.roulette_added / injected);
+        }
         picture = env;
         interior.clear();
         const probe::ScanGeometry g(s.transducer);

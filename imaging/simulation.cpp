@@ -43,7 +43,8 @@ QualityLevel quality_level(Quality quality) {
     // whatever the step (their plateaus, one decision each), rays bend in an index
     // smoothed over the Fresnel zone (millimetres: a dozen steps), and the echo profile
     // is smoothed over a pulse; half a texel changes the default frame's brain by under
-    // 0.1 dB (HeadContrast.TheStandardStepIsShortEnough) at twice the trace's cost. High
+    // 0.1 dB, or 0.4 dB traced in the slab (HeadContrast/StandardStep), at twice the
+    // trace's cost. High
     // keeps half a texel of its finer map. Interactive's speckle sub-lines lie 1.5 beam
     // sigmas apart (a third fewer).
     switch (quality) {
