@@ -8,13 +8,21 @@
 //                              is dominated by a few rays)
 //   --from MM, --to MM         the depths counted (default 40 mm and deeper)
 //   --clear MM                 how far from other labels the interior and parenchyma lie (1)
+//   --ventricles               the interior only within 22 mm of the midline (MNI |x|, the
+//                              lateral ventricles' bodies, as add_colin27_membranes), not the
+//                              insular cisterns' CSF at the fan's edge
 //   --temporal, --depth MM     the temporal view (phased probe through the skull), its depth
+//   --frequency MHZ, --focus MM, --rx-f-number F
+//                              the probe's centre frequency, transmit focus, receive F-number
+//                              (the PSF's reach from the walls)
 //   --smoothing MM             SimulationSettings::refraction_smoothing_mm (the probe's)
 //   --step T                   the tracer's step in map texels (0: the quality's)
 //   --max-bounces N            reflections before a particle is retired (TraceSettings)
 //   --stats                    each frame's trace counts (steps, interfaces, reflections)
 //   --trace3d                  traced in the slab the elevation beam spans (--trace 3d)
 //   --nominal                  the truth at c0 t / 2 instead of through the speed map
+//   --refracted                the truth along each line's ray bent by the map's refractive
+//                              index (imaging::TruthWalk::refracted)
 //   --variant K                only the K-th variant of the list in main()
 // What is shown besides:
 //   --ideal                    the interior as linear acoustics alone images it (the map's
@@ -26,6 +34,7 @@
 //                              |H|^2 across
 //   --at X Y                   the map's fields at a point of the map frame (repeatable)
 //   --paths L FILE             line L's particle paths over the impedance (PNG, first seed)
+//   --paths-particle K         with --paths: where particle K of the line turns (> 1 degree)
 //   --events L FROM TO         line L's strongest reflection echoes placed FROM-TO mm deep
 //                              (L = 9999: every line), and their sum by bounce count
 //
@@ -64,6 +73,7 @@ namespace {
 struct Options {
     double from_mm = 40.0;
     bool nominal = false;                // truth at c0 t / 2 instead of through the speed map
+    bool refracted = false;              // truth along each line's refracted ray
     std::optional<double> smoothing_mm;  // the refraction smoothing; unset: the probe's
     double step_texels = 0.0;            // the tracer's step; 0: the quality's
     int max_bounces = -1;                // --max-bounces; -1: the tracer's
@@ -80,9 +90,12 @@ struct Options {
     bool ideal = false;     // also the interior as linear acoustics alone would image it  // the
                             // temporal view (phased probe through the skull)
     double depth_mm = 0.0;  // imaging depth; 0: the preset's
-    double clear_mm = 1.0;  // the interior's and the parenchyma's distance from other labels
-    int probe_line = -1;    // print labels and map fields along this line
-    int path_line = -1;     // --paths: draw this line's particle paths
+    double frequency_mhz = 0.0, focus_mm = 0.0, rx_f_number = 0.0;  // 0: the preset's
+    double clear_mm = 1.0;    // the interior's and the parenchyma's distance from other labels
+    bool ventricles = false;  // --ventricles: the interior within 22 mm of the midline only
+    int probe_line = -1;      // print labels and map fields along this line
+    int path_line = -1;       // --paths: draw this line's particle paths
+    int path_particle = -1;   // --paths-particle: print this particle's turns
     std::string path_picture;
     int event_line = -1;  // --events
     double event_from = 0.0, event_to = 0.0;
@@ -104,6 +117,9 @@ double measure(const imaging::Scene& head, const char* what,
     imaging::SimulationSettings s;
     s.transducer = probe::find_transducer(o.temporal ? "phased" : "convex", "ventricle_contrast");
     if (o.depth_mm > 0.0) s.transducer.depth_mm = o.depth_mm;
+    if (o.frequency_mhz > 0.0) s.transducer.frequency_mhz = o.frequency_mhz;
+    if (o.focus_mm > 0.0) s.transducer.focus_mm = o.focus_mm;
+    if (o.rx_f_number > 0.0) s.transducer.rx_f_number = o.rx_f_number;
     head.apply_to(s);
     imaging::apply(physics, s);
     s.refraction_smoothing_mm = o.smoothing_mm;
@@ -172,8 +188,13 @@ double measure(const imaging::Scene& head, const char* what,
             };
             std::sort(there.begin(), there.end(),
                       [&](const auto& a, const auto& b) { return strength(a) > strength(b); });
+            // The receive weight each echo is imaged with (the frame's own particles).
+            const probe::Sources<2> sources =
+                probe::make_beams(s.transducer, {level.particles_per_line, s.seed}, grid.to_map);
+            const auto receive = imaging::receive_weights(s.transducer, sources, grid.to_map);
             for (std::size_t n = 0; n < std::min<std::size_t>(there.size(), 15); ++n) {
                 const auto& e = there[n];
+                std::printf("  receive weight %.3g; ", receive->at(e.line, e.particle, e.time_s));
                 std::printf(
                     "  echo: particle %2u at %6.2f mm, kind %d, bounces %u, E R^2 return %.3g "
                     "(E %.3g, R^2 %.3g, return %.3g), at map (%.1f %.1f), cos %.2f, lobe %.3g, "
@@ -188,6 +209,22 @@ double measure(const imaging::Scene& head, const char* what,
             std::vector<simulator::Path<2>> paths;
             for (const auto& path : f.paths)
                 if (int(path.line) == o.path_line) paths.push_back(path);
+            // The path of one particle (--paths-particle K), its turns (> 1 degree).
+            for (const auto& path : paths) {
+                if (int(path.particle) != o.path_particle) continue;
+                glm::vec2 last_dir(0.0f);
+                for (std::size_t v = 0; v + 1 < path.vertices.size(); ++v) {
+                    const glm::vec2 a = path.vertices[v].position,
+                                    b = path.vertices[v + 1].position;
+                    if (glm::length(b - a) <= 0.0f) continue;
+                    const glm::vec2 dir = glm::normalize(b - a);
+                    if (v == 0 || glm::dot(dir, last_dir) < std::cos(0.0175f) ||
+                        v + 2 == path.vertices.size())
+                        std::printf("  particle %d at (%.2f %.2f) heading (%.3f %.3f)\n",
+                                    o.path_particle, a.x, a.y, dir.x, dir.y);
+                    last_dir = dir;
+                }
+            }
             imaging::PathStyle style;
             style.reference_energy =
                 paths.empty() || path_energy(paths) <= 0.0f ? 1.0f : path_energy(paths);
@@ -224,8 +261,10 @@ double measure(const imaging::Scene& head, const char* what,
         };
         for (const glm::dvec2& m : o.points) {  // the map at given points
             const auto tx = map.sample(glm::vec2(m));
-            std::printf("  map (%.2f %.2f): Z %.4f  n %.4f  b %.3f  att %.2f\n", m.x, m.y,
-                        tx.impedance, tx.refractive_index, tx.backscatter, tx.attenuation);
+            std::printf(
+                "  map (%.2f %.2f): Z %.4f  n %.4f  b %.3f  att %.2f  grad Z (%.4f %.4f) /mm\n",
+                m.x, m.y, tx.impedance, tx.refractive_index, tx.backscatter, tx.attenuation,
+                tx.grad_impedance[0], tx.grad_impedance[1]);
         }
         if (o.probe_line >= 0 && seed == o.first_seed) {  // labels and the map along one line
             for (double d = o.probe_from; d <= o.probe_to; d += 0.25) {
@@ -270,9 +309,18 @@ double measure(const imaging::Scene& head, const char* what,
                             10.0 * std::log10(std::norm(fields.two_way({x, z})) / h0),
                             10.0 * std::log10(std::norm(fields.two_way({-x, z})) / h0));
         }
-        const imaging::ClearSamples samples = imaging::clear_samples(
-            env, g, grid.to_map, map, labels, csf, brain, o.clear_mm, o.from_mm,
-            std::min(o.to_mm, kBands * kBandMm - 1e-6), o.nominal);
+        imaging::ClearSamples samples =
+            imaging::clear_samples(env, g, grid.to_map, map, labels, csf, brain, o.clear_mm,
+                                   o.from_mm, std::min(o.to_mm, kBands * kBandMm - 1e-6),
+                                   o.nominal     ? imaging::TruthWalk::nominal
+                                   : o.refracted ? imaging::TruthWalk::refracted
+                                                 : imaging::TruthWalk::straight);
+        if (o.ventricles) {
+            const imaging::MapToWorld to_world = imaging::map_to_world(scene.pose, grid);
+            std::erase_if(samples.inside, [&](const imaging::TruthSample& t) {
+                return std::abs(to_world(t.map).x) > 22.0;
+            });
+        }
         for (const auto* list : {&samples.inside, &samples.outside}) {
             const bool inside = list == &samples.inside;
             for (const imaging::TruthSample& t : *list) {
@@ -383,6 +431,8 @@ int main(int argc, char** argv) {
             o.probe_line = std::atoi(argv[++a]);
             o.probe_from = std::atof(argv[++a]);
             o.probe_to = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--paths-particle") && a + 1 < argc) {
+            o.path_particle = std::atoi(argv[++a]);
         } else if (!std::strcmp(argv[a], "--paths") && a + 2 < argc) {
             o.path_line = std::atoi(argv[++a]);
             o.path_picture = argv[++a];
@@ -397,16 +447,26 @@ int main(int argc, char** argv) {
             o.points.emplace_back(x, std::atof(argv[++a]));
         } else if (!std::strcmp(argv[a], "--to") && a + 1 < argc) {
             o.to_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--ventricles")) {
+            o.ventricles = true;
         } else if (!std::strcmp(argv[a], "--ideal")) {
             o.ideal = true;
         } else if (!std::strcmp(argv[a], "--temporal")) {
             o.temporal = true;
+        } else if (!std::strcmp(argv[a], "--frequency") && a + 1 < argc) {
+            o.frequency_mhz = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--focus") && a + 1 < argc) {
+            o.focus_mm = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--rx-f-number") && a + 1 < argc) {
+            o.rx_f_number = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--depth") && a + 1 < argc) {
             o.depth_mm = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--brightest") && a + 1 < argc) {
             o.brightest = std::atoi(argv[++a]);
         } else if (!std::strcmp(argv[a], "--picture") && a + 1 < argc) {
             o.picture = argv[++a];
+        } else if (!std::strcmp(argv[a], "--refracted")) {
+            o.refracted = true;
         } else if (!std::strcmp(argv[a], "--nominal")) {
             o.nominal = true;
         } else {

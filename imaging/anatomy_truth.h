@@ -28,14 +28,24 @@ struct ClearSamples {
         outside;  // labels within clear_mm all `inside` / all `outside`
 };
 
-// The samples of `envelope` deeper than `from_mm` and shallower than `to_mm` (true depth)
-// whose labels within `clear_mm` are all `inside_label`, or all `outside_label`. `to_map`
-// takes the scan geometry's frame to the map's (PlaneGrid::to_map); `nominal` places the
-// samples at c0 t / 2 instead of walking the speed map.
+// How a line's samples are placed in the map.
+enum class TruthWalk {
+    nominal,    // at c0 t / 2 along the straight line
+    straight,   // along the straight line, timed through the map's speed of sound
+    refracted,  // along the line's ray bent by the map's refractive index (the ray
+                // equation d(n dr/ds)/ds = grad n, with the index the tracer refracts in:
+                // the soft tissue smoothed over the Fresnel zone), timed through it
+};
+
+// The samples of `envelope` deeper than `from_mm` and shallower than `to_mm` (true depth,
+// the path length along the walk) whose labels within `clear_mm` are all `inside_label`,
+// or all `outside_label`. `to_map` takes the scan geometry's frame to the map's
+// (PlaneGrid::to_map).
 ClearSamples clear_samples(const LineData& envelope, const probe::ScanGeometry& geometry,
                            const glm::dvec2& to_map, const tissue::AcousticMap<2>& map,
                            const tissue::Volume& labels, int inside_label, int outside_label,
-                           double clear_mm, double from_mm, double to_mm, bool nominal = false);
+                           double clear_mm, double from_mm, double to_mm,
+                           TruthWalk walk = TruthWalk::straight);
 
 // The inside's mean intensity (envelope squared) against the outside's at the same depths
 // (bands of `band_mm`; a band counts with at least 20 samples of each, weighted by its

@@ -632,10 +632,9 @@ class LineTracer {
 
     // The first point from `from` towards `to` where the impedance crosses the geometric
     // mean of two plateaus' (linear between samples a quarter texel apart); `to` if none.
-    V halfway_point(const V& from, const V& to, const Texel& near_side,
-                    const Texel& far_side) const {
-        const float half = std::sqrt(near_side.impedance * far_side.impedance);
-        const float sign = far_side.impedance >= near_side.impedance ? 1.0f : -1.0f;
+    V halfway_point(const V& from, const V& to, float near_impedance, float far_impedance) const {
+        const float half = std::sqrt(near_impedance * far_impedance);
+        const float sign = far_impedance >= near_impedance ? 1.0f : -1.0f;
         const int steps = std::max(1, int(std::ceil(4.0f * glm::length(to - from) / texel_mm_)));
         float previous = sign * (map_.sample_impedance(from).impedance - half);
         if (previous >= 0.0f) return from;
@@ -730,7 +729,7 @@ class LineTracer {
         // (a transition thinner than the pulse reflects like a step at the centre of
         // d(ln Z)/dx). Echoes and reflections are timed there, or every echo would come
         // early by that much.
-        sides.middle = halfway_point(low_end, high_end, low, high);
+        sides.middle = halfway_point(low_end, high_end, low.impedance, high.impedance);
         sides.normal = map_.zone_normal(sides.middle, sides.normal);
         // The lobe's roughness: the rougher of the plateaus (a map of its own, sampled
         // here only).
@@ -785,17 +784,32 @@ class LineTracer {
         }
         p.state = int32_t(kCrossing);
         out_->stats.interface_events++;
-        // Which way the particle crosses: by grad Z where it stands.
-        V towards(0.0f);
-        for (int a = 0; a < Dim; ++a) towards[a] = t.grad_impedance[a];
-        const bool upwards =
-            glm::dot(glm::dot(r, towards) >= 0.0f ? towards : -towards, sides.normal) >= 0.0f;
+        // Which way the particle crosses: along the normal (which points to the higher Z)
+        // or against it. (Judged by grad Z where it stands, a particle running beside a
+        // wall towards the face that the zone's normal stands for crossed either way.)
+        const bool upwards = glm::dot(r, sides.normal) >= 0.0f;
         const V forward = upwards ? sides.normal : -sides.normal;
         p.interface_normal = to_lanes(sides.normal);
         const Plateau& near_side = upwards ? sides.low : sides.high;
         const Plateau& far_side = upwards ? sides.high : sides.low;
-        const float ahead = glm::dot(sides.middle - x, forward);
-        const float to_middle_mm = std::max(ahead, 0.0f) / std::max(glm::dot(r, forward), 0.1f);
+        // Where the reflection happens: where the particle's own path crosses the
+        // transition (ln Z halfway between the plateaus). The patch's middle lies along
+        // grad Z, which beside a wall (the side of the choroid plexus, a corner) points
+        // across the path: with the zone's normal facing the particle, echoes were timed
+        // there, up to 2 mm before the face the path meets, inside the CSF. The decision
+        // stays here, where the transition begins (deeper in, the fringe has bent the
+        // particle), unless the path meets no crossing within twice the reach (it runs
+        // beside the wall, or along the interface at grazing incidence): then it is
+        // searched again at its next steep step.
+        const float reach_mm = float(plateau_steps_) * texel_mm_;
+        const V end = x + r * reach_mm;
+        const V crossing = halfway_point(x, end, near_side.impedance, far_side.impedance);
+        if (crossing == end) {
+            p.state = int32_t(kOutside);
+            out_->stats.interface_events--;
+            return;
+        }
+        const float to_middle_mm = glm::dot(crossing - x, r);
         // Without specular reflection only total reflection, which is refraction's
         // (Snell's law between the plateaus has no solution), reflects.
         decide_reflection(b, k, p, t, near_side, far_side, sides.roughness, forward, to_middle_mm,

@@ -8,7 +8,9 @@
 // apodized side lobes lie below -30 dB; the issue asks 20 dB.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <vector>
 
@@ -140,6 +142,75 @@ TEST(Anechoic, SlitNarrowerThanTheBeamIsAsDarkAsThePsfAllows) {
     // Not darker than the PSF table allows: it keeps +-6 receive lobes of H (psf.h), and
     // the tails beyond, which the prediction integrates to +-12 mm, are 3-4 dB of it here.
     EXPECT_GT(measured_db, predicted_db - 6.0);
+}
+
+// A reflector beside a line echoes on it as linear acoustics says: the echo of a
+// half-plane x >= x0 (a rough CSF-to-choroid-plexus face, as the default head's, at 63 mm
+// beyond the convex probe's focus, where its beam is widest) against the whole plane's,
+// on the line through x = 0. Expected from the aperture alone (probe::LineFields, not the
+// image pipeline): the integral of T R over the half-plane against that over the plane,
+// squared, coherently. Summing intensities instead (each piece of the beam for itself)
+// would give 3, 5 and 7.5 dB more at x0 = 0, 0.5 and 1 mm: the 3 dB here separate the
+// two. The default head's ventricles are lit this way by plexus faces a millimetre beside
+// their lines. Measured: within 1.3 dB; seeds 1-3, intensities averaged. (A smooth face
+// comes out 1.2, 3.5 and 7 dB darker: the tracer resolves the box edge's 0.3 mm rounding,
+// which at a wavelength of 0.44 mm the wave does not.)
+TEST(Anechoic, AReflectorBesideTheLineEchoesAsTheApertureIntegralSays) {
+    const probe::Transducer t = probe::find_transducer("convex", "test");
+    const int line = t.lines / 2;  // through x = 50 of the phantom, the probe's centre
+    const probe::LineFields fields(t, probe::line_array(t, line));
+    const double top = 63.0;
+    const auto rx = fields.receive_aperture(top);
+    const double roughness = 0.3;  // the plexus's
+    auto peak_intensity = [&](double x0, uint64_t seed) {
+        const nlohmann::json shape = {
+            {"type", "box"},          {"min", {50 + x0, top, -5}}, {"max", {95, top + 10, 25}},
+            {"speed_of_sound", 1580}, {"density", 1037},           {"attenuation", 0.5},
+            {"backscatter", 0},       {"scatterer_density", 0},    {"roughness", roughness}};
+        nlohmann::json j = {{"name", "face"},
+                            {"size", {100, 90, 20}},
+                            {"resolution", 0.25},
+                            {"smoothing", 0.3},
+                            {"background", {{"tissue", "csf"}}},
+                            {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}},
+                            {"shapes", {shape}}};
+        const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
+        imaging::SimulationSettings s;
+        s.transducer = t;
+        s.trace.interface_reach_mm = 1.0;
+        s.seed = seed;
+        imaging::ScenePlacement scene;
+        scene.pose = ph.pose;
+        const imaging::PlaneMapper mapper = [&ph](const tissue::VolumeGeometry& grid,
+                                                  tissue::Volume* labels) {
+            return phantoms::rasterise(ph, grid, labels);
+        };
+        const imaging::Frame f = imaging::simulate_plane(mapper, scene, s, false).frame;
+        double peak = 0.0;
+        for (int i = 0; i < f.envelope.samples; ++i)
+            if (std::abs(f.envelope.depth_mm(i) - top) < 1.5)
+                peak = std::max(peak, double(f.envelope.at(line, i)));
+        return peak * peak;
+    };
+    auto simulated = [&](double x0) {
+        double sum = 0.0;
+        for (uint64_t seed = 1; seed <= 3; ++seed) sum += peak_intensity(x0, seed);
+        return sum;
+    };
+    const double whole = simulated(-40.0);
+    for (const double x0 : {0.0, 0.5, 1.0}) {
+        std::complex<double> part = 0.0, all = 0.0;
+        for (double x = -20.0; x <= 20.0; x += 0.005) {
+            const std::complex<double> h = fields.transmit({x, top}) * fields.receive({x, top}, rx);
+            all += h;
+            if (x >= x0) part += h;
+        }
+        const double expected_db = 20.0 * std::log10(std::abs(part) / std::abs(all));
+        const double measured_db = 10.0 * std::log10(simulated(x0) / whole);
+        std::printf("face from %.1f mm: %.1f dB (aperture %.1f dB)\n", x0, measured_db,
+                    expected_db);
+        EXPECT_NEAR(measured_db, expected_db, 3.0) << "x0 " << x0;
+    }
 }
 
 TEST(Anechoic, DisabledPhysicsParsesNamesAndRefusesUnknownOnes) {

@@ -289,6 +289,46 @@ TEST(Tracer, BoneMetPastItsCriticalAngleTakesTheShearShare) {
     }
 }
 
+// A reflection happens where the particle's own path crosses the interface. Particles
+// run down 0.2-0.45 mm beside the side wall of a step (the choroid plexus's shape in the
+// default head): the wall's gradient starts the interface search 2 mm before the face
+// their path meets, and the search walks across the path to the wall. Timed there, with
+// the Fresnel zone's normal facing them, their echoes came up to 2 mm early, inside the
+// CSF. Geometry gives the answer: each first echo where the path meets the face, y = 21 mm
+// (within a texel: the step sits between texel centres), at the time of its 16 mm of path
+// through the CSF; and the face's R^2 at normal incidence.
+TEST(Tracer, AnEchoHappensWhereThePathMeetsTheFaceNotBesideAWall) {
+    const AcousticProperties csf = lossless_medium(1515, 1007),
+                             plexus = lossless_medium(1580, 1037);
+    tissue::PropertyMaps maps = homogeneous(161, 161, kH, csf);
+    for (int j = 0; j < 161; ++j)
+        for (int i = 0; i < 161; ++i)
+            if (j * kH >= 21.0 || (i * kH >= 10.0 && j * kH >= 19.0))  // a face; a step on it
+                for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
+                    maps.fields[f].at(i, j) = plexus.values[f];
+    const double fresnel_mm = 3.0;  // the convex probe's: zone normals on
+    const auto map = tissue::AcousticMap<2>::build(maps, fresnel_mm);
+    TraceSettings s = interfaces_only_settings();
+    s.step_texels = 1.0;
+    Sources<2> src;
+    for (int k = 0; k < 6; ++k)
+        src.push_back({glm::vec2(9.55f + 0.05f * float(k), 5.0f), glm::vec2(0.0f, 1.0f), 1.0f, 0});
+    const auto r = trace(map, src, s);
+    const double z_csf = 1515.0 * 1007.0, z_plexus = 1580.0 * 1037.0;
+    const double r2 = std::pow((z_plexus - z_csf) / (z_plexus + z_csf), 2.0);
+    const double seconds_per_mm_csf = 1e-3 / 1515.0;
+    std::vector<bool> seen(src.size(), false);
+    for (const auto& e : r.echoes) {
+        if (e.kind == EchoKind::scatter || e.bounces != 0 || seen[e.particle]) continue;
+        seen[e.particle] = true;
+        EXPECT_NEAR(e.position.y, 21.0, kH) << "particle " << e.particle;
+        EXPECT_NEAR(e.position.x, src[e.particle].position.x, 0.05) << "particle " << e.particle;
+        EXPECT_NEAR(e.time_s, 16.0 * seconds_per_mm_csf, kH * seconds_per_mm_csf);
+        EXPECT_NEAR(e.weight, r2, 0.02 * r2);
+    }
+    for (std::size_t k = 0; k < src.size(); ++k) EXPECT_TRUE(seen[k]) << "particle " << k;
+}
+
 // The receive weights' column is found by a multiply: it must be floor(t / bin_s),
 // clamped, the division's, except within a few ulps of a column's edge, where the two
 // roundings may disagree by one column; it never decreases with t (an echo profile's

@@ -64,9 +64,9 @@ const ParameterDoc& probe_doc() {
     return doc;
 }
 constexpr ParameterDoc kPixelDoc = {"--pixel", "mm", "pixel size of the scan-converted image"};
-constexpr ParameterDoc kStepDoc = {
-    "--step", "texels",
-    "integration step s, in texels of the map; 0 = the quality's (interactive 1, else 0.5)"};
+constexpr ParameterDoc kStepDoc = {"--step", "texels",
+                                   "integration step s, in texels of the map; 0 = the quality's "
+                                   "(interactive and standard 1, high 0.5)"};
 constexpr ParameterDoc kRefractionSmoothingDoc = {
     "--refraction-smoothing", "mm",
     "Gaussian sigma of the soft-tissue speed of sound the rays bend in: a beam's wavefront "
