@@ -34,7 +34,8 @@
 //                              |H|^2 across
 //   --at X Y                   the map's fields at a point of the map frame (repeatable)
 //   --paths L FILE             line L's particle paths over the impedance (PNG, first seed)
-//   --paths-particle K         with --paths: where particle K of the line turns (> 1 degree)
+//   --paths-particle K         with --paths: where particle K of the line turns (> 1 degree;
+//                              --paths-all: every vertex)
 //   --events L FROM TO         line L's strongest reflection echoes placed FROM-TO mm deep
 //                              (L = 9999: every line), and their sum by bounce count
 //
@@ -96,6 +97,7 @@ struct Options {
     int probe_line = -1;      // print labels and map fields along this line
     int path_line = -1;       // --paths: draw this line's particle paths
     int path_particle = -1;   // --paths-particle: print this particle's turns
+    bool path_all = false;    // --paths-all: every vertex of it
     std::string path_picture;
     int event_line = -1;  // --events
     double event_from = 0.0, event_to = 0.0;
@@ -218,7 +220,7 @@ double measure(const imaging::Scene& head, const char* what,
                                     b = path.vertices[v + 1].position;
                     if (glm::length(b - a) <= 0.0f) continue;
                     const glm::vec2 dir = glm::normalize(b - a);
-                    if (v == 0 || glm::dot(dir, last_dir) < std::cos(0.0175f) ||
+                    if (v == 0 || glm::dot(dir, last_dir) < std::cos(0.0175f) || o.path_all ||
                         v + 2 == path.vertices.size())
                         std::printf("  particle %d at (%.2f %.2f) heading (%.3f %.3f)\n",
                                     o.path_particle, a.x, a.y, dir.x, dir.y);
@@ -315,6 +317,19 @@ double measure(const imaging::Scene& head, const char* what,
                                    o.nominal     ? imaging::TruthWalk::nominal
                                    : o.refracted ? imaging::TruthWalk::refracted
                                                  : imaging::TruthWalk::straight);
+        if (o.probe_line >= 0 && o.refracted && seed == o.first_seed) {  // where the ray goes
+            const imaging::ClearSamples along =
+                imaging::clear_samples(env, g, grid.to_map, map, labels, csf, brain, 0.0,
+                                       o.probe_from, o.probe_to, imaging::TruthWalk::refracted);
+            for (const auto* list : {&along.inside, &along.outside})
+                for (const imaging::TruthSample& t : *list)
+                    if (t.line == o.probe_line && t.sample % 8 == 0)
+                        std::printf(
+                            "  line %d's ray at %.2f mm: map (%.2f %.2f), straight (%.2f %.2f)\n",
+                            t.line, t.depth_mm, t.map.x, t.map.y,
+                            (g.point(t.line, t.depth_mm) + grid.to_map).x,
+                            (g.point(t.line, t.depth_mm) + grid.to_map).y);
+        }
         if (o.ventricles) {
             const imaging::MapToWorld to_world = imaging::map_to_world(scene.pose, grid);
             std::erase_if(samples.inside, [&](const imaging::TruthSample& t) {
@@ -431,6 +446,8 @@ int main(int argc, char** argv) {
             o.probe_line = std::atoi(argv[++a]);
             o.probe_from = std::atof(argv[++a]);
             o.probe_to = std::atof(argv[++a]);
+        } else if (!std::strcmp(argv[a], "--paths-all")) {
+            o.path_all = true;
         } else if (!std::strcmp(argv[a], "--paths-particle") && a + 1 < argc) {
             o.path_particle = std::atoi(argv[++a]);
         } else if (!std::strcmp(argv[a], "--paths") && a + 2 < argc) {

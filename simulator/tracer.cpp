@@ -169,10 +169,11 @@ struct InterfaceSides {
     // from itself (InterfaceCache keeps only what a texel's centre gives).
     enum class Kind : uint8_t { graded, sharp, from_position };
     Kind kind = Kind::graded;
-    float roughness = 0.0f;  // the rougher plateau's (sharp)
-    Plateau low, high;       // the plateaus at lower and higher Z (sharp)
-    Vec<Dim> normal{0.0f};   // the patch normal, towards higher Z (sharp)
-    Vec<Dim> middle{0.0f};   // where Z is halfway between the plateaus
+    float roughness = 0.0f;       // the rougher plateau's (sharp)
+    Plateau low, high;            // the plateaus at lower and higher Z (sharp)
+    Vec<Dim> normal{0.0f};        // the zone's normal, towards higher Z (sharp)
+    Vec<Dim> patch_normal{0.0f};  // the patch's own, before the zone's average
+    Vec<Dim> middle{0.0f};        // where Z is halfway between the plateaus
 };
 
 // InterfaceSides per texel, shared by the threads of one trace. An open-addressing table:
@@ -730,6 +731,7 @@ class LineTracer {
         // d(ln Z)/dx). Echoes and reflections are timed there, or every echo would come
         // early by that much.
         sides.middle = halfway_point(low_end, high_end, low.impedance, high.impedance);
+        sides.patch_normal = sides.normal;
         sides.normal = map_.zone_normal(sides.middle, sides.normal);
         // The lobe's roughness: the rougher of the plateaus (a map of its own, sampled
         // here only).
@@ -784,32 +786,44 @@ class LineTracer {
         }
         p.state = int32_t(kCrossing);
         out_->stats.interface_events++;
-        // Which way the particle crosses: along the normal (which points to the higher Z)
-        // or against it. (Judged by grad Z where it stands, a particle running beside a
-        // wall towards the face that the zone's normal stands for crossed either way.)
-        const bool upwards = glm::dot(r, sides.normal) >= 0.0f;
-        const V forward = upwards ? sides.normal : -sides.normal;
-        p.interface_normal = to_lanes(sides.normal);
-        const Plateau& near_side = upwards ? sides.low : sides.high;
-        const Plateau& far_side = upwards ? sides.high : sides.low;
         // Where the reflection happens: where the particle's own path crosses the
-        // transition (ln Z halfway between the plateaus). The patch's middle lies along
-        // grad Z, which beside a wall (the side of the choroid plexus, a corner) points
-        // across the path: with the zone's normal facing the particle, echoes were timed
-        // there, up to 2 mm before the face the path meets, inside the CSF. The decision
-        // stays here, where the transition begins (deeper in, the fringe has bent the
-        // particle), unless the path meets no crossing within twice the reach (it runs
-        // beside the wall, or along the interface at grazing incidence): then it is
-        // searched again at its next steep step.
+        // transition (ln Z halfway between the plateaus), within twice the reach. The
+        // patch's middle lies along grad Z, which beside a wall (the side of the choroid
+        // plexus, a corner) points across the path: with the zone's normal facing the
+        // particle, echoes were timed there, up to 2 mm before the face the path meets,
+        // inside the CSF. The decision stays here, where the transition begins (deeper in,
+        // the fringe has bent the particle). Which way the path crosses: by grad Z where
+        // the particle stands, along it or against it; beside a wall (the path all but
+        // across grad Z) by the zone's normal, which stands for the face further on. A path
+        // that meets no crossing runs along the wall it is beside: it meets that wall, at
+        // grazing incidence, with the patch's own normal, at the middle.
         const float reach_mm = float(plateau_steps_) * texel_mm_;
         const V end = x + r * reach_mm;
+        V towards(0.0f);
+        for (int a = 0; a < Dim; ++a) towards[a] = t.grad_impedance[a];
+        const float along_gradient = glm::dot(r, towards);
+        auto crosses_upwards = [&](const V& normal) {
+            return glm::dot(along_gradient >= 0.0f ? towards : -towards, normal) >= 0.0f;
+        };
+        const bool beside = std::abs(along_gradient) < 0.1f * glm::length(towards);
+        const bool upwards =
+            beside ? glm::dot(r, sides.normal) >= 0.0f : crosses_upwards(sides.normal);
+        Plateau near_side = upwards ? sides.low : sides.high;
+        Plateau far_side = upwards ? sides.high : sides.low;
+        V normal = sides.normal;
+        V forward = upwards ? normal : -normal;
         const V crossing = halfway_point(x, end, near_side.impedance, far_side.impedance);
+        float to_middle_mm = glm::dot(crossing - x, r);
         if (crossing == end) {
-            p.state = int32_t(kOutside);
-            out_->stats.interface_events--;
-            return;
+            normal = sides.patch_normal;
+            const bool into_wall = crosses_upwards(normal);
+            forward = into_wall ? normal : -normal;
+            near_side = into_wall ? sides.low : sides.high;
+            far_side = into_wall ? sides.high : sides.low;
+            const float ahead = glm::dot(sides.middle - x, forward);
+            to_middle_mm = std::max(ahead, 0.0f) / std::max(glm::dot(r, forward), 0.1f);
         }
-        const float to_middle_mm = glm::dot(crossing - x, r);
+        p.interface_normal = to_lanes(normal);
         // Without specular reflection only total reflection, which is refraction's
         // (Snell's law between the plateaus has no solution), reflects.
         decide_reflection(b, k, p, t, near_side, far_side, sides.roughness, forward, to_middle_mm,
