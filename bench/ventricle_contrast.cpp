@@ -18,6 +18,7 @@
 //   --smoothing MM             SimulationSettings::refraction_smoothing_mm (the probe's)
 //   --step T                   the tracer's step in map texels (0: the quality's)
 //   --max-bounces N            reflections before a particle is retired (TraceSettings)
+//   --roulette F               Russian roulette below F of a particle's initial energy
 //   --stats                    each frame's trace counts (steps, interfaces, reflections)
 //   --trace3d                  traced in the slab the elevation beam spans (--trace 3d)
 //   --nominal                  the truth at c0 t / 2 instead of through the speed map
@@ -78,6 +79,7 @@ struct Options {
     std::optional<double> smoothing_mm;  // the refraction smoothing; unset: the probe's
     double step_texels = 0.0;            // the tracer's step; 0: the quality's
     int max_bounces = -1;                // --max-bounces; -1: the tracer's
+    double roulette = -1.0;              // --roulette; < 0: the tracer's
     bool stats = false;                  // --stats: the trace's counts per frame
     bool trace_3d = false;               // --trace3d: traced in the elevation beam's slab
     int seeds = 1;                       // frames of seeds first_seed.., their intensities summed
@@ -127,6 +129,7 @@ double measure(const imaging::Scene& head, const char* what,
     s.refraction_smoothing_mm = o.smoothing_mm;
     s.step_texels = o.step_texels;
     if (o.max_bounces >= 0) s.trace.max_bounces = o.max_bounces;
+    if (o.roulette >= 0.0) s.trace.roulette_energy = o.roulette;
     constexpr int kBands = 60;
     constexpr double kBandMm = 2.0;
     std::vector<double> in(kBands), out(kBands);
@@ -432,6 +435,8 @@ int main(int argc, char** argv) {
             o.trace_3d = true;
         } else if (!std::strcmp(argv[a], "--stats")) {
             o.stats = true;
+        } else if (!std::strcmp(argv[a], "--roulette") && a + 1 < argc) {
+            o.roulette = std::atof(argv[++a]);
         } else if (!std::strcmp(argv[a], "--max-bounces") && a + 1 < argc) {
             o.max_bounces = std::atoi(argv[++a]);
         } else if (!std::strcmp(argv[a], "--step") && a + 1 < argc) {
