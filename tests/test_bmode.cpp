@@ -8,10 +8,13 @@
 #include <functional>
 #include <numbers>
 
+#include "imaging/anatomy_truth.h"
 #include "imaging/bmode.h"
 #include "probe/aperture.h"
 #include "probe/pulse.h"
 #include "probe/transducer.h"
+#include "simulator/trace_setups.h"
+#include "tissue/acoustic_map.h"
 
 namespace sonotrace {
 namespace {
@@ -248,6 +251,44 @@ TEST(Bmode, PointEchoHasThePulsesAxialResolution) {
         EXPECT_NEAR(peak_depth, depth_mm, env.depth_mm(1)) << t.name;
         // Other lines stay silent: a reflection belongs to the line whose particle made it.
         EXPECT_EQ(env.at(0, env.samples / 2), 0.0f) << t.name;
+    }
+}
+
+// The truth's refracted walk (imaging::TruthWalk::refracted) follows the ray equation
+// d(n dr/ds)/ds = grad n. In a medium whose index grows across the line, n = 1 + a x, a
+// ray launched along the line bends towards the higher index: its offset after a path s
+// is a s^2 / 2, to first order in a s (a = 1e-3 /mm, s up to 30 mm: 0.45 mm, the next
+// order a thousandth of it). The samples' points within 2 % of that (the walk's 0.02 mm
+// Euler steps); the straight walk stays on the line.
+TEST(AnatomyTruth, TheRefractedWalkBendsAsTheRayEquationSays) {
+    probe::Transducer t = probe::find_transducer("linear", "test");
+    t.depth_mm = 30.0;
+    const probe::ScanGeometry g(t);
+    const int line = t.lines / 2;
+    const double h = 0.25, a = 1e-3, x0 = 25.0;
+    const int n = 201;  // 50 mm square
+    tissue::PropertyMaps maps =
+        simulator::homogeneous(n, n, h, simulator::lossless_medium(1540.0, 1000.0));
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            maps[tissue::Property::speed_of_sound].at(i, j) =
+                float(tissue::kReferenceSpeed / (1.0 + a * (i * h - x0)));
+    const auto map = tissue::AcousticMap<2>::build(maps);
+    const tissue::Volume labels(maps[tissue::Property::speed_of_sound].geometry(), 1.0f);
+    const glm::dvec2 to_map = glm::dvec2(x0, 5.0) - g.point(line, 0.0);
+    const imaging::LineData envelope = imaging::rf_layout(t, imaging::ImagingSettings{});
+    for (const auto walk : {imaging::TruthWalk::refracted, imaging::TruthWalk::straight}) {
+        const imaging::ClearSamples samples =
+            imaging::clear_samples(envelope, g, to_map, map, labels, 1, 2, 0.0, 5.0, 30.0, walk);
+        int checked = 0;
+        for (const imaging::TruthSample& s : samples.inside) {
+            if (s.line != line) continue;
+            const double expected =
+                walk == imaging::TruthWalk::refracted ? 0.5 * a * s.depth_mm * s.depth_mm : 0.0;
+            ASSERT_NEAR(s.map.x - x0, expected, 0.02 * expected + 1e-6) << s.depth_mm << " mm";
+            ++checked;
+        }
+        EXPECT_GT(checked, 100);
     }
 }
 
