@@ -446,6 +446,10 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
     trace.step_texels = settings.step_texels > 0.0 ? settings.step_texels
                                                    : quality_level(settings.quality).step_texels;
     trace.frequency_mhz = t.frequency_mhz;
+    // The roulette's threshold follows the loss the automatic TGC makes up for: a particle
+    // 30 dB weaker than brain would leave it at its depth is let go, not one that is weak
+    // because it is deep (through the skull, most particles ended before the far side).
+    trace.roulette_loss_db_per_mm = 0.5 * automatic_tgc_db(t.frequency_mhz, 1.0);
     trace.seed = settings.seed;
     trace.record_scatter_echoes = false;
     // The speckle is lit by the plane's map (synthesize_rf): the illumination alone.

@@ -68,6 +68,9 @@ struct Batch {
     // by reciprocity the echo's way back makes the same crossings, so its two-way
     // intensity carries this factor again.
     std::array<float, N> return_factor{};
+    // The energy below which the roulette is looked at: its threshold at the particle's
+    // last look (it falls with time, TraceSettings::roulette_loss_db_per_mm).
+    std::array<float, N> roulette_below{};
     std::array<float, N> previous_index{};  // n sampled at the previous step's position
     // Deposits gather per particle while it stays in one texel (2-3 steps at the default
     // step), then go to the map in one write: the map writes were cache misses.
@@ -91,7 +94,7 @@ struct Batch {
         const auto to = std::size_t(k), from = std::size_t(last);
         position.copy(k, last), direction.copy(k, last), interface_normal.copy(k, last);
         energy[to] = energy[from], initial_energy[to] = initial_energy[from];
-        return_factor[to] = return_factor[from];
+        return_factor[to] = return_factor[from], roulette_below[to] = roulette_below[from];
         optical_depth[to] = optical_depth[from], scatter_target[to] = scatter_target[from];
         previous_index[to] = previous_index[from];
         pending_texel[to] = pending_texel[from];
@@ -199,7 +202,6 @@ struct StepConstants {
     float attenuation_per_mm = 0.0f;  // Np/mm per dB/(cm MHz)
     float scattering_rate_per_mm = 0.0f;
     float threshold2 = 0.0f, inverse_texel2 = 1.0f;  // the interface test, squared
-    float roulette_energy = 0.0f;                    // relative to the initial energy
     double step_time_per_index = 0.0;                // s per step per unit refractive index
     double max_path_mm = 0.0, max_time_s = 0.0;
     std::array<float, Dim> extent{};  // the domain [0, extent] per axis

@@ -61,6 +61,7 @@ void TraceSettings::validate(const std::string& source) const {
     in_range(scattering_rate_per_mm, 0.0, 100.0, "scattering-rate");
     in_range(scatter_echo_fraction, 0.0, 1.0, "scatter-echo-fraction");
     in_range(roulette_energy, 0.0, 0.5, "roulette");
+    in_range(roulette_loss_db_per_mm, 0.0, 100.0, "roulette-loss");
     in_range(follow_reflections_above, 0.0, 1.0, "follow-reflections-above");
     in_range(interface_reach_mm, 0.0, 100.0, "interface-reach");
     in_range(max_path_mm, 1.0, 1e6, "max-path");

@@ -142,6 +142,10 @@ struct TraceSettings {
         0.2;  // sub-resolution scattering events per mm at backscatter 1
     double scatter_echo_fraction = 1e-3;  // intensity fraction a scattering event sends back
     double roulette_energy = 1e-3;  // Russian roulette below this fraction of the initial energy
+    // The one-way loss (dB/mm) the roulette's threshold follows with the particle's time:
+    // below roulette_energy of the energy a particle would keep in tissue of this loss.
+    // 0: a fixed threshold.
+    double roulette_loss_db_per_mm = 0.0;
     // Reflections weaker than this intensity fraction R^2 are scored, not followed: the
     // expected echo is recorded as always, the reflected share E R^2 leaves the particle
     // as recorded energy and the particle transmits. Without it, a particle reflected

@@ -300,6 +300,9 @@ class LineTracer {
                 ? std::max(8, int(std::ceil(settings.interface_reach_mm / (0.5 * texel_mm_))))
                 : 16;
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
+        // dB/mm of path -> Np (intensity) per second of the particle's time at c0.
+        roulette_loss_per_s_ = settings.roulette_loss_db_per_mm * std::log(10.0) / 10.0 *
+                               tissue::kReferenceSpeed * 1e3;
         // alpha [dB/(cm MHz)] * f [MHz] / 10 [mm/cm] -> dB/mm; * ln(10)/10 -> Np/mm (intensity).
         attenuation_per_mm_ = float(tissue::attenuation_per_mm(1.0, settings.frequency_mhz));
         seconds_per_mm_ = float(1e-3 / tissue::kReferenceSpeed);  // times n gives 1/c
@@ -320,7 +323,6 @@ class LineTracer {
         c.scattering_rate_per_mm = float(settings.scattering_rate_per_mm);
         c.threshold2 = threshold2_;
         c.inverse_texel2 = inverse_texel2_;
-        c.roulette_energy = float(settings.roulette_energy);
         c.step_time_per_index = double(step_mm_) * seconds_per_mm_;
         c.max_path_mm = settings.max_path_mm;
         c.max_time_s = max_time_s_;
@@ -500,6 +502,7 @@ class LineTracer {
         b.position.set(k, s.position);
         b.direction.set(k, glm::normalize(s.direction));
         b.energy[k] = b.initial_energy[k] = s.energy;
+        b.roulette_below[k] = float(settings_.roulette_energy) * s.energy;
         b.optical_depth[k] = 0.0f;
         b.previous_index[k] = map_.sample_refractive_index(s.position);
         b.pending_texel[k] = uint32_t(texel_index(s.position));
@@ -1149,7 +1152,14 @@ class LineTracer {
             ledger.remaining += E;
             return false;
         }
-        const float threshold = float(settings_.roulette_energy) * b.initial_energy[k];
+        // The threshold falls with the energy a particle keeps in tissue of the nominal
+        // loss: the image's TGC raises late echoes by as much, so a particle deep in the
+        // frame is not negligible for being weak. Looked at again only when the energy
+        // falls below its last value (the time's exponential, rarely).
+        if (E < b.roulette_below[k] && roulette_loss_per_s_ > 0.0)
+            b.roulette_below[k] = float(settings_.roulette_energy * double(b.initial_energy[k]) *
+                                        std::exp(-roulette_loss_per_s_ * b.time[k]));
+        const float threshold = b.roulette_below[k];
         if (E < threshold) {
             // A survivor restarts at twice the threshold, so the next roulette comes once
             // its energy has halved. (Restarting at the threshold itself drew a random
@@ -1213,7 +1223,7 @@ class LineTracer {
         const StepConstants<Dim>& c = step_constants_;
         const float s = c.step_mm;
         ScalarState p = load_state(b, k);
-        const float roulette_below = c.roulette_energy * b.initial_energy[k];
+        const float roulette_below = b.roulette_below[k];
         const bool record_path = b.path[k] >= 0;
         ScalarEvents events{*this, b, k, *first};
 
@@ -1347,6 +1357,7 @@ class LineTracer {
     double max_time_s_ = 0.0;
     float threshold2_ = 0.0f, inverse_texel2_ = 1.0f, follow_reflections_above_ = 0.0f;
     int plateau_steps_ = 16;
+    double roulette_loss_per_s_ = 0.0;  // TraceSettings::roulette_loss_db_per_mm, per second
     double inverse_profile_bin_ = 0.0;
     bool profile_scattered_ = true;  // EchoProfileSettings::scattered
     float profile_scale_ = 0.0f;

@@ -417,7 +417,7 @@ template <int Dim>
         // -- endings are continues()'s (bounces do not change in this stage)
         const vi past_limit = VectorLane::greater(p.path_length, c.max_path_mm) |
                               VectorLane::greater(p.time, c.max_time_s);
-        const vi weak = p.E < c.roulette_energy * load<vf>(&b.initial_energy[at]);
+        const vi weak = p.E < load<vf>(&b.roulette_below[at]);
         const vi may_end = ~inside_domain<VectorLane>(p.x, c) | past_limit | weak;
 
         // -- commit the lanes taken; the others stay as they were for step()

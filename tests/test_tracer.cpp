@@ -145,6 +145,51 @@ TEST(Tracer, RussianRouletteIsUnbiased) {
     EXPECT_NEAR(result.ledger.relative_error(), 0.0, 1e-6);
 }
 
+// The roulette's threshold can follow a nominal loss with the particle's time
+// (TraceSettings::roulette_loss_db_per_mm; frames follow the automatic TGC's, so that a
+// particle deep in the frame is not ended for being weak). A column losing 1 dB/mm (2
+// dB/(cm MHz) at 5 MHz), 60 mm long, energies known in closed form as above:
+// - a fixed threshold (1e-3) ends particles 30 dB down, half-way along;
+// - following the column's own loss, no particle ever falls below the threshold: none is
+//   rouletted, and each escapes with the exact energy;
+// - following half of it with an aggressive threshold (0.3), roulette runs all along and
+//   the mean escaped energy is the exact one within 3 standard errors (a survivor restarts
+//   at twice the threshold and only decays, so X <= 0.6 x the followed decay at the exit,
+//   30 dB: Var(X) <= 6e-4 E[X]).
+TEST(Tracer, TheRouletteFollowsTheNominalLoss) {
+    AcousticProperties p = lossless_medium(1540, 1000);
+    p[Property::attenuation] = 2.0f;
+    const auto map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
+    TraceSettings s = interfaces_only_settings();
+    s.absorption = true;
+    s.record_paths = 0;
+    s.roulette_energy = 1e-3;
+    Sources<2> src;
+    for (int line = 0; line < 40; ++line) {
+        auto beam = parallel_beam({5.0f, 0.0f}, {0.0f, 1.0f}, 4.0f, 500, uint32_t(line));
+        src.insert(src.end(), beam.begin(), beam.end());
+    }
+    const double n = double(src.size()), step = s.step_texels * kH;
+    const double exact = std::exp(-2.0 * (2.0 / 8.685889638) * s.frequency_mhz *
+                                  (std::floor(60.0 / step + 1e-9) + 1.0) * step / 10.0);
+    const auto fixed = trace(map, src, s);
+    EXPECT_GT(fixed.ledger.roulette_killed, 0.0);
+
+    s.roulette_loss_db_per_mm = 2.0 * s.frequency_mhz / 10.0;
+    const auto following = trace(map, src, s);
+    EXPECT_EQ(following.ledger.roulette_killed, 0.0);
+    EXPECT_EQ(following.ledger.roulette_added, 0.0);
+    EXPECT_NEAR(following.ledger.escaped / n, exact, 1e-3 * exact);
+
+    s.roulette_loss_db_per_mm *= 0.5;
+    s.roulette_energy = 0.3;
+    const auto half = trace(map, src, s);
+    const double sigma = std::sqrt(0.6 * 1e-3 * exact / n);
+    EXPECT_NEAR(half.ledger.escaped / n, exact, 3.0 * sigma);
+    EXPECT_GT(half.ledger.roulette_killed, 0.0) << "the test must exercise roulette";
+    EXPECT_NEAR(half.ledger.relative_error(), 0.0, 1e-6);
+}
+
 TEST(Tracer, RouletteKeepsTheTwoWayEchoUnbiased) {
     // The scattered echo of a step goes as E^2 / E0 (the energy that arrives times the
     // same loss on the way back). Roulette raises a survivor's E by 1 / (its survival
