@@ -185,13 +185,11 @@ INSTANTIATE_TEST_SUITE_P(HeadContrast, StandardStep, ::testing::Values(2, 3), tr
 // curve must stand 10 dB above the parenchyma 10-20 mm in front of it on the same lines.
 // Seeds 1 and 2.
 // Not met yet (issue 29), so not run by default: the brightest sample lies within 3 mm on
-// 57 of 254 lines and the curve stands 4.6 dB above the brain. Too few of a line's 32
-// particles reach the far skull through the near one: Russian roulette (below 1e-3 of the
-// launch energy) ends most of them on the way, and with it at 1e-5 the curve shows on 100
-// lines, but only 3.4 dB above the brain in front, which particles that bounced off the
-// skull and ran along the scalp light too (an earlier 8.9 dB counted echoes of the gel and
-// scalp after a bounce, which now send back only what their reflector turns back). Run it
-// with --gtest_also_run_disabled_tests.
+// 101 of 254 lines and the curve stands 3.4 dB above the brain in front, which particles
+// that bounced off the skull and ran along the scalp light too. (With the roulette below
+// a fixed 1e-3 of the launch energy, most particles ended before the far skull: 57 lines.
+// An earlier 8.9 dB counted echoes of the gel and scalp after a bounce, which now send
+// back only what their reflector turns back.) Run it with --gtest_also_run_disabled_tests.
 TEST(HeadContrast, DISABLED_TheTemporalViewShowsTheFarSkullWhereTheAnatomyPutsIt) {
     SimulationSettings s;
     const auto head = temporal_head(&s, 175.0);
