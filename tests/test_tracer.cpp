@@ -113,26 +113,41 @@ TEST(Tracer, EnergyLedgerBalancesToOnePartPerMillion) {
     EXPECT_TRUE(unmapped.fluence.voxels().empty());
 }
 
-TEST(Tracer, RussianRouletteIsUnbiased) {
-    // Homogeneous absorbing column without scattering or interfaces: the only randomness
-    // is roulette. Without it every particle escapes with exp(-2 alpha_Np f L) exactly;
-    // with an aggressive threshold (0.3) the mean escaped energy must equal that within
-    // 3 standard errors (sample variance of 20000 independent particles).
+// A homogeneous absorbing column without scattering or interfaces, 10 x 60 mm, and 40
+// lines of 500 particles down it: each escapes with exp(-2 alpha_Np f L) exactly, L the
+// path of its whole steps (`exact`).
+struct AbsorbingColumn {
+    tissue::AcousticMap<2> map;
+    Sources<2> sources;
+    TraceSettings settings;
+    double exact = 0.0;
+};
+AbsorbingColumn absorbing_column(float attenuation_db_per_cm_mhz) {
+    AbsorbingColumn c;
     AcousticProperties p = lossless_medium(1540, 1000);
-    p[Property::attenuation] = 0.5f;
-    const auto map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
-    TraceSettings s = interfaces_only_settings();
-    s.absorption = true;
-    s.roulette_energy = 0.3;
-    s.record_paths = 0;
-    Sources<2> src;
+    p[Property::attenuation] = attenuation_db_per_cm_mhz;
+    c.map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
+    c.settings = interfaces_only_settings();
+    c.settings.absorption = true;
+    c.settings.record_paths = 0;
     for (int line = 0; line < 40; ++line) {
         auto beam = parallel_beam({5.0f, 0.0f}, {0.0f, 1.0f}, 4.0f, 500, uint32_t(line));
-        src.insert(src.end(), beam.begin(), beam.end());
+        c.sources.insert(c.sources.end(), beam.begin(), beam.end());
     }
-    const double step = s.step_texels * kH;
-    const double exact = std::exp(-2.0 * (0.5 / 8.685889638) * 5.0 *
-                                  (std::floor(60.0 / step + 1e-9) + 1.0) * step / 10.0);
+    const double step = c.settings.step_texels * kH;
+    c.exact = std::exp(-2.0 * (attenuation_db_per_cm_mhz / 8.685889638) * c.settings.frequency_mhz *
+                       (std::floor(60.0 / step + 1e-9) + 1.0) * step / 10.0);
+    return c;
+}
+
+TEST(Tracer, RussianRouletteIsUnbiased) {
+    // The absorbing column: the only randomness is roulette. With an aggressive threshold
+    // (0.3) the mean escaped energy must equal the exact one within 3 standard errors
+    // (sample variance of 20000 independent particles).
+    const AbsorbingColumn column = absorbing_column(0.5f);
+    const auto& [map, src, settings, exact] = column;
+    TraceSettings s = settings;
+    s.roulette_energy = 0.3;
     // Each particle's escaped energy X lies in [0, 0.6] (a survivor restarts at twice the
     // threshold and only decays), so Var(X) <= E[X^2] <= 0.6 E[X]: the standard error of
     // the mean is at most sqrt(0.6 * exact / n).
@@ -157,21 +172,11 @@ TEST(Tracer, RussianRouletteIsUnbiased) {
 //   at twice the threshold and only decays, so X <= 0.6 x the followed decay at the exit,
 //   30 dB: Var(X) <= 6e-4 E[X]).
 TEST(Tracer, TheRouletteFollowsTheNominalLoss) {
-    AcousticProperties p = lossless_medium(1540, 1000);
-    p[Property::attenuation] = 2.0f;
-    const auto map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
-    TraceSettings s = interfaces_only_settings();
-    s.absorption = true;
-    s.record_paths = 0;
+    const AbsorbingColumn column = absorbing_column(2.0f);
+    const auto& [map, src, settings, exact] = column;
+    TraceSettings s = settings;
     s.roulette_energy = 1e-3;
-    Sources<2> src;
-    for (int line = 0; line < 40; ++line) {
-        auto beam = parallel_beam({5.0f, 0.0f}, {0.0f, 1.0f}, 4.0f, 500, uint32_t(line));
-        src.insert(src.end(), beam.begin(), beam.end());
-    }
-    const double n = double(src.size()), step = s.step_texels * kH;
-    const double exact = std::exp(-2.0 * (2.0 / 8.685889638) * s.frequency_mhz *
-                                  (std::floor(60.0 / step + 1e-9) + 1.0) * step / 10.0);
+    const double n = double(src.size());
     const auto fixed = trace(map, src, s);
     EXPECT_GT(fixed.ledger.roulette_killed, 0.0);
 
