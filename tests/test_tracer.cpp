@@ -239,6 +239,19 @@ TEST(Tracer, RouletteKeepsTheTwoWayEchoUnbiased) {
     EXPECT_NEAR(with_roulette / exact, 1.0, 0.05);
 }
 
+// A homogeneous medium of nx x ny texels over a half-space of another (speed, density)
+// from row `first_row` on: a horizontal interface.
+tissue::PropertyMaps over_half_space(int nx, int ny, const AcousticProperties& above, int first_row,
+                                     float speed, float density) {
+    tissue::PropertyMaps maps = homogeneous(nx, ny, kH, above);
+    for (int j = first_row; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+            maps[Property::speed_of_sound].at(i, j) = speed;
+            maps[Property::density].at(i, j) = density;
+        }
+    return maps;
+}
+
 TEST(Tracer, AnEchoThroughARoughReflectionReturnsTheLobesShare) {
     // Particles run down onto a rough horizontal interface (roughness 0.5: lobe cos^3),
     // reflect with probability R^2 into the lobe and scatter in the medium above. By
@@ -249,12 +262,8 @@ TEST(Tracer, AnEchoThroughARoughReflectionReturnsTheLobesShare) {
     // [phi - delta, phi + delta], written out here with erfc. Each scatter echo after the
     // reflection must carry R^2 (the reflection's own echo weight) times that share in
     // its return weight; without the setting, R^2 alone.
-    tissue::PropertyMaps maps = homogeneous(80, 161, kH, lossless_medium(1540, 1000));
-    for (int j = 80; j < 161; ++j)
-        for (int i = 0; i < 80; ++i) {
-            maps[Property::speed_of_sound].at(i, j) = 3000.0f;
-            maps[Property::density].at(i, j) = 1900.0f;
-        }
+    tissue::PropertyMaps maps =
+        over_half_space(80, 161, lossless_medium(1540, 1000), 80, 3000.0f, 1900.0f);
     for (float& r : maps[Property::roughness].voxels()) r = 0.5f;
     for (float& b : maps[Property::backscatter].voxels()) b = 0.5f;
     const auto map = tissue::AcousticMap<2>::build(maps);
@@ -300,13 +309,8 @@ TEST(Tracer, AnEchoThroughARoughReflectionReturnsTheLobesShare) {
 // particle or two in 2000, whose incidence the tracer reads as grazing). With
 // the conversion off the interface is a fluid's: all reflect.
 TEST(Tracer, BoneMetPastItsCriticalAngleTakesTheShearShare) {
-    tissue::PropertyMaps maps = homogeneous(240, 161, kH, lossless_medium(1540, 1060));
-    for (int j = 80; j < 161; ++j)
-        for (int i = 0; i < 240; ++i) {
-            maps[Property::speed_of_sound].at(i, j) = 3500.0f;
-            maps[Property::density].at(i, j) = 1900.0f;
-        }
-    const auto map = tissue::AcousticMap<2>::build(maps);
+    const auto map = tissue::AcousticMap<2>::build(
+        over_half_space(240, 161, lossless_medium(1540, 1060), 80, 3500.0f, 1900.0f));
     TraceSettings s;
     s.absorption = false;
     s.scattering = false;
