@@ -9,7 +9,7 @@
 //   --from MM, --to MM         the depths counted (default 40 mm and deeper)
 //   --clear MM                 how far from other labels the interior and parenchyma lie (1)
 //   --ventricles               the interior only within 22 mm of the midline (MNI |x|, the
-//                              lateral ventricles' bodies, as add_colin27_membranes), not the
+//                              lateral ventricles' bodies, as add_colin27_anatomy), not the
 //                              insular cisterns' CSF at the fan's edge
 //   --temporal, --depth MM     the temporal view (phased probe through the skull), its depth
 //   --frequency MHZ, --focus MM, --rx-f-number F

@@ -4,18 +4,108 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <mutex>
+#include <numeric>
 #include <vector>
 
 #include "probe/placement.h"
 #include "probe/pose.h"
 #include "tissue/base/error.h"
+#include "tissue/nifti_io.h"
 #include "tissue/tissue_table.h"
 
 namespace sonotrace::imaging {
 
-std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::TransferFunction& tf,
-                                  float outside, const tissue::VolumeGeometry& grid,
-                                  tissue::PropertyMaps& maps, tissue::Volume* labels) {
+namespace {
+
+// The brain mask mricron-data ships with the Colin27 head (skull-stripped, same grid).
+constexpr const char* kColin27BrainMaskPath = "/usr/share/mricron/templates/ch2bet.nii.gz";
+
+// Per voxel of `head`, 1 where it lies outside the skull: reachable from the volume's
+// border without crossing cortical bone (the transfer function's label) or coming within
+// 2 mm of the brain mask. The margin closes the gaps a 1 mm T1 skull has; the cranium's
+// CSF lies inside it or behind bone.
+std::vector<uint8_t> outside_the_skull(const tissue::Volume& head,
+                                       const tissue::TransferFunction& tf) {
+    const tissue::Volume mask = tissue::read_nifti(kColin27BrainMaskPath).volume;
+    const glm::ivec3 n = head.dims();
+    if (mask.dims() != n)
+        throw base::InputError(kColin27BrainMaskPath, "dim",
+                               "the brain mask's grid differs from the head's: is the volume "
+                               "the Colin27 head?");
+    const std::size_t count = head.size();
+    // Within 2 mm of the brain (two dilations: faces, then faces, edges and corners).
+    std::vector<uint8_t> near(count, 0);
+    for (std::size_t v = 0; v < count; ++v) near[v] = mask.voxels()[v] > 0.0f;
+    for (const bool diagonal : {false, true}) {
+        std::vector<uint8_t> grown = near;
+        for (int k = 1; k < n.z - 1; ++k)
+            for (int j = 1; j < n.y - 1; ++j)
+                for (int i = 1; i < n.x - 1; ++i) {
+                    const std::size_t v = head.linear_index(i, j, k);
+                    if (near[v]) continue;
+                    for (int dk = -1; dk <= 1 && !grown[v]; ++dk)
+                        for (int dj = -1; dj <= 1 && !grown[v]; ++dj)
+                            for (int di = -1; di <= 1; ++di) {
+                                if (!diagonal && std::abs(di) + std::abs(dj) + std::abs(dk) != 1)
+                                    continue;
+                                if (near[head.linear_index(i + di, j + dj, k + dk)]) {
+                                    grown[v] = 1;
+                                    break;
+                                }
+                            }
+                }
+        near = std::move(grown);
+    }
+    const int bone = tissue::tissue_label_of("cortical_bone");
+    std::vector<uint8_t> outside(count, 0);
+    std::vector<std::size_t> front;
+    auto enter = [&](int i, int j, int k) {
+        const std::size_t v = head.linear_index(i, j, k);
+        if (outside[v] || near[v] || tf.tissue_label(head.voxels()[v]) == bone) return;
+        outside[v] = 1;
+        front.push_back(v);
+    };
+    for (int k = 0; k < n.z; ++k)
+        for (int j = 0; j < n.y; ++j)
+            for (int i = 0; i < n.x; ++i)
+                if (i == 0 || j == 0 || k == 0 || i == n.x - 1 || j == n.y - 1 || k == n.z - 1)
+                    enter(i, j, k);
+    while (!front.empty()) {
+        const std::size_t v = front.back();
+        front.pop_back();
+        const int i = int(v % std::size_t(n.x)), j = int(v / std::size_t(n.x) % std::size_t(n.y)),
+                  k = int(v / (std::size_t(n.x) * std::size_t(n.y)));
+        if (i > 0) enter(i - 1, j, k);
+        if (i < n.x - 1) enter(i + 1, j, k);
+        if (j > 0) enter(i, j - 1, k);
+        if (j < n.y - 1) enter(i, j + 1, k);
+        if (k > 0) enter(i, j, k - 1);
+        if (k < n.z - 1) enter(i, j, k + 1);
+    }
+    return outside;
+}
+
+// outside_the_skull() of the process's head, computed once (every frame plane asks).
+const std::vector<uint8_t>& outside_the_skull_once(const tissue::Volume& head,
+                                                   const tissue::TransferFunction& tf) {
+    static std::mutex mutex;
+    static std::vector<uint8_t> outside;
+    static glm::ivec3 dims{0};
+    const std::lock_guard lock(mutex);
+    if (dims != head.dims()) {
+        outside = outside_the_skull(head, tf);
+        dims = head.dims();
+    }
+    return outside;
+}
+
+}  // namespace
+
+std::size_t add_colin27_anatomy(const tissue::Volume& head, const tissue::TransferFunction& tf,
+                                float outside, const tissue::VolumeGeometry& grid,
+                                tissue::PropertyMaps& maps, tissue::Volume* labels) {
     using tissue::Property;
     const tissue::TissueEntry& dura = tissue::find_tissue("dura", "", "");
     const tissue::TissueEntry& plexus = tissue::find_tissue("choroid_plexus", "", "");
@@ -27,6 +117,16 @@ std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::Tran
     auto is_brain_or_csf = [&](int i, int j, int k) {
         const float c = maps[Property::speed_of_sound].at(i, j, k);
         return c > 1500.0f && c < 1580.0f && maps[Property::density].at(i, j, k) > 990.0f;
+    };
+    const tissue::TissueEntry& muscle = tissue::find_tissue("muscle", "", "");
+    const std::vector<uint8_t>& outside_skull = outside_the_skull_once(head, tf);
+    const tissue::VolumeGeometry& head_grid = head.geometry();
+    auto in_the_scalp = [&](const glm::dvec3& p) {
+        const glm::ivec3 v(glm::round(head_grid.world_to_index(p)));
+        if (glm::any(glm::lessThan(v, glm::ivec3(0))) ||
+            glm::any(glm::greaterThanEqual(v, head_grid.dims)))
+            return false;
+        return outside_skull[head.linear_index(v.x, v.y, v.z)] != 0;
     };
     auto set = [&](int i, int j, int k, const tissue::TissueEntry& t) {
         for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
@@ -41,6 +141,11 @@ std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::Tran
         std::size_t& changed = changed_in_row[std::size_t(row)];
         for (int i = 0; i < n.x; ++i) {
             const glm::dvec3 p = grid.index_to_world(glm::dvec3(i, j, k));
+            if (is_brain_or_csf(i, j, k) && in_the_scalp(p)) {
+                set(i, j, k, muscle);
+                ++changed;
+                continue;
+            }
             if (std::abs(p.x - 0.5) < 0.75 && p.z > 34.0 && is_brain_or_csf(i, j, k)) {
                 set(i, j, k, dura);
                 ++changed;

@@ -17,18 +17,25 @@ ScenePlacement craniotomy_scene(const tissue::Volume& head, const tissue::Transf
 // The phased probe on the skin of the right temple (transtemporal window), axial plane.
 ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::TransferFunction& tf);
 
-// Membranes of the Colin27 head that its T1 MRI shows as CSF or brain, placed by
-// anatomy (MNI coordinates, mm) on a grid whose properties came from `head` (whose
-// value outside is `outside`):
+// What the Colin27 T1 MRI shows as CSF or brain but is not, placed by anatomy (MNI
+// coordinates, mm) on a grid whose properties came from `head` (whose value outside is
+// `outside`):
+//   scalp: the skin, galea and temporalis have the intensities of brain and CSF; outside
+//     the skull (reachable from the volume's border without crossing bone or coming
+//     within 2 mm of the brain mask mricron-data ships with the head, ch2bet) they are
+//     muscle. Read as brain, the scalp was a duct that the automatic TGC (brain's
+//     attenuation) lit with reverberation across the temporal view;
 //   falx cerebri: the sheet of dura in the interhemispheric fissure, |x - 0.5| < 0.75,
 //     above the corpus callosum (z > 34), where the grid holds brain or CSF;
 //   choroid plexus: the lateral ventricles' CSF within 2.5 mm above their floor (the
 //     head 2.5 mm lower is not CSF), 3 < |x| < 22, -45 < y < -5, 8 < z < 26 (body and
 //     atrium).
-// Both are hyperechoic in intraoperative and neonatal cranial ultrasound. `labels` (the
-// grid's tissue labels, optional) follow. Returns the number of samples changed.
-std::size_t add_colin27_membranes(const tissue::Volume& head, const tissue::TransferFunction& tf,
-                                  float outside, const tissue::VolumeGeometry& grid,
-                                  tissue::PropertyMaps& maps, tissue::Volume* labels = nullptr);
+// The membranes are hyperechoic in intraoperative and neonatal cranial ultrasound.
+// `labels` (the grid's tissue labels, optional) follow. Returns the number of samples
+// changed. Throws base::InputError when the brain mask is missing or not on the head's
+// grid.
+std::size_t add_colin27_anatomy(const tissue::Volume& head, const tissue::TransferFunction& tf,
+                                float outside, const tissue::VolumeGeometry& grid,
+                                tissue::PropertyMaps& maps, tissue::Volume* labels = nullptr);
 
 }  // namespace sonotrace::imaging

@@ -3,10 +3,14 @@
 // default intraoperative frame shows the falx brighter than the brain beside it.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <numbers>
+
 #include "imaging/colin27.h"
 #include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "probe/transducer.h"
+#include "tissue/nifti_io.h"
 #include "tissue/property_maps.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
@@ -94,6 +98,73 @@ TEST(HeadMembranes, UnderTheTemporalProbeTheSkinIsNotBone) {
     }
     EXPECT_GT(first_bone, 3.0);
     EXPECT_LT(first_bone, 25.0);
+}
+
+// The scalp (skin, the temporalis, the galea) has the T1 intensities of brain and CSF,
+// and read as such it was a duct of brain-like tissue outside the skull that the
+// automatic TGC (brain's attenuation) lit with reverberation. On the temporal view's
+// axial plane (MNI z = 2), independently of the rule that relabels it: walking in from
+// outside along six rays through the centre (the temples, 30 degrees either side), between the skin
+// (the first voxel the transfer function does not read as air) and the skull (the first run of 1 mm
+// of bone at least 3 mm deeper), the plane holds muscle or fat; and no sample inside the brain mask
+// mricron-data ships with the head (ch2bet) is muscle.
+TEST(HeadMembranes, TheScalpIsMuscleAndTheBrainIsNot) {
+    const tissue::Volume& head_volume = head().loaded.volume;
+    const tissue::TransferFunction& tf = *head().tf;
+    tissue::VolumeGeometry grid;  // MNI z = 2, x and y over the head, 0.5 mm
+    grid.dims = {381, 441, 1};
+    grid.spacing = {0.5, 0.5, 1.0};
+    grid.origin = {-95.0, -125.0, 2.0};
+    tissue::Volume labels;
+    head_mapper()(grid, &labels);
+    const int muscle = tissue::tissue_label_of("muscle"), fat = tissue::tissue_label_of("fat"),
+              bone = tissue::tissue_label_of("cortical_bone"), air = tissue::tissue_label_of("air");
+    auto label_at = [&](const glm::dvec3& p) {
+        const glm::dvec3 ijk = grid.world_to_index(p);
+        return int(labels.at(int(std::lround(ijk.x)), int(std::lround(ijk.y)), 0));
+    };
+    auto raw_label = [&](const glm::dvec3& p) {
+        return tf.tissue_label(
+            head_volume.sample_trilinear(head_volume.geometry().world_to_index(p), head().outside));
+    };
+    const glm::dvec3 centre(0.0, -18.0, 2.0);
+    for (const double degrees : {-30.0, 0.0, 30.0, 150.0, 180.0, 210.0}) {
+        const double a = degrees * std::numbers::pi / 180.0;
+        const glm::dvec3 out(std::cos(a), std::sin(a), 0.0);
+        const double start = 110.0;
+        double skin = -1.0, skull = -1.0, bone_run = 0.0;
+        for (double r = start; r > 30.0 && skull < 0.0; r -= 0.5) {
+            const int l = raw_label(centre + r * out);
+            if (skin < 0.0 && l != air) skin = r;
+            if (skin < 0.0 || r > skin - 3.0) continue;
+            bone_run = l == bone ? bone_run + 0.5 : 0.0;
+            if (bone_run >= 1.0) skull = r + bone_run;
+        }
+        ASSERT_GT(skin, 0.0) << "no skin along " << out.x << " " << out.y;
+        ASSERT_GT(skull, 0.0) << "no skull along " << out.x << " " << out.y;
+        int scalp = 0, muscle_or_fat = 0;
+        for (double r = skin - 1.0; r > skull + 1.0; r -= 0.5) {
+            const int l = label_at(centre + r * out);
+            ++scalp;
+            muscle_or_fat += l == muscle || l == fat;
+        }
+        ASSERT_GE(scalp, 4) << "a scalp of 3 mm at least along " << out.x << " " << out.y;
+        EXPECT_GE(muscle_or_fat, scalp * 9 / 10)
+            << "along " << out.x << " " << out.y << ": skin at " << skin << " mm, skull at "
+            << skull << " mm";
+    }
+    const tissue::Volume mask =
+        tissue::read_nifti("/usr/share/mricron/templates/ch2bet.nii.gz").volume;
+    int inside = 0, muscle_inside = 0;
+    for (int j = 0; j < grid.dims.y; ++j)
+        for (int i = 0; i < grid.dims.x; ++i) {
+            const glm::dvec3 p = grid.index_to_world(glm::dvec3(i, j, 0));
+            if (mask.sample_nearest(mask.geometry().world_to_index(p), 0.0f) <= 0.0f) continue;
+            ++inside;
+            muscle_inside += int(labels.at(i, j, 0)) == muscle;
+        }
+    EXPECT_GT(inside, 50000);
+    EXPECT_EQ(muscle_inside, 0);
 }
 
 TEST(HeadMembranes, TheDefaultFrameShowsTheFalxBrighterThanTheBrainBesideIt) {

@@ -162,7 +162,7 @@ tissue::PropertyMaps VolumeSource::plane_properties(const tissue::VolumeGeometry
     const tissue::Volume values = resample(grid);
     if (labels) *labels = tissue::tissue_labels(values, *tf);
     tissue::PropertyMaps maps = tissue::classify(values, *tf);
-    if (is_default) add_colin27_membranes(loaded.volume, *tf, outside, grid, maps, labels);
+    if (is_default) add_colin27_anatomy(loaded.volume, *tf, outside, grid, maps, labels);
     return maps;
 }
 

@@ -44,7 +44,7 @@ struct VolumeSource {
     // Resamples the volume on `grid` (trilinear, or nearest for label maps).
     tissue::Volume resample(const tissue::VolumeGeometry& grid) const;
     // The acoustic properties on `grid` (and its tissue labels, on request), with the
-    // membranes the embedded head's MRI cannot show (imaging::add_colin27_membranes).
+    // scalp and membranes the embedded head's MRI cannot tell (imaging::add_colin27_anatomy).
     tissue::PropertyMaps plane_properties(const tissue::VolumeGeometry& grid,
                                           tissue::Volume* labels) const;
 };
