@@ -121,12 +121,24 @@ std::size_t add_colin27_anatomy(const tissue::Volume& head, const tissue::Transf
     const tissue::TissueEntry& muscle = tissue::find_tissue("muscle", "", "");
     const std::vector<uint8_t>& outside_skull = outside_the_skull_once(head, tf);
     const tissue::VolumeGeometry& head_grid = head.geometry();
+    // Outside the skull where the mask, interpolated between voxel centres, passes 1/2: a
+    // nearest-voxel test cut the scalp in millimetre steps, whose corners the tracer met
+    // as faces (the step test on the default frame saw them).
     auto in_the_scalp = [&](const glm::dvec3& p) {
-        const glm::ivec3 v(glm::round(head_grid.world_to_index(p)));
-        if (glm::any(glm::lessThan(v, glm::ivec3(0))) ||
-            glm::any(glm::greaterThanEqual(v, head_grid.dims)))
-            return false;
-        return outside_skull[head.linear_index(v.x, v.y, v.z)] != 0;
+        const glm::dvec3 ijk = head_grid.world_to_index(p);
+        const glm::ivec3 low(glm::floor(ijk));
+        const glm::dvec3 f = ijk - glm::dvec3(low);
+        double share = 0.0;
+        for (int corner = 0; corner < 8; ++corner) {
+            const glm::ivec3 o(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+            const glm::ivec3 v = low + o;
+            if (glm::any(glm::lessThan(v, glm::ivec3(0))) ||
+                glm::any(glm::greaterThanEqual(v, head_grid.dims)) ||
+                outside_skull[head.linear_index(v.x, v.y, v.z)] == 0)
+                continue;
+            share += (o.x ? f.x : 1.0 - f.x) * (o.y ? f.y : 1.0 - f.y) * (o.z ? f.z : 1.0 - f.z);
+        }
+        return share > 0.5;
     };
     auto set = [&](int i, int j, int k, const tissue::TissueEntry& t) {
         for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
