@@ -105,7 +105,7 @@ const std::vector<uint8_t>& outside_the_skull_once(const tissue::Volume& head,
 
 std::size_t add_colin27_anatomy(const tissue::Volume& head, const tissue::TransferFunction& tf,
                                 float outside, const tissue::VolumeGeometry& grid,
-                                tissue::PropertyMaps& maps, tissue::Volume* labels) {
+                                tissue::PropertyMaps& maps, tissue::Volume* labels, bool scalp) {
     using tissue::Property;
     const tissue::TissueEntry& dura = tissue::find_tissue("dura", "", "");
     const tissue::TissueEntry& plexus = tissue::find_tissue("choroid_plexus", "", "");
@@ -119,7 +119,8 @@ std::size_t add_colin27_anatomy(const tissue::Volume& head, const tissue::Transf
         return c > 1500.0f && c < 1580.0f && maps[Property::density].at(i, j, k) > 990.0f;
     };
     const tissue::TissueEntry& muscle = tissue::find_tissue("muscle", "", "");
-    const std::vector<uint8_t>& outside_skull = outside_the_skull_once(head, tf);
+    static const std::vector<uint8_t> none;
+    const std::vector<uint8_t>& outside_skull = scalp ? outside_the_skull_once(head, tf) : none;
     const tissue::VolumeGeometry& head_grid = head.geometry();
     // Outside the skull where the mask, interpolated between voxel centres, passes 1/2: a
     // nearest-voxel test cut the scalp in millimetre steps, whose corners the tracer met
@@ -153,7 +154,7 @@ std::size_t add_colin27_anatomy(const tissue::Volume& head, const tissue::Transf
         std::size_t& changed = changed_in_row[std::size_t(row)];
         for (int i = 0; i < n.x; ++i) {
             const glm::dvec3 p = grid.index_to_world(glm::dvec3(i, j, k));
-            if (is_brain_or_csf(i, j, k) && in_the_scalp(p)) {
+            if (scalp && is_brain_or_csf(i, j, k) && in_the_scalp(p)) {
                 set(i, j, k, muscle);
                 ++changed;
                 continue;

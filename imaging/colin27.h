@@ -20,7 +20,8 @@ ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::Transfer
 // What the Colin27 T1 MRI shows as CSF or brain but is not, placed by anatomy (MNI
 // coordinates, mm) on a grid whose properties came from `head` (whose value outside is
 // `outside`):
-//   scalp: the skin, galea and temporalis have the intensities of brain and CSF; outside
+//   scalp (with `scalp`): the skin, galea and temporalis have the intensities of brain
+//     and CSF; outside
 //     the skull (reachable from the volume's border without crossing bone or coming
 //     within 2 mm of the brain mask mricron-data ships with the head, ch2bet) they are
 //     muscle. Read as brain, the scalp was a duct that the automatic TGC (brain's
@@ -36,6 +37,7 @@ ScenePlacement temporal_scene(const tissue::Volume& head, const tissue::Transfer
 // grid.
 std::size_t add_colin27_anatomy(const tissue::Volume& head, const tissue::TransferFunction& tf,
                                 float outside, const tissue::VolumeGeometry& grid,
-                                tissue::PropertyMaps& maps, tissue::Volume* labels = nullptr);
+                                tissue::PropertyMaps& maps, tissue::Volume* labels = nullptr,
+                                bool scalp = true);
 
 }  // namespace sonotrace::imaging

@@ -137,11 +137,9 @@ TEST(HeadContrast, TheSkullsReflectionsDoNotFollowTheStep) {
 // echo profile is smoothed over a pulse length. Parenchyma (brain 1 mm clear of other
 // tissue) by 10 mm bands 20-80 mm deep, seeds 1 and 2 summed: each band's mean intensity
 // at half the step within 0.5 dB of the standard step's, traced in the plane and in the
-// slab of the elevation beam (whose texels are twice the plane's). Measured: at most 0.07
-// dB in the plane (seeds 3 and 4: 0.14 dB) and 0.25 dB in the slab (seeds 3 and 4: 0.25
-// dB). A scalp flap turned back over the craniotomy (saline where the scalp's muscle is)
-// failed it: its cut met the fan's lines at grazing incidence, and rare total reflections
-// moved bands by 0.6-0.8 dB (seeds 3-6).
+// slab of the elevation beam (whose texels are twice the plane's). Measured: at most 0.11
+// dB in the plane (seeds 3 and 4: 0.2 dB) and 0.38 dB in the slab, where seeds 1-2 and
+// 3-4 at one step differ by 0.07-0.55 dB; four texels against two miss by 0.55 dB.
 class StandardStep : public ::testing::TestWithParam<int> {};
 TEST_P(StandardStep, IsShortEnough) {
     SceneOptions options;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <string>
 
 #include "imaging/colin27.h"
 #include "imaging/scene/scene.h"
@@ -165,6 +166,29 @@ TEST(HeadMembranes, TheScalpIsMuscleAndTheBrainIsNot) {
         }
     EXPECT_GT(inside, 50000);
     EXPECT_EQ(muscle_inside, 0);
+}
+
+// Over a craniotomy the scalp is turned back: the craniotomy view keeps the MRI's
+// values there (near the saline a surgeon fills the window with); the temporal view, and
+// a probe placed anywhere else on the head, meet the scalp as muscle.
+TEST(HeadMembranes, OnlyTheCraniotomyTurnsTheScalpBack) {
+    for (const char* view : {"craniotomy", "temporal"}) {
+        imaging::SceneOptions options;
+        options.view = view;
+        const auto scene = imaging::load_scene(options);
+        const probe::Transducer t = probe::find_transducer(scene->probe_preset, "test");
+        const imaging::PlaneGrid grid = imaging::plane_grid(t, scene->start.pose, 0.5);
+        tissue::Volume labels;
+        scene->mapper(grid.geometry, &labels);
+        const int muscle = tissue::tissue_label_of("muscle");
+        int count = 0;
+        for (const float l : labels.voxels()) count += int(l) == muscle;
+        if (std::string(view) == "craniotomy") {
+            EXPECT_EQ(count, 0) << view;
+        } else {
+            EXPECT_GT(count, 1000) << view;
+        }
+    }
 }
 
 TEST(HeadMembranes, TheDefaultFrameShowsTheFalxBrighterThanTheBrainBesideIt) {

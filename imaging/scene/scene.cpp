@@ -43,10 +43,14 @@ std::shared_ptr<Scene> volume_scene(std::shared_ptr<const VolumeSource> source,
     const tissue::VolumeGeometry& g = volume.geometry();
     // The interfaces of a resampled volume blend over about a voxel either side.
     scene->interface_reach_mm = 3.0 * std::max({g.spacing.x, g.spacing.y, g.spacing.z});
-    scene->mapper = [source](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
-        return source->plane_properties(grid, labels);
-    };
     const bool temporal = options.view == "temporal";
+    // Over a craniotomy the scalp is turned back; the view keeps the MRI's values there
+    // (CSF- and brain-like, near the saline a surgeon fills the window with).
+    const bool craniotomy = source->is_default && !options.pose && !temporal;
+    scene->mapper = [source, craniotomy](const tissue::VolumeGeometry& grid,
+                                         tissue::Volume* labels) {
+        return source->plane_properties(grid, labels, craniotomy);
+    };
     if (source->is_default) {
         scene->name = temporal ? "head-temporal" : "head-craniotomy";
         scene->title = temporal ? "Colin27 head: transtemporal (phased probe)"
@@ -158,11 +162,13 @@ tissue::Volume VolumeSource::resample(const tissue::VolumeGeometry& grid) const 
 }
 
 tissue::PropertyMaps VolumeSource::plane_properties(const tissue::VolumeGeometry& grid,
-                                                    tissue::Volume* labels) const {
+                                                    tissue::Volume* labels,
+                                                    bool scalp_turned_back) const {
     const tissue::Volume values = resample(grid);
     if (labels) *labels = tissue::tissue_labels(values, *tf);
     tissue::PropertyMaps maps = tissue::classify(values, *tf);
-    if (is_default) add_colin27_anatomy(loaded.volume, *tf, outside, grid, maps, labels);
+    if (is_default)
+        add_colin27_anatomy(loaded.volume, *tf, outside, grid, maps, labels, !scalp_turned_back);
     return maps;
 }
 

@@ -44,9 +44,11 @@ struct VolumeSource {
     // Resamples the volume on `grid` (trilinear, or nearest for label maps).
     tissue::Volume resample(const tissue::VolumeGeometry& grid) const;
     // The acoustic properties on `grid` (and its tissue labels, on request), with the
-    // scalp and membranes the embedded head's MRI cannot tell (imaging::add_colin27_anatomy).
+    // scalp and membranes the embedded head's MRI cannot tell (imaging::add_colin27_anatomy;
+    // `scalp_turned_back`: the scalp as the MRI reads it, for the craniotomy view).
     tissue::PropertyMaps plane_properties(const tissue::VolumeGeometry& grid,
-                                          tissue::Volume* labels) const;
+                                          tissue::Volume* labels,
+                                          bool scalp_turned_back = false) const;
 };
 
 // Default pose for a volume other than the embedded head. With anatomical axes (NIfTI
