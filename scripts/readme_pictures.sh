@@ -12,7 +12,7 @@ oiiotool "$tmp/default/bmode.png" --ch 0,0,0 "$tmp/default/bmode_labels_preview.
     --mosaic:pad=8 2x1 -o docs/images/bmode-default.png
 # The temporal view: the phased probe on the right temple, imaging through the skull
 # (the gain a sonographer would set: the skull costs about 27 dB two-way).
-"$build/sonotrace" simulate -q --labels --view temporal --gain 60 --out "$tmp/temporal"
+"$build/sonotrace" simulate -q --labels --view temporal --out "$tmp/temporal"
 oiiotool "$tmp/temporal/bmode.png" --ch 0,0,0 "$tmp/temporal/bmode_labels_preview.png" \
     --mosaic:pad=8 2x1 -o docs/images/bmode-temporal.png
 # 0.1 mm wires (phantoms/point_grid.json): the two-way PSF across depth and width.

@@ -223,8 +223,10 @@ TEST(CliSimulate, CatalogueHeadScenesRun) {
                                     ".json --out " + (dir / "o"));
         ASSERT_EQ(r.exit_code, 0) << name << ": " << r.err;
         const auto sidecar = nlohmann::json::parse(slurp(dir / "o/bmode.json"));
-        EXPECT_EQ(sidecar.at("view"),
-                  std::string(name) == "colin27_craniotomy" ? "craniotomy" : "temporal");
+        const bool craniotomy = std::string(name) == "colin27_craniotomy";
+        EXPECT_EQ(sidecar.at("view"), craniotomy ? "craniotomy" : "temporal");
+        // Without --gain, the view's: through the skull a sonographer starts 24 dB higher.
+        EXPECT_EQ(sidecar.at("image").at("gain_db"), craniotomy ? 36.0 : 60.0) << name;
     }
 }
 

@@ -70,7 +70,11 @@ struct Scene {
     std::string description;   // a sentence: what it is, or where the probe sits
     ScenePlacement start;      // where the probe starts (and the craniotomy)
     std::string probe_preset;  // the probe it is meant for
-    PlaneMapper mapper;        // properties and labels on a plane grid
+    // The overall gain (dB) a sonographer would start at: 36, and 60 through the skull
+    // (the transtemporal view: the bone costs about 27 dB two-way, and at 36 dB the brain
+    // is near black). `simulate --gain` and the GUI's slider start here.
+    double gain_db = 36.0;
+    PlaneMapper mapper;  // properties and labels on a plane grid
     // Reach of the tracer's interface search: beyond it the medium is a plateau.
     double interface_reach_mm = 1.0;
     // Sub-resolution targets (a phantom's points and wires) and the blur of their painted

@@ -265,7 +265,11 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
         help.back() = '.';
         cmd->add_option("--disable", o.disable, help);
     }
-    add_parameter(*cmd, kGainDoc, o.gain_db);
+    cmd->add_option(kGainDoc.flag, o.gain_db,
+                    std::string(kGainDoc.description) +
+                        " (default: the scene's: 36, the temporal view 60, where the skull "
+                        "costs about 27 dB two-way) [" +
+                        kGainDoc.unit + "]");
     add_parameter(*cmd, kRangeDoc, o.dynamic_range_db);
     add_parameter(*cmd, kTgcDoc, o.tgc);
     add_parameter(*cmd, kPixelDoc, o.pixel_mm);
@@ -452,7 +456,7 @@ json frame_sidecar(const SimulateOptions& o, const SimulateSetup& setup,
           {"pixel_spacing_mm", {o.pixel_mm, o.pixel_mm}},
           {"origin_mm", {frame.image.origin.x, frame.image.origin.y}},
           {"axes", "x = lateral, y = depth from the probe face apex (mm); row 0 at origin.y"},
-          {"gain_db", o.gain_db},
+          {"gain_db", settings.imaging.gain_db},
           {"dynamic_range_db", o.dynamic_range_db},
           {"tgc", o.tgc}}},
         {"rf",
@@ -503,7 +507,7 @@ SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
     settings.step_texels = o.step_texels;
     if (o.refraction_smoothing_mm != -1.0)
         settings.refraction_smoothing_mm = o.refraction_smoothing_mm;
-    settings.imaging.gain_db = o.gain_db;
+    settings.imaging.gain_db = o.gain_db.value_or(imaging::Scene().gain_db);
     settings.imaging.dynamic_range_db = o.dynamic_range_db;
     settings.imaging.pixel_mm = o.pixel_mm;
     settings.imaging.tgc = parse_tgc(o.tgc, settings.transducer);
@@ -511,6 +515,7 @@ SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
     // ---- load and place the probe ----
     if (!scene) scene = imaging::load_scene(scene_options, &timer);
     scene->apply_to(settings);
+    if (!o.gain_db) settings.imaging.gain_db = scene->gain_db;
     setup.placements = sweep_placements(o.sweep, scene->start);
     const std::string pose_source =
         (scene->phantom ? o.phantom + " " : "") + (o.sweep.empty() ? "--pose" : "--sweep");

@@ -52,8 +52,8 @@ struct SimulateOptions {
     std::string quality = "standard";
     std::string receive = "monostatic";
     std::string trace = "2d";
-    std::string disable;  // physics switched off (imaging::physics_switch_names)
-    double gain_db = 36.0;
+    std::string disable;            // physics switched off (imaging::physics_switch_names)
+    std::optional<double> gain_db;  // unset: the scene's (imaging::Scene::gain_db)
     double dynamic_range_db = 60.0;
     std::string tgc = "auto";
     double pixel_mm = 0.2;

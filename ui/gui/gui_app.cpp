@@ -203,7 +203,6 @@ App::App(const AppOptions& options)
         throw base::InputError("--quality", options.quality,
                                "must be interactive, standard or high");
     if (!options.probe.empty()) probe::find_transducer(options.probe, "--probe");  // validates
-    parameters_.gain_db = 36.0;  // as `sonotrace simulate`
     view_.enabled = options.context;
     if (options.context_renderer != "auto" && options.context_renderer != "gpu" &&
         options.context_renderer != "cpu")
@@ -247,6 +246,7 @@ void App::apply_scene(std::shared_ptr<const Scene> scene) {
     probe_preset_ = preset;
     parameters_.transducer = probe::find_transducer(preset, "probe");
     pose_ = scene_->start.pose;
+    parameters_.gain_db = scene_->gain_db;  // as `sonotrace simulate`
     pose_text_.clear();
     tf_choice_.clear();
     view_.zoom = scene_->context_zoom;
