@@ -1,7 +1,7 @@
 #!/bin/sh
 # Renders the README's B-mode pictures into docs/images/: the default frame and the
-# temporal view (through the skull) beside their ground truth, the point-target grid and
-# the radial array. Usage: scripts/readme_pictures.sh [build-dir]
+# temporal view (through the skull) beside their ground truth, the temporal view to the
+# far skull, the point-target grid and the radial array. Usage: scripts/readme_pictures.sh [build-dir]
 set -eu
 build=${1:-build}
 tmp=$(mktemp -d)
@@ -11,10 +11,13 @@ trap 'rm -rf "$tmp"' EXIT
 oiiotool "$tmp/default/bmode.png" --ch 0,0,0 "$tmp/default/bmode_labels_preview.png" \
     --mosaic:pad=8 2x1 -o docs/images/bmode-default.png
 # The temporal view: the phased probe on the right temple, imaging through the skull
-# (the gain a sonographer would set: the skull costs about 27 dB two-way).
+# (the view's gain, 60 dB: the skull costs about 27 dB two-way); and to 175 mm, the far
+# side of the skull.
 "$build/sonotrace" simulate -q --labels --view temporal --out "$tmp/temporal"
 oiiotool "$tmp/temporal/bmode.png" --ch 0,0,0 "$tmp/temporal/bmode_labels_preview.png" \
     --mosaic:pad=8 2x1 -o docs/images/bmode-temporal.png
+"$build/sonotrace" simulate -q --view temporal --depth 175 --out "$tmp/far"
+cp "$tmp/far/bmode.png" docs/images/bmode-temporal-175.png
 # 0.1 mm wires (phantoms/point_grid.json): the two-way PSF across depth and width.
 "$build/sonotrace" simulate -q --phantom phantoms/point_grid.json --quality high --depth 64 \
     --pixel 0.1 --gain 34 --out "$tmp/points"

@@ -37,6 +37,7 @@ const std::vector<Case>& cases() {
         std::vector<Case> out;
         add_tracer_cases(out);
         add_imaging_cases(out);
+        add_head_cases(out);
         return out;
     }();
     return all;

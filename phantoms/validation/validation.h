@@ -83,5 +83,6 @@ void write_report(const std::string& dir, const std::vector<const Case*>& run,
 // Registration of the case groups (one per source file).
 void add_tracer_cases(std::vector<Case>& out);
 void add_imaging_cases(std::vector<Case>& out);
+void add_head_cases(std::vector<Case>& out);
 
 }  // namespace sonotrace::validation

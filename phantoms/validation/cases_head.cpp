@@ -1,0 +1,151 @@
+// Cases measured on frames of the embedded head (Colin27) through the skull: the
+// transtemporal view's ventricles against the parenchyma, and the far side of the skull
+// behind the acoustic window. Expectations come from the anatomy (the tissue labels of
+// the frame's plane) and Snell's law on its acoustic map, never from the image.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "phantoms/validation/head_frames.h"
+#include "phantoms/validation/validation.h"
+#include "tissue/tissue_table.h"
+
+namespace sonotrace::validation {
+namespace {
+
+// The display of a frame for the report.
+Figure frame_figure(const imaging::Frame& frame, const std::string& caption) {
+    cv::Mat grey;
+    frame.image.image.convertTo(grey, CV_8U, 255.0);
+    return {caption, grey};
+}
+
+// The temporal view's lateral ventricles against the parenchyma at the same depths, on
+// the envelope. CSF holds no scatterers (backscatter 0 in the tissue table), so linear
+// acoustics images its interior only through the PSF's reach from the walls. Frames of
+// four seeds summed (a single frame is dominated by a few rays); the interior is the CSF
+// 1 mm clear of other labels, 40 to 100 mm deep (the ventricles, not the sulci under the
+// temple), each sample placed by walking its line through the map's speed of sound.
+CaseResult temporal_ventricles(const CaseContext& ctx) {
+    CaseResult r;
+    imaging::SimulationSettings s;
+    const auto head = temporal_head(&s);
+    const int csf = tissue::tissue_label_of("csf"), brain = tissue::tissue_label_of("brain");
+    imaging::ClearSamples all;  // every seed's samples, `sample` indexing `intensities`
+    std::vector<double> intensities;
+    for (uint64_t seed = ctx.seed; seed < ctx.seed + 4; ++seed) {
+        const TruthFrame truth = truth_frame(*head, s, seed);
+        const imaging::ClearSamples samples = truth.samples(csf, brain, 1.0, 40.0, 100.0);
+        for (const auto* list : {&samples.inside, &samples.outside})
+            for (imaging::TruthSample t : *list) {
+                const double e = truth.frame.envelope.at(t.line, t.sample);
+                t.sample = int(intensities.size());
+                intensities.push_back(e * e);
+                (list == &samples.inside ? all.inside : all.outside).push_back(t);
+            }
+        if (ctx.pictures && seed == ctx.seed)
+            r.figures.push_back(frame_figure(truth.frame, "the temporal view (first seed)"));
+    }
+    const double db = all.inside.size() >= 500
+                          ? imaging::band_contrast_db(all,
+                                                      [&](const imaging::TruthSample& t) {
+                                                          return intensities[std::size_t(t.sample)];
+                                                      })
+                          : std::nan("");  // too few interior samples: fails
+    r.measurements.push_back({"ventricles (CSF 1 mm clear, 40-100 mm) against parenchyma, " +
+                                  std::to_string(all.inside.size()) + " interior samples",
+                              db, -12.0, 0.0, "dB", Check::at_most});
+    return r;
+}
+
+// The far side of the skull is a bright curve where the anatomy puts it, behind the
+// acoustic window. Colin27 is 174 mm from temple to temple at this level, so the far
+// skull's inner table lies 146-167 mm deep: the frame goes to 175 mm. Expected from the
+// labels: on each line, the first cortical bone beyond 110 mm (true depth). Expected from
+// Snell's law (near_skull): the window is the lines that meet the near skull 5 degrees or
+// more inside its longitudinal critical angle (beyond it the wave turns to shear, which
+// the bone absorbs, or reflects). Two seeds.
+CaseResult far_skull(const CaseContext& ctx) {
+    CaseResult r;
+    imaging::SimulationSettings s;
+    const auto head = temporal_head(&s, 175.0);
+    const int bone = tissue::tissue_label_of("cortical_bone"),
+              brain = tissue::tissue_label_of("brain");
+    int window_lines = 0, shadow_lines = 0, hits = 0;  // over both seeds
+    double curve = 0.0, front = 0.0, shadow = 0.0;
+    int n_curve = 0, n_front = 0, n_shadow = 0;
+    for (uint64_t seed = ctx.seed; seed < ctx.seed + 2; ++seed) {
+        const TruthFrame truth = truth_frame(*head, s, seed);
+        const imaging::Frame& frame = truth.frame;
+        const imaging::ClearSamples samples = truth.samples(bone, brain, 0.0, 110.0, 175.0);
+        const auto L = std::size_t(frame.envelope.lines);
+        std::vector<double> skull(L, 1e9);
+        for (const imaging::TruthSample& t : samples.inside)
+            skull[std::size_t(t.line)] = std::min(skull[std::size_t(t.line)], t.depth_mm);
+        std::vector<int> side(L, 0);  // 1 window, -1 shadow, 0 neither
+        for (std::size_t l = 0; l < L; ++l) {
+            const NearSkull n = near_skull(truth, int(l));
+            if (!n.found || skull[l] > 170.0) continue;  // no far skull in the frame
+            side[l] = n.incidence_deg < n.critical_deg - 5.0   ? 1
+                      : n.incidence_deg > n.critical_deg + 5.0 ? -1
+                                                               : 0;
+        }
+        // A line the trace leaves dark has no brightest sample.
+        std::vector<double> brightest(L, 0.0), at_depth(L, -1.0);
+        for (const auto* list : {&samples.inside, &samples.outside})
+            for (const imaging::TruthSample& t : *list) {
+                const auto l = std::size_t(t.line);
+                const double e = frame.envelope.at(t.line, t.sample);
+                if (e > brightest[l]) brightest[l] = e, at_depth[l] = t.depth_mm;
+                const double to_skull = skull[l] - t.depth_mm;
+                if (side[l] < 0) shadow += e * e, ++n_shadow;
+                if (side[l] <= 0) continue;
+                if (std::abs(to_skull) <= 1.5) curve += e * e, ++n_curve;
+                if (list == &samples.outside && to_skull >= 10.0 && to_skull <= 20.0)
+                    front += e * e, ++n_front;
+            }
+        for (std::size_t l = 0; l < L; ++l) {
+            window_lines += side[l] > 0;
+            shadow_lines += side[l] < 0;
+            if (side[l] > 0 && at_depth[l] >= 0.0) hits += std::abs(at_depth[l] - skull[l]) <= 3.0;
+        }
+        if (ctx.pictures && seed == ctx.seed)
+            r.figures.push_back(frame_figure(frame, "the temporal view to 175 mm (first seed)"));
+    }
+    const double curve_level = n_curve > 0 ? curve / n_curve : std::nan("");
+    r.measurements.push_back({"window lines (both seeds; a third of the lines at least)",
+                              double(window_lines), 60.0, 0.0, "", Check::at_least});
+    r.measurements.push_back(
+        {"window lines whose brightest deep sample lies within 3 mm of the far skull",
+         window_lines > 0 ? double(hits) / window_lines : std::nan(""), 2.0 / 3.0, 0.0, "",
+         Check::at_least});
+    r.measurements.push_back({"the curve over the parenchyma 10-20 mm in front of it",
+                              10.0 * std::log10(curve_level / (front / n_front)), 10.0, 0.0, "dB",
+                              Check::at_least});
+    r.measurements.push_back({"the shadow's deep region (" + std::to_string(shadow_lines) +
+                                  " lines beyond the critical angle) against the curve",
+                              10.0 * std::log10(shadow / n_shadow / curve_level), 0.0, 0.0, "dB",
+                              Check::at_most});
+    return r;
+}
+
+}  // namespace
+
+void add_head_cases(std::vector<Case>& out) {
+    out.push_back({"temporal_ventricles", "the temporal view's ventricles are dark",
+                   "Colin27 through the right temple (phased 2.7 MHz): the lateral ventricles' "
+                   "interior (CSF 1 mm clear of other labels, 40-100 mm) at least 12 dB below "
+                   "the parenchyma at the same depths, on the envelope of four frames. CSF has "
+                   "no scatterers: only the PSF's reach from the walls lights it.",
+                   temporal_ventricles});
+    out.push_back({"far_skull", "the far skull behind the acoustic window",
+                   "The temporal view to 175 mm: on the lines that meet the near skull 5 degrees "
+                   "or more inside its critical angle (Snell, from the map), the brightest deep "
+                   "sample lies within 3 mm of the far skull's labels on two lines in three, "
+                   "and the curve stands 10 dB above the parenchyma 10-20 mm in front; the "
+                   "lines beyond the critical angle (the skull's shadow) are darker than it.",
+                   far_skull});
+}
+
+}  // namespace sonotrace::validation
