@@ -22,12 +22,11 @@ namespace {
 // The brain mask mricron-data ships with the Colin27 head (skull-stripped, same grid).
 constexpr const char* kColin27BrainMaskPath = "/usr/share/mricron/templates/ch2bet.nii.gz";
 
-// Per voxel of `head`, 1 where it lies outside the skull: reachable from the volume's
+// On the grid of `head`, 1 where a voxel lies outside the skull: reachable from the volume's
 // border without crossing cortical bone (the transfer function's label) or coming within
 // 2 mm of the brain mask. The margin closes the gaps a 1 mm T1 skull has; the cranium's
 // CSF lies inside it or behind bone.
-std::vector<uint8_t> outside_the_skull(const tissue::Volume& head,
-                                       const tissue::TransferFunction& tf) {
+tissue::Volume outside_the_skull(const tissue::Volume& head, const tissue::TransferFunction& tf) {
     const tissue::Volume mask = tissue::read_nifti(kColin27BrainMaskPath).volume;
     const glm::ivec3 n = head.dims();
     if (mask.dims() != n)
@@ -59,12 +58,13 @@ std::vector<uint8_t> outside_the_skull(const tissue::Volume& head,
         near = std::move(grown);
     }
     const int bone = tissue::tissue_label_of("cortical_bone");
-    std::vector<uint8_t> outside(count, 0);
+    tissue::Volume outside(head.geometry());
     std::vector<std::size_t> front;
     auto enter = [&](int i, int j, int k) {
         const std::size_t v = head.linear_index(i, j, k);
-        if (outside[v] || near[v] || tf.tissue_label(head.voxels()[v]) == bone) return;
-        outside[v] = 1;
+        if (outside.voxels()[v] > 0.0f || near[v] || tf.tissue_label(head.voxels()[v]) == bone)
+            return;
+        outside.voxels()[v] = 1.0f;
         front.push_back(v);
     };
     for (int k = 0; k < n.z; ++k)
@@ -88,10 +88,10 @@ std::vector<uint8_t> outside_the_skull(const tissue::Volume& head,
 }
 
 // outside_the_skull() of the process's head, computed once (every frame plane asks).
-const std::vector<uint8_t>& outside_the_skull_once(const tissue::Volume& head,
-                                                   const tissue::TransferFunction& tf) {
+const tissue::Volume& outside_the_skull_once(const tissue::Volume& head,
+                                             const tissue::TransferFunction& tf) {
     static std::mutex mutex;
-    static std::vector<uint8_t> outside;
+    static tissue::Volume outside;
     static glm::ivec3 dims{0};
     const std::lock_guard lock(mutex);
     if (dims != head.dims()) {
@@ -119,27 +119,14 @@ std::size_t add_colin27_anatomy(const tissue::Volume& head, const tissue::Transf
         return c > 1500.0f && c < 1580.0f && maps[Property::density].at(i, j, k) > 990.0f;
     };
     const tissue::TissueEntry& muscle = tissue::find_tissue("muscle", "", "");
-    static const std::vector<uint8_t> none;
-    const std::vector<uint8_t>& outside_skull = scalp ? outside_the_skull_once(head, tf) : none;
-    const tissue::VolumeGeometry& head_grid = head.geometry();
+    static const tissue::Volume none;
+    const tissue::Volume& outside_skull = scalp ? outside_the_skull_once(head, tf) : none;
     // Outside the skull where the mask, interpolated between voxel centres, passes 1/2: a
     // nearest-voxel test cut the scalp in millimetre steps, whose corners the tracer met
     // as faces (the step test on the default frame saw them).
     auto in_the_scalp = [&](const glm::dvec3& p) {
-        const glm::dvec3 ijk = head_grid.world_to_index(p);
-        const glm::ivec3 low(glm::floor(ijk));
-        const glm::dvec3 f = ijk - glm::dvec3(low);
-        double share = 0.0;
-        for (int corner = 0; corner < 8; ++corner) {
-            const glm::ivec3 o(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
-            const glm::ivec3 v = low + o;
-            if (glm::any(glm::lessThan(v, glm::ivec3(0))) ||
-                glm::any(glm::greaterThanEqual(v, head_grid.dims)) ||
-                outside_skull[head.linear_index(v.x, v.y, v.z)] == 0)
-                continue;
-            share += (o.x ? f.x : 1.0 - f.x) * (o.y ? f.y : 1.0 - f.y) * (o.z ? f.z : 1.0 - f.z);
-        }
-        return share > 0.5;
+        return outside_skull.sample_trilinear(outside_skull.geometry().world_to_index(p), 0.0f) >
+               0.5f;
     };
     auto set = [&](int i, int j, int k, const tissue::TissueEntry& t) {
         for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)

@@ -64,6 +64,9 @@ VolumeSource load_volume_source(const VolumeOptions& options, StageObserver* sta
 // box, centred, beam along +j, lateral along +i.
 probe::Pose top_centre_pose(const tissue::VolumeGeometry& g);
 
+// The overall gain (dB) of a frame whose scene does not say otherwise (Scene::gain_db).
+inline constexpr double kDefaultGainDb = 36.0;
+
 struct Scene {
     std::string name;          // what identifies it ("head-craniotomy", a file's path)
     std::string title;         // one line, for menus
@@ -73,7 +76,7 @@ struct Scene {
     // The overall gain (dB) a sonographer would start at: 36, and 60 through the skull
     // (the transtemporal view: the bone costs about 27 dB two-way, and at 36 dB the brain
     // is near black). `simulate --gain` and the GUI's slider start here.
-    double gain_db = 36.0;
+    double gain_db = kDefaultGainDb;
     PlaneMapper mapper;  // properties and labels on a plane grid
     // Reach of the tracer's interface search: beyond it the medium is a plateau.
     double interface_reach_mm = 1.0;

@@ -507,7 +507,7 @@ SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
     settings.step_texels = o.step_texels;
     if (o.refraction_smoothing_mm != -1.0)
         settings.refraction_smoothing_mm = o.refraction_smoothing_mm;
-    settings.imaging.gain_db = o.gain_db.value_or(imaging::Scene().gain_db);
+    settings.imaging.gain_db = o.gain_db.value_or(imaging::kDefaultGainDb);
     settings.imaging.dynamic_range_db = o.dynamic_range_db;
     settings.imaging.pixel_mm = o.pixel_mm;
     settings.imaging.tgc = parse_tgc(o.tgc, settings.transducer);
