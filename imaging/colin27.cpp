@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <mutex>
 #include <numeric>
+#include <string>
 #include <vector>
 
 #include "probe/placement.h"
@@ -87,16 +88,20 @@ tissue::Volume outside_the_skull(const tissue::Volume& head, const tissue::Trans
     return outside;
 }
 
-// outside_the_skull() of the process's head, computed once (every frame plane asks).
+// outside_the_skull() of the process's head and transfer function, computed once (every
+// frame plane asks; the GUI can change the transfer function, which moves the bone).
 const tissue::Volume& outside_the_skull_once(const tissue::Volume& head,
                                              const tissue::TransferFunction& tf) {
     static std::mutex mutex;
     static tissue::Volume outside;
-    static glm::ivec3 dims{0};
+    static std::string key;
+    const glm::ivec3 n = head.dims();
+    std::string now = std::to_string(n.x) + "x" + std::to_string(n.y) + "x" + std::to_string(n.z) +
+                      " " + tf.describe().dump();
     const std::lock_guard lock(mutex);
-    if (dims != head.dims()) {
+    if (now != key) {
         outside = outside_the_skull(head, tf);
-        dims = head.dims();
+        key = std::move(now);
     }
     return outside;
 }
