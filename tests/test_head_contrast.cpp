@@ -7,7 +7,6 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <numbers>
 #include <string>
 
 #include "imaging/anatomy_truth.h"
@@ -15,7 +14,6 @@
 #include "imaging/simulation.h"
 #include "phantoms/validation/head_frames.h"
 #include "tissue/tissue_table.h"
-#include "tissue/transfer_function.h"
 
 namespace sonotrace::imaging {
 namespace {
