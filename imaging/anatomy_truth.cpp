@@ -7,14 +7,14 @@ namespace sonotrace::imaging {
 ClearSamples clear_samples(const LineData& envelope, const probe::ScanGeometry& geometry,
                            const glm::dvec2& to_map, const tissue::AcousticMap<2>& map,
                            const tissue::Volume& labels, int inside_label, int outside_label,
-                           double clear_mm, double from_mm, double to_mm, TruthWalk walk) {
+                           const Clearance& clear_mm, double from_mm, double to_mm,
+                           TruthWalk walk) {
     ClearSamples out;
     const glm::dvec3 h = labels.geometry().spacing;
     const glm::ivec3 dims = labels.geometry().dims;
     auto label_at = [&](int i, int j) {
         return i < 0 || j < 0 || i >= dims.x || j >= dims.y ? -1 : int(labels.at(i, j, 0));
     };
-    const int r = int(std::ceil(clear_mm / h.x));
     const bool nominal = walk == TruthWalk::nominal, bent = walk == TruthWalk::refracted;
     for (int l = 0; l < envelope.lines; ++l) {
         double travelled = 0.0, optical = 0.0;
@@ -46,6 +46,7 @@ ClearSamples clear_samples(const LineData& envelope, const probe::ScanGeometry& 
             const int ti = int(std::floor(m.x / h.x + 0.5)), tj = int(std::floor(m.y / h.y + 0.5));
             const int label = label_at(ti, tj);
             if (label != inside_label && label != outside_label) continue;
+            const int r = int(std::ceil(clear_mm.at_depth(d) / h.x));
             bool clear = true;
             for (int dj = -r; dj <= r && clear; ++dj)
                 for (int di = -r; di <= r && clear; ++di)

@@ -6,6 +6,8 @@
 // than they are at 60 mm; and classified by the tissue labels around it.
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -28,6 +30,14 @@ struct ClearSamples {
         outside;  // labels within clear_mm all `inside` / all `outside`
 };
 
+// How far from other labels a sample must lie (mm): a constant, or a function of the
+// sample's true depth, for a clearance that follows the beam's width.
+struct Clearance {
+    Clearance(double mm) : at_depth([mm](double) { return mm; }) {}
+    explicit Clearance(std::function<double(double depth_mm)> f) : at_depth(std::move(f)) {}
+    std::function<double(double depth_mm)> at_depth;
+};
+
 // How a line's samples are placed in the map.
 enum class TruthWalk {
     nominal,    // at c0 t / 2 along the straight line
@@ -44,7 +54,7 @@ enum class TruthWalk {
 ClearSamples clear_samples(const LineData& envelope, const probe::ScanGeometry& geometry,
                            const glm::dvec2& to_map, const tissue::AcousticMap<2>& map,
                            const tissue::Volume& labels, int inside_label, int outside_label,
-                           double clear_mm, double from_mm, double to_mm,
+                           const Clearance& clear_mm, double from_mm, double to_mm,
                            TruthWalk walk = TruthWalk::straight);
 
 // The inside's mean intensity (envelope squared) against the outside's at the same depths

@@ -8,7 +8,8 @@
 
 namespace sonotrace::validation {
 
-imaging::ClearSamples TruthFrame::samples(int inside, int outside, double clear_mm, double from_mm,
+imaging::ClearSamples TruthFrame::samples(int inside, int outside,
+                                          const imaging::Clearance& clear_mm, double from_mm,
                                           double to_mm) const {
     return imaging::clear_samples(frame.envelope, probe::ScanGeometry(transducer), grid.to_map, map,
                                   labels, inside, outside, clear_mm, from_mm, to_mm);

@@ -20,8 +20,8 @@ struct TruthFrame {
     imaging::Frame frame;
     probe::Transducer transducer;
     // imaging::clear_samples() of the frame's envelope against these labels.
-    imaging::ClearSamples samples(int inside, int outside, double clear_mm, double from_mm,
-                                  double to_mm) const;
+    imaging::ClearSamples samples(int inside, int outside, const imaging::Clearance& clear_mm,
+                                  double from_mm, double to_mm) const;
 };
 
 // The temporal view's scene; `s` gets the phased probe, imaging to `depth_mm` (0: the
