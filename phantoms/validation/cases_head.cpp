@@ -87,10 +87,8 @@ CaseResult temporal_ventricles(const CaseContext& ctx) {
 // insular cisterns, whose fissure is echogenic on real scans).
 CaseResult craniotomy_ventricles(const CaseContext& ctx) {
     CaseResult r;
-    const auto head = imaging::load_scene(imaging::SceneOptions{});
     imaging::SimulationSettings s;
-    s.transducer = probe::find_transducer(head->probe_preset, "craniotomy_ventricles");
-    head->apply_to(s);
+    const auto head = head_view("craniotomy", &s);
     const probe::Transducer& t = s.transducer;
     // The main lobe's half-width by whole millimetres of depth.
     const probe::LineFields fields(t, probe::line_array(t, t.lines / 2));

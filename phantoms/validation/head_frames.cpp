@@ -15,12 +15,12 @@ imaging::ClearSamples TruthFrame::samples(int inside, int outside,
                                   labels, inside, outside, clear_mm, from_mm, to_mm);
 }
 
-std::shared_ptr<const imaging::Scene> temporal_head(imaging::SimulationSettings* s,
-                                                    double depth_mm) {
+std::shared_ptr<const imaging::Scene> head_view(const std::string& view,
+                                                imaging::SimulationSettings* s, double depth_mm) {
     imaging::SceneOptions options;
-    options.view = "temporal";
+    options.view = view;
     auto head = imaging::load_scene(options);
-    s->transducer = probe::find_transducer("phased", "temporal_head");
+    s->transducer = probe::find_transducer(head->probe_preset, "head_view");
     if (depth_mm > 0.0) s->transducer.depth_mm = depth_mm;
     head->apply_to(*s);
     // The display as `simulate` makes it: the scene's gain, the automatic TGC.

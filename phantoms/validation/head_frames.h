@@ -4,6 +4,7 @@
 // `sonotrace validate` (cases_head.cpp) and the head tests.
 #include <cstdint>
 #include <memory>
+#include <string>
 
 #include "imaging/anatomy_truth.h"
 #include "imaging/scene/scene.h"
@@ -24,11 +25,17 @@ struct TruthFrame {
                                   double from_mm, double to_mm) const;
 };
 
-// The temporal view's scene; `s` gets the phased probe, imaging to `depth_mm` (0: the
-// preset's depth), what the scene sets (Scene::apply_to), and the display `simulate`
-// makes: the scene's gain and the automatic TGC.
-std::shared_ptr<const imaging::Scene> temporal_head(imaging::SimulationSettings* s,
-                                                    double depth_mm = 0.0);
+// A view of the embedded head ("craniotomy", the default frame's, or "temporal"); `s`
+// gets the view's probe, imaging to `depth_mm` (0: the preset's depth), what the scene
+// sets (Scene::apply_to), and the display `simulate` makes: the scene's gain and the
+// automatic TGC.
+std::shared_ptr<const imaging::Scene> head_view(const std::string& view,
+                                                imaging::SimulationSettings* s,
+                                                double depth_mm = 0.0);
+inline std::shared_ptr<const imaging::Scene> temporal_head(imaging::SimulationSettings* s,
+                                                           double depth_mm = 0.0) {
+    return head_view("temporal", s, depth_mm);
+}
 
 // The frame of `head` with settings `s` and seed `seed`: traced in the plane, or in the
 // elevation beam's slab when s.trace_dimensions is 3 (as `--trace 3d`).
