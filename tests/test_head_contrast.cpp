@@ -18,7 +18,7 @@
 namespace sonotrace::imaging {
 namespace {
 
-using validation::temporal_head;
+using validation::head_view;
 using validation::truth_frame;
 using validation::TruthFrame;
 
@@ -31,7 +31,7 @@ using validation::TruthFrame;
 // long, and the reflected particle flew faster than its clock).
 TEST(HeadContrast, TheSkullsReflectionsDoNotFollowTheStep) {
     SimulationSettings s;
-    const auto head = temporal_head(&s);
+    const auto head = head_view("temporal", &s);
     s.keep_echoes = true;
     std::vector<double> per_particle;
     for (const double step : {0.5, 1.0}) {

@@ -53,7 +53,7 @@ struct PooledSamples {
 CaseResult temporal_ventricles(const CaseContext& ctx) {
     CaseResult r;
     imaging::SimulationSettings s;
-    const auto head = temporal_head(&s);
+    const auto head = head_view("temporal", &s);
     const int csf = tissue::tissue_label_of("csf"), brain = tissue::tissue_label_of("brain");
     PooledSamples pooled;
     for (uint64_t seed = ctx.seed; seed < ctx.seed + 4; ++seed) {
@@ -141,7 +141,7 @@ CaseResult craniotomy_ventricles(const CaseContext& ctx) {
 CaseResult far_skull(const CaseContext& ctx) {
     CaseResult r;
     imaging::SimulationSettings s;
-    const auto head = temporal_head(&s, 175.0);
+    const auto head = head_view("temporal", &s, 175.0);
     const int bone = tissue::tissue_label_of("cortical_bone"),
               brain = tissue::tissue_label_of("brain");
     int window_lines = 0, shadow_lines = 0, hits = 0;  // over both seeds

@@ -32,10 +32,6 @@ struct TruthFrame {
 std::shared_ptr<const imaging::Scene> head_view(const std::string& view,
                                                 imaging::SimulationSettings* s,
                                                 double depth_mm = 0.0);
-inline std::shared_ptr<const imaging::Scene> temporal_head(imaging::SimulationSettings* s,
-                                                           double depth_mm = 0.0) {
-    return head_view("temporal", s, depth_mm);
-}
 
 // The frame of `head` with settings `s` and seed `seed`: traced in the plane, or in the
 // elevation beam's slab when s.trace_dimensions is 3 (as `--trace 3d`).
