@@ -1,5 +1,5 @@
-// Anechoic regions stay dark, homogeneous ones show no radial streaks, and the physics
-// switches of `simulate --disable` do what they say.
+// Anechoic regions stay dark, and the physics switches of `simulate --disable` do what
+// they say. (Radial streaks over homogeneous brain: the validation case per_line_means.)
 //
 // A CSF cylinder (no scatterers) 8 mm across in brain at the convex probe's transmit focus,
 // the default frame's probe and quality: the envelope inside it (1 mm clear of its wall)
@@ -246,55 +246,6 @@ TEST(Anechoic, SpeckleOffSilencesHomogeneousBrain) {
     const double with = cylinder_contrast({}).beside_mean_square;
     const double without = cylinder_contrast(off).beside_mean_square;
     EXPECT_LT(without, 1e-6 * with) << with << " " << without;
-}
-
-// Radial streaks: over homogeneous brain at the standard quality, the per-line mean
-// intensity over a depth band varies across lines no more than speckle allows. The
-// expected spread of one line's band mean is sigma_I / sqrt(N_eff), with sigma_I the
-// intensity's standard deviation and N_eff the band's samples over the intensity's
-// axial correlation length (sum of its autocorrelation coefficients over lags, both
-// measured on the same lines): the statistics of a mean of correlated samples. The
-// issue's bound: at most 1.2 times that, over the central half of the lines (unclipped
-// apertures), in bands of 10 mm at 20-30, 40-50 and 60-70 mm. 64 lines estimate the
-// spread within ~9 % (1 sigma); seeds 1-4 read 0.51-1.07 of the allowance.
-TEST(Anechoic, PerLineMeansVaryAsSpeckleAllows) {
-    const imaging::LineData env = brain_phantom_frame({}, {}).frame.envelope;
-    for (const double from : {20.0, 40.0, 60.0}) {
-        const int i0 = int(from / env.depth_mm(1)), i1 = int((from + 10.0) / env.depth_mm(1));
-        const int n = i1 - i0;
-        std::vector<double> means;
-        double sum = 0.0, sum2 = 0.0;
-        int count = 0;
-        for (int l = env.lines / 4; l < 3 * env.lines / 4; ++l) {
-            double m = 0.0;
-            for (int i = i0; i < i1; ++i) {
-                const double v = double(env.at(l, i)) * env.at(l, i);
-                m += v, sum += v, sum2 += v * v, ++count;
-            }
-            means.push_back(m / n);
-        }
-        const double mu = sum / count, var = sum2 / count - mu * mu;
-        // Autocorrelation coefficients of the intensity along the lines, to where they die.
-        double correlation_length = 1.0;
-        for (int k = 1; k < n / 4; ++k) {
-            double c = 0.0;
-            int pairs = 0;
-            for (int l = env.lines / 4; l < 3 * env.lines / 4; ++l)
-                for (int i = i0; i + k < i1; ++i, ++pairs)
-                    c += (double(env.at(l, i)) * env.at(l, i) - mu) *
-                         (double(env.at(l, i + k)) * env.at(l, i + k) - mu);
-            const double rho = c / pairs / var;
-            if (rho < 0.02) break;
-            correlation_length += 2.0 * rho;
-        }
-        const double expected = std::sqrt(var * correlation_length / n);
-        double spread = 0.0;
-        for (double m : means) spread += (m - mu) * (m - mu);
-        spread = std::sqrt(spread / double(means.size() - 1));
-        std::printf("%.0f-%.0f mm: per-line mean spread %.3g, speckle allows %.3g (ratio %.2f)\n",
-                    from, from + 10.0, spread, expected, spread / expected);
-        EXPECT_LT(spread, 1.2 * expected) << from;
-    }
 }
 
 }  // namespace

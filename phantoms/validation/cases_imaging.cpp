@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstdio>
 #include <numbers>
 
 #include <opencv2/imgproc.hpp>
@@ -916,6 +917,63 @@ CaseResult speckle_and_cysts(const CaseContext& ctx) {
     return r;
 }
 
+// Radial streaks: over homogeneous brain at the standard quality (the default frame's
+// convex probe, 32 particles a line), the per-line mean intensity over a depth band
+// varies across lines no more than speckle allows. The expected spread of one line's
+// band mean is sigma_I / sqrt(N_eff): sigma_I the intensity's standard deviation, N_eff
+// the band's samples over the intensity's axial correlation length (1 + 2 x the sum of
+// its autocorrelation coefficients until they fall below 0.02), both measured on the same
+// lines: the statistics of a mean of correlated samples. The bound is 1.2 times
+// that, over the central half of the lines (unclipped apertures), in 10 mm bands at
+// 20-30, 40-50 and 60-70 mm. 64 lines estimate the spread within ~9 % (1 sigma).
+CaseResult per_line_means(const CaseContext& ctx) {
+    const nlohmann::json brain = {{"name", "homogeneous brain"},
+                                  {"size", {100, 90, 20}},
+                                  {"resolution", 0.25},
+                                  {"smoothing", 0.3},
+                                  {"background", {{"tissue", "brain"}}},
+                                  {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}}};
+    const PhantomFrame f = image_phantom(phantoms::parse_phantom(brain, "per_line_means"),
+                                         {0.0, 0, imaging::Quality::standard, true, 0.0}, ctx.seed);
+    const imaging::LineData& env = f.frame.envelope;
+    auto intensity = [&](int l, int i) { return double(env.at(l, i)) * env.at(l, i); };
+    const int first = env.lines / 4, last = 3 * env.lines / 4;
+    CaseResult r;
+    for (const double from : {20.0, 40.0, 60.0}) {
+        const int i0 = int(from / env.depth_mm(1)), i1 = int((from + 10.0) / env.depth_mm(1));
+        const int n = i1 - i0;
+        std::vector<double> means, all;
+        for (int l = first; l < last; ++l) {
+            double m = 0.0;
+            for (int i = i0; i < i1; ++i) m += intensity(l, i), all.push_back(intensity(l, i));
+            means.push_back(m / n);
+        }
+        const double mu = mean(all), var = std::pow(stddev(all), 2);
+        double correlation_length = 1.0;
+        for (int k = 1; k < n / 4; ++k) {
+            double c = 0.0;
+            int pairs = 0;
+            for (int l = first; l < last; ++l)
+                for (int i = i0; i + k < i1; ++i, ++pairs)
+                    c += (intensity(l, i) - mu) * (intensity(l, i + k) - mu);
+            const double rho = c / pairs / var;
+            if (rho < 0.02) break;
+            correlation_length += 2.0 * rho;
+        }
+        const double allowed = std::sqrt(var * correlation_length / n);
+        char quantity[96];
+        std::snprintf(quantity, sizeof quantity,
+                      "per-line mean spread over what speckle allows, %.0f-%.0f mm", from,
+                      from + 10.0);
+        // The lines' sample standard deviation (n - 1: their mean is estimated too).
+        const double m = double(means.size()), spread = stddev(means) * std::sqrt(m / (m - 1.0));
+        r.measurements.push_back({quantity, spread / allowed, 1.2, 0.0, "", Check::at_most});
+    }
+    if (ctx.pictures)
+        r.figures.push_back(frame_figure(f, "homogeneous brain, convex 3.5 MHz, standard quality"));
+    return r;
+}
+
 }  // namespace
 
 void add_imaging_cases(std::vector<Case>& out) {
@@ -963,6 +1021,13 @@ void add_imaging_cases(std::vector<Case>& out) {
                    "value 1.913 (+-0.15); the anechoic cyst's CNR tends to the same value; the "
                    "hyperechoic cyst's contrast against 20 log10 of the backscatter ratio.",
                    speckle_and_cysts});
+    out.push_back({"per_line_means", "no radial streaks at the standard quality",
+                   "Homogeneous brain under the default frame's convex probe at the standard "
+                   "quality: in 10 mm bands at 20, 40 and 60 mm, the spread of the per-line mean "
+                   "intensities over the central half of the lines at most 1.2 times what "
+                   "speckle allows (sigma_I / sqrt(N_eff), N_eff from the intensity's axial "
+                   "correlation length).",
+                   per_line_means});
 }
 
 }  // namespace sonotrace::validation
