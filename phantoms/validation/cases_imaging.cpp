@@ -304,6 +304,31 @@ double first_side_lobe_db(const std::vector<double>& v) {
     return 20.0 * std::log10(lobe / v[std::size_t(peak)]);
 }
 
+// A 0.1 mm wire target at (x, z) of the probe plane in water, imaged by `t` through the
+// beams without being traced (speckle off).
+PhantomFrame wire_in_water(const probe::Transducer& t, const tissue::AcousticProperties& water,
+                           double x, double z, uint64_t seed) {
+    PhantomFrame f;
+    f.phantom.name = "lateral", f.phantom.source = "validation:resolution";
+    f.phantom.size = {40.0, 40.0, 10.0};
+    f.phantom.background = water;
+    f.phantom.pose = probe::Pose::looking({20.0, 0.0, 5.0}, {0, 1, 0}, {1, 0, 0});
+    f.transducer = t;
+    imaging::SimulationSettings settings;
+    settings.transducer = t;
+    settings.quality = imaging::Quality::standard;
+    settings.imaging.speckle = false;
+    settings.seed = seed;
+    tissue::PointTarget wire;
+    wire.type = tissue::PointTarget::Type::wire;
+    wire.at = {20.0 + x, z, 5.0};
+    settings.targets = {wire};
+    const imaging::PlaneGrid grid = imaging::plane_grid(t, f.phantom.pose, 0.25);
+    const auto map = imaging::frame_map(phantoms::rasterise(f.phantom, grid.geometry), settings);
+    f.frame = imaging::simulate_frame(map, grid, f.phantom.pose, settings);
+    return f;
+}
+
 // ---- cases ----
 
 CaseResult wire_depth(const CaseContext& ctx) {
@@ -807,32 +832,13 @@ CaseResult resolution(const CaseContext& ctx) {
     // u = 1.3916) and a first side lobe of sinc^2 at u = 4.4934, -26.5 dB. Element
     // directivity and cylindrical spreading change both by under a percent at F/2.
     {
-        phantoms::Phantom ph;
-        ph.name = "lateral", ph.source = "validation:resolution";
-        ph.size = {40.0, 30.0, 10.0};
-        ph.background = water;
-        ph.pose = probe::Pose::looking({20.0, 0.0, 5.0}, {0, 1, 0}, {1, 0, 0});
         probe::Transducer t = probe::find_transducer("linear", "validation");
         t.lines = 512;
         t.depth_mm = 24.0;
         t.tx_apodization = probe::Apodization::rectangular;
         t.rx_apodization = probe::Apodization::rectangular;
         t.rx_f_number = t.f_number;
-        imaging::SimulationSettings settings;
-        settings.transducer = t;
-        settings.quality = imaging::Quality::standard;
-        settings.imaging.speckle = false;
-        settings.seed = ctx.seed;
-        tissue::PointTarget wire;
-        wire.type = tissue::PointTarget::Type::wire;
-        wire.at = {20.03, t.focus_mm, 5.0};
-        settings.targets = {wire};
-        const imaging::PlaneGrid grid = imaging::plane_grid(t, ph.pose, 0.25);
-        const auto map = imaging::frame_map(phantoms::rasterise(ph, grid.geometry), settings);
-        PhantomFrame f;
-        f.phantom = ph;
-        f.transducer = t;
-        f.frame = imaging::simulate_frame(map, grid, ph.pose, settings);
+        const PhantomFrame f = wire_in_water(t, water, 0.03, t.focus_mm, ctx.seed);
         const LateralProfile p = lateral_profile(f, t.focus_mm - 1.0, t.focus_mm + 1.0, -3.0, 3.0);
         const double lambda = t.wavelength_mm();
         const double expected = 0.886 * lambda * t.f_number;
@@ -877,28 +883,9 @@ CaseResult resolution(const CaseContext& ctx) {
         t.rx_f_number = rx_f;
         const ReferenceLinearArray reference{t};
         for (const double z : {10.0, 20.0, 30.0}) {
-            phantoms::Phantom ph;
-            ph.name = "lateral", ph.source = "validation:resolution";
-            ph.size = {40.0, 40.0, 10.0};
-            ph.background = water;
-            ph.pose = probe::Pose::looking({20.0, 0.0, 5.0}, {0, 1, 0}, {1, 0, 0});
             t.depth_mm = z + 4.0;
-            imaging::SimulationSettings settings;
-            settings.transducer = t;
-            settings.quality = imaging::Quality::standard;
-            settings.imaging.speckle = false;
-            settings.seed = ctx.seed;
-            tissue::PointTarget wire;
-            wire.type = tissue::PointTarget::Type::wire;
             const double x0 = 0.013;  // off any line
-            wire.at = {20.0 + x0, z, 5.0};
-            settings.targets = {wire};
-            const imaging::PlaneGrid grid = imaging::plane_grid(t, ph.pose, 0.25);
-            const auto map = imaging::frame_map(phantoms::rasterise(ph, grid.geometry), settings);
-            PhantomFrame f;
-            f.phantom = ph;
-            f.transducer = t;
-            f.frame = imaging::simulate_frame(map, grid, ph.pose, settings);
+            const PhantomFrame f = wire_in_water(t, water, x0, z, ctx.seed);
             const LateralProfile measured = lateral_profile(f, z - 1.0, z + 1.0, -3.0, 3.0);
             std::vector<double> predicted;
             for (const double xl : measured.x) predicted.push_back(reference.two_way(xl, x0, z));
@@ -1028,6 +1015,20 @@ CaseResult speckle_and_cysts(const CaseContext& ctx) {
     return r;
 }
 
+// A medium filling a 100 x 90 x 20 mm box (0.25 mm map) under the default frame's
+// convex probe, imaged at the standard quality.
+PhantomFrame convex_frame(const std::string& name, const nlohmann::json& background,
+                          uint64_t seed) {
+    const nlohmann::json j = {{"name", name},
+                              {"size", {100, 90, 20}},
+                              {"resolution", 0.25},
+                              {"smoothing", 0.3},
+                              {"background", background},
+                              {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}}};
+    return image_phantom(phantoms::parse_phantom(j, "validation:" + name),
+                         {0.0, 0, imaging::Quality::standard, true, 0.0}, seed);
+}
+
 // Radial streaks: over homogeneous brain at the standard quality (the default frame's
 // convex probe, 32 particles a line), the per-line mean intensity over a depth band
 // varies across lines no more than speckle allows. The expected spread of one line's
@@ -1038,14 +1039,7 @@ CaseResult speckle_and_cysts(const CaseContext& ctx) {
 // that, over the central half of the lines (unclipped apertures), in 10 mm bands at
 // 20-30, 40-50 and 60-70 mm. 64 lines estimate the spread within ~9 % (1 sigma).
 CaseResult per_line_means(const CaseContext& ctx) {
-    const nlohmann::json brain = {{"name", "homogeneous brain"},
-                                  {"size", {100, 90, 20}},
-                                  {"resolution", 0.25},
-                                  {"smoothing", 0.3},
-                                  {"background", {{"tissue", "brain"}}},
-                                  {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}}};
-    const PhantomFrame f = image_phantom(phantoms::parse_phantom(brain, "per_line_means"),
-                                         {0.0, 0, imaging::Quality::standard, true, 0.0}, ctx.seed);
+    const PhantomFrame f = convex_frame("homogeneous brain", {{"tissue", "brain"}}, ctx.seed);
     const imaging::LineData& env = f.frame.envelope;
     auto intensity = [&](int l, int i) { return double(env.at(l, i)) * env.at(l, i); };
     const int first = env.lines / 4, last = 3 * env.lines / 4;
@@ -1094,20 +1088,14 @@ CaseResult per_line_means(const CaseContext& ctx) {
 // (probe::LineFields, not the image pipeline) across +-12 mm at lambda / 8, relative to
 // the transmit focus.
 CaseResult speckle_depth(const CaseContext& ctx) {
-    const nlohmann::json medium = {{"name", "scatterers without attenuation"},
-                                   {"size", {100, 90, 20}},
-                                   {"resolution", 0.25},
-                                   {"smoothing", 0.3},
-                                   {"background",
-                                    {{"speed_of_sound", 1540},
-                                     {"density", 1040},
-                                     {"attenuation", 0},
-                                     {"backscatter", 0.35},
-                                     {"scatterer_density", 15},
-                                     {"roughness", 0}}},
-                                   {"probe", {{"preset", "convex"}, {"at", {50, 0, 10}}}}};
-    const PhantomFrame f = image_phantom(phantoms::parse_phantom(medium, "speckle_depth"),
-                                         {0.0, 0, imaging::Quality::standard, true, 0.0}, ctx.seed);
+    const PhantomFrame f = convex_frame("scatterers without attenuation",
+                                        {{"speed_of_sound", 1540},
+                                         {"density", 1040},
+                                         {"attenuation", 0},
+                                         {"backscatter", 0.35},
+                                         {"scatterer_density", 15},
+                                         {"roughness", 0}},
+                                        ctx.seed);
     const imaging::LineData& env = f.frame.envelope;
     const probe::Transducer& t = f.transducer;
     const int first = env.lines / 4, last = 3 * env.lines / 4;
