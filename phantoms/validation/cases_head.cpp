@@ -94,9 +94,14 @@ CaseResult craniotomy_ventricles(const CaseContext& ctx) {
     const probe::LineFields fields(t, probe::line_array(t, t.lines / 2));
     std::vector<double> half_width(std::size_t(t.depth_mm) + 2, 1.0);
     for (std::size_t z = 1; z < half_width.size(); ++z) {
-        double previous = std::norm(fields.two_way({0.0, double(z)}));
+        const auto receive = fields.receive_aperture(double(z));  // focused at z, as two_way
+        auto power_at = [&](double x) {
+            const glm::dvec2 q(x, double(z));
+            return std::norm(fields.transmit(q) * fields.receive(q, receive));
+        };
+        double previous = power_at(0.0);
         for (double x = 0.01; x <= 5.0; x += 0.01) {
-            const double power = std::norm(fields.two_way({x, double(z)}));
+            const double power = power_at(x);
             if (power > previous) {
                 half_width[z] = std::max(1.0, x - 0.01);
                 break;
