@@ -18,7 +18,7 @@ TEST_P(ValidationCase, EveryQuantityWithinItsTolerance) {
                                     [](const validation::Case& c) { return c.name == GetParam(); });
     ASSERT_NE(found, all.end()) << "no case " << GetParam();
     validation::CaseContext ctx;
-    ctx.phantom_dir = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms";
+    ctx.phantom_dir = SONOTRACE_SOURCE_DIR "/phantoms";
     ctx.pictures = false;
     const validation::CaseResult r = found->run(ctx);
     ASSERT_FALSE(r.measurements.empty());

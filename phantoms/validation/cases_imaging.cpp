@@ -21,8 +21,6 @@
 namespace sonotrace::validation {
 namespace {
 
-constexpr double kC0 = tissue::kReferenceSpeed;
-
 // A phantom imaged with its probe (depth and quality as the case needs).
 struct PhantomFrame {
     phantoms::Phantom phantom;

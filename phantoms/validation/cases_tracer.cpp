@@ -21,8 +21,6 @@ using simulator::TraceSettings;
 using tissue::AcousticProperties;
 using tissue::Property;
 
-constexpr double kC0 = 1540.0;  // m/s: the scanner's assumed speed
-
 // ---- an interface tilted by 20 degrees (not grid-aligned) through (30, 30) mm ----
 
 constexpr double kH = 0.25, kTilt = 20.0;

@@ -11,7 +11,12 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "tissue/acoustic_map.h"
+
 namespace sonotrace::validation {
+
+// m/s: the speed the scanner assumes when it turns echo times into depths.
+inline constexpr double kC0 = tissue::kReferenceSpeed;
 
 // How a measurement is judged against its expectation.
 enum class Check {

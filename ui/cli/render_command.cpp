@@ -5,6 +5,7 @@
 #include <chrono>
 
 #include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <sstream>
@@ -304,6 +305,12 @@ int run_render_command(const RenderOptions& options) {
     // ---- progressive refinement ----
     g_interrupted = false;
     const auto previous_handler = std::signal(SIGINT, on_interrupt);
+    // Said once the handler is in place: from here on, Ctrl-C keeps the work done.
+    if (!options.quiet)
+        std::fprintf(stderr,
+                     "sonotrace: rendering up to %d repetitions; Ctrl-C stops and writes the "
+                     "image of the repetitions done\n",
+                     settings.repetitions);
     const auto start = std::chrono::steady_clock::now();
     ProgressBar bar("rendering", options.quiet);
     std::vector<double> repetition_ms;
