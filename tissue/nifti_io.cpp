@@ -347,7 +347,9 @@ void write_nifti(const Volume& volume, const std::string& path) {
     if (nifti_set_filenames(nim.get(), temporary.c_str(), 0, 1) != 0) {
         throw base::InputError(path, "", "niftilib rejected the file name (use .nii or .nii.gz)");
     }
-    nifti_image_write(nim.get());
+    // gzip level 1 ("wb1"): zlib's default (6) spent most of `sonotrace tissue --nifti`'s
+    // time compressing float maps, for files 2 % smaller (ten maps of a 10 mm slab).
+    nifti_image_write_hdr_img(nim.get(), 1, "wb1");
     std::error_code ec;
     if (!fs::exists(temporary, ec) || fs::file_size(temporary, ec) == 0) {
         throw base::InputError(path, "", "writing the NIfTI file failed");
