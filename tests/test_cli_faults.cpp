@@ -6,10 +6,12 @@
 // next run into the same directory cleaning up after the killed one. (A rename that fails
 // part-way: CliTrace.CollidingOrBlockedOutputsLeaveNothing.)
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <thread>
 
@@ -70,6 +72,33 @@ TEST(CliFaults, AFullDiskIsAnErrorAndLeavesNothing) {
         << r.err;
     for (const std::string& name : files_in(out))
         EXPECT_NE(name.find(".png"), std::string::npos) << "left behind: " << name;
+}
+
+// A dataset's shards on a full disk. HDF5 used to write the file itself: its close failed,
+// and its exit handler then crashed (SIGSEGV) closing the file again. Shards are built in
+// memory and written by our checked writer now. A FIFO where a shard is expected blocked
+// the next run in open() for ever; it is refused as not a regular file.
+TEST(CliFaults, ADatasetOnAFullDiskOrBesideAFifoIsAnErrorNamingTheShard) {
+    ScratchDir dir;
+    const std::string spec = dir / "spec.json";
+    std::ofstream(spec) << R"({"frames": 3, "frames_per_shard": 2, "seed": 5,
+        "image": {"width": 48, "height": 40}, "quality": "interactive", "focus_mm": 15,
+        "sources": [{"phantom": ")"
+                        << SONOTRACE_SOURCE_DIR << R"(/phantoms/cyst_and_stone.json"}]})";
+    const std::string out = dir / "out";
+    auto r = run_with_small_disk(dir, "dataset -q " + spec + " --out " + out);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("shard_00000.h5: cannot write the file: File too large"),
+              std::string::npos)
+        << r.err;
+    EXPECT_TRUE(files_in(out).empty());
+
+    ASSERT_EQ(::mkfifo((dir / "out/shard_00001.h5").c_str(), 0600), 0);
+    const auto start = std::chrono::steady_clock::now();
+    r = test::run(dir, "dataset -q " + spec + " --out " + out);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("shard_00001.h5: is not a regular file"), std::string::npos) << r.err;
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(60));
 }
 
 TEST(CliFaults, AKilledSweepLeavesCompleteFramesAndTheNextRunCleansUp) {

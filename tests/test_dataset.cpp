@@ -72,6 +72,17 @@ TEST(DatasetSpec, BadSpecsNameTheFileAndField) {
     check([](auto& j) { j["quality"] = "best"; }, "quality", "");
     check([](auto& j) { j["trace"] = "4d"; }, "trace", "2d or 3d");
     check([](auto& j) { j["pose"]["tilt_deg"] = 90; }, "pose.tilt_deg", "");
+    // A volume's stack pattern is checked as the spec is read (it went to printf before).
+    check(
+        [](auto& j) {
+            j["sources"][0] = {{"volume", "a%s%s%s%s.png"}, {"spacing", "1,1"}};
+        },
+        "sources[0].volume", "takes one index as %d");
+    check(
+        [](auto& j) {
+            j["sources"][0] = {{"volume", "none_%03d.png"}, {"spacing", "1,1"}};
+        },
+        "sources[0].volume", "no file matches");
 }
 
 TEST(DatasetSpec, AFocusBeyondADepthTheSpecAllowsIsRefusedBeforeAnyFrame) {

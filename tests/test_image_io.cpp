@@ -4,6 +4,7 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 
@@ -145,6 +146,37 @@ TEST(ImageIoErrors, MismatchedSlicesMissingAndCorruptFiles) {
             load_volume({dir / "empty", glm::dvec3(1)});
         },
         "empty", "", "no image files");
+}
+
+// A stack pattern is the user's text: it is parsed, never given to printf. Conversions
+// that made snprintf read or write through missing arguments (%s, %n) crashed the program,
+// and a field width of 10^8 ran for minutes. Each is refused at once, naming the pattern.
+TEST(ImageIoErrors, APatternIsNeverAFormat) {
+    ScratchDir dir;
+    for (const std::string bad :
+         {"a%s%s%s%s.png", "a%n.png", "x%99999999d.png", "x%10d.png", "a%d_%d.png", "a%x.png",
+          "a%.png", "a%-3d.png", "a%ld.png", "a%5"}) {
+        const auto start = std::chrono::steady_clock::now();
+        expect_input_error(
+            [&] {
+                load_volume({dir / bad, glm::dvec3(1)});
+            },
+            bad, "", "takes one index as %d, %Nd or %0Nd");
+        // Generous for a loaded machine; the bug took 32 s at a width of 10^6.
+        EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2)) << bad;
+    }
+    // The accepted forms number files as printf would: zero or space padding, and %% a '%'.
+    EXPECT_EQ(parse_image_pattern("s/i_%03d.png").name(7), "s/i_007.png");
+    EXPECT_EQ(parse_image_pattern("i%3d.png").name(42), "i 42.png");
+    EXPECT_EQ(parse_image_pattern("100%%_%d.png").name(1234), "100%_1234.png");
+    EXPECT_EQ(parse_image_pattern("i%2d.png").name(12345), "i12345.png");  // width is a minimum
+    // A file whose name holds a '%' is an image, not a pattern.
+    write_oiio(dir / "50%s.png", 2, 1, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>{3, 4});
+    EXPECT_EQ(load_volume({dir / "50%s.png", glm::dvec3(1)}).volume.voxels(), Voxels({3, 4}));
+    // And a pattern with %% reads its stack.
+    write_oiio(dir / "p%_0.png", 1, 1, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>{5});
+    write_oiio(dir / "p%_1.png", 1, 1, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>{6});
+    EXPECT_EQ(load_volume({dir / "p%%_%d.png", glm::dvec3(1)}).volume.voxels(), Voxels({5, 6}));
 }
 
 // Formats beyond the documented PNG, TIFF, JPEG and EXR are refused whatever the file's

@@ -2,6 +2,7 @@
 // duplicate keys, and the limits that keep hostile files from crashing or stalling a run
 // (size, nesting depth, numbers no double holds, files that are not regular files).
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <fstream>
@@ -64,6 +65,10 @@ TEST(JsonInput, OnlyRegularFilesWithinTheSizeLimitAreRead) {
     EXPECT_NE(m.find("file not found"), std::string::npos) << m;
     m = refusal([&] { base::jsonio::read_file(dir.path().string()); });
     EXPECT_NE(m.find("is not a regular file"), std::string::npos) << m;
+    // A FIFO with no writer: opening it to read would wait for ever.
+    ASSERT_EQ(::mkfifo((dir / "fifo.json").c_str(), 0600), 0);
+    m = refusal([&] { base::jsonio::read_file(dir / "fifo.json"); });
+    EXPECT_NE(m.find("fifo.json: is not a regular file"), std::string::npos) << m;
     // One byte over the limit (a sparse file: nothing is written, nothing is read).
     const std::filesystem::path big = dir / "big.json";
     std::ofstream(big) << "{}";

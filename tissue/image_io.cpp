@@ -199,21 +199,62 @@ std::vector<std::string> list_image_stack(const std::string& spec) {
         if (files.empty()) throw base::InputError(spec, "", "directory holds no image files");
         return files;
     }
-    if (spec.find('%') == std::string::npos) {
-        throw base::InputError(spec, "",
-                               "not a directory or a printf pattern such as img_%03d.png");
-    }
-    auto name_for = [&](int index) {
-        std::vector<char> buffer(spec.size() + 32);
-        std::snprintf(buffer.data(), buffer.size(), spec.c_str(), index);
-        return std::string(buffer.data());
-    };
+    const ImagePattern pattern = parse_image_pattern(spec);
     int first = 0;
-    while (first < 10000 && !fs::exists(name_for(first))) ++first;
-    if (first == 10000)
+    while (first < kPatternIndexLimit && !fs::exists(pattern.name(first))) ++first;
+    if (first == kPatternIndexLimit)
         throw base::InputError(spec, "", "no file matches the pattern (indices 0..9999)");
-    for (int index = first; fs::exists(name_for(index)); ++index) files.push_back(name_for(index));
+    for (int index = first; fs::exists(pattern.name(index)); ++index)
+        files.push_back(pattern.name(index));
     return files;
+}
+
+std::string ImagePattern::name(int index) const {
+    std::string digits = std::to_string(index);
+    if (int(digits.size()) < width) digits.insert(0, std::size_t(width) - digits.size(), pad);
+    return prefix + digits + suffix;
+}
+
+ImagePattern parse_image_pattern(const std::string& spec) {
+    // Parsed here, never handed to printf: the text is the user's, and a format of theirs
+    // could read or write memory (%s, %n) or run for minutes (%99999999d).
+    const std::string accepted = "takes one index as %d, %Nd or %0Nd (N at most " +
+                                 std::to_string(kPatternMaxWidth) + ") and %% for a percent sign";
+    ImagePattern pattern;
+    bool found = false;
+    std::string* out = &pattern.prefix;
+    for (std::size_t n = 0; n < spec.size(); ++n) {
+        if (spec[n] != '%') {
+            *out += spec[n];
+            continue;
+        }
+        if (n + 1 < spec.size() && spec[n + 1] == '%') {
+            *out += '%';
+            ++n;
+            continue;
+        }
+        std::size_t end = n + 1;
+        if (end < spec.size() && spec[end] == '0') {
+            pattern.pad = '0';
+            ++end;
+        }
+        const std::size_t digits_begin = end;
+        while (end < spec.size() && std::isdigit(static_cast<unsigned char>(spec[end]))) ++end;
+        const std::size_t digit_count = end - digits_begin;
+        if (found || end >= spec.size() || spec[end] != 'd' || digit_count > 1 ||
+            (digit_count == 1 && spec[digits_begin] - '0' > kPatternMaxWidth)) {
+            throw base::InputError(spec, "", "an image-stack pattern " + accepted);
+        }
+        pattern.width = digit_count ? spec[digits_begin] - '0' : 0;
+        found = true;
+        out = &pattern.suffix;
+        n = end;
+    }
+    if (!found)
+        throw base::InputError(
+            spec, "",
+            "not a directory or an image-stack pattern such as img_%03d.png (" + accepted + ")");
+    return pattern;
 }
 
 Volume read_image(const std::string& path, const glm::dvec3& spacing) {

@@ -20,9 +20,22 @@ namespace sonotrace::tissue {
 bool has_image_extension(const std::string& path);
 
 // Lists the files of a stack: a directory (its image files in natural numeric order)
-// or a printf pattern such as "slices/img_%03d.png" (consecutive indices from the first
+// or a pattern such as "slices/img_%03d.png" (consecutive indices from the first
 // one found among 0..9999). Throws base::InputError if nothing matches.
 std::vector<std::string> list_image_stack(const std::string& spec);
+
+// A numbered-file pattern in printf's spelling, read by our own parser: one %d, %Nd or
+// %0Nd (N <= kPatternMaxWidth), and %% for a literal percent sign. Anything else throws
+// base::InputError naming the pattern.
+inline constexpr int kPatternMaxWidth = 9;
+inline constexpr int kPatternIndexLimit = 10000;
+struct ImagePattern {
+    std::string prefix, suffix;
+    int width = 0;   // minimum number of digits
+    char pad = ' ';  // '0' for %0Nd
+    std::string name(int index) const;
+};
+ImagePattern parse_image_pattern(const std::string& spec);
 
 // Reads one image (one slice) or a stack into a volume with the given spacing (mm).
 Volume read_image(const std::string& path, const glm::dvec3& spacing);

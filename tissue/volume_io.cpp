@@ -64,7 +64,8 @@ LoadedVolume load_volume(const VolumeRequest& request) {
         loaded.anatomical = true;  // patient coordinates (LPS), read as RAS
         loaded.modality = r.modality;
         loaded.format = "dicom";
-    } else if (std::filesystem::is_directory(status) || path.find('%') != std::string::npos) {
+    } else if (std::filesystem::is_directory(status) ||
+               (path.find('%') != std::string::npos && !std::filesystem::is_regular_file(status))) {
         loaded.volume = read_image_stack(list_image_stack(path), require_spacing(request), path);
         loaded.format = "image-stack";
     } else if (has_image_extension(path)) {

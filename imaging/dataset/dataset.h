@@ -29,6 +29,8 @@ struct RunReport {
     uint64_t shards_kept = 0;     // complete before this run
     uint64_t shards_written = 0;  // by this run
     bool stopped = false;         // by RunOptions::stop, before the manifest
+    bool failed = false;          // under MPI, on ranks other than 0: the job failed, and
+                                  // rank 0 throws its one error message
     std::string manifest;         // its path, once every shard is there
 };
 

@@ -9,8 +9,11 @@
 #include <chrono>
 #include <cstdlib>
 #include <deque>
+#include <filesystem>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
+#include <string>
 #include <thread>
 
 #include "tissue/base/error.h"
@@ -20,7 +23,7 @@ namespace sonotrace::imaging::dataset {
 namespace {
 
 constexpr int kRequestTag = 1, kShardTag = 2;
-constexpr uint64_t kNone = ~uint64_t(0);
+constexpr uint64_t kNone = ~uint64_t(0), kFailed = ~uint64_t(0) - 1;
 
 // MPI initialised for the lifetime of the object; only one thread makes MPI calls at a
 // time (rank 0's dispatcher, the main thread before and after it).
@@ -53,6 +56,58 @@ uint64_t shard_frames(const Spec& spec, uint64_t k) {
     return std::min(spec.frames, (k + 1) * spec.frames_per_shard) - k * spec.frames_per_shard;
 }
 
+// What went wrong on one rank: an InputError's parts, or (`input` false) a bug's message.
+struct RankError {
+    std::string source, field, detail;
+    bool input = true;
+};
+
+// Runs `work`, keeping what it throws as a RankError instead of letting it leave the rank
+// while the others wait for it.
+template <typename Work>
+std::optional<RankError> capture(Work&& work) {
+    try {
+        work();
+    } catch (const base::InputError& e) {
+        return RankError{e.source(), e.field(), e.detail(), true};
+    } catch (const std::filesystem::filesystem_error& e) {
+        return RankError{e.path1().string().substr(0, 300), "", e.code().message(), true};
+    } catch (const std::exception& e) {
+        return RankError{"", "", e.what(), false};
+    }
+    return std::nullopt;
+}
+
+// Collective: if any rank holds an error, the lowest such rank's error reaches every rank
+// (one message for the whole job, printed by rank 0 alone).
+std::optional<RankError> agree_on_error(const std::optional<RankError>& mine, int rank, int size) {
+    int candidate = mine ? rank : size, first = size;
+    MPI_Allreduce(&candidate, &first, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    if (first == size) return std::nullopt;
+    RankError error = rank == first ? *mine : RankError{};
+    int input = error.input ? 1 : 0;
+    MPI_Bcast(&input, 1, MPI_INT, first, MPI_COMM_WORLD);
+    error.input = input == 1;
+    for (std::string* text : {&error.source, &error.field, &error.detail}) {
+        uint64_t length = text->size();
+        MPI_Bcast(&length, 1, MPI_UINT64_T, first, MPI_COMM_WORLD);
+        text->resize(length);
+        MPI_Bcast(text->data(), int(length), MPI_CHAR, first, MPI_COMM_WORLD);
+    }
+    return error;
+}
+
+// Rank 0 reports the job's error; the other ranks return quietly with `failed` set (their
+// lines would interleave with rank 0's).
+RunReport finish_with(const RankError& error, int rank, RunReport report) {
+    if (rank == 0) {
+        if (error.input) throw base::InputError(error.source, error.field, error.detail);
+        throw std::runtime_error(error.detail);
+    }
+    report.failed = true;
+    return report;
+}
+
 }  // namespace
 
 bool launched_by_mpi() {
@@ -71,18 +126,12 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
     RunReport report;
     std::vector<uint64_t> missing;
     std::optional<FrameMaker> maker;
-    std::optional<base::InputError> failure;
-    try {
+    const std::optional<RankError> start_error = capture([&] {
         if (mpi.rank() == 0) missing = missing_shards(spec, options.out_dir, &report.shards_kept);
         maker.emplace(spec);
-    } catch (const base::InputError& e) {
-        failure = e;
-    }
-    if (!all(!failure)) {
-        if (failure) throw *failure;
-        throw base::InputError(spec.path, "",
-                               "another MPI rank could not start (its message above)");
-    }
+    });
+    if (const auto error = agree_on_error(start_error, mpi.rank(), mpi.size()))
+        return finish_with(*error, mpi.rank(), report);
     // -- rank 0: a dispatcher thread answers the other ranks from the queue that rank 0's
     // own loop also takes from.
     uint64_t total = 0;
@@ -90,11 +139,11 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
     std::mutex mutex;
     std::deque<uint64_t> queue(missing.begin(), missing.end());
     uint64_t done = 0;
-    bool stopped = false;
+    bool stopped = false, failed = false;
     auto next = [&]() -> std::optional<uint64_t> {
         std::lock_guard<std::mutex> lock(mutex);
         if (options.stop && options.stop()) stopped = true;
-        if (stopped || queue.empty()) return std::nullopt;
+        if (stopped || failed || queue.empty()) return std::nullopt;
         const uint64_t k = queue.front();
         queue.pop_front();
         return k;
@@ -104,12 +153,15 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
         done += frames;
         if (options.progress) options.progress(done, total);
     };
+    // A rank whose shard fails tells rank 0 (kFailed), which then hands out no more work:
+    // every rank finishes its shard in flight and reaches the agreement below.
+    std::optional<RankError> error;
     if (mpi.rank() == 0) {
         uint64_t written_elsewhere = 0;
         std::thread dispatcher([&] {
             int finished = 0;
             while (finished < mpi.size() - 1) {
-                uint64_t message[2];  // {shard just written or kNone, its frames}
+                uint64_t message[2];  // {shard just written, kNone or kFailed; its frames}
                 MPI_Status status;
                 // Polled, not a blocking receive: Open MPI's blocking calls spin, and this
                 // thread shares rank 0's cores with its own shard's frames.
@@ -121,7 +173,10 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
                 }
                 MPI_Recv(message, 2, MPI_UINT64_T, status.MPI_SOURCE, kRequestTag, MPI_COMM_WORLD,
                          &status);
-                if (message[0] != kNone) {
+                if (message[0] == kFailed) {
+                    std::lock_guard<std::mutex> lock(mutex);
+                    failed = true;
+                } else if (message[0] != kNone) {
                     ++written_elsewhere;
                     count_frames(message[1]);
                 }
@@ -131,10 +186,15 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
             }
         });
         while (const auto k = next()) {
-            if (!write_one_shard(*maker, *k, options.out_dir, options.stop,
-                                 [&] { count_frames(1); })) {
-                std::lock_guard<std::mutex> lock(mutex);
-                stopped = true;
+            bool complete = false;
+            error = capture([&] {
+                complete = write_one_shard(*maker, *k, options.out_dir, options.stop,
+                                           [&] { count_frames(1); });
+            });
+            std::lock_guard<std::mutex> lock(mutex);
+            if (error) failed = true;
+            if (!complete) {
+                stopped = stopped || !error;
                 break;
             }
             ++report.shards_written;
@@ -148,17 +208,18 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
             uint64_t k = kNone;
             MPI_Recv(&k, 1, MPI_UINT64_T, 0, kShardTag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
             if (k == kNone) break;
-            if (!write_one_shard(*maker, k, options.out_dir, options.stop, {})) {
-                // Stopped: the shard is abandoned; say so by asking once more.
-                message[0] = kNone;
-                continue;
-            }
-            message[0] = k;
-            message[1] = shard_frames(spec, k);
+            bool complete = false;
+            error = capture(
+                [&] { complete = write_one_shard(*maker, k, options.out_dir, options.stop, {}); });
+            // Failed: say so, and take the answer (no more work). Stopped: the shard is
+            // abandoned; say so by asking once more.
+            message[0] = error ? kFailed : complete ? k : kNone;
+            message[1] = complete ? shard_frames(spec, k) : 0;
         }
     }
+    if (const auto job_error = agree_on_error(error, mpi.rank(), mpi.size()))
+        return finish_with(*job_error, mpi.rank(), report);
     // -- every rank is done with its shards; rank 0 writes the manifest if all are there.
-    MPI_Barrier(MPI_COMM_WORLD);
     report.stopped = !all(!stopped && !(options.stop && options.stop()));
     if (mpi.rank() == 0 && !report.stopped) {
         uint64_t kept = 0;

@@ -16,8 +16,11 @@ bool launched_by_mpi();
 
 // make_dataset over the ranks of MPI_COMM_WORLD (initialised and finalised here); one
 // rank runs make_dataset itself. Progress and the report are rank 0's (frames of every
-// rank). Every rank throws the same InputError for a bad directory or a source that does
-// not load; `rank` receives this process's rank.
+// rank). An error on any rank (a bad directory, a source that does not load, a shard that
+// cannot be written) stops the hand-out of shards; every rank finishes its shard in flight,
+// then rank 0 throws the first failing rank's error and the others return with `failed`
+// set, so the job prints one message and no rank waits for ever. `rank` receives this
+// process's rank.
 RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* rank);
 
 }  // namespace sonotrace::imaging::dataset

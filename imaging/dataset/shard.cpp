@@ -8,11 +8,17 @@
 #include <optional>
 
 #include "sonotrace_version.h"
+#include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
+#include "tissue/base/file_read.h"
 
 namespace sonotrace::imaging::dataset {
 
 namespace {
+
+// The name of a shard HDF5 holds in memory. Its core driver opens the name first and
+// refuses an image if that succeeds: this is a name no file can have.
+constexpr const char* kImageName = "/dev/null/shard-image";
 
 // An HDF5 identifier closed by its own close function.
 class Handle {
@@ -44,27 +50,38 @@ struct FrameRow {
 
 class ShardWriter {
   public:
-    ShardWriter(const std::string& path, std::string name) : name_(std::move(name)) {
+    // The shard is built in memory (HDF5's core driver, no backing store): HDF5 never
+    // writes to disk, so a full disk cannot leave its library with a file it fails to
+    // close (its exit handler crashed retrying). Our checked writer stores the bytes.
+    explicit ShardWriter(std::string name) : name_(std::move(name)) {
         H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors become our messages
         Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
         H5Pset_obj_track_times(fcpl, false);
-        file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, H5P_DEFAULT);
+        Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+        H5Pset_fapl_core(fapl, std::size_t(1) << 20, false);
+        file_ = H5Fcreate(kImageName, H5F_ACC_TRUNC, fcpl, fapl);
         check(file_, "create");
     }
     ~ShardWriter() {
         if (file_ >= 0) H5Fclose(file_);
     }
-    void close() {
+    // The finished file's bytes; the shard is closed.
+    std::string image() {
+        check(H5Fflush(file_, H5F_SCOPE_GLOBAL), "finish");
+        const ssize_t size = H5Fget_file_image(file_, nullptr, 0);
+        check(hid_t(size), "finish");
+        std::string bytes(std::size_t(size), '\0');
+        check(hid_t(H5Fget_file_image(file_, bytes.data(), bytes.size())), "finish");
         const herr_t status = H5Fclose(file_);
         file_ = -1;
-        check(status, "close");
+        check(status, "finish");
+        return bytes;
     }
 
     void check(hid_t status, const char* what) const {
         if (status < 0)
             throw base::InputError(
-                name_, "",
-                std::string("HDF5 could not ") + what + " the shard (is the disk full?)");
+                name_, "", std::string("HDF5 could not ") + what + " the shard (out of memory?)");
     }
 
     void attribute(const char* name, const std::string& text) {
@@ -153,7 +170,7 @@ void copy3(double* to, const glm::dvec3& v) {
 
 void write_shard(const std::string& path, const std::string& output_name, const Spec& spec,
                  uint64_t shard, const std::vector<DatasetFrame>& frames) {
-    ShardWriter w(path, output_name);
+    ShardWriter w(output_name);
     const hsize_t n = frames.size(), h = hsize_t(spec.height), wd = hsize_t(spec.width);
     auto stack = [&](const char* name, cv::Mat DatasetFrame::*image) {
         std::vector<uint8_t> pixels(n * h * wd);
@@ -234,13 +251,20 @@ void write_shard(const std::string& path, const std::string& output_name, const 
     w.attribute("first_frame", frames.empty() ? 0 : frames.front().draw.index);
     w.attribute("frame_count", uint64_t(frames.size()));
     w.attribute("version", std::string(SONOTRACE_VERSION));
-    w.close();
+    const std::string bytes = w.image();
+    base::write_file(path, bytes.data(), bytes.size());
 }
 
 std::optional<uint64_t> shard_digest(const std::string& path) {
     H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-    if (H5Fis_hdf5(path.c_str()) <= 0) return std::nullopt;
-    Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    // Read by our reader (a regular file only, opened without blocking), then opened from
+    // memory: HDF5 itself would block in open() on a FIFO.
+    const std::string bytes = base::read_regular_file(path, kMaxShardBytes);
+    Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+    H5Pset_fapl_core(fapl, std::size_t(1) << 20, false);
+    if (bytes.empty() || H5Pset_file_image(fapl, const_cast<char*>(bytes.data()), bytes.size()) < 0)
+        return std::nullopt;
+    Handle file(H5Fopen(kImageName, H5F_ACC_RDONLY, fapl), H5Fclose);
     if (!file.ok()) return std::nullopt;
     Handle a(H5Aopen(file, "spec_digest", H5P_DEFAULT), H5Aclose);
     uint64_t digest = 0;

@@ -28,7 +28,11 @@ namespace sonotrace::imaging::dataset {
 void write_shard(const std::string& path, const std::string& output_name, const Spec& spec,
                  uint64_t shard, const std::vector<DatasetFrame>& frames);
 
+// The largest shard file that is read back (into memory, whole).
+inline constexpr std::size_t kMaxShardBytes = std::size_t(16) << 30;
+
 // The spec digest a shard file was written for; nullopt if it is not a readable shard.
+// Throws base::InputError naming `path` if it is not a regular file or cannot be read.
 std::optional<uint64_t> shard_digest(const std::string& path);
 
 }  // namespace sonotrace::imaging::dataset

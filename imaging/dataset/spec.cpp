@@ -4,8 +4,10 @@
 #include <filesystem>
 
 #include "tissue/base/error.h"
+#include "tissue/base/file_status.h"
 #include "tissue/base/hash.h"
 #include "tissue/base/json_util.h"
+#include "tissue/image_io.h"
 
 namespace sonotrace::imaging::dataset {
 
@@ -106,10 +108,18 @@ Spec parse_spec(const json& j, const std::string& source) {
         auto file = [&](const std::string& key) {
             const std::string name = jsonio::get_string(s, key, source, where);
             const std::filesystem::path p(name);
-            const std::string resolved =
-                p.is_absolute() || name.find('%') != std::string::npos ? name : (base / p).string();
-            if (!std::filesystem::exists(resolved) && name.find('%') == std::string::npos)
-                throw InputError(source, jsonio::join(where, key), "no such file: " + resolved);
+            const std::string resolved = p.is_absolute() ? name : (base / p).string();
+            const std::string field = jsonio::join(where, key);
+            if (base::file_status(resolved, source, field).type() ==
+                std::filesystem::file_type::not_found) {
+                if (name.find('%') == std::string::npos)
+                    throw InputError(source, field, "no such file: " + resolved);
+                try {  // an image-stack pattern: at least its first file must exist
+                    tissue::list_image_stack(resolved);
+                } catch (const InputError& e) {
+                    throw InputError(source, field, e.what());
+                }
+            }
             return resolved;
         };
         if (s.contains("scene")) {

@@ -1,6 +1,9 @@
 """`sonotrace dataset` spread over MPI ranks and killed part-way: `mpirun -n 2
 --oversubscribe` makes the same shard bytes as one plain process, and a run killed
 (SIGKILL) after its first shard, run again, makes the same bytes as an uninterrupted run.
+Faults under MPI (a rank's writes fail, the output directory cannot be made) end the job
+within 60 s with exit 1 and one message naming the file, and a later run completes the
+dataset byte-identically.
 Run by ctest (python.dataset_mpi) with SONOTRACE_BINARY and SONOTRACE_SOURCE_DIR."""
 import json
 import os
@@ -37,20 +40,67 @@ def reference(tmp_path_factory):
     return spec, contents(base / "out")
 
 
-@pytest.mark.skipif(shutil.which("mpirun") is None, reason="Open MPI's mpirun is not installed")
-def test_two_ranks_make_the_same_bytes_as_one_process(tmp_path, reference):
-    spec, expected = reference
+needs_mpirun = pytest.mark.skipif(shutil.which("mpirun") is None,
+                                  reason="Open MPI's mpirun is not installed")
+
+
+def mpirun(args, timeout=600, small_disk_rank=None):
+    """`mpirun -n 2 sonotrace ARGS`; with small_disk_rank, that rank's writes beyond 4 KiB
+    fail (a file-size limit with SIGXFSZ ignored: EFBIG, as a full disk gives ENOSPC)."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
     # In the sanitizer build: Open MPI's components are dlclose'd by MPI_Finalize, so the
     # leak checker cannot name what they keep (it reports "<unknown module>"). Leaks of our
     # code are checked by the one-process runs of this file, which keep the checker on.
     env["ASAN_OPTIONS"] = (env.get("ASAN_OPTIONS", "") + ":detect_leaks=0").lstrip(":")
-    run = subprocess.run(["mpirun", "-n", "2", "--oversubscribe", BINARY, "dataset", str(spec),
-                          "--out", str(tmp_path / "out"), "--threads", "1", "-q"],
-                         env=env, capture_output=True, text=True, timeout=600)
+    command = [BINARY] + args
+    if small_disk_rank is not None:
+        env["SMALL_DISK_RANK"] = str(small_disk_rank)
+        command = ["sh", "-c", "trap '' XFSZ; [ \"$OMPI_COMM_WORLD_RANK\" = \"$SMALL_DISK_RANK\" ]"
+                   " && ulimit -f 8; exec \"$@\"", "sh"] + command
+    return subprocess.run(["mpirun", "-n", "2", "--oversubscribe"] + command, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@needs_mpirun
+def test_two_ranks_make_the_same_bytes_as_one_process(tmp_path, reference):
+    spec, expected = reference
+    run = mpirun(["dataset", str(spec), "--out", str(tmp_path / "out"), "--threads", "1", "-q"])
     assert run.returncode == 0, run.stderr
     assert contents(tmp_path / "out") == expected
+
+
+@needs_mpirun
+@pytest.mark.parametrize("failing_rank", [0, 1])
+def test_a_rank_whose_writes_fail_ends_the_job_and_the_next_run_completes_it(
+        tmp_path, reference, failing_rank):
+    # Before: a failure on rank 1 left both ranks waiting for ever; on rank 0 the process
+    # aborted ("terminate called without an active exception") before printing anything.
+    spec, expected = reference
+    out = tmp_path / "out"
+    run = mpirun(["dataset", str(spec), "--out", str(out), "--threads", "1", "-q"],
+                 timeout=60, small_disk_rank=failing_rank)
+    assert run.returncode == 1, run.stderr
+    # One message, naming the shard that could not be written.
+    errors = [line for line in run.stderr.splitlines() if line.startswith("sonotrace: error:")]
+    assert len(errors) == 1, run.stderr
+    assert "shard_0000" in errors[0] and "File too large" in errors[0], run.stderr
+    assert not (out / "manifest.json").exists()
+    run = mpirun(["dataset", str(spec), "--out", str(out), "--threads", "1", "-q"])
+    assert run.returncode == 0, run.stderr
+    assert contents(out) == expected
+
+
+@needs_mpirun
+def test_an_output_directory_that_cannot_be_made_ends_the_job_naming_it(tmp_path, reference):
+    spec, _ = reference
+    (tmp_path / "a_file").write_text("")  # not a directory (root may write a read-only one)
+    run = mpirun(["dataset", str(spec), "--out", str(tmp_path / "a_file" / "out"), "-q"],
+                 timeout=60)
+    assert run.returncode == 1, run.stderr
+    errors = [line for line in run.stderr.splitlines() if line.startswith("sonotrace: error:")]
+    assert len(errors) == 1 and "a_file/out" in errors[0], run.stderr
+    assert "terminate called" not in run.stderr
 
 
 def test_a_killed_run_resumes_to_the_same_bytes(tmp_path, reference):

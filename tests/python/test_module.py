@@ -146,3 +146,24 @@ def test_read_shard_gives_the_arrays_of_a_dataset(tmp_path):
     assert list(shard["frames"]["index"]) == [0, 1]
     assert sorted(shard["envelope"]) == [0, 1]
     assert shard["attributes"]["frame_count"] == 2
+
+
+def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
+    # A FIFO used to block h5py's open() for ever; damaged files raised ValueError, OSError,
+    # IndexError ... without naming the file.
+    fifo = tmp_path / "fifo.h5"
+    os.mkfifo(fifo)
+    with pytest.raises(sonotrace.InputError, match="fifo.h5: is not a regular file"):
+        sonotrace.read_shard(str(fifo))
+    (tmp_path / "junk.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(200))
+    with pytest.raises(sonotrace.InputError, match="junk.h5: not a readable shard"):
+        sonotrace.read_shard(str(tmp_path / "junk.h5"))
+    with pytest.raises(sonotrace.InputError, match="missing.h5: file not found"):
+        sonotrace.read_shard(str(tmp_path / "missing.h5"))
+
+
+def test_a_volume_name_is_never_a_format(tmp_path):
+    # '%s' and '%n' in a stack pattern went to snprintf and killed the interpreter.
+    for name in ["a%s%s%s%s.png", "a%n.png", "x%99999999d.png"]:
+        with pytest.raises(sonotrace.InputError, match="takes one index as %d"):
+            sonotrace.simulate(volume=str(tmp_path / name), spacing="1,1")

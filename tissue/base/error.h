@@ -15,10 +15,13 @@ class InputError : public std::runtime_error {
     InputError(std::string source, std::string field, const std::string& what)
         : std::runtime_error(compose(source, field, what)),
           source_(std::move(source)),
-          field_(std::move(field)) {}
+          field_(std::move(field)),
+          detail_(what) {}
 
     const std::string& source() const { return source_; }
     const std::string& field() const { return field_; }
+    // What is wrong, without the source and field.
+    const std::string& detail() const { return detail_; }
 
   private:
     static std::string compose(const std::string& source, const std::string& field,
@@ -29,6 +32,7 @@ class InputError : public std::runtime_error {
     }
     std::string source_;
     std::string field_;
+    std::string detail_;
 };
 
 // Throws InputError(source, field) unless lo <= value <= hi (and finite); `unit` is

@@ -3,12 +3,11 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <set>
 #include <sstream>
 
 #include "tissue/base/error.h"
-#include "tissue/base/file_status.h"
+#include "tissue/base/file_read.h"
 
 namespace sonotrace::base::jsonio {
 
@@ -25,28 +24,7 @@ std::string join(const std::string& where, const std::string& key) {
 }
 
 json read_file(const std::string& path) {
-    namespace fs = std::filesystem;
-    std::error_code ec;
-    const fs::file_status status = file_status(path, path, "");
-    if (!fs::exists(status)) throw InputError(path, "", "file not found");
-    // A device or pipe (/dev/zero) may never end: only regular files are read.
-    if (!fs::is_regular_file(status)) throw InputError(path, "", "is not a regular file");
-    const std::uintmax_t size = fs::file_size(path, ec);
-    if (ec) throw InputError(path, "", "cannot read the file size (" + ec.message() + ")");
-    if (size > kMaxJsonBytes) {
-        throw InputError(path, "",
-                         "is " + std::to_string(size) + " bytes; JSON inputs are limited to " +
-                             std::to_string(kMaxJsonBytes) + " bytes");
-    }
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(path, "", "cannot open file");
-    // One byte more than the cap: a file that grows while being read is still caught.
-    std::string text(std::size_t(size) + 1, '\0');
-    in.read(text.data(), std::streamsize(text.size()));
-    text.resize(std::size_t(in.gcount()));
-    if (in.bad()) throw InputError(path, "", "read error");
-    if (text.size() > kMaxJsonBytes) throw InputError(path, "", "grew beyond the JSON size limit");
-    return parse(text, path);
+    return parse(read_regular_file(path, kMaxJsonBytes), path);
 }
 
 json parse(const std::string& text, const std::string& source) {

@@ -84,7 +84,7 @@ int run_dataset_command(const DatasetOptions& o) {
     std::signal(SIGINT, previous_int);
     std::signal(SIGTERM, previous_term);
     bar.finish();
-    if (rank != 0) return report.stopped ? 130 : 0;  // rank 0 reports for every rank
+    if (rank != 0) return report.failed ? 1 : report.stopped ? 130 : 0;  // rank 0 reports
     if (report.stopped) {
         std::cerr << "sonotrace: stopped; " << report.shards_written
                   << " shards written this run, the rest follow when the same command runs "

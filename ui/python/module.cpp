@@ -17,9 +17,11 @@
 
 #include <CLI/CLI.hpp>
 
+#include "imaging/dataset/shard.h"
 #include "imaging/picture.h"
 #include "sonotrace_version.h"
 #include "tissue/base/error.h"
+#include "tissue/base/file_read.h"
 #include "ui/cli/simulate_command.h"
 
 namespace py = pybind11;
@@ -212,28 +214,41 @@ PYBIND11_MODULE(sonotrace, m) {
     m.def(
         "read_shard",
         [](const std::string& path) {
-            // h5py does the reading: a shard is plain HDF5 (imaging/dataset/shard.h).
-            py::object file = py::module_::import("h5py").attr("File")(path, "r");
-            py::dict out, attributes;
-            auto read_all = [](const py::object& dataset) { return dataset[py::tuple()]; };
-            for (const char* name : {"bmode", "labels", "frames"})
-                if (file.attr("__contains__")(name).cast<bool>()) out[name] = read_all(file[name]);
-            for (const char* name : {"envelope", "rf", "energy"}) {
-                if (!file.attr("__contains__")(name).cast<bool>()) continue;
-                py::dict per_frame;
-                const py::object group = file[name];
-                for (const auto& key : group.attr("keys")())
-                    per_frame[py::int_(std::stoull(py::str(key).cast<std::string>()))] =
-                        read_all(group[key]);
-                out[name] = per_frame;
+            // Our reader takes the bytes (a regular file only, never blocking on a FIFO, its
+            // size checked); h5py reads the HDF5 (a shard is plain HDF5, shard.h) from memory.
+            const std::string bytes =
+                base::read_regular_file(path, imaging::dataset::kMaxShardBytes);
+            try {
+                py::object image = py::module_::import("io").attr("BytesIO")(py::bytes(bytes));
+                py::object file = py::module_::import("h5py").attr("File")(image, "r");
+                py::dict out, attributes;
+                auto read_all = [](const py::object& dataset) { return dataset[py::tuple()]; };
+                for (const char* name : {"bmode", "labels", "frames"})
+                    if (file.attr("__contains__")(name).cast<bool>())
+                        out[name] = read_all(file[name]);
+                for (const char* name : {"envelope", "rf", "energy"}) {
+                    if (!file.attr("__contains__")(name).cast<bool>()) continue;
+                    py::dict per_frame;
+                    const py::object group = file[name];
+                    for (const auto& key : group.attr("keys")())
+                        per_frame[py::int_(py::reinterpret_borrow<py::object>(key))] =
+                            read_all(group[key]);
+                    out[name] = per_frame;
+                }
+                for (const auto& item : file.attr("attrs").attr("items")()) {
+                    const py::tuple pair = item.cast<py::tuple>();
+                    attributes[pair[0]] = pair[1];
+                }
+                out["attributes"] = attributes;
+                file.attr("close")();
+                return out;
+            } catch (const py::error_already_set& e) {
+                // Whatever a damaged file makes h5py or NumPy raise, the user sees one kind of
+                // error naming the file.
+                throw base::InputError(path, "", std::string("not a readable shard: ") + e.what());
+            } catch (const py::cast_error& e) {
+                throw base::InputError(path, "", std::string("not a readable shard: ") + e.what());
             }
-            for (const auto& item : file.attr("attrs").attr("items")()) {
-                const py::tuple pair = item.cast<py::tuple>();
-                attributes[pair[0]] = pair[1];
-            }
-            out["attributes"] = attributes;
-            file.attr("close")();
-            return out;
         },
         "read_shard(path) -> dict: a dataset shard (`sonotrace dataset`) as NumPy arrays: "
         "bmode, labels, frames (a record array), envelope / rf / energy ({frame index: "

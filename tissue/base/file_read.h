@@ -1,0 +1,15 @@
+#pragma once
+// Reading a whole input file the user named, safely: only a regular file is read (a FIFO
+// or a device could block for ever or never end), it is opened without blocking, and its
+// size is checked against a cap before anything is allocated.
+#include <cstddef>
+#include <string>
+
+namespace sonotrace::base {
+
+// The bytes of `path`. Throws InputError naming `path` (and `field`, if any) when the file
+// is missing, not a regular file, larger than `max_bytes`, or cannot be read.
+std::string read_regular_file(const std::string& path, std::size_t max_bytes,
+                              const std::string& field = "");
+
+}  // namespace sonotrace::base
