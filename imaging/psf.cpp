@@ -114,7 +114,7 @@ std::shared_ptr<const PsfTable> PsfTable::of(const probe::Transducer& t) {
                                      double(int(t.rx_apodization)),
                                      t.depth_mm,
                                      double(t.lines),
-                                     0.0,
+                                     t.element_width_mm,
                                      0.0};
     static std::mutex mutex;
     static std::vector<std::pair<std::array<double, 15>, std::shared_ptr<const PsfTable>>> cache;

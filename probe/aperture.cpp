@@ -69,7 +69,7 @@ LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std
     for (double w : tx_weights_) sum2 += w * w;
     tx_norm_ = 1.0 / std::sqrt(t.wavelength_mm() / t.pitch_mm * sum2);
     k_ = 2.0 * std::numbers::pi / t.wavelength_mm();
-    element_width_ = t.pitch_mm;
+    element_width_ = t.element_width_mm;
     for (std::size_t e = 0; e < array_.position.size(); ++e) {
         x_.push_back(float(array_.position[e].x)), y_.push_back(float(array_.position[e].y));
         nx_.push_back(float(array_.normal[e].x)), ny_.push_back(float(array_.normal[e].y));

@@ -10,8 +10,8 @@
 //   a_e D_e(q) exp(-i k (|q - p_e| - |f - p_e| + z_f - q.z)) / sqrt(|q - p_e|)
 //
 // to T at q: cylindrical spreading (2D), the element's directivity D_e = sinc(pi w sin
-// theta / lambda) cos theta (an element as wide as the pitch, soft baffle; theta from its
-// normal), and the transmit delays that bring every element's wave to the focus
+// theta / lambda) cos theta (w the element's width, the pitch less the kerf; soft baffle;
+// theta from its normal), and the transmit delays that bring every element's wave to the focus
 // f = (0, z_f) at once. The phase is measured against the echo time 2 q.z / c0 at which
 // an image places q, so H at a point on the axis at the focus is real and positive. R is
 // the same sum over the receive aperture with its focus at the depth of q itself (dynamic

@@ -11,57 +11,52 @@
 
 namespace sonotrace::probe {
 
-using base::kFwhmPerSigma;
-
 namespace {
 constexpr int kSamplesPerPeriod = 64;
 }  // namespace
 
-double PulseEcho::impulse_response(double t, double frequency_hz, double bandwidth) {
-    const double sigma_f = bandwidth * frequency_hz / kFwhmPerSigma;
-    const double s = 1.0 / (2.0 * std::numbers::pi * sigma_f);
-    const double w = 2.0 * std::numbers::pi * frequency_hz;
-    // Minus its DC (Morlet's correction): with DC the envelope grows 1/t tails.
-    return std::exp(-0.5 * t * t / (s * s)) * (std::cos(w * t) - std::exp(-0.5 * w * w * s * s));
+double PulseEcho::transducer_response(double f, double frequency_hz, double bandwidth,
+                                      double band_shape) {
+    // exp(-ln 2 |u|^p) with u the offset in -6 dB half-widths: 1/2 at |u| = 1, and 1/10 at
+    // the -20 dB half-width u20 = B20 / B6 when (u20)^p = ln 10 / ln 2.
+    const double exponent = std::log(std::log(10.0) / std::log(2.0)) / std::log(band_shape);
+    const double u = (f - frequency_hz) / (0.5 * bandwidth * frequency_hz);
+    return f > 0.0 ? std::exp(-std::log(2.0) * std::pow(std::abs(u), exponent)) : 0.0;
 }
 
 PulseEcho::PulseEcho(const Transducer& t)
-    : PulseEcho(t.frequency_mhz * 1e6, t.bandwidth, t.cycles) {}
+    : PulseEcho(t.frequency_mhz * 1e6, t.bandwidth, t.band_shape, t.cycles) {}
 
-PulseEcho::PulseEcho(double frequency_hz, double bandwidth, double cycles) : f0_(frequency_hz) {
+PulseEcho::PulseEcho(double frequency_hz, double bandwidth, double band_shape, double cycles)
+    : f0_(frequency_hz) {
     dt_ = 1.0 / (kSamplesPerPeriod * f0_);
-    const double sigma_t = kFwhmPerSigma / (2.0 * std::numbers::pi * bandwidth * f0_);
-    // The impulse response over +-7 sigma (its Gaussian is below 3e-11 beyond), the
-    // excitation over its n cycles; their convolution, sampled at dt.
-    const int h_half = int(std::ceil(7.0 * sigma_t / dt_));
+    // The analytic pulse-echo waveform from its spectrum: the excitation's spectrum times
+    // the transducer's two-way response on positive frequencies, doubled, none on negative
+    // ones (so the real part is the waveform and the imaginary part its Hilbert transform,
+    // and no DC passes). The window holds the excitation and the response's ringing: a
+    // band of B f0 rings for about 1 / (B f0), the flattest allowed band shapes a few
+    // times longer; 40 of those leave the wrap-around below 1e-6 of the peak.
     const int e_len = std::max(1, int(std::lround(cycles * kSamplesPerPeriod)));
-    std::vector<double> h(std::size_t(2 * h_half + 1));
-    for (int k = -h_half; k <= h_half; ++k)
-        h[std::size_t(k + h_half)] = impulse_response(k * dt_, f0_, bandwidth);
+    const int n = cv::getOptimalDFTSize(e_len + int(std::ceil(40.0 * kSamplesPerPeriod / bandwidth)));
     const double w = 2.0 * std::numbers::pi * f0_;
-    const int n = e_len + int(h.size()) - 1;
-    std::vector<double> p(std::size_t(n), 0.0);
-    for (int i = 0; i < e_len; ++i) {
-        const double e = std::sin(w * (i + 0.5) * dt_) * dt_;  // midpoint rule
-        for (std::size_t k = 0; k < h.size(); ++k) p[std::size_t(i) + k] += e * h[k];
-    }
-    // Quadrature: the Hilbert transform through the spectrum (-i on positive frequencies),
-    // zero-padded fourfold so the transform's periodic wrap does not reach the pulse.
-    const int padded = cv::getOptimalDFTSize(4 * n);
-    cv::Mat line(1, padded, CV_64F, cv::Scalar(0));
-    std::copy(p.begin(), p.end(), line.ptr<double>(0) + (padded - n) / 2);
+    cv::Mat excitation(1, n, CV_64FC2, cv::Scalar(0, 0));
+    const int start = (n - e_len) / 2;  // centred: the response rings both ways
+    for (int i = 0; i < e_len; ++i)
+        excitation.at<cv::Vec2d>(0, start + i)[0] = std::sin(w * (i + 0.5) * dt_) * dt_;  // midpoint rule
     cv::Mat spectrum;
-    cv::dft(line, spectrum, cv::DFT_COMPLEX_OUTPUT);
+    cv::dft(excitation, spectrum);
     auto* c = spectrum.ptr<cv::Vec2d>(0);
-    for (int k = 0; k < padded; ++k) {
-        const double sign = (k == 0 || 2 * k == padded) ? 0.0 : (2 * k < padded ? -1.0 : 1.0);
-        const cv::Vec2d v = c[k];
-        c[k] = cv::Vec2d(-sign * v[1], sign * v[0]);  // (a + ib) * (sign * i)
+    for (int k = 0; k < n; ++k) {
+        const double gain =
+            2 * k < n ? 2.0 * transducer_response(k / (n * dt_), f0_, bandwidth, band_shape)
+                      : 0.0;
+        c[k] *= gain;
     }
-    cv::Mat hilbert;
-    cv::dft(spectrum, hilbert, cv::DFT_INVERSE | cv::DFT_SCALE | cv::DFT_REAL_OUTPUT);
-    std::vector<double> q(static_cast<std::size_t>(n));
-    std::copy_n(hilbert.ptr<double>(0) + (padded - n) / 2, n, q.begin());
+    cv::Mat analytic;
+    cv::dft(spectrum, analytic, cv::DFT_INVERSE | cv::DFT_SCALE);
+    const auto* values = analytic.ptr<cv::Vec2d>(0);
+    std::vector<double> p(static_cast<std::size_t>(n)), q(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) p[std::size_t(i)] = values[i][0], q[std::size_t(i)] = values[i][1];
 
     // Centre on the envelope's peak, scale it to 1, keep where it exceeds 1e-4.
     std::vector<double> env(static_cast<std::size_t>(n));

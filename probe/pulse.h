@@ -1,9 +1,14 @@
 #pragma once
 // The pulse-echo waveform of a transducer: an excitation of n cycles of a sine at the
 // centre frequency, convolved with the transducer's two-way (transmit x receive) impulse
-// response. The impulse response is a Gaussian-modulated cosine whose -6 dB spectrum
-// width is the preset's fractional bandwidth B: spectrum sigma_f = B f0 / (2 sqrt(2 ln 2)),
-// time sigma_t = 1 / (2 pi sigma_f), with its DC removed (a transducer passes none).
+// response. The response's amplitude spectrum is a generalized Gaussian about f0,
+//
+//   |H(f)| = exp(-ln 2 |(f - f0) / (B6 f0 / 2)|^p),  p = ln(ln 10 / ln 2) / ln(B20 / B6),
+//
+// through a datasheet's two points: -6 dB at the fractional bandwidth B6, -20 dB at B20.
+// The shape is the ratio B20 / B6 (Transducer::band_shape): sqrt(ln 10 / ln 2) = 1.82 is
+// the Gaussian (p = 2); real transducers are flatter-topped (a smaller ratio, p > 2),
+// which lengthens the echo for the same B6. The response has zero phase and passes no DC.
 //
 // The axial point-spread function is this waveform's envelope: nothing is chosen for it.
 // One cycle (the default of the presets, as a scanner's B-mode pulse) barely lengthens
@@ -22,10 +27,10 @@ struct Transducer;
 
 class PulseEcho {
   public:
-    // frequency_hz: centre frequency f0; bandwidth: fractional -6 dB width of the
-    // two-way impulse response; cycles: excitation length in periods (> 0, fractional
-    // allowed).
-    PulseEcho(double frequency_hz, double bandwidth, double cycles);
+    // frequency_hz: centre frequency f0; bandwidth: fractional -6 dB width B6 of the
+    // two-way response's spectrum; band_shape: B20 / B6 (> 1); cycles: excitation length
+    // in periods (> 0, fractional allowed).
+    PulseEcho(double frequency_hz, double bandwidth, double band_shape, double cycles);
     explicit PulseEcho(const Transducer& t);
 
     double frequency_hz() const { return f0_; }
@@ -45,8 +50,9 @@ class PulseEcho {
     double axial_fwhm_mm() const;
     // Peak of the envelope: 1 (the waveform is scaled to it).
 
-    // The two-way impulse response alone (no excitation), unit peak, DC removed.
-    static double impulse_response(double t, double frequency_hz, double bandwidth);
+    // |H(f)| of the two-way response (header), 1 at f0; 0 at f <= 0.
+    static double transducer_response(double f, double frequency_hz, double bandwidth,
+                                      double band_shape);
 
   private:
     double sample(const std::vector<double>& table, double t) const;

@@ -51,8 +51,14 @@ void Transducer::validate(const std::string& source) const {
     };
     in_range(elements, 1, 4096, "elements", "");
     in_range(pitch_mm, 1e-3, 10.0, "pitch", "mm");
+    if (!(element_width_mm > 0.0 && element_width_mm < pitch_mm))
+        throw base::InputError(source, "element-width",
+                               "must be more than 0 and less than the pitch (" +
+                                   base::number_text(pitch_mm) + " mm): elements are separated "
+                                   "by a kerf, got " + base::number_text(element_width_mm));
     in_range(frequency_mhz, 0.5, 50.0, "frequency", "MHz");
     in_range(bandwidth, 0.05, 2.0, "bandwidth", "(fraction of the centre frequency)");
+    in_range(band_shape, kBandShapeRange[0], kBandShapeRange[1], "band-shape", "");
     in_range(depth_mm, 1.0, 500.0, "depth", "mm");
     in_range(focus_mm, 1e-3, 1e6, "focus", "mm");
     if (focus_mm > depth_mm) {
@@ -114,7 +120,11 @@ const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
          "radius of a curved array: a convex arc, or a radial ring (elements x pitch / 2 pi)"},
         {"fov", "degrees", "angle spanned by the scan lines (convex, phased; radial: 360)"},
         {"frequency", "MHz", "centre frequency of the pulse"},
+        {"element-width", "mm", "width of one element (the pitch minus the kerf)"},
         {"bandwidth", "", "fractional -6 dB bandwidth of the pulse-echo spectrum"},
+        {"band-shape", "",
+         "shape of the pulse-echo spectrum: its -20 dB width over its -6 dB width, 1.1-2.5 "
+         "(1.82: a Gaussian band; smaller: flatter-topped, as measured probe spectra)"},
         {"focus", "mm", "transmit focus depth"},
         {"f-number", "", "transmit F-number: focus depth / active transmit aperture width"},
         {"tx-apodization", "",
@@ -137,7 +147,12 @@ const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
 
 // Values from the public datasheets of the modelled probes (Verasonics L11-5v, C5-2v and
 // P4-2v specification sheets): element count, pitch, radius, centre frequency, bandwidth
-// range, elevation focus and element height. Where a sheet gives an element height h,
+// range, elevation focus and element height; the L11-5v's element width (0.27 mm). The
+// other arrays' sheets give the pitch alone: their elements are the pitch less a kerf of
+// about 0.05 mm, as diced arrays of that pitch are made (0.03 mm on the radial ring). No
+// sheet gives a -20 dB bandwidth: every preset keeps the struct's band shape, 1.5, within
+// the 1.4-1.6 of published pulse-echo spectra of composite arrays (flatter than a Gaussian's
+// 1.82). Where a sheet gives an element height h,
 // the slice thickness is the diffraction-limited lambda * elevation focus / h. Transmit
 // focus, F-number, depth and line count are typical scanner settings, not probe data.
 // Every preset keeps the struct's imaging defaults: a one-cycle excitation (the B-mode
@@ -156,6 +171,7 @@ const std::vector<Transducer>& transducer_presets() {
         linear.type = TransducerType::linear;
         linear.elements = 128;
         linear.pitch_mm = 0.30;
+        linear.element_width_mm = 0.27;
         linear.radius_mm = 0.0;
         linear.fov_deg = 0.0;
         linear.frequency_mhz = 7.6;
@@ -176,6 +192,7 @@ const std::vector<Transducer>& transducer_presets() {
         convex.type = TransducerType::convex;
         convex.elements = 128;
         convex.pitch_mm = 0.508;
+        convex.element_width_mm = 0.46;
         convex.radius_mm = 49.57;
         convex.fov_deg = 60.0;
         convex.frequency_mhz = 3.5;
@@ -196,6 +213,7 @@ const std::vector<Transducer>& transducer_presets() {
         phased.type = TransducerType::phased;
         phased.elements = 64;
         phased.pitch_mm = 0.30;
+        phased.element_width_mm = 0.25;
         phased.radius_mm = 0.0;
         phased.fov_deg = 90.0;
         phased.frequency_mhz = 2.7;
@@ -222,6 +240,7 @@ const std::vector<Transducer>& transducer_presets() {
         radial.elements = 256;
         radial.radius_mm = 6.0;
         radial.pitch_mm = 2.0 * std::numbers::pi * radial.radius_mm / radial.elements;
+        radial.element_width_mm = 0.12;
         radial.fov_deg = 360.0;
         radial.frequency_mhz = 7.5;
         radial.bandwidth = 0.67;  // (10 - 5) / 7.5

@@ -38,10 +38,14 @@ struct Transducer {
     TransducerType type = TransducerType::convex;
     int elements = 128;
     double pitch_mm = 0.508;
+    double element_width_mm = 0.46;  // pitch minus kerf: sets each element's directivity
     double radius_mm = 49.6;  // curved arrays: radius of the arc
     double fov_deg = 60.0;    // fans (convex, phased): angle spanned by the scan lines
     double frequency_mhz = 3.5;
     double bandwidth = 0.8;  // fractional, -6 dB of the pulse-echo spectrum
+    // The band's shape: its -20 dB width over its -6 dB width (probe/pulse.h). 1.82 is a
+    // Gaussian band; measured probe spectra are flatter-topped.
+    double band_shape = 1.5;
     double focus_mm = 50.0;  // transmit focus depth
     double f_number = 2.0;   // transmit: focus depth / active aperture
     Apodization tx_apodization = Apodization::tukey;
@@ -55,6 +59,10 @@ struct Transducer {
     double depth_mm = 80.0;           // imaging depth from the face along each line
     int lines = 128;
     double face_reflectivity = 0.3;  // intensity fraction the face reflects back (capture model)
+
+    // The range of band_shape: from a steep, almost rectangular band (1.1: exponent 12.6) to
+    // one with long skirts (2.5: exponent 1.3).
+    static constexpr double kBandShapeRange[2] = {1.1, 2.5};
 
     // Throws base::InputError(source, field) naming the first impossible parameter.
     void validate(const std::string& source) const;

@@ -50,10 +50,10 @@ int argmax(const std::vector<double>& v) {
     return int(std::max_element(v.begin(), v.end()) - v.begin());
 }
 
-// The pulse-echo envelope's FWHM (s) from first principles: n cycles of a sine convolved
-// with the Gaussian-modulated cosine of -6 dB bandwidth B (its DC removed), summed
-// directly; the envelope through the analytic signal of a brute-force DFT.
-double reference_pulse_fwhm_s(double f0, double bandwidth, double cycles) {
+// The pulse-echo envelope's FWHM (s) of a Gaussian band from first principles: n cycles
+// of a sine convolved with the Gaussian-modulated cosine of -6 dB bandwidth B (its DC
+// removed), summed directly; the envelope through the analytic signal of a brute-force DFT.
+double gaussian_pulse_fwhm_s(double f0, double bandwidth, double cycles) {
     const double dt = 1.0 / (40.0 * f0);
     const double sigma_t = 2.0 * std::sqrt(2.0 * std::log(2.0)) / (2.0 * kPi * bandwidth * f0);
     const double w = 2.0 * kPi * f0;
@@ -80,6 +80,36 @@ double reference_pulse_fwhm_s(double f0, double bandwidth, double cycles) {
             a += 2.0 * spectrum[std::size_t(k)] * std::polar(1.0, 2.0 * kPi * k * i / n);
         envelope[std::size_t(i)] = std::abs(a) / n;
     }
+    return fwhm_samples(envelope, argmax(envelope)) * dt;
+}
+
+// The same for any band shape, from the band's definition: |H(f)| the generalized
+// Gaussian through -6 dB at f0 (1 +- B6 / 2) and -20 dB at f0 (1 +- B20 / 2). The analytic
+// impulse response h(t) = integral over f > 0 of 2 |H(f)| exp(i 2 pi f t) df by the
+// midpoint rule (no FFT), convolved in time with the n sine cycles; FWHM of its modulus.
+double reference_pulse_fwhm_s(double f0, double b6, double b20, double cycles) {
+    const double p = std::log(std::log(10.0) / std::log(2.0)) / std::log(b20 / b6);
+    auto band = [&](double f) {
+        return std::exp(-std::log(2.0) * std::pow(std::abs(f - f0) / (0.5 * b6 * f0), p));
+    };
+    const double df = f0 / 400.0, dt = 1.0 / (40.0 * f0);
+    const double support = 8.0 / (b6 * f0);  // the response has rung down (checked below)
+    const int h_half = int(support / dt), e_len = int(std::lround(cycles * 40.0));
+    std::vector<std::complex<double>> h(std::size_t(2 * h_half + 1));
+    for (int k = -h_half; k <= h_half; ++k) {
+        std::complex<double> sum = 0.0;
+        for (double f = 0.5 * df; f < f0 * (1.0 + 2.0 * b20); f += df)
+            sum += 2.0 * band(f) * std::polar(1.0, 2.0 * kPi * f * k * dt);
+        h[std::size_t(k + h_half)] = sum * df;
+    }
+    EXPECT_LT(std::abs(h.front()), 1e-3 * std::abs(h[std::size_t(h_half)]));
+    const int n = 2 * h_half + e_len;
+    std::vector<std::complex<double>> a(static_cast<std::size_t>(n));
+    for (int i = 0; i < e_len; ++i)
+        for (int k = 0; k <= 2 * h_half; ++k)
+            a[std::size_t(i + k)] += std::sin(2.0 * kPi * f0 * (i + 0.5) * dt) * h[std::size_t(k)];
+    std::vector<double> envelope(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) envelope[std::size_t(i)] = std::abs(a[std::size_t(i)]);
     return fwhm_samples(envelope, argmax(envelope)) * dt;
 }
 
@@ -113,15 +143,39 @@ TEST(Psf, SkippingAnAperturesZeroWeightsChangesNoBit) {
 }
 
 TEST(Psf, PulseEnvelopeMatchesTheExcitationConvolvedWithTheImpulseResponse) {
-    for (const auto& [f0, b, cycles] : std::vector<std::tuple<double, double, double>>{
-             {7.6e6, 0.79, 1.0}, {3.5e6, 0.86, 1.0}, {2.7e6, 0.74, 3.0}}) {
-        const probe::PulseEcho pulse(f0, b, cycles);
-        const double expected = reference_pulse_fwhm_s(f0, b, cycles);
+    // The band's definition: -6 dB and -20 dB at the stated widths.
+    for (const double shape : {1.3, 1.5, 2.2}) {
+        const double f0 = 5e6, b6 = 0.7, b20 = shape * b6;
+        for (const double side : {-1.0, 1.0}) {
+            EXPECT_NEAR(probe::PulseEcho::transducer_response(f0 * (1 + side * b6 / 2), f0, b6, shape),
+                        0.5, 1e-12);
+            EXPECT_NEAR(probe::PulseEcho::transducer_response(f0 * (1 + side * b20 / 2), f0, b6, shape),
+                        0.1, 1e-12);
+        }
+    }
+    for (const auto& [f0, b, shape, cycles] :
+         std::vector<std::tuple<double, double, double, double>>{{7.6e6, 0.79, 1.5, 1.0},
+                                                                 {3.5e6, 0.86, 1.5, 1.0},
+                                                                 {2.7e6, 0.74, 1.3, 3.0},
+                                                                 {5.0e6, 0.5, 2.2, 2.0}}) {
+        const probe::PulseEcho pulse(f0, b, shape, cycles);
+        const double expected = reference_pulse_fwhm_s(f0, b, shape * b, cycles);
         EXPECT_NEAR(pulse.envelope_fwhm_s(), expected, 0.02 * expected) << f0 << " " << cycles;
     }
+    // The Gaussian band (B20 / B6 = sqrt(ln 10 / ln 2)) is the Gaussian-modulated cosine.
+    const double gaussian = std::sqrt(std::log(10.0) / std::log(2.0));
+    for (const auto& [f0, b, cycles] : std::vector<std::tuple<double, double, double>>{
+             {7.6e6, 0.79, 1.0}, {2.7e6, 0.74, 3.0}}) {
+        const double expected = gaussian_pulse_fwhm_s(f0, b, cycles);
+        EXPECT_NEAR(probe::PulseEcho(f0, b, gaussian, cycles).envelope_fwhm_s(), expected,
+                    0.02 * expected);
+    }
+    // A flatter-topped band of the same -6 dB width rings longer.
+    EXPECT_GT(probe::PulseEcho(5e6, 0.8, 1.3, 1.0).envelope_fwhm_s(),
+              1.1 * probe::PulseEcho(5e6, 0.8, gaussian, 1.0).envelope_fwhm_s());
     // More cycles: a narrower spectrum, a longer echo.
-    EXPECT_GT(probe::PulseEcho(5e6, 0.8, 4.0).envelope_fwhm_s(),
-              1.5 * probe::PulseEcho(5e6, 0.8, 1.0).envelope_fwhm_s());
+    EXPECT_GT(probe::PulseEcho(5e6, 0.8, 1.5, 4.0).envelope_fwhm_s(),
+              1.5 * probe::PulseEcho(5e6, 0.8, 1.5, 1.0).envelope_fwhm_s());
 }
 
 struct PointImage {
@@ -170,7 +224,9 @@ TEST(Psf, PointTargetAxialResolutionIsThePulseEnvelope) {
         const PointImage image = image_point(t, 0.013, z);
         const double measured = fwhm_samples(image.axial, argmax(image.axial)) * image.sample_mm;
         const double expected =
-            0.5 * kC0 * 1e3 * reference_pulse_fwhm_s(t.frequency_mhz * 1e6, t.bandwidth, t.cycles);
+            0.5 * kC0 * 1e3 *
+            reference_pulse_fwhm_s(t.frequency_mhz * 1e6, t.bandwidth, t.band_shape * t.bandwidth,
+                                   t.cycles);
         std::printf("axial FWHM at %.0f mm: %.3f mm (pulse envelope %.3f)\n", z, measured,
                     expected);
         EXPECT_NEAR(measured, expected, 0.1 * expected) << z;
@@ -577,7 +633,7 @@ TEST(Psf, LineReceiveIsTheRowsInterpolatedBitForBit) {
 // PulseEcho::analytic (both parts from one table position: the reflections' pulses ask
 // for every sample) is in_phase + i quadrature, bit for bit, inside and beyond the support.
 TEST(Psf, PulseAnalyticIsInPhaseAndQuadratureBitForBit) {
-    const probe::PulseEcho pulse(5e6, 0.6, 2.0);
+    const probe::PulseEcho pulse(5e6, 0.6, 1.5, 2.0);
     const double reach = 1.2 * pulse.half_length_s();
     long differing = 0, nonzero = 0;
     for (int n = -5000; n <= 5000; ++n) {

@@ -241,7 +241,7 @@ Figure frame_figure(const PhantomFrame& f, const std::string& caption,
 // prediction the lateral resolution is held to (independent of the image pipeline, whose
 // point targets go through probe::LineFields): the line at lateral position x_line (mm),
 // the point (x, z); rectangular, Hann or Tukey weights across the clipped active span;
-// elements as wide as the pitch (sinc directivity, cosine obliquity), 1/sqrt(r)
+// elements of the preset's width (sinc directivity, cosine obliquity), 1/sqrt(r)
 // cylindrical spreading, focusing delays to the transmit focus and to the point's depth.
 struct ReferenceLinearArray {
     probe::Transducer t;
@@ -267,7 +267,7 @@ struct ReferenceLinearArray {
             const double xe = -half_array + (e + 0.5) * t.pitch_mm;
             if (xe < lo || xe > hi) continue;
             const double dx = x - xe, r = std::hypot(dx, z);
-            const double s = std::numbers::pi * t.pitch_mm * (dx / r) / lambda;
+            const double s = std::numbers::pi * t.element_width_mm * (dx / r) / lambda;
             const double directivity = (s == 0.0 ? 1.0 : std::sin(s) / s) * (z / r);
             const double path = r - std::hypot(x_line - xe, focus) + focus - z;
             sum += weight(a, (xe - lo) / (hi - lo)) * directivity / std::sqrt(r) *

@@ -128,10 +128,12 @@ probe::Transducer make_transducer(const SimulateOptions& o, const std::string& p
     if (o.elements) t.elements = *o.elements;
     if (o.lines) t.lines = *o.lines;
     if (o.pitch) t.pitch_mm = *o.pitch;
+    if (o.element_width) t.element_width_mm = *o.element_width;
     if (o.radius) t.radius_mm = *o.radius;
     if (o.fov) t.fov_deg = *o.fov;
     if (o.frequency) t.frequency_mhz = *o.frequency;
     if (o.bandwidth) t.bandwidth = *o.bandwidth;
+    if (o.band_shape) t.band_shape = *o.band_shape;
     if (o.focus) t.focus_mm = *o.focus;
     if (o.f_number) t.f_number = *o.f_number;
     if (o.rx_f_number) t.rx_f_number = *o.rx_f_number;
@@ -183,10 +185,12 @@ nlohmann::json transducer_json(const probe::Transducer& t) {
             {"type", probe::to_string(t.type)},
             {"elements", t.elements},
             {"pitch_mm", t.pitch_mm},
+            {"element_width_mm", t.element_width_mm},
             {"radius_mm", t.radius_mm},
             {"fov_deg", t.fov_deg},
             {"frequency_mhz", t.frequency_mhz},
             {"bandwidth", t.bandwidth},
+            {"band_shape", t.band_shape},
             {"focus_mm", t.focus_mm},
             {"f_number", t.f_number},
             {"tx_apodization", probe::to_string(t.tx_apodization)},
@@ -232,6 +236,10 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
             cmd->add_option(flag, o.frequency, help);
         else if (key == "bandwidth")
             cmd->add_option(flag, o.bandwidth, help);
+        else if (key == "band-shape")
+            cmd->add_option(flag, o.band_shape, help);
+        else if (key == "element-width")
+            cmd->add_option(flag, o.element_width, help);
         else if (key == "focus")
             cmd->add_option(flag, o.focus, help);
         else if (key == "f-number")

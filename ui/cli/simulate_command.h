@@ -47,8 +47,9 @@ struct SimulateOptions {
     // Transducer overrides (unset = the preset's value).
     std::optional<std::string> type, tx_apodization, rx_apodization;
     std::optional<int> elements, lines;
-    std::optional<double> pitch, radius, fov, frequency, bandwidth, focus, f_number, rx_f_number,
-        cycles, elevation_focus, slice_thickness, depth, face_reflectivity;
+    std::optional<double> pitch, element_width, radius, fov, frequency, bandwidth, band_shape,
+        focus, f_number, rx_f_number, cycles, elevation_focus, slice_thickness, depth,
+        face_reflectivity;
     std::string quality = "standard";
     std::string receive = "monostatic";
     std::string trace = "2d";
