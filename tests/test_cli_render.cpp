@@ -191,6 +191,32 @@ TEST(CliRender, CtrlCStopsPromptlyAndWritesTheRepetitionsDone) {
     EXPECT_LT(record.at("repetitions").get<int>(), 10000000);
 }
 
+// Ctrl-C before the first repetition ends is an interrupt (130), not bad input (1), and
+// writes nothing. The repetition is made long (a 4096^2 image at 16 sub-pixels) and the
+// signal sent as soon as the command says the refinement has begun.
+TEST(CliRender, CtrlCBeforeTheFirstRepetitionIsAnInterruptAndWritesNothing) {
+    ScratchDir dir;
+    const std::string volume = write_sphere(dir);
+    const std::string err = dir / "err.txt";
+    std::string script = "(";
+    script += SONOTRACE_BINARY;
+    script += " render --volume " + volume +
+              " --tf ramp --width 4096 --height 4096 --subpixel 4 --repetitions 2 --out " +
+              (dir / "r.png") + " 2> " + err + " & pid=$!; i=0; ";
+    script += "while ! grep -q Ctrl-C " + err + " && [ $i -lt 600 ]; do sleep 0.05; i=$((i+1)); ";
+    script += "done; kill -INT $pid; wait $pid)";
+    const int status = std::system(("sh -c '" + script + "'").c_str());
+    ASSERT_TRUE(WIFEXITED(status));
+    const std::string text = slurp(err);
+    if (WEXITSTATUS(status) == 0)  // the image was written: a repetition had ended
+        GTEST_SKIP() << "the first repetition ended before the signal arrived";
+    EXPECT_EQ(WEXITSTATUS(status), 130) << text;
+    EXPECT_NE(text.find("interrupted before a repetition finished: nothing written"),
+              std::string::npos)
+        << text;
+    EXPECT_FALSE(std::filesystem::exists(dir / "r.png"));
+}
+
 TEST(CliRender, BadInputIsNamedAndLeavesNoFiles) {
     ScratchDir dir;
     const std::string volume = write_sphere(dir);

@@ -106,10 +106,15 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
         {"--rx-apodization blackman", "rx-apodization"},
         {"--cycles 0", "cycles"},
         // An element as wide as the pitch leaves no kerf; the band shape's range.
-        {"--probe linear --element-width 0.3", "field 'element-width': must be more than 0 and less than the pitch"},
+        {"--probe linear --element-width 0.3",
+         "field 'element-width': must be more than 0 and less than the pitch"},
         {"--element-width 0", "element-width"},
         {"--band-shape 3", "field 'band-shape': must be in [1.1, 2.5]"},
         {"--band-shape 1", "band-shape"},
+        // CLI11 read these as the largest seed.
+        {"--seed -1", "--seed: value -1 is not a whole number"},
+        {"--seed 18446744073709551616", "not a whole number"},
+        {"--seed 1e23", "not a whole number"},
         {"--phantom " + (dir / "far_target.json"), "targets[0].at"},
         {"--name .", "--name"},
         // numbers in messages are short: not 301 digits

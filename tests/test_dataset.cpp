@@ -183,5 +183,49 @@ TEST(Dataset, ShardsAreByteIdenticalOnOneAndTwoThreadsAndResumeToTheSameBytes) {
                        "not a shard of this spec");
 }
 
+// A shard is kept only if its header and checksum agree with the spec and its number.
+// Before, only the spec digest was read: a shard with 8 flipped bytes was kept (h5py then
+// failed with "inflate() failed"), a copy of shard 0 named shard 1 was kept as shard 1, and
+// a truncated or empty shard of this very spec was reported as another spec's.
+TEST(Dataset, DamagedOrMisnumberedShardsAreMadeAgainNeverKept) {
+    ScratchDir dir;
+    const Spec spec = parse_spec(small_spec(), "spec");
+    RunOptions o;
+    o.out_dir = dir / "out";
+    make_dataset(spec, o);
+    std::vector<std::string> sound;
+    for (uint64_t k = 0; k < spec.shards(); ++k)
+        sound.push_back(bytes_of(shard_path(o.out_dir, k)));
+    auto overwrite = [&](uint64_t k, const std::string& bytes) {
+        std::ofstream(shard_path(o.out_dir, k), std::ios::binary | std::ios::trunc) << bytes;
+    };
+    auto expect_made_again = [&](const std::string& why) {
+        const RunReport report = make_dataset(spec, o);
+        ASSERT_EQ(report.damaged.size(), 1u) << why;
+        EXPECT_NE(report.damaged[0].find(why), std::string::npos) << report.damaged[0];
+        EXPECT_EQ(report.shards_written, 1u) << why;
+        for (uint64_t k = 0; k < spec.shards(); ++k)
+            EXPECT_TRUE(bytes_of(shard_path(o.out_dir, k)) == sound[k]) << why << " shard " << k;
+    };
+    std::string flipped = sound[1];
+    for (std::size_t b = flipped.size() / 2; b < flipped.size() / 2 + 8; ++b) flipped[b] ^= 0x5a;
+    overwrite(1, flipped);
+    expect_made_again("does not match its checksum");
+    overwrite(1, sound[0]);  // shard 0, renamed to shard 1
+    expect_made_again("holds shard 0, not shard 1");
+    overwrite(2, sound[2].substr(0, sound[2].size() - 100));
+    expect_made_again("does not match its checksum");
+    overwrite(2, "");
+    expect_made_again("shorter than its header");
+    std::string header = sound[0];
+    header[5] ^= 1;  // "sonotrace shard" no longer
+    overwrite(0, header);
+    expect_made_again("no shard header");
+    header = sound[0];
+    header[300] = 'x';  // in the header's zero padding
+    overwrite(0, header);
+    expect_made_again("its header is damaged");
+}
+
 }  // namespace
 }  // namespace sonotrace::imaging::dataset

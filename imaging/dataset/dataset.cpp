@@ -8,6 +8,7 @@
 #include "sonotrace_version.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
+#include "tissue/base/file_status.h"
 #include "tissue/tissue_table.h"
 
 namespace sonotrace::imaging::dataset {
@@ -50,19 +51,25 @@ nlohmann::json manifest(const Spec& spec) {
 
 }  // namespace
 
-std::vector<uint64_t> missing_shards(const Spec& spec, const std::string& dir, uint64_t* kept) {
+std::vector<uint64_t> missing_shards(const Spec& spec, const std::string& dir, uint64_t* kept,
+                                     std::vector<std::string>* damaged) {
     std::vector<uint64_t> missing;
     for (uint64_t k = 0; k < spec.shards(); ++k) {
         const std::string path = shard_path(dir, k);
-        if (!std::filesystem::exists(path)) {
+        if (base::file_status(path, path, "").type() == std::filesystem::file_type::not_found) {
             missing.push_back(k);
             continue;
         }
-        const auto digest = shard_digest(path);
-        if (!digest || *digest != spec.digest())
+        const ShardCheck check = check_shard(path, spec.digest(), k);
+        if (check.verdict == ShardCheck::foreign)
             throw base::InputError(path, "spec_digest",
                                    "is not a shard of this spec: make the dataset in another "
                                    "--out, or remove the old shards");
+        if (check.verdict == ShardCheck::damaged) {  // made again, replacing it
+            missing.push_back(k);
+            if (damaged) damaged->push_back(path + ": " + check.why);
+            continue;
+        }
         if (kept) ++*kept;
     }
     return missing;
@@ -89,6 +96,8 @@ bool write_one_shard(const FrameMaker& maker, uint64_t k, const std::string& dir
 std::string write_manifest(const Spec& spec, const std::string& dir) {
     base::OutputTransaction transaction;
     const std::string path = (std::filesystem::path(dir) / "manifest.json").string();
+    // The shards' renames reach the disk before the manifest that names them.
+    base::sync_directory(dir);
     const std::string text = manifest(spec).dump(2) + "\n";
     base::write_file(transaction.stage(path), text.data(), text.size());
     transaction.commit();
@@ -98,7 +107,7 @@ std::string write_manifest(const Spec& spec, const std::string& dir) {
 RunReport make_dataset(const Spec& spec, const RunOptions& options) {
     RunReport report;
     const std::vector<uint64_t> missing =
-        missing_shards(spec, options.out_dir, &report.shards_kept);
+        missing_shards(spec, options.out_dir, &report.shards_kept, &report.damaged);
     uint64_t total = 0, done = 0;
     for (uint64_t k : missing)
         total += std::min(spec.frames, (k + 1) * spec.frames_per_shard) - k * spec.frames_per_shard;

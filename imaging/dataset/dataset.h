@@ -26,21 +26,24 @@ struct RunOptions {
 };
 
 struct RunReport {
-    uint64_t shards_kept = 0;     // complete before this run
-    uint64_t shards_written = 0;  // by this run
-    bool stopped = false;         // by RunOptions::stop, before the manifest
-    bool failed = false;          // under MPI, on ranks other than 0: the job failed, and
-                                  // rank 0 throws its one error message
-    std::string manifest;         // its path, once every shard is there
+    uint64_t shards_kept = 0;          // complete before this run
+    uint64_t shards_written = 0;       // by this run
+    bool stopped = false;              // by RunOptions::stop, before the manifest
+    std::vector<std::string> damaged;  // shards found damaged and made again ("path: why")
+    bool failed = false;               // under MPI, on ranks other than 0: the job failed, and
+                                       // rank 0 throws its one error message
+    std::string manifest;              // its path, once every shard is there
 };
 
 RunReport make_dataset(const Spec& spec, const RunOptions& options);
 
 // The pieces make_dataset is made of, for runs that spread shards over processes
 // (imaging/dataset/mpi.h):
-// the shards `dir` lacks; throws InputError for a shard of another spec. `kept` counts
-// the complete ones.
-std::vector<uint64_t> missing_shards(const Spec& spec, const std::string& dir, uint64_t* kept);
+// the shards `dir` lacks or holds damaged (shard.h's checks); throws InputError for a
+// shard of another spec. `kept` counts the sound ones; `damaged` receives "path: why" of
+// each damaged one.
+std::vector<uint64_t> missing_shards(const Spec& spec, const std::string& dir, uint64_t* kept,
+                                     std::vector<std::string>* damaged = nullptr);
 // Frames first .. end of shard k, made and written (under a hidden name, renamed when
 // complete). Returns false, writing nothing, if `stop` asks to stop between frames;
 // `frame_done` is called after each frame.

@@ -127,7 +127,8 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
     std::vector<uint64_t> missing;
     std::optional<FrameMaker> maker;
     const std::optional<RankError> start_error = capture([&] {
-        if (mpi.rank() == 0) missing = missing_shards(spec, options.out_dir, &report.shards_kept);
+        if (mpi.rank() == 0)
+            missing = missing_shards(spec, options.out_dir, &report.shards_kept, &report.damaged);
         maker.emplace(spec);
     });
     if (const auto error = agree_on_error(start_error, mpi.rank(), mpi.size()))

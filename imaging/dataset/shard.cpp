@@ -2,6 +2,7 @@
 
 #include <hdf5.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -11,6 +12,7 @@
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
+#include "tissue/base/hash.h"
 
 namespace sonotrace::imaging::dataset {
 
@@ -57,6 +59,7 @@ class ShardWriter {
         H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors become our messages
         Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
         H5Pset_obj_track_times(fcpl, false);
+        H5Pset_userblock(fcpl, kShardHeaderBytes);  // our header, which HDF5 skips
         Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
         H5Pset_fapl_core(fapl, std::size_t(1) << 20, false);
         file_ = H5Fcreate(kImageName, H5F_ACC_TRUNC, fcpl, fapl);
@@ -251,25 +254,53 @@ void write_shard(const std::string& path, const std::string& output_name, const 
     w.attribute("first_frame", frames.empty() ? 0 : frames.front().draw.index);
     w.attribute("frame_count", uint64_t(frames.size()));
     w.attribute("version", std::string(SONOTRACE_VERSION));
-    const std::string bytes = w.image();
-    base::write_file(path, bytes.data(), bytes.size());
+    // HDF5's image starts at its superblock; the user block it reserved goes before it.
+    std::string bytes(kShardHeaderBytes, '\0');
+    bytes += w.image();
+    const std::string header = shard_header(spec.digest(), shard, content_checksum(bytes));
+    std::copy(header.begin(), header.end(), bytes.begin());
+    base::write_file(path, bytes.data(), bytes.size(), base::Durability::synced);
 }
 
-std::optional<uint64_t> shard_digest(const std::string& path) {
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-    // Read by our reader (a regular file only, opened without blocking), then opened from
-    // memory: HDF5 itself would block in open() on a FIFO.
+uint64_t content_checksum(const std::string& file) {
+    uint64_t h = 0x73686172642d6331ull;
+    std::size_t at = std::min<std::size_t>(kShardHeaderBytes, file.size());
+    for (; at + 8 <= file.size(); at += 8) {
+        uint64_t word;
+        std::memcpy(&word, file.data() + at, 8);
+        h = base::mix64(h ^ word);
+    }
+    for (; at < file.size(); ++at) h = base::mix64(h ^ uint8_t(file[at]));
+    return base::mix64(h ^ file.size());
+}
+
+std::string shard_header(uint64_t spec_digest, uint64_t shard, uint64_t checksum) {
+    char text[kShardHeaderBytes] = {};
+    std::snprintf(text, sizeof text,
+                  "sonotrace shard\nspec_digest %016llx\nshard %llu\ncontent_checksum %016llx\n",
+                  static_cast<unsigned long long>(spec_digest),
+                  static_cast<unsigned long long>(shard),
+                  static_cast<unsigned long long>(checksum));
+    return std::string(text, sizeof text);
+}
+
+ShardCheck check_shard(const std::string& path, uint64_t spec_digest, uint64_t shard) {
     const std::string bytes = base::read_regular_file(path, kMaxShardBytes);
-    Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
-    H5Pset_fapl_core(fapl, std::size_t(1) << 20, false);
-    if (bytes.empty() || H5Pset_file_image(fapl, const_cast<char*>(bytes.data()), bytes.size()) < 0)
-        return std::nullopt;
-    Handle file(H5Fopen(kImageName, H5F_ACC_RDONLY, fapl), H5Fclose);
-    if (!file.ok()) return std::nullopt;
-    Handle a(H5Aopen(file, "spec_digest", H5P_DEFAULT), H5Aclose);
-    uint64_t digest = 0;
-    if (!a.ok() || H5Aread(a, H5T_NATIVE_UINT64, &digest) < 0) return std::nullopt;
-    return digest;
+    if (bytes.size() < kShardHeaderBytes) return {ShardCheck::damaged, "shorter than its header"};
+    unsigned long long digest = 0, index = 0, checksum = 0;
+    if (std::sscanf(bytes.c_str(),
+                    "sonotrace shard\nspec_digest %16llx\nshard %llu\ncontent_checksum %16llx",
+                    &digest, &index, &checksum) != 3)
+        return {ShardCheck::damaged, "no shard header"};
+    if (digest != spec_digest) return {ShardCheck::foreign, "is a shard of another spec"};
+    if (bytes.compare(0, kShardHeaderBytes, shard_header(digest, index, checksum)) != 0)
+        return {ShardCheck::damaged, "its header is damaged"};
+    if (index != shard)
+        return {ShardCheck::damaged,
+                "holds shard " + std::to_string(index) + ", not shard " + std::to_string(shard)};
+    if (content_checksum(bytes) != checksum)
+        return {ShardCheck::damaged, "its content does not match its checksum"};
+    return {ShardCheck::ok, ""};
 }
 
 }  // namespace sonotrace::imaging::dataset

@@ -31,8 +31,22 @@ void write_shard(const std::string& path, const std::string& output_name, const 
 // The largest shard file that is read back (into memory, whole).
 inline constexpr std::size_t kMaxShardBytes = std::size_t(16) << 30;
 
-// The spec digest a shard file was written for; nullopt if it is not a readable shard.
-// Throws base::InputError naming `path` if it is not a regular file or cannot be read.
-std::optional<uint64_t> shard_digest(const std::string& path);
+// Every shard begins with a header of kShardHeaderBytes (an HDF5 user block, which h5py
+// and HDF5 skip) that says whose it is and what it holds:
+//   "sonotrace shard\nspec_digest %016x\nshard %u\ncontent_checksum %016x\n", zero padded,
+// the checksum over every byte after the header (and the file's length). A shard is kept
+// only when all of it agrees, so a flipped byte, a truncated file or a shard copied under
+// another number is remade, never trusted.
+inline constexpr std::size_t kShardHeaderBytes = 512;
+uint64_t content_checksum(const std::string& file);
+std::string shard_header(uint64_t spec_digest, uint64_t shard, uint64_t checksum);
+
+struct ShardCheck {
+    enum Verdict { ok, damaged, foreign } verdict;
+    std::string why;  // for damaged and foreign
+};
+// Reads and checks shard file `shard` of the spec of `spec_digest`. Throws
+// base::InputError naming `path` if it is not a regular file or cannot be read.
+ShardCheck check_shard(const std::string& path, uint64_t spec_digest, uint64_t shard);
 
 }  // namespace sonotrace::imaging::dataset

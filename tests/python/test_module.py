@@ -90,6 +90,13 @@ def test_errors_are_input_errors_with_the_clis_messages():
         sonotrace.simulate(phantom="missing.json")
     with pytest.raises(sonotrace.InputError, match="depth"):
         sonotrace.simulate(phantom=CYST, depth=float("nan"))
+    # A bare True for an option with a value swallowed the next keyword as that value.
+    with pytest.raises(sonotrace.InputError, match="lines.*takes a value, not True"):
+        sonotrace.simulate(lines=True, threads=1)
+    # Seeds out of range were read as 2^64 - 1.
+    for seed in [-1, 2**64, "1e23"]:
+        with pytest.raises(sonotrace.InputError, match="not a whole number"):
+            sonotrace.simulate(seed=seed, **FAST)
     assert issubclass(sonotrace.InputError, ValueError)
 
 
@@ -160,6 +167,15 @@ def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
         sonotrace.read_shard(str(tmp_path / "junk.h5"))
     with pytest.raises(sonotrace.InputError, match="missing.h5: file not found"):
         sonotrace.read_shard(str(tmp_path / "missing.h5"))
+    # A small file declaring 8 GB of bmode (chunks never written) is refused before NumPy
+    # allocates it; it was read and filled.
+    import h5py
+    with h5py.File(tmp_path / "bomb.h5", "w") as f:
+        f.create_dataset("bmode", shape=(2000, 2000, 2000), dtype="u1", chunks=(1, 2000, 2000),
+                         compression="gzip")
+    assert (tmp_path / "bomb.h5").stat().st_size < 100_000
+    with pytest.raises(sonotrace.InputError, match="bomb.h5: field '/bmode': declares 8e"):
+        sonotrace.read_shard(str(tmp_path / "bomb.h5"))
 
 
 def test_a_volume_name_is_never_a_format(tmp_path):

@@ -37,7 +37,8 @@ std::string output_name(const std::string& path) {
     return (p.parent_path() / name.substr(at)).string();
 }
 
-void write_file(const std::string& path, const void* data, std::size_t size) {
+void write_file(const std::string& path, const void* data, std::size_t size,
+                Durability durability) {
     auto fail = [&](const std::string& what, int error) {
         std::error_code ignored;
         if (fs::is_regular_file(path, ignored)) fs::remove(path, ignored);  // not a device
@@ -56,7 +57,24 @@ void write_file(const std::string& path, const void* data, std::size_t size) {
         }
         done += std::size_t(n);
     }
+    if (durability == Durability::synced && ::fsync(fd) != 0) {
+        const int error = errno;
+        ::close(fd);
+        fail("cannot write the file", error);
+    }
     if (::close(fd) != 0) fail("cannot write the file", errno);
+}
+
+void sync_directory(const std::string& dir) {
+    const int fd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0)
+        throw InputError(dir, "",
+                         std::string("cannot open the directory: ") + std::strerror(errno));
+    const int status = ::fsync(fd), error = errno;
+    ::close(fd);
+    if (status != 0)
+        throw InputError(dir, "",
+                         std::string("cannot sync the directory: ") + std::strerror(error));
 }
 
 OutputTransaction::~OutputTransaction() {

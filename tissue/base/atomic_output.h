@@ -17,8 +17,14 @@ std::string output_name(const std::string& path);
 
 // Writes `size` bytes to `path` (created or truncated) and closes it, checking every call:
 // a full disk or an I/O error throws InputError naming output_name(path) and removes the
-// file, instead of leaving a truncated file reported as written.
-void write_file(const std::string& path, const void* data, std::size_t size);
+// file, instead of leaving a truncated file reported as written. `synced`: the data reach
+// the disk (fsync) before it returns, for a file a later run will trust once renamed
+// (a power cut could otherwise leave the new name on an empty file).
+enum class Durability { buffered, synced };
+void write_file(const std::string& path, const void* data, std::size_t size,
+                Durability durability = Durability::buffered);
+// Makes the renames and creations in directory `dir` durable (fsync of the directory).
+void sync_directory(const std::string& dir);
 
 class OutputTransaction {
   public:

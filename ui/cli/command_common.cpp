@@ -3,11 +3,14 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <sstream>
 
 #include "tissue/base/atomic_output.h"
@@ -86,7 +89,7 @@ void write_json(const nlohmann::json& record, const std::string& path) {
     base::write_file(path, text.data(), text.size());
 }
 
-void refuse_non_finite_numbers(CLI::App& app) {
+void refuse_bad_numbers(CLI::App& app) {
     const CLI::Validator finite(
         [](std::string& value) -> std::string {
             char* end = nullptr;
@@ -96,9 +99,22 @@ void refuse_non_finite_numbers(CLI::App& app) {
             return {};
         },
         "");
-    for (CLI::Option* option : app.get_options())
+    const CLI::Validator whole(
+        [](std::string& value) -> std::string {
+            uint64_t parsed = 0;
+            const char* end = value.data() + value.size();
+            const auto [stop, error] = std::from_chars(value.data(), end, parsed);
+            if (value.empty() || error != std::errc() || stop != end)
+                return "value " + value + " is not a whole number from 0 to " +
+                       std::to_string(std::numeric_limits<uint64_t>::max());
+            return {};
+        },
+        "");
+    for (CLI::Option* option : app.get_options()) {
         if (option->get_type_name().rfind("FLOAT", 0) == 0) option->check(finite);
-    for (CLI::App* command : app.get_subcommands({})) refuse_non_finite_numbers(*command);
+        if (option->get_type_name().rfind("UINT", 0) == 0) option->check(whole);
+    }
+    for (CLI::App* command : app.get_subcommands({})) refuse_bad_numbers(*command);
 }
 
 void add_run_options(CLI::App& command, std::string& json_path, int& threads, bool& quiet) {

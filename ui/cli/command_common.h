@@ -41,8 +41,9 @@ inline constexpr ParameterDoc kJsonRecordDoc = {
     "stdout"};
 
 // Every floating-point option of `app` and its subcommands refuses NaN and infinities
-// (CLI11's ranges let NaN through: every comparison with it is false).
-void refuse_non_finite_numbers(CLI::App& app);
+// (CLI11's ranges let NaN through: every comparison with it is false), and every unsigned
+// one what is not a whole number it can hold (CLI11 read -1, 2^64 and 1e23 as 2^64 - 1).
+void refuse_bad_numbers(CLI::App& app);
 
 // The options most commands end with: --json FILE, --threads N, -q/--quiet.
 void add_run_options(CLI::App& command, std::string& json_path, int& threads, bool& quiet);

@@ -84,6 +84,8 @@ int run_dataset_command(const DatasetOptions& o) {
     std::signal(SIGINT, previous_int);
     std::signal(SIGTERM, previous_term);
     bar.finish();
+    for (const std::string& damaged : report.damaged)
+        std::cerr << "sonotrace: " << damaged << "; made again\n";
     if (rank != 0) return report.failed ? 1 : report.stopped ? 130 : 0;  // rank 0 reports
     if (report.stopped) {
         std::cerr << "sonotrace: stopped; " << report.shards_written

@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
     ui::DatasetOptions dataset_options;
     CLI::App* dataset_cmd = ui::add_dataset_command(app, dataset_options);
 
-    ui::refuse_non_finite_numbers(app);
+    ui::refuse_bad_numbers(app);
 
     try {
         app.parse(argc, argv);

@@ -337,9 +337,12 @@ int run_render_command(const RenderOptions& options) {
     }
     bar.finish();
     std::signal(SIGINT, previous_handler);
-    if (renderer->repetitions_done() == 0)
-        throw base::InputError("render", "",
-                               "interrupted before a repetition finished: nothing written");
+    if (renderer->repetitions_done() == 0) {
+        // An interrupt, not bad input: the status says so (130, as every command's).
+        if (!options.quiet)
+            std::cerr << "sonotrace: interrupted before a repetition finished: nothing written\n";
+        return 130;
+    }
     const double render_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const pbvr::RgbImage image = renderer->image();

@@ -22,6 +22,7 @@
 #include "sonotrace_version.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
+#include "tissue/base/memory.h"
 #include "ui/cli/simulate_command.h"
 
 namespace py = pybind11;
@@ -38,13 +39,22 @@ py::array_t<T> view(std::shared_ptr<Owner> owner, const T* data, std::vector<py:
 }
 
 // Keyword arguments as the command line of `sonotrace simulate`: key -> --key (with '_'
-// as '-'), True -> the flag, False -> nothing, a list -> comma-separated.
-std::vector<std::string> command_line(const py::kwargs& kwargs) {
+// as '-'), True -> the flag, False -> nothing, a list -> comma-separated. Values go as
+// --key=value, so that no value is ever read as an option or an option as a value.
+std::vector<std::string> command_line(const py::kwargs& kwargs, CLI::App& command) {
     std::vector<std::string> args;
     for (const auto& [key, value] : kwargs) {
-        std::string flag = "--" + py::str(key).cast<std::string>();
+        const std::string name = py::str(key).cast<std::string>();
+        std::string flag = "--" + name;
         std::replace(flag.begin(), flag.end(), '_', '-');
         if (py::isinstance<py::bool_>(value)) {
+            const CLI::Option* option = command.get_option_no_throw(flag);
+            // A switch of the command (a flag) takes True; an option with a value is given
+            // one (it swallowed the next keyword's name as its value).
+            if (option && option->get_expected_min() > 0)
+                throw base::InputError(
+                    "sonotrace.simulate", name,
+                    "takes a value, not " + std::string(value.cast<bool>() ? "True" : "False"));
             if (value.cast<bool>()) args.push_back(flag);
             continue;
         }
@@ -57,8 +67,7 @@ std::vector<std::string> command_line(const py::kwargs& kwargs) {
         } else {
             text = py::str(value).cast<std::string>();
         }
-        args.push_back(flag);
-        args.push_back(text);
+        args.push_back(flag + "=" + text);
     }
     return args;
 }
@@ -72,8 +81,8 @@ struct ParsedOptions {
 std::unique_ptr<ParsedOptions> parse(const py::kwargs& kwargs) {
     auto parsed = std::make_unique<ParsedOptions>();
     CLI::App* command = ui::add_simulate_command(parsed->app, parsed->options);
-    ui::refuse_non_finite_numbers(parsed->app);
-    std::vector<std::string> args = command_line(kwargs);
+    ui::refuse_bad_numbers(parsed->app);
+    std::vector<std::string> args = command_line(kwargs, *command);
     args.insert(args.begin(), "simulate");
     std::reverse(args.begin(), args.end());  // CLI11 takes a reversed vector
     try {
@@ -222,7 +231,20 @@ PYBIND11_MODULE(sonotrace, m) {
                 py::object image = py::module_::import("io").attr("BytesIO")(py::bytes(bytes));
                 py::object file = py::module_::import("h5py").attr("File")(image, "r");
                 py::dict out, attributes;
-                auto read_all = [](const py::object& dataset) { return dataset[py::tuple()]; };
+                // A dataset holds at most what its compressed bytes inflate to (deflate
+                // stops near 1032:1): a file that declares more is refused before NumPy
+                // allocates it.
+                auto read_all = [&](const py::object& dataset) {
+                    const double declared = dataset.attr("nbytes").cast<double>();
+                    if (declared > 1100.0 * double(bytes.size()) + double(1 << 20))
+                        throw base::InputError(path, dataset.attr("name").cast<std::string>(),
+                                               "declares " + base::number_text(declared) +
+                                                   " bytes in a file of " +
+                                                   std::to_string(bytes.size()));
+                    base::check_allocation(declared, path,
+                                           dataset.attr("name").cast<std::string>());
+                    return dataset[py::tuple()];
+                };
                 for (const char* name : {"bmode", "labels", "frames"})
                     if (file.attr("__contains__")(name).cast<bool>())
                         out[name] = read_all(file[name]);
