@@ -9,6 +9,7 @@
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_status.h"
+#include "tissue/base/memory.h"
 #include "tissue/tissue_table.h"
 
 namespace sonotrace::imaging::dataset {
@@ -104,7 +105,15 @@ std::string write_manifest(const Spec& spec, const std::string& dir) {
     return path;
 }
 
+void check_shard_fits_memory(const Spec& spec) {
+    // A shard's frames are held until it is written, then its image beside them: at least
+    // bmode and labels (one byte a pixel each) twice over, before any optional output.
+    const double bytes = 4.0 * double(spec.frames_per_shard) * spec.width * spec.height;
+    base::check_allocation(bytes, spec.path, "frames_per_shard");
+}
+
 RunReport make_dataset(const Spec& spec, const RunOptions& options) {
+    check_shard_fits_memory(spec);
     RunReport report;
     const std::vector<uint64_t> missing =
         missing_shards(spec, options.out_dir, &report.shards_kept, &report.damaged);

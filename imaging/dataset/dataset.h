@@ -37,6 +37,10 @@ struct RunReport {
 
 RunReport make_dataset(const Spec& spec, const RunOptions& options);
 
+// Throws InputError (field frames_per_shard) when one shard's frames cannot be held in the
+// memory this machine has free: checked before the first frame, not found out by swapping.
+void check_shard_fits_memory(const Spec& spec);
+
 // The pieces make_dataset is made of, for runs that spread shards over processes
 // (imaging/dataset/mpi.h):
 // the shards `dir` lacks or holds damaged (shard.h's checks); throws InputError for a

@@ -127,6 +127,7 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
     std::vector<uint64_t> missing;
     std::optional<FrameMaker> maker;
     const std::optional<RankError> start_error = capture([&] {
+        check_shard_fits_memory(spec);
         if (mpi.rank() == 0)
             missing = missing_shards(spec, options.out_dir, &report.shards_kept, &report.damaged);
         maker.emplace(spec);
