@@ -37,19 +37,20 @@ PulseEcho::PulseEcho(double frequency_hz, double bandwidth, double band_shape, d
     // band of B f0 rings for about 1 / (B f0), the flattest allowed band shapes a few
     // times longer; 40 of those leave the wrap-around below 1e-6 of the peak.
     const int e_len = std::max(1, int(std::lround(cycles * kSamplesPerPeriod)));
-    const int n = cv::getOptimalDFTSize(e_len + int(std::ceil(40.0 * kSamplesPerPeriod / bandwidth)));
+    const int n =
+        cv::getOptimalDFTSize(e_len + int(std::ceil(40.0 * kSamplesPerPeriod / bandwidth)));
     const double w = 2.0 * std::numbers::pi * f0_;
     cv::Mat excitation(1, n, CV_64FC2, cv::Scalar(0, 0));
     const int start = (n - e_len) / 2;  // centred: the response rings both ways
     for (int i = 0; i < e_len; ++i)
-        excitation.at<cv::Vec2d>(0, start + i)[0] = std::sin(w * (i + 0.5) * dt_) * dt_;  // midpoint rule
+        excitation.at<cv::Vec2d>(0, start + i)[0] =
+            std::sin(w * (i + 0.5) * dt_) * dt_;  // midpoint rule
     cv::Mat spectrum;
     cv::dft(excitation, spectrum);
     auto* c = spectrum.ptr<cv::Vec2d>(0);
     for (int k = 0; k < n; ++k) {
         const double gain =
-            2 * k < n ? 2.0 * transducer_response(k / (n * dt_), f0_, bandwidth, band_shape)
-                      : 0.0;
+            2 * k < n ? 2.0 * transducer_response(k / (n * dt_), f0_, bandwidth, band_shape) : 0.0;
         c[k] *= gain;
     }
     cv::Mat analytic;

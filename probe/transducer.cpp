@@ -54,8 +54,10 @@ void Transducer::validate(const std::string& source) const {
     if (!(element_width_mm > 0.0 && element_width_mm < pitch_mm))
         throw base::InputError(source, "element-width",
                                "must be more than 0 and less than the pitch (" +
-                                   base::number_text(pitch_mm) + " mm): elements are separated "
-                                   "by a kerf, got " + base::number_text(element_width_mm));
+                                   base::number_text(pitch_mm) +
+                                   " mm): elements are separated "
+                                   "by a kerf, got " +
+                                   base::number_text(element_width_mm));
     in_range(frequency_mhz, 0.5, 50.0, "frequency", "MHz");
     in_range(bandwidth, 0.05, 2.0, "bandwidth", "(fraction of the centre frequency)");
     in_range(band_shape, kBandShapeRange[0], kBandShapeRange[1], "band-shape", "");

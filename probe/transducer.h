@@ -39,8 +39,8 @@ struct Transducer {
     int elements = 128;
     double pitch_mm = 0.508;
     double element_width_mm = 0.46;  // pitch minus kerf: sets each element's directivity
-    double radius_mm = 49.6;  // curved arrays: radius of the arc
-    double fov_deg = 60.0;    // fans (convex, phased): angle spanned by the scan lines
+    double radius_mm = 49.6;         // curved arrays: radius of the arc
+    double fov_deg = 60.0;           // fans (convex, phased): angle spanned by the scan lines
     double frequency_mhz = 3.5;
     double bandwidth = 0.8;  // fractional, -6 dB of the pulse-echo spectrum
     // The band's shape: its -20 dB width over its -6 dB width (probe/pulse.h). 1.82 is a

@@ -147,10 +147,12 @@ TEST(Psf, PulseEnvelopeMatchesTheExcitationConvolvedWithTheImpulseResponse) {
     for (const double shape : {1.3, 1.5, 2.2}) {
         const double f0 = 5e6, b6 = 0.7, b20 = shape * b6;
         for (const double side : {-1.0, 1.0}) {
-            EXPECT_NEAR(probe::PulseEcho::transducer_response(f0 * (1 + side * b6 / 2), f0, b6, shape),
-                        0.5, 1e-12);
-            EXPECT_NEAR(probe::PulseEcho::transducer_response(f0 * (1 + side * b20 / 2), f0, b6, shape),
-                        0.1, 1e-12);
+            EXPECT_NEAR(
+                probe::PulseEcho::transducer_response(f0 * (1 + side * b6 / 2), f0, b6, shape), 0.5,
+                1e-12);
+            EXPECT_NEAR(
+                probe::PulseEcho::transducer_response(f0 * (1 + side * b20 / 2), f0, b6, shape),
+                0.1, 1e-12);
         }
     }
     for (const auto& [f0, b, shape, cycles] :
@@ -164,8 +166,8 @@ TEST(Psf, PulseEnvelopeMatchesTheExcitationConvolvedWithTheImpulseResponse) {
     }
     // The Gaussian band (B20 / B6 = sqrt(ln 10 / ln 2)) is the Gaussian-modulated cosine.
     const double gaussian = std::sqrt(std::log(10.0) / std::log(2.0));
-    for (const auto& [f0, b, cycles] : std::vector<std::tuple<double, double, double>>{
-             {7.6e6, 0.79, 1.0}, {2.7e6, 0.74, 3.0}}) {
+    for (const auto& [f0, b, cycles] :
+         std::vector<std::tuple<double, double, double>>{{7.6e6, 0.79, 1.0}, {2.7e6, 0.74, 3.0}}) {
         const double expected = gaussian_pulse_fwhm_s(f0, b, cycles);
         EXPECT_NEAR(probe::PulseEcho(f0, b, gaussian, cycles).envelope_fwhm_s(), expected,
                     0.02 * expected);
@@ -223,10 +225,9 @@ TEST(Psf, PointTargetAxialResolutionIsThePulseEnvelope) {
     for (const double z : {10.0, 20.0, 30.0}) {
         const PointImage image = image_point(t, 0.013, z);
         const double measured = fwhm_samples(image.axial, argmax(image.axial)) * image.sample_mm;
-        const double expected =
-            0.5 * kC0 * 1e3 *
-            reference_pulse_fwhm_s(t.frequency_mhz * 1e6, t.bandwidth, t.band_shape * t.bandwidth,
-                                   t.cycles);
+        const double expected = 0.5 * kC0 * 1e3 *
+                                reference_pulse_fwhm_s(t.frequency_mhz * 1e6, t.bandwidth,
+                                                       t.band_shape * t.bandwidth, t.cycles);
         std::printf("axial FWHM at %.0f mm: %.3f mm (pulse envelope %.3f)\n", z, measured,
                     expected);
         EXPECT_NEAR(measured, expected, 0.1 * expected) << z;
