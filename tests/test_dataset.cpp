@@ -185,6 +185,11 @@ TEST(Dataset, ShardsAreByteIdenticalOnOneAndTwoThreadsAndResumeToTheSameBytes) {
     write_shard(dir / "alone.h5", "alone.h5", spec, 1, {second, third});
     EXPECT_TRUE(bytes_of(dir / "alone.h5") == bytes_of(shard_path(dir / "one", 1)));
 
+    // The same spec with whole numbers written as 8.0 is the same spec.
+    nlohmann::json as_floats = small_spec();
+    as_floats["frames"] = 5.0, as_floats["depth_mm"] = {18.0, 24.0};
+    EXPECT_EQ(parse_spec(as_floats, "floats").digest(), spec.digest());
+
     // Another spec into the same directory is refused, naming the shard.
     nlohmann::json changed = small_spec();
     changed["seed"] = 4;

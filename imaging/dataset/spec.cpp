@@ -48,6 +48,21 @@ double draw_in(const Range& r, double fallback, uint64_t seed, uint64_t frame, u
     return r.low + (r.high - r.low) * uniform(seed, frame, draw);
 }
 
+// The spec with every whole number written as an integer: "frames": 8.0 and 8 are one
+// spec (JSON does not tell them apart in meaning, nlohmann's dump does in text).
+json canonical_numbers(const json& j) {
+    if (j.is_number_float()) {
+        const double v = j.get<double>();
+        if (std::isfinite(v) && v == std::floor(v) && std::abs(v) < 9007199254740992.0)
+            return json(int64_t(v));
+        return j;
+    }
+    if (!j.is_structured()) return j;
+    json out = j;
+    for (auto it = out.begin(); it != out.end(); ++it) *it = canonical_numbers(*it);
+    return out;
+}
+
 }  // namespace
 
 uint64_t Spec::digest() const {
@@ -65,7 +80,7 @@ Spec parse_spec(const json& j, const std::string& source) {
                                source, "");
     Spec spec;
     spec.path = source;
-    spec.canonical = j.dump();
+    spec.canonical = canonical_numbers(j).dump();
     spec.frames = uint64_t(jsonio::get_number(j, "frames", source, "", 1, 1e8));
     if (j.contains("frames_per_shard"))
         spec.frames_per_shard =
