@@ -130,6 +130,10 @@ std::shared_ptr<const PsfTable> PsfTable::of(const probe::Transducer& t) {
     return table;
 }
 
+std::shared_ptr<const PsfTable> PsfTable::build(const probe::Transducer& t) {
+    return PsfTableBuilder::build(t);
+}
+
 probe::LineFields PsfTable::fields_of_line(const probe::Transducer& t, int l) {
     return probe::LineFields(t, probe::line_array(t, l, kSnapFraction * t.pitch_mm));
 }

@@ -31,6 +31,8 @@ class PsfTable {
     // The table of `t` (computed on first use, kept for the next frames of the same
     // probe set-up).
     static std::shared_ptr<const PsfTable> of(const probe::Transducer& t);
+    // The table of `t` computed afresh and not kept (benchmarks, tests).
+    static std::shared_ptr<const PsfTable> build(const probe::Transducer& t);
 
     struct Row {
         double dx = 0.0;                     // lateral spacing (mm)

@@ -1,7 +1,9 @@
 #include "probe/aperture.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <mutex>
 #include <numbers>
 
 #include "probe/array_geometry.h"
@@ -63,6 +65,66 @@ std::vector<double> aperture_weights(const LineArray& array, double width_mm, Ap
     return w;
 }
 
+std::shared_ptr<const PulseEcho::Band> pulse_band(const Transducer& t) {
+    const std::array<double, 4> key{t.frequency_mhz, t.bandwidth, t.band_shape, t.cycles};
+    static std::mutex mutex;
+    static std::vector<std::pair<std::array<double, 4>, std::shared_ptr<const PulseEcho::Band>>>
+        kept;
+    const std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& [k, band] : kept)
+        if (k == key) return band;
+    const PulseEcho pulse(t);
+    auto band = std::make_shared<const PulseEcho::Band>(
+        pulse.band(kBandSpreadPeriods / pulse.frequency_hz()));
+    kept.emplace_back(key, band);
+    if (kept.size() > 8) kept.erase(kept.begin());
+    return band;
+}
+
+BroadbandEcho broadband_echo(const PulseEcho::Band& band, const std::complex<double>* h) {
+    const int M = band.count();
+    BroadbandEcho out;
+    // c_m = s_m H_m; the envelope |e(t)| is that of the baseband sum b(t) = sum_m c_m
+    // w(t)^m, w = exp(i 2 pi step t), evaluated by Horner's rule on a grid of a quarter of
+    // the band's inverse span across the window 1 / step, then refined by a parabola
+    // through the largest |b|^2 and its neighbours.
+    thread_local std::vector<std::complex<double>> c;
+    c.resize(std::size_t(M));
+    double energy = 0.0;
+    for (int m = 0; m < M; ++m) {
+        c[std::size_t(m)] = band.weight[std::size_t(m)] * h[m];
+        energy += std::norm(c[std::size_t(m)]);
+    }
+    out.power = energy / band.power;
+    if (!(energy > 0.0)) return out;
+    const double span = std::max(M - 1, 1) * band.step_hz, dt = 0.25 / span;
+    const int half = int(std::ceil(0.5 / (band.step_hz * dt)));
+    auto baseband = [&](double t) {
+        const std::complex<double> w = std::polar(1.0, 2.0 * std::numbers::pi * band.step_hz * t);
+        std::complex<double> b = 0.0;
+        for (int m = M - 1; m >= 0; --m) b = b * w + c[std::size_t(m)];
+        return b;
+    };
+    int best = 0;
+    double best_norm = -1.0, left = 0.0, right = 0.0;
+    std::vector<double> norms(std::size_t(2 * half + 1));
+    for (int k = -half; k <= half; ++k) norms[std::size_t(k + half)] = std::norm(baseband(k * dt));
+    for (int k = -half; k <= half; ++k)
+        if (norms[std::size_t(k + half)] > best_norm) best_norm = norms[std::size_t(k + half)], best = k;
+    left = norms[std::size_t(std::max(best - 1 + half, 0))];
+    right = norms[std::size_t(std::min(best + 1 + half, 2 * half))];
+    const double curvature = left - 2.0 * best_norm + right;
+    const double shift = curvature < 0.0 ? std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5)
+                                         : 0.0;
+    const double t = (best + shift) * dt;
+    // e(t*) with the carrier exp(i 2 pi f0 t*) taken out: the phase an echo placed at t = 0
+    // with the pulse's carrier must have to match the true echo at its peak.
+    const std::complex<double> e = baseband(t) * std::polar(1.0, 2.0 * std::numbers::pi *
+                                                                     (band.first_hz - band.centre_hz) * t);
+    out.echo = e;
+    return out;
+}
+
 LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std::move(array)) {
     tx_weights_ = aperture_weights(array_, t.active_aperture_mm(), t.tx_apodization);
     double sum2 = 0.0;
@@ -74,6 +136,9 @@ LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std
         x_.push_back(float(array_.position[e].x)), y_.push_back(float(array_.position[e].y));
         nx_.push_back(float(array_.normal[e].x)), ny_.push_back(float(array_.normal[e].y));
     }
+    band_ = pulse_band(t);
+    for (int m = 0; m < band_->count(); ++m)
+        inverse_ratio_.push_back(float(band_->centre_hz / band_->frequency_hz(m)));
 }
 
 namespace {
@@ -112,7 +177,146 @@ inline float directivity(float sin_theta, float cos_theta, float half_width_in_l
     }
 }
 
+// Per element, what the field's spectrum needs (LineFields::sum_spectrum): the gain w
+// cos(theta)+ / sqrt(r) without the sinc, 1 / (2 pi u) of the sinc's argument u at f0, and
+// the phasors at the band's first frequency and of one step of it: exp(-i 2 pi path f /
+// c0) for the phase and exp(i 2 pi u f / f0) whose imaginary part is the sinc's numerator.
+struct SpectrumTerms {
+    float *gain, *inverse_u, *p_re, *p_im, *ps_re, *ps_im, *d_re, *d_im, *ds_re, *ds_im;
+};
+
+[[gnu::target_clones("avx2", "default")]] void spectrum_terms(
+    std::size_t n, const float* __restrict x, const float* __restrict y, const float* __restrict nx,
+    const float* __restrict ny, const float* __restrict weight, float qx, float qy, float fx,
+    float fy, float inverse_lambda, float half_width, float first_ratio, float step_ratio,
+    const SpectrumTerms& out) {
+    float* __restrict gain = out.gain;
+    float* __restrict inverse_u = out.inverse_u;
+    float* __restrict p_re = out.p_re;
+    float* __restrict p_im = out.p_im;
+    float* __restrict ps_re = out.ps_re;
+    float* __restrict ps_im = out.ps_im;
+    float* __restrict d_re = out.d_re;
+    float* __restrict d_im = out.d_im;
+    float* __restrict ds_re = out.ds_re;
+    float* __restrict ds_im = out.ds_im;
+    for (std::size_t e = 0; e < n; ++e) {
+        const float dx = qx - x[e], dy = qy - y[e];
+        const float r = std::max(std::sqrt(dx * dx + dy * dy), 1e-6f), inverse = 1.0f / r;
+        const float cos_theta = (dx * nx[e] + dy * ny[e]) * inverse;
+        const float sin_theta = (dx * ny[e] - dy * nx[e]) * inverse;
+        const float u = half_width * inverse_lambda * std::abs(sin_theta) + 1e-9f;
+        gain[e] = weight[e] * std::max(cos_theta, 0.0f) / std::sqrt(r);
+        inverse_u[e] = 1.0f / (6.28318531f * u);
+        const float fdx = fx - x[e], fdy = fy - y[e];
+        const float turns = (r - std::sqrt(fdx * fdx + fdy * fdy) + fy - qy) * inverse_lambda;
+        float s, c;
+        base::sincos_turns(turns * first_ratio, s, c);
+        p_re[e] = c, p_im[e] = -s;
+        base::sincos_turns(turns * step_ratio, s, c);
+        ps_re[e] = c, ps_im[e] = -s;
+        base::sincos_turns(u * first_ratio, s, c);
+        d_re[e] = c, d_im[e] = s;
+        base::sincos_turns(u * step_ratio, s, c);
+        ds_re[e] = c, ds_im[e] = s;
+    }
+}
+
+// The sums of spectrum_terms' elements at each frequency m: sum_e gain sinc p, with the
+// phasors stepped from one frequency to the next. Eight partial sums by element (n a
+// multiple of 8), added in double in a fixed order: the same numbers on every build.
+constexpr std::size_t kLanes = 8;
+[[gnu::target_clones("avx2", "default")]] void spectrum_sums(std::size_t n, int frequencies,
+                                                            const float* __restrict inverse_ratio,
+                                                            const SpectrumTerms& t,
+                                                            std::complex<double>* out) {
+    const float* __restrict gain = t.gain;
+    const float* __restrict inverse_u = t.inverse_u;
+    float* __restrict p_re = t.p_re;
+    float* __restrict p_im = t.p_im;
+    const float* __restrict ps_re = t.ps_re;
+    const float* __restrict ps_im = t.ps_im;
+    float* __restrict d_re = t.d_re;
+    float* __restrict d_im = t.d_im;
+    const float* __restrict ds_re = t.ds_re;
+    const float* __restrict ds_im = t.ds_im;
+    for (int m = 0; m < frequencies; ++m) {
+        float re[kLanes] = {}, im[kLanes] = {};
+        const float ratio = inverse_ratio[m];
+        for (std::size_t e = 0; e < n; e += kLanes) {
+            for (std::size_t k = 0; k < kLanes; ++k) {
+                const std::size_t i = e + k;
+                const float g = gain[i] * d_im[i] * inverse_u[i] * ratio;
+                re[k] += g * p_re[i], im[k] += g * p_im[i];
+                const float pr = p_re[i] * ps_re[i] - p_im[i] * ps_im[i];
+                const float pi = p_re[i] * ps_im[i] + p_im[i] * ps_re[i];
+                p_re[i] = pr, p_im[i] = pi;
+                const float dr = d_re[i] * ds_re[i] - d_im[i] * ds_im[i];
+                const float di = d_re[i] * ds_im[i] + d_im[i] * ds_re[i];
+                d_re[i] = dr, d_im[i] = di;
+            }
+        }
+        double sum_re = 0.0, sum_im = 0.0;
+        for (std::size_t k = 0; k < kLanes; ++k) sum_re += re[k], sum_im += im[k];
+        out[m] = {sum_re, sum_im};
+    }
+}
+
 }  // namespace
+
+void LineFields::sum_spectrum(const glm::dvec2& q, const std::vector<double>& weights,
+                              const glm::dvec2& focus, std::complex<double>* out) const {
+    std::size_t first = 0, last = weights.size();
+    while (first < last && weights[first] == 0.0) ++first;
+    while (last > first && weights[last - 1] == 0.0) --last;
+    const std::size_t n = last - first, padded = (n + kLanes - 1) / kLanes * kLanes;
+    // Scratch per thread; the padding's elements have no gain.
+    thread_local std::vector<float> w, x, y, nx, ny, scratch;
+    w.assign(padded, 0.0f), x.assign(padded, 0.0f), y.assign(padded, 1.0f);
+    nx.assign(padded, 0.0f), ny.assign(padded, 1.0f);
+    for (std::size_t e = 0; e < n; ++e) {
+        w[e] = float(weights[first + e]);
+        x[e] = x_[first + e], y[e] = y_[first + e], nx[e] = nx_[first + e], ny[e] = ny_[first + e];
+    }
+    scratch.resize(10 * padded);
+    float* base = scratch.data();
+    const SpectrumTerms terms{base,
+                              base + padded,
+                              base + 2 * padded,
+                              base + 3 * padded,
+                              base + 4 * padded,
+                              base + 5 * padded,
+                              base + 6 * padded,
+                              base + 7 * padded,
+                              base + 8 * padded,
+                              base + 9 * padded};
+    const double f0 = band_->centre_hz;
+    spectrum_terms(padded, x.data(), y.data(), nx.data(), ny.data(), w.data(), float(q.x),
+                   float(q.y), float(focus.x), float(focus.y), float(1.0 / t_.wavelength_mm()),
+                   float(0.5 * element_width_), float(band_->first_hz / f0),
+                   float(band_->step_hz / f0), terms);
+    spectrum_sums(padded, band_->count(), inverse_ratio_.data(), terms, out);
+}
+
+LineFields::Broadband LineFields::broadband(const glm::dvec2& q, const Receive& aperture) const {
+    const int M = band_->count();
+    thread_local std::vector<std::complex<double>> tx, rx;
+    tx.resize(std::size_t(M)), rx.resize(std::size_t(M));
+    sum_spectrum(q, tx_weights_, {0.0, t_.focus_mm}, tx.data());
+    sum_spectrum(q, aperture.weights, {0.0, aperture.focus_mm}, rx.data());
+    Broadband b;
+    double receive_energy = 0.0;
+    for (int m = 0; m < M; ++m) {
+        // Normalised at f_m: the norms scale as sqrt(f_m / f0) each.
+        const double ratio = 1.0 / double(inverse_ratio_[std::size_t(m)]);
+        const std::complex<double> r = aperture.norm * std::sqrt(ratio) * rx[std::size_t(m)];
+        tx[std::size_t(m)] *= tx_norm_ * std::sqrt(ratio) * r;
+        receive_energy += std::norm(band_->weight[std::size_t(m)] * r);
+    }
+    b.two_way = broadband_echo(*band_, tx.data());
+    b.receive_power = receive_energy / band_->power;
+    return b;
+}
 
 std::complex<double> LineFields::sum(const glm::dvec2& q, const std::vector<double>& weights,
                                      const glm::dvec2& focus) const {

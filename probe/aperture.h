@@ -24,10 +24,12 @@
 // reflector of reflection coefficient r has r sqrt(P) |integral T R dx| (<= 1: all of
 // the beam's power comes back when R matches T).
 #include <complex>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
 
+#include "probe/pulse.h"
 #include "probe/transducer.h"
 
 namespace sonotrace::probe {
@@ -50,7 +52,33 @@ LineArray line_array(const Transducer& t, int l, double snap_along = 0.0);
 // weighted by the apodization across the span they occupy.
 std::vector<double> aperture_weights(const LineArray& array, double width_mm, Apodization a);
 
-// Narrowband fields (see the header), each normalised to unit lateral power.
+// The frequencies the broadband fields sum over: the pulse-echo waveform's band
+// (PulseEcho::Band) with room for echoes spread kBandSpreadPeriods periods either side of
+// the pulse (the arrivals of the elements at a point off the focus, which is what lowers
+// a broadband beam's side lobes). Kept per pulse (centre frequency, bandwidth, band shape,
+// cycles).
+constexpr double kBandSpreadPeriods = 3.0;
+std::shared_ptr<const PulseEcho::Band> pulse_band(const Transducer& t);
+
+// What an image shows of a broadband two-way response with spectrum H_m at the band's
+// frequencies (LineFields::broadband): the echo e(t) = sum_m s_m H_m exp(i 2 pi f_m t)
+// relative to the pulse p(t) = sum_m s_m exp(i 2 pi f_m t) that the image places at the
+// echo time.
+struct BroadbandEcho {
+    // The envelope's peak |e(t*)| over the pulse's (1), with the carrier's phase there
+    // against the pulse's (arg e(t*) - arg p(t*)): the echo an image of the separable
+    // form echo x pulse shows at its brightest. Off the main lobe the true echo is
+    // longer and lower than the pulse (the elements' arrivals spread); its peak is what
+    // a lateral profile of the image reads.
+    std::complex<double> echo;
+    // sum_m |s_m H_m|^2 / sum_m |s_m|^2: the echo's energy over the pulse's (Parseval),
+    // which sets the mean level of speckle.
+    double power = 0.0;
+};
+BroadbandEcho broadband_echo(const PulseEcho::Band& band, const std::complex<double>* h);
+
+// Narrowband fields at the centre frequency (see the header), each normalised to unit
+// lateral power, and the broadband two-way response summed over the pulse's band.
 class LineFields {
   public:
     LineFields(const Transducer& t, LineArray array);
@@ -67,10 +95,25 @@ class LineFields {
     std::complex<double> receive(const glm::dvec2& q, double focus_mm) const {
         return receive(q, receive_aperture(focus_mm));
     }
-    // H = T R with the receive focused at q's own depth.
-    std::complex<double> two_way(const glm::dvec2& q) const {
+    // H = T R at the centre frequency with the receive focused at q's own depth.
+    std::complex<double> two_way_narrowband(const glm::dvec2& q) const {
         return transmit(q) * receive(q, q.y);
     }
+    // The broadband two-way response at q: T_m R_m at each frequency f_m of the band,
+    // each field normalised to unit lateral power at its own frequency (the 2D Green's
+    // function's 1 / sqrt(k) and the normalisation's sqrt(k) cancel), the element
+    // directivity at f_m. echo is what images take (BroadbandEcho), receive_power the
+    // energy-weighted |R_m|^2 (sum_m |s_m R_m|^2 / sum_m |s_m|^2).
+    struct Broadband {
+        BroadbandEcho two_way;
+        double receive_power = 0.0;
+    };
+    Broadband broadband(const glm::dvec2& q, const Receive& aperture) const;
+    Broadband broadband(const glm::dvec2& q) const {
+        return broadband(q, receive_aperture(q.y));
+    }
+    // The broadband echo at q (what a point target's image shows).
+    std::complex<double> two_way(const glm::dvec2& q) const { return broadband(q).two_way.echo; }
     // The echo of an infinite planar reflector through (0, z) whose normal, pointing away
     // from the probe, is (sin_tilt, cos theta) in the line frame: integral of T R over the
     // plane, phase against the echo time 2 z / c0, receive focused at z. By image
@@ -82,6 +125,7 @@ class LineFields {
     // delays and beta the path's angle from the plane's normal (error O(1/(kL))). Exact
     // for every depth and tilt with no lateral window: a defocused beam's plane echo
     // gathers from the whole width that both apertures light.
+    // Broadband: the sum at each frequency of the band, reduced as BroadbandEcho.echo.
     std::complex<double> plane_echo(double z, double sin_tilt) const;
     const LineArray& array() const { return array_; }
     // sum_e w_e D_e exp(-i k (|q - e| - |f - e| + f_y - q_y)) / sqrt(|q - e|), unnormalised:
@@ -89,6 +133,11 @@ class LineFields {
     // Elements of zero weight at either end add nothing and are skipped.
     std::complex<double> sum(const glm::dvec2& q, const std::vector<double>& weights,
                              const glm::dvec2& focus) const;
+    // The same sum at every frequency f_m of the band (out: band().count() values), the
+    // directivity and the phase at f_m.
+    void sum_spectrum(const glm::dvec2& q, const std::vector<double>& weights,
+                      const glm::dvec2& focus, std::complex<double>* out) const;
+    const PulseEcho::Band& band() const { return *band_; }
 
   private:
     Transducer t_;
@@ -97,6 +146,8 @@ class LineFields {
     std::vector<float> x_, y_, nx_, ny_;  // the elements in float, for the vectorised sums
     double tx_norm_ = 1.0;
     double k_ = 0.0, element_width_ = 0.0;
+    std::shared_ptr<const PulseEcho::Band> band_;
+    std::vector<float> inverse_ratio_;  // f0 / f_m
 };
 
 }  // namespace sonotrace::probe

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <numbers>
 #include <opencv2/core.hpp>
 
@@ -106,6 +107,60 @@ std::complex<double> PulseEcho::analytic(double t) const {
     const double f = x - double(i);
     return {in_phase_[i] + f * (in_phase_[i + 1] - in_phase_[i]),
             quadrature_[i] + f * (quadrature_[i + 1] - quadrature_[i])};
+}
+
+std::complex<double> PulseEcho::Band::waveform(double t) const {
+    std::complex<double> sum = 0.0;
+    for (int m = 0; m < count(); ++m)
+        sum += weight[std::size_t(m)] * std::polar(1.0, 2.0 * std::numbers::pi * frequency_hz(m) * t);
+    return sum;
+}
+
+PulseEcho::Band PulseEcho::band(double spread_s) const {
+    // S(f) = integral p(t) exp(-i 2 pi f t) dt over the table (trapezoid: the table's
+    // ends are below 1e-4 of the peak).
+    const int n = int(in_phase_.size());
+    auto spectrum = [&](double f) {
+        std::complex<double> sum = 0.0;
+        const std::complex<double> step = std::polar(1.0, -2.0 * std::numbers::pi * f * dt_);
+        std::complex<double> turn = std::polar(1.0, 2.0 * std::numbers::pi * f * centre_ * dt_);
+        for (int k = 0; k < n; ++k, turn *= step)
+            sum += std::complex<double>(in_phase_[std::size_t(k)], quadrature_[std::size_t(k)]) *
+                   turn;
+        return sum * dt_;
+    };
+    int first = centre_, last = centre_;
+    for (int k = 0; k < n; ++k)
+        if (std::hypot(in_phase_[std::size_t(k)], quadrature_[std::size_t(k)]) > 1e-3)
+            first = std::min(first, k), last = std::max(last, k);
+    Band b;
+    b.step_hz = 1.0 / ((last - first) * dt_ + 2.0 * spread_s);
+    // The band's reach: the analytic waveform holds positive frequencies only, its peak
+    // near f0; scanned out to 4 f0 on a grid of a twentieth of the step.
+    const double scan = b.step_hz / 20.0;
+    double peak = 0.0;
+    std::vector<double> magnitude;
+    for (double f = scan; f < 4.0 * f0_; f += scan) {
+        magnitude.push_back(std::abs(spectrum(f)));
+        peak = std::max(peak, magnitude.back());
+    }
+    double lo = 0.0, hi = 0.0;
+    for (std::size_t i = 0; i < magnitude.size(); ++i)
+        if (magnitude[i] >= 1e-3 * peak) {
+            const double f = double(i + 1) * scan;
+            lo = lo > 0.0 ? lo : f, hi = f;
+        }
+    // Nodes on a grid through f0 (the centre frequency is always one of them).
+    const int below = std::min(int(std::ceil((f0_ - lo) / b.step_hz)),
+                               int(std::ceil(f0_ / b.step_hz)) - 1),  // all above 0 Hz
+              above = int(std::ceil((hi - f0_) / b.step_hz));
+    b.centre_hz = f0_;
+    b.first_hz = f0_ - below * b.step_hz;
+    for (int m = 0; m <= below + above; ++m) {
+        b.weight.push_back(spectrum(b.frequency_hz(m)) * b.step_hz);
+        b.power += std::norm(b.weight.back());
+    }
+    return b;
 }
 
 double PulseEcho::axial_fwhm_mm() const {

@@ -50,6 +50,25 @@ class PulseEcho {
     double axial_fwhm_mm() const;
     // Peak of the envelope: 1 (the waveform is scaled to it).
 
+    // The waveform's spectrum S on uniform frequencies f_m = first + m step (m < count):
+    // weights s_m = S(f_m) step, so that analytic(t) = sum_m s_m exp(i 2 pi f_m t) for
+    // |t| < 1 / (2 step). Sampling a spectrum at steps of `step` repeats its waveform every
+    // 1 / step (Poisson's summation), so a broadband field summed over these frequencies
+    // (probe/aperture.h) is exact for echoes that stay within that window; the step
+    // leaves `spread_s` on either side of the waveform's support (where its envelope
+    // exceeds 1e-3), and frequencies where |S| is below 1e-3 of its peak are dropped.
+    struct Band {
+        double centre_hz = 0.0;  // f0, one of the frequencies
+        double first_hz = 0.0, step_hz = 0.0;
+        std::vector<std::complex<double>> weight;  // s_m
+        double power = 0.0;                        // sum |s_m|^2
+        int count() const { return int(weight.size()); }
+        double frequency_hz(int m) const { return first_hz + m * step_hz; }
+        // sum_m s_m exp(i 2 pi f_m t): the waveform (analytic) as the band sums it.
+        std::complex<double> waveform(double t) const;
+    };
+    Band band(double spread_s) const;
+
     // |H(f)| of the two-way response (header), 1 at f0; 0 at f <= 0.
     static double transducer_response(double f, double frequency_hz, double bandwidth,
                                       double band_shape);

@@ -1,0 +1,32 @@
+// The aperture tables of a new probe setting (imaging/psf.h), built afresh for each
+// preset: what a dataset that varies the probe pays per new setting, and a simulation
+// pays on its first frame. Reports the rows built (lines share rows) as a counter.
+//   ./build/bench/bench_psf --benchmark_repetitions=5 --benchmark_report_aggregates_only
+#include "bench/benchmark_main.h"
+
+#include "imaging/psf.h"
+#include "probe/transducer.h"
+
+namespace {
+
+using namespace sonotrace;
+
+void table_build(benchmark::State& state, const char* preset) {
+    const probe::Transducer t = probe::find_transducer(preset, "bench");
+    int rows = 0;
+    for (auto _ : state) {
+        const auto table = imaging::PsfTable::build(t);
+        rows = table->row_count();
+        benchmark::DoNotOptimize(table.get());
+    }
+    state.counters["rows"] = rows;
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(table_build, linear, "linear")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(table_build, convex, "convex")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(table_build, phased, "phased")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(table_build, radial, "radial")->Unit(benchmark::kMillisecond)->UseRealTime();
+
+SONOTRACE_BENCHMARK_MAIN()
