@@ -87,12 +87,10 @@ struct PsfTableBuilder {
             row.h.resize(std::size_t(2 * kHalfRow + 1));
             row.receive_power.resize(row.h.size());
             for (int j = -kHalfRow; j <= kHalfRow; ++j) {
-                const glm::dvec2 q(j * row.dx, z);
-                const std::complex<double> r = f.receive(q, receive);
-                const std::complex<double> h = f.transmit(q) * r;
-                row.h[std::size_t(j + kHalfRow)] = std::complex<float>(h);
-                row.receive_power[std::size_t(j + kHalfRow)] = float(std::norm(r));
-                row.power += std::norm(h) * row.dx;
+                const probe::LineFields::Speckle s = f.speckle({j * row.dx, z}, receive);
+                row.h[std::size_t(j + kHalfRow)] = std::complex<float>(s.weight);
+                row.receive_power[std::size_t(j + kHalfRow)] = float(s.receive_power);
+                row.power += s.power * row.dx;
             }
         });
         table->focal_power_ = table->power(t.lines / 2, t.focus_mm);

@@ -6,9 +6,13 @@
 // Lines whose array looks the same from them (linear and convex lines at the same
 // sub-element offset, with the same clipping by the array's ends) share rows.
 //
+// H is what the speckle takes of the broadband response (LineFields::speckle): |H|^2 is
+// the echo's energy over the pulse's, sum_m |s_m H_m|^2 / sum_m |s_m|^2, whose lateral
+// integral sets the mean speckle level at each depth (brighter at the focus, where the
+// two-way beam is narrowest), and its phase H's at f0; |R|^2 the same of the receive.
+//
 // The image formation reads from it the lateral weights of the speckle, the response of
-// planar reflectors and the lateral power integral |H|^2 dx that sets the mean speckle
-// level at each depth (brighter at the focus, where the two-way beam is narrowest).
+// planar reflectors and the lateral power integral.
 #include <algorithm>
 #include <complex>
 #include <memory>

@@ -65,17 +65,19 @@ std::vector<double> aperture_weights(const LineArray& array, double width_mm, Ap
     return w;
 }
 
-std::shared_ptr<const PulseEcho::Band> pulse_band(const Transducer& t) {
-    const std::array<double, 4> key{t.frequency_mhz, t.bandwidth, t.band_shape, t.cycles};
+std::shared_ptr<const PulseEcho::Band> pulse_band(const Transducer& t, BandUse use) {
+    const std::array<double, 5> key{t.frequency_mhz, t.bandwidth, t.band_shape, t.cycles,
+                                    double(int(use))};
     static std::mutex mutex;
-    static std::vector<std::pair<std::array<double, 4>, std::shared_ptr<const PulseEcho::Band>>>
+    static std::vector<std::pair<std::array<double, 5>, std::shared_ptr<const PulseEcho::Band>>>
         kept;
     const std::lock_guard<std::mutex> lock(mutex);
     for (const auto& [k, band] : kept)
         if (k == key) return band;
     const PulseEcho pulse(t);
     auto band = std::make_shared<const PulseEcho::Band>(
-        pulse.band(kBandSpreadPeriods / pulse.frequency_hz()));
+        use == BandUse::echo ? pulse.band(kBandSpreadPeriods / pulse.frequency_hz())
+                             : pulse.band(0.0, kEnergyFloor));
     kept.emplace_back(key, band);
     if (kept.size() > 8) kept.erase(kept.begin());
     return band;
@@ -136,9 +138,13 @@ LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std
         x_.push_back(float(array_.position[e].x)), y_.push_back(float(array_.position[e].y));
         nx_.push_back(float(array_.normal[e].x)), ny_.push_back(float(array_.normal[e].y));
     }
-    band_ = pulse_band(t);
-    for (int m = 0; m < band_->count(); ++m)
-        inverse_ratio_.push_back(float(band_->centre_hz / band_->frequency_hz(m)));
+    for (auto [spectrum, use] : {std::pair(&echo_, BandUse::echo), std::pair(&energy_, BandUse::energy)}) {
+        spectrum->band = pulse_band(t, use);
+        const PulseEcho::Band& b = *spectrum->band;
+        for (int m = 0; m < b.count(); ++m)
+            spectrum->inverse_ratio.push_back(float(b.centre_hz / b.frequency_hz(m)));
+        spectrum->centre = int(std::lround((b.centre_hz - b.first_hz) / b.step_hz));
+    }
 }
 
 namespace {
@@ -265,7 +271,9 @@ constexpr std::size_t kLanes = 8;
 }  // namespace
 
 void LineFields::sum_spectrum(const glm::dvec2& q, const std::vector<double>& weights,
-                              const glm::dvec2& focus, std::complex<double>* out) const {
+                              const glm::dvec2& focus, const Spectrum& spectrum,
+                              std::complex<double>* out) const {
+    const PulseEcho::Band& band = *spectrum.band;
     std::size_t first = 0, last = weights.size();
     while (first < last && weights[first] == 0.0) ++first;
     while (last > first && weights[last - 1] == 0.0) --last;
@@ -290,32 +298,54 @@ void LineFields::sum_spectrum(const glm::dvec2& q, const std::vector<double>& we
                               base + 7 * padded,
                               base + 8 * padded,
                               base + 9 * padded};
-    const double f0 = band_->centre_hz;
+    const double f0 = band.centre_hz;
     spectrum_terms(padded, x.data(), y.data(), nx.data(), ny.data(), w.data(), float(q.x),
                    float(q.y), float(focus.x), float(focus.y), float(1.0 / t_.wavelength_mm()),
-                   float(0.5 * element_width_), float(band_->first_hz / f0),
-                   float(band_->step_hz / f0), terms);
-    spectrum_sums(padded, band_->count(), inverse_ratio_.data(), terms, out);
+                   float(0.5 * element_width_), float(band.first_hz / f0),
+                   float(band.step_hz / f0), terms);
+    spectrum_sums(padded, band.count(), spectrum.inverse_ratio.data(), terms, out);
+}
+
+double LineFields::two_way_spectrum(const glm::dvec2& q, const Receive& aperture,
+                                    const Spectrum& spectrum, std::complex<double>* out) const {
+    const PulseEcho::Band& band = *spectrum.band;
+    const int M = band.count();
+    thread_local std::vector<std::complex<double>> rx;
+    rx.resize(std::size_t(M));
+    sum_spectrum(q, tx_weights_, {0.0, t_.focus_mm}, spectrum, out);
+    sum_spectrum(q, aperture.weights, {0.0, aperture.focus_mm}, spectrum, rx.data());
+    double receive_energy = 0.0;
+    for (int m = 0; m < M; ++m) {
+        const double ratio = 1.0 / double(spectrum.inverse_ratio[std::size_t(m)]);
+        const std::complex<double> r = aperture.norm * std::sqrt(ratio) * rx[std::size_t(m)];
+        out[m] *= tx_norm_ * std::sqrt(ratio) * r;
+        receive_energy += std::norm(band.weight[std::size_t(m)] * r);
+    }
+    return receive_energy / band.power;
 }
 
 LineFields::Broadband LineFields::broadband(const glm::dvec2& q, const Receive& aperture) const {
-    const int M = band_->count();
-    thread_local std::vector<std::complex<double>> tx, rx;
-    tx.resize(std::size_t(M)), rx.resize(std::size_t(M));
-    sum_spectrum(q, tx_weights_, {0.0, t_.focus_mm}, tx.data());
-    sum_spectrum(q, aperture.weights, {0.0, aperture.focus_mm}, rx.data());
+    thread_local std::vector<std::complex<double>> h;
+    h.resize(std::size_t(echo_.band->count()));
     Broadband b;
-    double receive_energy = 0.0;
-    for (int m = 0; m < M; ++m) {
-        // Normalised at f_m: the norms scale as sqrt(f_m / f0) each.
-        const double ratio = 1.0 / double(inverse_ratio_[std::size_t(m)]);
-        const std::complex<double> r = aperture.norm * std::sqrt(ratio) * rx[std::size_t(m)];
-        tx[std::size_t(m)] *= tx_norm_ * std::sqrt(ratio) * r;
-        receive_energy += std::norm(band_->weight[std::size_t(m)] * r);
-    }
-    b.two_way = broadband_echo(*band_, tx.data());
-    b.receive_power = receive_energy / band_->power;
+    b.receive_power = two_way_spectrum(q, aperture, echo_, h.data());
+    b.two_way = broadband_echo(*echo_.band, h.data());
     return b;
+}
+
+LineFields::Speckle LineFields::speckle(const glm::dvec2& q, const Receive& aperture) const {
+    const PulseEcho::Band& band = *energy_.band;
+    thread_local std::vector<std::complex<double>> h;
+    h.resize(std::size_t(band.count()));
+    Speckle s;
+    s.receive_power = two_way_spectrum(q, aperture, energy_, h.data());
+    for (int m = 0; m < band.count(); ++m)
+        s.power += std::norm(band.weight[std::size_t(m)] * h[std::size_t(m)]);
+    s.power /= band.power;
+    const std::complex<double> centre = h[std::size_t(energy_.centre)];
+    const double magnitude = std::abs(centre);
+    s.weight = std::sqrt(s.power) * (magnitude > 0.0 ? centre / magnitude : 1.0);
+    return s;
 }
 
 std::complex<double> LineFields::sum(const glm::dvec2& q, const std::vector<double>& weights,
@@ -365,14 +395,20 @@ struct ReceiveElements {
     const float *x, *y, *nx, *ny, *image_x, *image_y, *weight, *delay;
 };
 
-// One transmit element's terms over the receive elements: re + i im = the element pair's
-// D_e D_r w_r / (sqrt(L) cos beta) exp(-i 2 pi (L - delay_r) / lambda - offset). The hot
-// loop of the plane echoes: built for AVX2 and the baseline, picked at load time (no FMA
-// in either: the same numbers).
+// One transmit element's terms over the receive elements, for their spectrum: the gain
+// w_r / (sqrt(L) cos beta) cos(theta_e)+ cos(theta_r)+ without the sincs, 1 / (4 pi^2
+// u_e u_r) of their arguments at f0, and the phasors at the band's first frequency and
+// of one step: exp(-i 2 pi phase f / f0) for the phase (L - delay_r) / lambda - offset
+// in wavelengths at f0, and exp(i 2 pi u f / f0) for each sinc's numerator.
+struct PairTerms {
+    float *gain, *inverse_u, *p_re, *p_im, *ps_re, *ps_im;
+    float *de_re, *de_im, *des_re, *des_im, *dr_re, *dr_im, *drs_re, *drs_im;
+};
+
 [[gnu::target_clones("avx2", "default")]] void image_source_terms(
     const ReceiveElements& rx, std::size_t n, float ex, float ey, float px, float py, float enx,
     float eny, float mx, float my, float inverse_lambda, float half_width, float offset,
-    float* __restrict re, float* __restrict im) {
+    float first_ratio, float step_ratio, const PairTerms& out) {
     const float* __restrict rx_x = rx.x;
     const float* __restrict rx_y = rx.y;
     const float* __restrict rx_nx = rx.nx;
@@ -381,6 +417,21 @@ struct ReceiveElements {
     const float* __restrict image_y = rx.image_y;
     const float* __restrict weight = rx.weight;
     const float* __restrict delay = rx.delay;
+    float* __restrict gain = out.gain;
+    float* __restrict inverse_u = out.inverse_u;
+    float* __restrict p_re = out.p_re;
+    float* __restrict p_im = out.p_im;
+    float* __restrict ps_re = out.ps_re;
+    float* __restrict ps_im = out.ps_im;
+    float* __restrict de_re = out.de_re;
+    float* __restrict de_im = out.de_im;
+    float* __restrict des_re = out.des_re;
+    float* __restrict des_im = out.des_im;
+    float* __restrict dr_re = out.dr_re;
+    float* __restrict dr_im = out.dr_im;
+    float* __restrict drs_re = out.drs_re;
+    float* __restrict drs_im = out.drs_im;
+    const float half_width_in_lambdas = half_width * inverse_lambda;
     for (std::size_t r = 0; r < n; ++r) {
         // Mirrored path e' -> r; the same length from e to r's mirror image.
         const float dx = rx_x[r] - ex, dy = rx_y[r] - ey;
@@ -392,13 +443,69 @@ struct ReceiveElements {
         const float cos_e = (ux * enx + uy * eny) * inverse;
         const float sin_e = (ux * eny - uy * enx) * inverse;
         const float cos_beta = std::max(std::abs(dx * mx + dy * my) * inverse, 0.05f);
-        float s, co;
-        const float half_width_in_lambdas = half_width * inverse_lambda;
-        const float gain = directivity(sin_e, cos_e, half_width_in_lambdas) *
-                           directivity(sin_r, cos_r, half_width_in_lambdas) * weight[r] /
-                           (std::sqrt(length) * cos_beta);
-        base::sincos_turns(length * inverse_lambda - delay[r] * inverse_lambda - offset, s, co);
-        re[r] = gain * co, im[r] = -gain * s;  // exp(-i 2 pi phase)
+        const float u_e = half_width_in_lambdas * std::abs(sin_e) + 1e-9f;
+        const float u_r = half_width_in_lambdas * std::abs(sin_r) + 1e-9f;
+        gain[r] = weight[r] * std::max(cos_e, 0.0f) * std::max(cos_r, 0.0f) /
+                  (std::sqrt(length) * cos_beta);
+        inverse_u[r] = 1.0f / (39.4784176f * u_e * u_r);
+        const float turns = length * inverse_lambda - delay[r] * inverse_lambda - offset;
+        float s, c;
+        base::sincos_turns(turns * first_ratio, s, c);
+        p_re[r] = c, p_im[r] = -s;
+        base::sincos_turns(turns * step_ratio, s, c);
+        ps_re[r] = c, ps_im[r] = -s;
+        base::sincos_turns(u_e * first_ratio, s, c);
+        de_re[r] = c, de_im[r] = s;
+        base::sincos_turns(u_e * step_ratio, s, c);
+        des_re[r] = c, des_im[r] = s;
+        base::sincos_turns(u_r * first_ratio, s, c);
+        dr_re[r] = c, dr_im[r] = s;
+        base::sincos_turns(u_r * step_ratio, s, c);
+        drs_re[r] = c, drs_im[r] = s;
+    }
+}
+
+// image_source_terms' sums at each frequency m, added to out[m] times the transmit
+// weight, the phasors stepped from one frequency to the next (as spectrum_sums).
+[[gnu::target_clones("avx2", "default")]] void image_source_sums(
+    std::size_t n, int frequencies, const float* __restrict inverse_ratio, const PairTerms& t,
+    double tx_weight, std::complex<double>* out) {
+    const float* __restrict gain = t.gain;
+    const float* __restrict inverse_u = t.inverse_u;
+    float* __restrict p_re = t.p_re;
+    float* __restrict p_im = t.p_im;
+    const float* __restrict ps_re = t.ps_re;
+    const float* __restrict ps_im = t.ps_im;
+    float* __restrict de_re = t.de_re;
+    float* __restrict de_im = t.de_im;
+    const float* __restrict des_re = t.des_re;
+    const float* __restrict des_im = t.des_im;
+    float* __restrict dr_re = t.dr_re;
+    float* __restrict dr_im = t.dr_im;
+    const float* __restrict drs_re = t.drs_re;
+    const float* __restrict drs_im = t.drs_im;
+    for (int m = 0; m < frequencies; ++m) {
+        float re[kLanes] = {}, im[kLanes] = {};
+        const float ratio2 = inverse_ratio[m] * inverse_ratio[m];
+        for (std::size_t e = 0; e < n; e += kLanes) {
+            for (std::size_t k = 0; k < kLanes; ++k) {
+                const std::size_t i = e + k;
+                const float g = gain[i] * de_im[i] * dr_im[i] * inverse_u[i] * ratio2;
+                re[k] += g * p_re[i], im[k] += g * p_im[i];
+                const float pr = p_re[i] * ps_re[i] - p_im[i] * ps_im[i];
+                const float pi = p_re[i] * ps_im[i] + p_im[i] * ps_re[i];
+                p_re[i] = pr, p_im[i] = pi;
+                const float er = de_re[i] * des_re[i] - de_im[i] * des_im[i];
+                const float ei = de_re[i] * des_im[i] + de_im[i] * des_re[i];
+                de_re[i] = er, de_im[i] = ei;
+                const float rr = dr_re[i] * drs_re[i] - dr_im[i] * drs_im[i];
+                const float ri = dr_re[i] * drs_im[i] + dr_im[i] * drs_re[i];
+                dr_re[i] = rr, dr_im[i] = ri;
+            }
+        }
+        double sum_re = 0.0, sum_im = 0.0;
+        for (std::size_t k = 0; k < kLanes; ++k) sum_re += re[k], sum_im += im[k];
+        out[m] += tx_weight * std::complex<double>(sum_re, sum_im);
     }
 }
 
@@ -423,13 +530,34 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
         weight.push_back(float(aperture.weights[r]));
         delay.push_back(float(glm::length(c - p) - z));  // dynamic receive focus at z
     }
-    const std::size_t n = weight.size();
+    // Padded to whole lanes: the padding has no weight.
+    const std::size_t n = weight.size(), padded = (n + kLanes - 1) / kLanes * kLanes;
+    for (auto* v : {&rx_x, &rx_y, &rx_nx, &image_x, &image_y, &weight, &delay}) v->resize(padded, 0.0f);
+    rx_ny.resize(padded, 1.0f);
     const ReceiveElements rx{rx_x.data(),    rx_y.data(),    rx_nx.data(),  rx_ny.data(),
                              image_x.data(), image_y.data(), weight.data(), delay.data()};
     const float inverse_lambda = float(1.0 / lambda), half_width = float(0.5 * element_width_);
     const float mx = float(m.x), my = float(m.y);
-    std::complex<double> total = 0.0;
-    std::vector<float> re(n), im(n);
+    const PulseEcho::Band& band = *echo_.band;
+    const int M = band.count();
+    const double f0 = band.centre_hz;
+    std::vector<std::complex<double>> total(std::size_t(M), 0.0);
+    std::vector<float> scratch(14 * padded);
+    float* b = scratch.data();
+    const PairTerms terms{b,
+                          b + padded,
+                          b + 2 * padded,
+                          b + 3 * padded,
+                          b + 4 * padded,
+                          b + 5 * padded,
+                          b + 6 * padded,
+                          b + 7 * padded,
+                          b + 8 * padded,
+                          b + 9 * padded,
+                          b + 10 * padded,
+                          b + 11 * padded,
+                          b + 12 * padded,
+                          b + 13 * padded};
     for (std::size_t e = 0; e < tx_weights_.size(); ++e) {
         if (tx_weights_[e] == 0.0) continue;
         const glm::dvec2 p = array_.position[e];
@@ -440,14 +568,18 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
         // Transmit delay and the reference 2z, in wavelengths.
         const float offset =
             float((glm::length(glm::dvec2(0.0, t_.focus_mm) - p) - t_.focus_mm + 2.0 * z) / lambda);
-        image_source_terms(rx, n, ex, ey, px, py, enx, eny, mx, my, inverse_lambda, half_width,
-                           offset, re.data(), im.data());
-        double sum_re = 0.0, sum_im = 0.0;
-        for (std::size_t r = 0; r < n; ++r) sum_re += re[r], sum_im += im[r];
-        total += tx_weights_[e] * std::complex<double>(sum_re, sum_im);
+        image_source_terms(rx, padded, ex, ey, px, py, enx, eny, mx, my, inverse_lambda, half_width,
+                           offset, float(band.first_hz / f0), float(band.step_hz / f0), terms);
+        image_source_sums(padded, M, echo_.inverse_ratio.data(), terms, tx_weights_[e],
+                          total.data());
     }
-    return total * tx_norm_ * aperture.norm * std::sqrt(lambda) *
-           std::polar(1.0, -0.25 * std::numbers::pi);
+    // Normalised at each f_m: the norms scale as sqrt(f_m / f0) each, sqrt(lambda) as
+    // 1 / sqrt(f_m / f0).
+    const std::complex<double> scale = tx_norm_ * aperture.norm * std::sqrt(lambda) *
+                                       std::polar(1.0, -0.25 * std::numbers::pi);
+    for (int k = 0; k < M; ++k)
+        total[std::size_t(k)] *= scale / std::sqrt(double(echo_.inverse_ratio[std::size_t(k)]));
+    return broadband_echo(band, total.data()).echo;
 }
 
 }  // namespace sonotrace::probe

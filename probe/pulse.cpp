@@ -116,7 +116,7 @@ std::complex<double> PulseEcho::Band::waveform(double t) const {
     return sum;
 }
 
-PulseEcho::Band PulseEcho::band(double spread_s) const {
+PulseEcho::Band PulseEcho::band(double spread_s, double floor) const {
     // S(f) = integral p(t) exp(-i 2 pi f t) dt over the table (trapezoid: the table's
     // ends are below 1e-4 of the peak).
     const int n = int(in_phase_.size());
@@ -131,7 +131,7 @@ PulseEcho::Band PulseEcho::band(double spread_s) const {
     };
     int first = centre_, last = centre_;
     for (int k = 0; k < n; ++k)
-        if (std::hypot(in_phase_[std::size_t(k)], quadrature_[std::size_t(k)]) > 1e-3)
+        if (std::hypot(in_phase_[std::size_t(k)], quadrature_[std::size_t(k)]) > floor)
             first = std::min(first, k), last = std::max(last, k);
     Band b;
     b.step_hz = 1.0 / ((last - first) * dt_ + 2.0 * spread_s);
@@ -146,7 +146,7 @@ PulseEcho::Band PulseEcho::band(double spread_s) const {
     }
     double lo = 0.0, hi = 0.0;
     for (std::size_t i = 0; i < magnitude.size(); ++i)
-        if (magnitude[i] >= 1e-3 * peak) {
+        if (magnitude[i] >= floor * peak) {
             const double f = double(i + 1) * scan;
             lo = lo > 0.0 ? lo : f, hi = f;
         }

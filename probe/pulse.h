@@ -56,7 +56,8 @@ class PulseEcho {
     // 1 / step (Poisson's summation), so a broadband field summed over these frequencies
     // (probe/aperture.h) is exact for echoes that stay within that window; the step
     // leaves `spread_s` on either side of the waveform's support (where its envelope
-    // exceeds 1e-3), and frequencies where |S| is below 1e-3 of its peak are dropped.
+    // exceeds `floor`), and frequencies where |S| is below `floor` times its peak are
+    // dropped.
     struct Band {
         double centre_hz = 0.0;  // f0, one of the frequencies
         double first_hz = 0.0, step_hz = 0.0;
@@ -67,7 +68,7 @@ class PulseEcho {
         // sum_m s_m exp(i 2 pi f_m t): the waveform (analytic) as the band sums it.
         std::complex<double> waveform(double t) const;
     };
-    Band band(double spread_s) const;
+    Band band(double spread_s, double floor = 1e-3) const;
 
     // |H(f)| of the two-way response (header), 1 at f0; 0 at f <= 0.
     static double transducer_response(double f, double frequency_hz, double bandwidth,
