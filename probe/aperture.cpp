@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <mutex>
 #include <numbers>
 
@@ -189,81 +190,93 @@ inline float directivity(float sin_theta, float cos_theta, float half_width_in_l
 // c0) for the phase and exp(i 2 pi u f / f0) whose imaginary part is the sinc's numerator.
 struct SpectrumTerms {
     float *gain, *inverse_u, *p_re, *p_im, *ps_re, *ps_im, *d_re, *d_im, *ds_re, *ds_im;
+    float *turns, *u;  // scratch: the path in wavelengths at f0 and the sinc's argument
 };
 
-[[gnu::target_clones("avx2", "default")]] void spectrum_terms(
+// re + i im = exp(i 2 pi sign a ratio), element by element (a loop of its own: it
+// vectorises, as the whole of spectrum_terms' work in one loop did not).
+[[gnu::target_clones("avx2", "default")]] void phasors(std::size_t n, const float* __restrict a,
+                                                      float ratio, float sign,
+                                                      float* __restrict re,
+                                                      float* __restrict im) {
+    for (std::size_t e = 0; e < n; ++e) {
+        float s, c;
+        base::sincos_turns(a[e] * ratio, s, c);
+        re[e] = c, im[e] = sign * s;
+    }
+}
+
+[[gnu::target_clones("avx2", "default")]] void spectrum_geometry(
     std::size_t n, const float* __restrict x, const float* __restrict y, const float* __restrict nx,
     const float* __restrict ny, const float* __restrict weight, float qx, float qy, float fx,
-    float fy, float inverse_lambda, float half_width, float first_ratio, float step_ratio,
-    const SpectrumTerms& out) {
-    float* __restrict gain = out.gain;
-    float* __restrict inverse_u = out.inverse_u;
-    float* __restrict p_re = out.p_re;
-    float* __restrict p_im = out.p_im;
-    float* __restrict ps_re = out.ps_re;
-    float* __restrict ps_im = out.ps_im;
-    float* __restrict d_re = out.d_re;
-    float* __restrict d_im = out.d_im;
-    float* __restrict ds_re = out.ds_re;
-    float* __restrict ds_im = out.ds_im;
+    float fy, float inverse_lambda, float half_width, float* __restrict gain,
+    float* __restrict inverse_u, float* __restrict turns, float* __restrict u) {
     for (std::size_t e = 0; e < n; ++e) {
         const float dx = qx - x[e], dy = qy - y[e];
         const float r = std::max(std::sqrt(dx * dx + dy * dy), 1e-6f), inverse = 1.0f / r;
         const float cos_theta = (dx * nx[e] + dy * ny[e]) * inverse;
         const float sin_theta = (dx * ny[e] - dy * nx[e]) * inverse;
-        const float u = half_width * inverse_lambda * std::abs(sin_theta) + 1e-9f;
+        u[e] = half_width * inverse_lambda * std::abs(sin_theta) + 1e-9f;
         gain[e] = weight[e] * std::max(cos_theta, 0.0f) / std::sqrt(r);
-        inverse_u[e] = 1.0f / (6.28318531f * u);
+        inverse_u[e] = 1.0f / (6.28318531f * u[e]);
         const float fdx = fx - x[e], fdy = fy - y[e];
-        const float turns = (r - std::sqrt(fdx * fdx + fdy * fdy) + fy - qy) * inverse_lambda;
-        float s, c;
-        base::sincos_turns(turns * first_ratio, s, c);
-        p_re[e] = c, p_im[e] = -s;
-        base::sincos_turns(turns * step_ratio, s, c);
-        ps_re[e] = c, ps_im[e] = -s;
-        base::sincos_turns(u * first_ratio, s, c);
-        d_re[e] = c, d_im[e] = s;
-        base::sincos_turns(u * step_ratio, s, c);
-        ds_re[e] = c, ds_im[e] = s;
+        turns[e] = (r - std::sqrt(fdx * fdx + fdy * fdy) + fy - qy) * inverse_lambda;
     }
 }
 
-// The sums of spectrum_terms' elements at each frequency m: sum_e gain sinc p, with the
-// phasors stepped from one frequency to the next. Eight partial sums by element (n a
-// multiple of 8), added in double in a fixed order: the same numbers on every build.
+void spectrum_terms(std::size_t n, const float* x, const float* y, const float* nx,
+                    const float* ny, const float* weight, float qx, float qy, float fx, float fy,
+                    float inverse_lambda, float half_width, float first_ratio, float step_ratio,
+                    const SpectrumTerms& out) {
+    spectrum_geometry(n, x, y, nx, ny, weight, qx, qy, fx, fy, inverse_lambda, half_width, out.gain,
+                      out.inverse_u, out.turns, out.u);
+    phasors(n, out.turns, first_ratio, -1.0f, out.p_re, out.p_im);  // exp(-i k path)
+    phasors(n, out.turns, step_ratio, -1.0f, out.ps_re, out.ps_im);
+    phasors(n, out.u, first_ratio, 1.0f, out.d_re, out.d_im);
+    phasors(n, out.u, step_ratio, 1.0f, out.ds_re, out.ds_im);
+}
+
+// Internal and inlined: the note that a 32-byte vector's ABI differs without AVX concerns
+// no call across a boundary (popped at the end of the file: unity builds).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+// Eight elements side by side (GCC's vector extension: AVX2 registers in the AVX2 clone,
+// pairs of SSE ones in the baseline; the same operations, so the same numbers).
 constexpr std::size_t kLanes = 8;
+using Lanes = float __attribute__((vector_size(kLanes * sizeof(float))));
+[[gnu::always_inline]] inline Lanes load(const float* p) {
+    Lanes v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+constexpr int kMaxFrequencies = 64;
+
+// The sums of spectrum_terms' elements at each frequency m: sum_e gain sinc p, with the
+// phasors stepped from one frequency to the next; eight elements at a time, their partial
+// sums added in double in a fixed order at the end (n a multiple of 8).
 [[gnu::target_clones("avx2", "default")]] void spectrum_sums(std::size_t n, int frequencies,
                                                             const float* __restrict inverse_ratio,
                                                             const SpectrumTerms& t,
                                                             std::complex<double>* out) {
-    const float* __restrict gain = t.gain;
-    const float* __restrict inverse_u = t.inverse_u;
-    float* __restrict p_re = t.p_re;
-    float* __restrict p_im = t.p_im;
-    const float* __restrict ps_re = t.ps_re;
-    const float* __restrict ps_im = t.ps_im;
-    float* __restrict d_re = t.d_re;
-    float* __restrict d_im = t.d_im;
-    const float* __restrict ds_re = t.ds_re;
-    const float* __restrict ds_im = t.ds_im;
-    for (int m = 0; m < frequencies; ++m) {
-        float re[kLanes] = {}, im[kLanes] = {};
-        const float ratio = inverse_ratio[m];
-        for (std::size_t e = 0; e < n; e += kLanes) {
-            for (std::size_t k = 0; k < kLanes; ++k) {
-                const std::size_t i = e + k;
-                const float g = gain[i] * d_im[i] * inverse_u[i] * ratio;
-                re[k] += g * p_re[i], im[k] += g * p_im[i];
-                const float pr = p_re[i] * ps_re[i] - p_im[i] * ps_im[i];
-                const float pi = p_re[i] * ps_im[i] + p_im[i] * ps_re[i];
-                p_re[i] = pr, p_im[i] = pi;
-                const float dr = d_re[i] * ds_re[i] - d_im[i] * ds_im[i];
-                const float di = d_re[i] * ds_im[i] + d_im[i] * ds_re[i];
-                d_re[i] = dr, d_im[i] = di;
-            }
+    Lanes re[kMaxFrequencies] = {}, im[kMaxFrequencies] = {};
+    for (std::size_t e = 0; e < n; e += kLanes) {
+        const Lanes gain = load(t.gain + e) * load(t.inverse_u + e);
+        Lanes p_re = load(t.p_re + e), p_im = load(t.p_im + e);
+        const Lanes ps_re = load(t.ps_re + e), ps_im = load(t.ps_im + e);
+        Lanes d_re = load(t.d_re + e), d_im = load(t.d_im + e);
+        const Lanes ds_re = load(t.ds_re + e), ds_im = load(t.ds_im + e);
+        for (int m = 0; m < frequencies; ++m) {
+            const Lanes g = gain * d_im * inverse_ratio[m];
+            re[m] += g * p_re, im[m] += g * p_im;
+            const Lanes pr = p_re * ps_re - p_im * ps_im;
+            p_im = p_re * ps_im + p_im * ps_re, p_re = pr;
+            const Lanes dr = d_re * ds_re - d_im * ds_im;
+            d_im = d_re * ds_im + d_im * ds_re, d_re = dr;
         }
+    }
+    for (int m = 0; m < frequencies; ++m) {
         double sum_re = 0.0, sum_im = 0.0;
-        for (std::size_t k = 0; k < kLanes; ++k) sum_re += re[k], sum_im += im[k];
+        for (std::size_t k = 0; k < kLanes; ++k) sum_re += re[m][k], sum_im += im[m][k];
         out[m] = {sum_re, sum_im};
     }
 }
@@ -286,7 +299,7 @@ void LineFields::sum_spectrum(const glm::dvec2& q, const std::vector<double>& we
         w[e] = float(weights[first + e]);
         x[e] = x_[first + e], y[e] = y_[first + e], nx[e] = nx_[first + e], ny[e] = ny_[first + e];
     }
-    scratch.resize(10 * padded);
+    scratch.resize(12 * padded);
     float* base = scratch.data();
     const SpectrumTerms terms{base,
                               base + padded,
@@ -297,13 +310,19 @@ void LineFields::sum_spectrum(const glm::dvec2& q, const std::vector<double>& we
                               base + 6 * padded,
                               base + 7 * padded,
                               base + 8 * padded,
-                              base + 9 * padded};
+                              base + 9 * padded,
+                              base + 10 * padded,
+                              base + 11 * padded};
     const double f0 = band.centre_hz;
-    spectrum_terms(padded, x.data(), y.data(), nx.data(), ny.data(), w.data(), float(q.x),
-                   float(q.y), float(focus.x), float(focus.y), float(1.0 / t_.wavelength_mm()),
-                   float(0.5 * element_width_), float(band.first_hz / f0),
-                   float(band.step_hz / f0), terms);
-    spectrum_sums(padded, band.count(), spectrum.inverse_ratio.data(), terms, out);
+    // In chunks of at most kMaxFrequencies (a long-skirted band of a long pulse has more).
+    for (int m0 = 0; m0 < band.count(); m0 += kMaxFrequencies) {
+        spectrum_terms(padded, x.data(), y.data(), nx.data(), ny.data(), w.data(), float(q.x),
+                       float(q.y), float(focus.x), float(focus.y), float(1.0 / t_.wavelength_mm()),
+                       float(0.5 * element_width_), float(band.frequency_hz(m0) / f0),
+                       float(band.step_hz / f0), terms);
+        spectrum_sums(padded, std::min(kMaxFrequencies, band.count() - m0),
+                      spectrum.inverse_ratio.data() + m0, terms, out + m0);
+    }
 }
 
 double LineFields::two_way_spectrum(const glm::dvec2& q, const Receive& aperture,
@@ -395,20 +414,18 @@ struct ReceiveElements {
     const float *x, *y, *nx, *ny, *image_x, *image_y, *weight, *delay;
 };
 
-// One transmit element's terms over the receive elements, for their spectrum: the gain
-// w_r / (sqrt(L) cos beta) cos(theta_e)+ cos(theta_r)+ without the sincs, 1 / (4 pi^2
-// u_e u_r) of their arguments at f0, and the phasors at the band's first frequency and
-// of one step: exp(-i 2 pi phase f / f0) for the phase (L - delay_r) / lambda - offset
-// in wavelengths at f0, and exp(i 2 pi u f / f0) for each sinc's numerator.
+// What image_source_terms (below) fills.
 struct PairTerms {
     float *gain, *inverse_u, *p_re, *p_im, *ps_re, *ps_im;
     float *de_re, *de_im, *des_re, *des_im, *dr_re, *dr_im, *drs_re, *drs_im;
+    float *turns, *u_e, *u_r;  // scratch: the phase in wavelengths at f0, the sincs' arguments
 };
 
-[[gnu::target_clones("avx2", "default")]] void image_source_terms(
+[[gnu::target_clones("avx2", "default")]] void image_source_geometry(
     const ReceiveElements& rx, std::size_t n, float ex, float ey, float px, float py, float enx,
     float eny, float mx, float my, float inverse_lambda, float half_width, float offset,
-    float first_ratio, float step_ratio, const PairTerms& out) {
+    float* __restrict gain, float* __restrict inverse_u, float* __restrict turns,
+    float* __restrict u_e, float* __restrict u_r) {
     const float* __restrict rx_x = rx.x;
     const float* __restrict rx_y = rx.y;
     const float* __restrict rx_nx = rx.nx;
@@ -417,20 +434,6 @@ struct PairTerms {
     const float* __restrict image_y = rx.image_y;
     const float* __restrict weight = rx.weight;
     const float* __restrict delay = rx.delay;
-    float* __restrict gain = out.gain;
-    float* __restrict inverse_u = out.inverse_u;
-    float* __restrict p_re = out.p_re;
-    float* __restrict p_im = out.p_im;
-    float* __restrict ps_re = out.ps_re;
-    float* __restrict ps_im = out.ps_im;
-    float* __restrict de_re = out.de_re;
-    float* __restrict de_im = out.de_im;
-    float* __restrict des_re = out.des_re;
-    float* __restrict des_im = out.des_im;
-    float* __restrict dr_re = out.dr_re;
-    float* __restrict dr_im = out.dr_im;
-    float* __restrict drs_re = out.drs_re;
-    float* __restrict drs_im = out.drs_im;
     const float half_width_in_lambdas = half_width * inverse_lambda;
     for (std::size_t r = 0; r < n; ++r) {
         // Mirrored path e' -> r; the same length from e to r's mirror image.
@@ -443,26 +446,32 @@ struct PairTerms {
         const float cos_e = (ux * enx + uy * eny) * inverse;
         const float sin_e = (ux * eny - uy * enx) * inverse;
         const float cos_beta = std::max(std::abs(dx * mx + dy * my) * inverse, 0.05f);
-        const float u_e = half_width_in_lambdas * std::abs(sin_e) + 1e-9f;
-        const float u_r = half_width_in_lambdas * std::abs(sin_r) + 1e-9f;
+        u_e[r] = half_width_in_lambdas * std::abs(sin_e) + 1e-9f;
+        u_r[r] = half_width_in_lambdas * std::abs(sin_r) + 1e-9f;
         gain[r] = weight[r] * std::max(cos_e, 0.0f) * std::max(cos_r, 0.0f) /
                   (std::sqrt(length) * cos_beta);
-        inverse_u[r] = 1.0f / (39.4784176f * u_e * u_r);
-        const float turns = length * inverse_lambda - delay[r] * inverse_lambda - offset;
-        float s, c;
-        base::sincos_turns(turns * first_ratio, s, c);
-        p_re[r] = c, p_im[r] = -s;
-        base::sincos_turns(turns * step_ratio, s, c);
-        ps_re[r] = c, ps_im[r] = -s;
-        base::sincos_turns(u_e * first_ratio, s, c);
-        de_re[r] = c, de_im[r] = s;
-        base::sincos_turns(u_e * step_ratio, s, c);
-        des_re[r] = c, des_im[r] = s;
-        base::sincos_turns(u_r * first_ratio, s, c);
-        dr_re[r] = c, dr_im[r] = s;
-        base::sincos_turns(u_r * step_ratio, s, c);
-        drs_re[r] = c, drs_im[r] = s;
+        inverse_u[r] = 1.0f / (39.4784176f * u_e[r] * u_r[r]);
+        turns[r] = length * inverse_lambda - delay[r] * inverse_lambda - offset;
     }
+}
+
+// One transmit element's terms over the receive elements, for their spectrum: the gain
+// w_r / (sqrt(L) cos beta) cos(theta_e)+ cos(theta_r)+ without the sincs, 1 / (4 pi^2
+// u_e u_r) of their arguments at f0, and the phasors at the band's first frequency and
+// of one step: exp(-i 2 pi phase f / f0) for the phase (L - delay_r) / lambda - offset
+// in wavelengths at f0, and exp(i 2 pi u f / f0) for each sinc's numerator.
+void image_source_terms(const ReceiveElements& rx, std::size_t n, float ex, float ey, float px,
+                        float py, float enx, float eny, float mx, float my, float inverse_lambda,
+                        float half_width, float offset, float first_ratio, float step_ratio,
+                        const PairTerms& out) {
+    image_source_geometry(rx, n, ex, ey, px, py, enx, eny, mx, my, inverse_lambda, half_width,
+                          offset, out.gain, out.inverse_u, out.turns, out.u_e, out.u_r);
+    phasors(n, out.turns, first_ratio, -1.0f, out.p_re, out.p_im);
+    phasors(n, out.turns, step_ratio, -1.0f, out.ps_re, out.ps_im);
+    phasors(n, out.u_e, first_ratio, 1.0f, out.de_re, out.de_im);
+    phasors(n, out.u_e, step_ratio, 1.0f, out.des_re, out.des_im);
+    phasors(n, out.u_r, first_ratio, 1.0f, out.dr_re, out.dr_im);
+    phasors(n, out.u_r, step_ratio, 1.0f, out.drs_re, out.drs_im);
 }
 
 // image_source_terms' sums at each frequency m, added to out[m] times the transmit
@@ -470,41 +479,29 @@ struct PairTerms {
 [[gnu::target_clones("avx2", "default")]] void image_source_sums(
     std::size_t n, int frequencies, const float* __restrict inverse_ratio, const PairTerms& t,
     double tx_weight, std::complex<double>* out) {
-    const float* __restrict gain = t.gain;
-    const float* __restrict inverse_u = t.inverse_u;
-    float* __restrict p_re = t.p_re;
-    float* __restrict p_im = t.p_im;
-    const float* __restrict ps_re = t.ps_re;
-    const float* __restrict ps_im = t.ps_im;
-    float* __restrict de_re = t.de_re;
-    float* __restrict de_im = t.de_im;
-    const float* __restrict des_re = t.des_re;
-    const float* __restrict des_im = t.des_im;
-    float* __restrict dr_re = t.dr_re;
-    float* __restrict dr_im = t.dr_im;
-    const float* __restrict drs_re = t.drs_re;
-    const float* __restrict drs_im = t.drs_im;
-    for (int m = 0; m < frequencies; ++m) {
-        float re[kLanes] = {}, im[kLanes] = {};
-        const float ratio2 = inverse_ratio[m] * inverse_ratio[m];
-        for (std::size_t e = 0; e < n; e += kLanes) {
-            for (std::size_t k = 0; k < kLanes; ++k) {
-                const std::size_t i = e + k;
-                const float g = gain[i] * de_im[i] * dr_im[i] * inverse_u[i] * ratio2;
-                re[k] += g * p_re[i], im[k] += g * p_im[i];
-                const float pr = p_re[i] * ps_re[i] - p_im[i] * ps_im[i];
-                const float pi = p_re[i] * ps_im[i] + p_im[i] * ps_re[i];
-                p_re[i] = pr, p_im[i] = pi;
-                const float er = de_re[i] * des_re[i] - de_im[i] * des_im[i];
-                const float ei = de_re[i] * des_im[i] + de_im[i] * des_re[i];
-                de_re[i] = er, de_im[i] = ei;
-                const float rr = dr_re[i] * drs_re[i] - dr_im[i] * drs_im[i];
-                const float ri = dr_re[i] * drs_im[i] + dr_im[i] * drs_re[i];
-                dr_re[i] = rr, dr_im[i] = ri;
-            }
+    Lanes re[kMaxFrequencies] = {}, im[kMaxFrequencies] = {};
+    for (std::size_t e = 0; e < n; e += kLanes) {
+        const Lanes gain = load(t.gain + e) * load(t.inverse_u + e);
+        Lanes p_re = load(t.p_re + e), p_im = load(t.p_im + e);
+        const Lanes ps_re = load(t.ps_re + e), ps_im = load(t.ps_im + e);
+        Lanes de_re = load(t.de_re + e), de_im = load(t.de_im + e);
+        const Lanes des_re = load(t.des_re + e), des_im = load(t.des_im + e);
+        Lanes dr_re = load(t.dr_re + e), dr_im = load(t.dr_im + e);
+        const Lanes drs_re = load(t.drs_re + e), drs_im = load(t.drs_im + e);
+        for (int m = 0; m < frequencies; ++m) {
+            const Lanes g = gain * de_im * dr_im * (inverse_ratio[m] * inverse_ratio[m]);
+            re[m] += g * p_re, im[m] += g * p_im;
+            const Lanes pr = p_re * ps_re - p_im * ps_im;
+            p_im = p_re * ps_im + p_im * ps_re, p_re = pr;
+            const Lanes er = de_re * des_re - de_im * des_im;
+            de_im = de_re * des_im + de_im * des_re, de_re = er;
+            const Lanes rr = dr_re * drs_re - dr_im * drs_im;
+            dr_im = dr_re * drs_im + dr_im * drs_re, dr_re = rr;
         }
+    }
+    for (int m = 0; m < frequencies; ++m) {
         double sum_re = 0.0, sum_im = 0.0;
-        for (std::size_t k = 0; k < kLanes; ++k) sum_re += re[k], sum_im += im[k];
+        for (std::size_t k = 0; k < kLanes; ++k) sum_re += re[m][k], sum_im += im[m][k];
         out[m] += tx_weight * std::complex<double>(sum_re, sum_im);
     }
 }
@@ -542,7 +539,7 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
     const int M = band.count();
     const double f0 = band.centre_hz;
     std::vector<std::complex<double>> total(std::size_t(M), 0.0);
-    std::vector<float> scratch(14 * padded);
+    std::vector<float> scratch(17 * padded);
     float* b = scratch.data();
     const PairTerms terms{b,
                           b + padded,
@@ -557,7 +554,10 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
                           b + 10 * padded,
                           b + 11 * padded,
                           b + 12 * padded,
-                          b + 13 * padded};
+                          b + 13 * padded,
+                          b + 14 * padded,
+                          b + 15 * padded,
+                          b + 16 * padded};
     for (std::size_t e = 0; e < tx_weights_.size(); ++e) {
         if (tx_weights_[e] == 0.0) continue;
         const glm::dvec2 p = array_.position[e];
@@ -568,10 +568,14 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
         // Transmit delay and the reference 2z, in wavelengths.
         const float offset =
             float((glm::length(glm::dvec2(0.0, t_.focus_mm) - p) - t_.focus_mm + 2.0 * z) / lambda);
-        image_source_terms(rx, padded, ex, ey, px, py, enx, eny, mx, my, inverse_lambda, half_width,
-                           offset, float(band.first_hz / f0), float(band.step_hz / f0), terms);
-        image_source_sums(padded, M, echo_.inverse_ratio.data(), terms, tx_weights_[e],
-                          total.data());
+        for (int m0 = 0; m0 < M; m0 += kMaxFrequencies) {  // as sum_spectrum
+            image_source_terms(rx, padded, ex, ey, px, py, enx, eny, mx, my, inverse_lambda,
+                               half_width, offset, float(band.frequency_hz(m0) / f0),
+                               float(band.step_hz / f0), terms);
+            image_source_sums(padded, std::min(kMaxFrequencies, M - m0),
+                              echo_.inverse_ratio.data() + m0, terms, tx_weights_[e],
+                              total.data() + m0);
+        }
     }
     // Normalised at each f_m: the norms scale as sqrt(f_m / f0) each, sqrt(lambda) as
     // 1 / sqrt(f_m / f0).
@@ -583,3 +587,5 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
 }
 
 }  // namespace sonotrace::probe
+
+#pragma GCC diagnostic pop
