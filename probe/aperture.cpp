@@ -113,17 +113,19 @@ BroadbandEcho broadband_echo(const PulseEcho::Band& band, const std::complex<dou
     std::vector<double> norms(std::size_t(2 * half + 1));
     for (int k = -half; k <= half; ++k) norms[std::size_t(k + half)] = std::norm(baseband(k * dt));
     for (int k = -half; k <= half; ++k)
-        if (norms[std::size_t(k + half)] > best_norm) best_norm = norms[std::size_t(k + half)], best = k;
+        if (norms[std::size_t(k + half)] > best_norm)
+            best_norm = norms[std::size_t(k + half)], best = k;
     left = norms[std::size_t(std::max(best - 1 + half, 0))];
     right = norms[std::size_t(std::min(best + 1 + half, 2 * half))];
     const double curvature = left - 2.0 * best_norm + right;
-    const double shift = curvature < 0.0 ? std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5)
-                                         : 0.0;
+    const double shift =
+        curvature < 0.0 ? std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5) : 0.0;
     const double t = (best + shift) * dt;
     // e(t*) with the carrier exp(i 2 pi f0 t*) taken out: the phase an echo placed at t = 0
     // with the pulse's carrier must have to match the true echo at its peak.
-    const std::complex<double> e = baseband(t) * std::polar(1.0, 2.0 * std::numbers::pi *
-                                                                     (band.first_hz - band.centre_hz) * t);
+    const std::complex<double> e =
+        baseband(t) *
+        std::polar(1.0, 2.0 * std::numbers::pi * (band.first_hz - band.centre_hz) * t);
     out.echo = e;
     return out;
 }
@@ -139,7 +141,8 @@ LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std
         x_.push_back(float(array_.position[e].x)), y_.push_back(float(array_.position[e].y));
         nx_.push_back(float(array_.normal[e].x)), ny_.push_back(float(array_.normal[e].y));
     }
-    for (auto [spectrum, use] : {std::pair(&echo_, BandUse::echo), std::pair(&energy_, BandUse::energy)}) {
+    for (auto [spectrum, use] :
+         {std::pair(&echo_, BandUse::echo), std::pair(&energy_, BandUse::energy)}) {
         spectrum->band = pulse_band(t, use);
         const PulseEcho::Band& b = *spectrum->band;
         for (int m = 0; m < b.count(); ++m)
@@ -196,9 +199,8 @@ struct SpectrumTerms {
 // re + i im = exp(i 2 pi sign a ratio), element by element (a loop of its own: it
 // vectorises, as the whole of spectrum_terms' work in one loop did not).
 [[gnu::target_clones("avx2", "default")]] void phasors(std::size_t n, const float* __restrict a,
-                                                      float ratio, float sign,
-                                                      float* __restrict re,
-                                                      float* __restrict im) {
+                                                       float ratio, float sign,
+                                                       float* __restrict re, float* __restrict im) {
     for (std::size_t e = 0; e < n; ++e) {
         float s, c;
         base::sincos_turns(a[e] * ratio, s, c);
@@ -224,8 +226,8 @@ struct SpectrumTerms {
     }
 }
 
-void spectrum_terms(std::size_t n, const float* x, const float* y, const float* nx,
-                    const float* ny, const float* weight, float qx, float qy, float fx, float fy,
+void spectrum_terms(std::size_t n, const float* x, const float* y, const float* nx, const float* ny,
+                    const float* weight, float qx, float qy, float fx, float fy,
                     float inverse_lambda, float half_width, float first_ratio, float step_ratio,
                     const SpectrumTerms& out) {
     spectrum_geometry(n, x, y, nx, ny, weight, qx, qy, fx, fy, inverse_lambda, half_width, out.gain,
@@ -255,9 +257,9 @@ constexpr int kMaxFrequencies = 64;
 // phasors stepped from one frequency to the next; eight elements at a time, their partial
 // sums added in double in a fixed order at the end (n a multiple of 8).
 [[gnu::target_clones("avx2", "default")]] void spectrum_sums(std::size_t n, int frequencies,
-                                                            const float* __restrict inverse_ratio,
-                                                            const SpectrumTerms& t,
-                                                            std::complex<double>* out) {
+                                                             const float* __restrict inverse_ratio,
+                                                             const SpectrumTerms& t,
+                                                             std::complex<double>* out) {
     Lanes re[kMaxFrequencies] = {}, im[kMaxFrequencies] = {};
     for (std::size_t e = 0; e < n; e += kLanes) {
         const Lanes gain = load(t.gain + e) * load(t.inverse_u + e);
@@ -529,7 +531,8 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
     }
     // Padded to whole lanes: the padding has no weight.
     const std::size_t n = weight.size(), padded = (n + kLanes - 1) / kLanes * kLanes;
-    for (auto* v : {&rx_x, &rx_y, &rx_nx, &image_x, &image_y, &weight, &delay}) v->resize(padded, 0.0f);
+    for (auto* v : {&rx_x, &rx_y, &rx_nx, &image_x, &image_y, &weight, &delay})
+        v->resize(padded, 0.0f);
     rx_ny.resize(padded, 1.0f);
     const ReceiveElements rx{rx_x.data(),    rx_y.data(),    rx_nx.data(),  rx_ny.data(),
                              image_x.data(), image_y.data(), weight.data(), delay.data()};
@@ -579,8 +582,8 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
     }
     // Normalised at each f_m: the norms scale as sqrt(f_m / f0) each, sqrt(lambda) as
     // 1 / sqrt(f_m / f0).
-    const std::complex<double> scale = tx_norm_ * aperture.norm * std::sqrt(lambda) *
-                                       std::polar(1.0, -0.25 * std::numbers::pi);
+    const std::complex<double> scale =
+        tx_norm_ * aperture.norm * std::sqrt(lambda) * std::polar(1.0, -0.25 * std::numbers::pi);
     for (int k = 0; k < M; ++k)
         total[std::size_t(k)] *= scale / std::sqrt(double(echo_.inverse_ratio[std::size_t(k)]));
     return broadband_echo(band, total.data()).echo;

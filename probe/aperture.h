@@ -116,9 +116,7 @@ class LineFields {
         double receive_power = 0.0;
     };
     Broadband broadband(const glm::dvec2& q, const Receive& aperture) const;
-    Broadband broadband(const glm::dvec2& q) const {
-        return broadband(q, receive_aperture(q.y));
-    }
+    Broadband broadband(const glm::dvec2& q) const { return broadband(q, receive_aperture(q.y)); }
     // What the speckle takes of the broadband response at q, on the energy band: the
     // echo's energy power = sum_m |s_m H_m|^2 / sum_m |s_m|^2 and the same of R alone,
     // and a weight of that energy with the phase of H at f0.

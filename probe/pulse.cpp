@@ -112,7 +112,8 @@ std::complex<double> PulseEcho::analytic(double t) const {
 std::complex<double> PulseEcho::Band::waveform(double t) const {
     std::complex<double> sum = 0.0;
     for (int m = 0; m < count(); ++m)
-        sum += weight[std::size_t(m)] * std::polar(1.0, 2.0 * std::numbers::pi * frequency_hz(m) * t);
+        sum +=
+            weight[std::size_t(m)] * std::polar(1.0, 2.0 * std::numbers::pi * frequency_hz(m) * t);
     return sum;
 }
 
@@ -125,8 +126,8 @@ PulseEcho::Band PulseEcho::band(double spread_s, double floor) const {
         const std::complex<double> step = std::polar(1.0, -2.0 * std::numbers::pi * f * dt_);
         std::complex<double> turn = std::polar(1.0, 2.0 * std::numbers::pi * f * centre_ * dt_);
         for (int k = 0; k < n; ++k, turn *= step)
-            sum += std::complex<double>(in_phase_[std::size_t(k)], quadrature_[std::size_t(k)]) *
-                   turn;
+            sum +=
+                std::complex<double>(in_phase_[std::size_t(k)], quadrature_[std::size_t(k)]) * turn;
         return sum * dt_;
     };
     int first = centre_, last = centre_;
@@ -153,7 +154,7 @@ PulseEcho::Band PulseEcho::band(double spread_s, double floor) const {
     // Nodes on a grid through f0 (the centre frequency is always one of them).
     const int below = std::min(int(std::ceil((f0_ - lo) / b.step_hz)),
                                int(std::ceil(f0_ / b.step_hz)) - 1),  // all above 0 Hz
-              above = int(std::ceil((hi - f0_) / b.step_hz));
+        above = int(std::ceil((hi - f0_) / b.step_hz));
     b.centre_hz = f0_;
     b.first_hz = f0_ - below * b.step_hz;
     for (int m = 0; m <= below + above; ++m) {

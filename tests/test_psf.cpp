@@ -235,45 +235,6 @@ TEST(Psf, PointTargetAxialResolutionIsThePulseEnvelope) {
     }
 }
 
-// A planar reflector's echo by image sources (LineFields::plane_echo, stationary phase)
-// against the definition it stands for, the integral of T R over the plane, done here by
-// brute force: T and R at points lambda/16 apart along the plane across +-45 mm (tapered
-// over the outer third, so that the truncated ends add nothing), referenced to 2z. Depths
-// before, at and beyond the focus, tilts 0 and +-0.1 (6 degrees); within 3 % of the
-// on-axis echo (the stationary-phase error is O(1/(k L)), under 1 % here).
-TEST(Psf, PlaneEchoByImageSourcesEqualsTheIntegralOverThePlane) {
-    const probe::Transducer t = linear_for_psf(1.5);
-    const probe::LineFields f(t, probe::line_array(t, t.lines / 2));
-    const double k = 2.0 * kPi / t.wavelength_mm(), ds = t.wavelength_mm() / 16.0;
-    for (const double z : {6.0, 20.0, 35.0}) {
-        const std::complex<double> on_axis = f.plane_echo(z, 0.0);
-        for (const double sin_tilt : {0.0, 0.1, -0.1}) {
-            const glm::dvec2 m(sin_tilt, std::sqrt(1.0 - sin_tilt * sin_tilt));
-            const glm::dvec2 along(m.y, -m.x), c(0.0, z);
-            const auto receive = f.receive_aperture(z);
-            constexpr double kHalf = 45.0, kTaper = 15.0;
-            std::complex<double> integral = 0.0;
-            for (double s = -kHalf; s <= kHalf; s += ds) {
-                const glm::dvec2 q = c + s * along;
-                if (!(q.y > 0.5)) continue;
-                const double edge = kHalf - std::abs(s);
-                const double taper =
-                    edge >= kTaper ? 1.0 : 0.5 - 0.5 * std::cos(kPi * edge / kTaper);
-                integral += taper * f.transmit(q) * f.receive(q, receive) *
-                            std::polar(1.0, 2.0 * k * (z - q.y)) * ds;
-            }
-            const std::complex<double> image_sources = f.plane_echo(z, sin_tilt);
-            std::printf(
-                "plane at %.0f mm, sin tilt %+.1f: image sources %.4f%+.4fi, integral "
-                "%.4f%+.4fi\n",
-                z, sin_tilt, image_sources.real(), image_sources.imag(), integral.real(),
-                integral.imag());
-            EXPECT_LT(std::abs(image_sources - integral), 0.03 * std::abs(on_axis))
-                << z << " " << sin_tilt;
-        }
-    }
-}
-
 // A target's echo strength (imaging::point_echoes) against the closed forms it stands for:
 // the wire's 2D backscatter width pi a r^2 (tissue/point_target.h) through the echo
 // amplitude sqrt(sigma lambda / (2 pi)), the one-way intensity loss alpha f L (dB) of the
