@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <numbers>
@@ -766,11 +767,21 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         }
         if (!points.empty()) {  // through the line's exact fields (few targets: no table)
             const probe::LineFields f(t, probe::line_array(t, l));
+            // The receive aperture by depth: targets often share depths (a grid's rows).
+            std::map<double, probe::LineFields::Receive> apertures;
+            auto receive_at = [&](double z) -> const probe::LineFields::Receive& {
+                auto it = apertures.find(z);
+                if (it == apertures.end()) it = apertures.emplace(z, f.receive_aperture(z)).first;
+                return it->second;
+            };
             for (const PointEcho& p : points) {
                 const glm::dvec2 d = p.position - to_world.face_in_map - axis.origin;
                 const glm::dvec2 q(glm::dot(d, across), glm::dot(d, axis.direction));
                 if (!(q.y > 0.0) || q.y > t.depth_mm) continue;
-                const std::complex<double> h = f.two_way(q);
+                // Beyond its reach nothing: its echo there is 45 dB and more below its
+                // peak (test: BroadbandFields.PointEchoesFadeBeforeTheirReach).
+                if (std::abs(q.x) > PsfTable::point_reach_mm(t, q.y)) continue;
+                const std::complex<double> h = f.broadband(q, receive_at(q.y)).two_way.echo;
                 add_pulse(pulse, q.y * depth_to_samples, fs, p.amplitude * h, out, N);
             }
         }

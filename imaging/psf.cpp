@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <map>
 #include <memory>
@@ -23,66 +24,144 @@ constexpr int kHalfRow = 24;             // J: +-6 main lobes at a quarter lobe 
 constexpr double kSnapFraction = 0.125;  // lines share rows at offsets 1/8 pitch apart
 }  // namespace
 
+// What a row depends on, of a transducer: everything but its imaging depth, which only
+// says how many rows a table takes (and, by powers of two, their spacing).
+using RowStoreKey = std::array<double, 17>;
+RowStoreKey row_store_key(const probe::Transducer& t, double dz) {
+    return {double(int(t.type)),
+            double(t.elements),
+            t.pitch_mm,
+            t.radius_mm,
+            t.fov_deg,
+            t.frequency_mhz,
+            t.bandwidth,
+            t.band_shape,
+            t.cycles,
+            t.focus_mm,
+            t.f_number,
+            double(int(t.tx_apodization)),
+            t.rx_f_number,
+            double(int(t.rx_apodization)),
+            double(t.lines),
+            t.element_width_mm,
+            dz};
+}
+
+// Rows shared by the tables of probe settings that differ in their imaging depth alone
+// (a dataset drawing the depth per frame): a deeper table adds rows, a shallower one
+// takes a prefix. With them the plane echoes and the fields of the lines that made rows.
+struct PsfTable::RowStore {
+    std::mutex build;  // one table's missing rows at a time
+    std::map<std::array<long, 7>, int> index;
+    std::deque<Row> rows;   // stable addresses: tables point into it
+    std::vector<int> line;  // the line that made each row (read under `build` only)
+    std::vector<std::vector<int>> row_of_depth;  // [depth index][line] -> rows
+    tbb::concurrent_unordered_map<uint64_t, std::complex<double>, MixedKey> plane_echoes;
+    std::mutex fields_mutex;
+    std::unordered_map<int, std::shared_ptr<const probe::LineFields>> fields;  // by line
+};
+
+namespace {
+// Rows lambda apart, doubled until at most 400 cover the depth: one spacing for depths
+// within a factor of two, so their tables share rows.
+double row_spacing_mm(const probe::Transducer& t) {
+    double dz = t.wavelength_mm();
+    while (t.depth_mm / dz > 400.0) dz *= 2.0;
+    return dz;
+}
+
+std::shared_ptr<PsfTable::RowStore> shared_row_store(const probe::Transducer& t) {
+    static std::mutex mutex;
+    static std::vector<std::pair<RowStoreKey, std::shared_ptr<PsfTable::RowStore>>> kept;
+    const RowStoreKey key = row_store_key(t, row_spacing_mm(t));
+    const std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& [k, store] : kept)
+        if (k == key) return store;
+    kept.emplace_back(key, std::make_shared<PsfTable::RowStore>());
+    if (kept.size() > 4) kept.erase(kept.begin());  // tables keep theirs alive
+    return kept.back().second;
+}
+}  // namespace
+
 struct PsfTableBuilder {
-    static std::shared_ptr<PsfTable> build(const probe::Transducer& t) {
+    static std::shared_ptr<PsfTable> build(const probe::Transducer& t,
+                                           std::shared_ptr<PsfTable::RowStore> store) {
         auto table = std::make_shared<PsfTable>();
         table->t_ = t;
+        table->store_ = store;
         const double lambda = t.wavelength_mm();
         table->k_ = 2.0 * std::numbers::pi / lambda;
         table->lines_ = t.lines;
-        table->dz_ = std::max(lambda, t.depth_mm / 400.0);
+        table->dz_ = row_spacing_mm(t);
         table->depths_ = int(std::ceil(t.depth_mm / table->dz_)) + 2;
         const int depths = table->depths_;
-        std::vector<probe::LineFields> fields;
-        fields.reserve(std::size_t(t.lines));
-        for (int l = 0; l < t.lines; ++l) fields.push_back(PsfTable::fields_of_line(t, l));
         auto depth_of = [&](int i) { return std::max(i * table->dz_, 0.5 * table->dz_); };
+        const std::lock_guard<std::mutex> building(store->build);
+        // The lines' fields, where new depths ask for keys or rows.
+        std::vector<probe::LineFields> fields;
+        if (int(store->row_of_depth.size()) < depths) {
+            fields.reserve(std::size_t(t.lines));
+            for (int l = 0; l < t.lines; ++l) fields.push_back(PsfTable::fields_of_line(t, l));
+        }
 
         // Rows by what determines them: the line's sub-element offset and its active
-        // element ranges relative to its centre element (phased lines: the line itself).
+        // element ranges relative to its centre element (phased lines: the line itself),
+        // kept by depth index in the store: a deeper table adds the depths it lacks.
         using Key = std::array<long, 7>;
-        std::map<Key, int> index;
         struct Job {
-            int line, depth;
+            int line, depth, id;
         };
         std::vector<Job> jobs;
-        table->row_of_.assign(std::size_t(t.lines) * std::size_t(depths), 0);
         const probe::ScanGeometry geometry(t);
-        for (int l = 0; l < t.lines; ++l) {
-            const probe::LineArray& a = fields[std::size_t(l)].array();
-            int centre = 0;
-            for (int e = 1; e < int(a.along.size()); ++e)
-                if (std::abs(a.along[std::size_t(e)]) < std::abs(a.along[std::size_t(centre)]))
-                    centre = e;
-            auto range = [&](const std::vector<double>& w) {
-                int first = -1, last = -1;
-                for (int e = 0; e < int(w.size()); ++e)
-                    if (w[std::size_t(e)] != 0.0) last = e, first = first < 0 ? e : first;
-                return std::pair<long, long>(first - centre, last - centre);
-            };
-            const auto tx =
-                range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization));
-            const bool steered = !geometry.array().aperture_centre(geometry.line(l));
-            const long offset =
-                steered ? 1000000L + l : std::lround(a.along[std::size_t(centre)] * 1e4);
-            for (int i = 0; i < depths; ++i) {
-                const auto rx = range(probe::aperture_weights(a, t.receive_aperture_mm(depth_of(i)),
-                                                              t.rx_apodization));
-                const Key key{offset, tx.first, tx.second, rx.first, rx.second, i, 0};
-                auto [it, added] = index.try_emplace(key, int(jobs.size()));
-                if (added) jobs.push_back({l, i});
-                table->row_of_[std::size_t(l) * std::size_t(depths) + std::size_t(i)] = it->second;
+        const int known = int(store->row_of_depth.size());
+        if (known < depths) {
+            store->row_of_depth.resize(std::size_t(depths), std::vector<int>(std::size_t(t.lines)));
+            for (int l = 0; l < t.lines; ++l) {
+                const probe::LineArray& a = fields[std::size_t(l)].array();
+                int centre = 0;
+                for (int e = 1; e < int(a.along.size()); ++e)
+                    if (std::abs(a.along[std::size_t(e)]) < std::abs(a.along[std::size_t(centre)]))
+                        centre = e;
+                auto range = [&](const std::vector<double>& w) {
+                    int first = -1, last = -1;
+                    for (int e = 0; e < int(w.size()); ++e)
+                        if (w[std::size_t(e)] != 0.0) last = e, first = first < 0 ? e : first;
+                    return std::pair<long, long>(first - centre, last - centre);
+                };
+                const auto tx =
+                    range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization));
+                const bool steered = !geometry.array().aperture_centre(geometry.line(l));
+                const long offset =
+                    steered ? 1000000L + l : std::lround(a.along[std::size_t(centre)] * 1e4);
+                for (int i = known; i < depths; ++i) {
+                    const auto rx = range(probe::aperture_weights(
+                        a, t.receive_aperture_mm(depth_of(i)), t.rx_apodization));
+                    const Key key{offset, tx.first, tx.second, rx.first, rx.second, i, 0};
+                    auto [stored, fresh] = store->index.try_emplace(key, int(store->rows.size()));
+                    if (fresh) {
+                        store->rows.emplace_back();
+                        store->line.push_back(l);
+                        jobs.push_back({l, i, stored->second});
+                    }
+                    store->row_of_depth[std::size_t(i)][std::size_t(l)] = stored->second;
+                }
             }
         }
-        table->rows_.resize(jobs.size());
-        for (const Job& job : jobs) table->row_line_.push_back(job.line);
+        // The table numbers rows as the store does, and sees those made so far.
+        table->row_of_.resize(std::size_t(t.lines) * std::size_t(depths));
+        for (int l = 0; l < t.lines; ++l)
+            for (int i = 0; i < depths; ++i)
+                table->row_of_[std::size_t(l) * std::size_t(depths) + std::size_t(i)] =
+                    store->row_of_depth[std::size_t(i)][std::size_t(l)];
+        for (std::size_t r = 0; r < store->rows.size(); ++r) table->rows_.push_back(&store->rows[r]);
+        table->row_line_ = store->line;
         tbb::parallel_for(0, int(jobs.size()), [&](int n) {
             const Job& job = jobs[std::size_t(n)];
             const probe::LineFields& f = fields[std::size_t(job.line)];
             const double z = depth_of(job.depth);
             const auto receive = f.receive_aperture(z);
-            PsfTable::Row& row = table->rows_[std::size_t(n)];
-            row.dx = 0.25 * lambda * std::max(z / t.receive_aperture_mm(z), 0.5);
+            PsfTable::Row& row = store->rows[std::size_t(job.id)];
+            row.dx = PsfTable::reach_mm(t, z) / kHalfRow;
             row.half = kHalfRow;
             row.h.resize(std::size_t(2 * kHalfRow + 1));
             row.receive_power.resize(row.h.size());
@@ -99,37 +178,32 @@ struct PsfTableBuilder {
 };
 
 std::shared_ptr<const PsfTable> PsfTable::of(const probe::Transducer& t) {
-    const std::array<double, 15> key{double(int(t.type)),
-                                     double(t.elements),
-                                     t.pitch_mm,
-                                     t.radius_mm,
-                                     t.fov_deg,
-                                     t.frequency_mhz,
-                                     t.focus_mm,
-                                     t.f_number,
-                                     double(int(t.tx_apodization)),
-                                     t.rx_f_number,
-                                     double(int(t.rx_apodization)),
-                                     t.depth_mm,
-                                     double(t.lines),
-                                     t.element_width_mm,
-                                     0.0};
+    const std::pair<RowStoreKey, double> key{row_store_key(t, row_spacing_mm(t)), t.depth_mm};
     static std::mutex mutex;
-    static std::vector<std::pair<std::array<double, 15>, std::shared_ptr<const PsfTable>>> cache;
+    static std::vector<std::pair<std::pair<RowStoreKey, double>, std::shared_ptr<const PsfTable>>>
+        cache;
     {
         const std::lock_guard<std::mutex> lock(mutex);
         for (const auto& [k, table] : cache)
             if (k == key) return table;
     }
-    std::shared_ptr<const PsfTable> table = PsfTableBuilder::build(t);
+    std::shared_ptr<const PsfTable> table = PsfTableBuilder::build(t, shared_row_store(t));
     const std::lock_guard<std::mutex> lock(mutex);
     cache.emplace_back(key, table);
     if (cache.size() > 4) cache.erase(cache.begin());
     return table;
 }
 
+double PsfTable::reach_mm(const probe::Transducer& t, double z) {
+    return kHalfRow * 0.25 * t.wavelength_mm() * std::max(z / t.receive_aperture_mm(z), 0.5);
+}
+
+double PsfTable::point_reach_mm(const probe::Transducer& t, double z) {
+    return 3.0 * reach_mm(t, z) + 0.5 * t.active_aperture_mm();
+}
+
 std::shared_ptr<const PsfTable> PsfTable::build(const probe::Transducer& t) {
-    return PsfTableBuilder::build(t);
+    return PsfTableBuilder::build(t, std::make_shared<RowStore>());
 }
 
 probe::LineFields PsfTable::fields_of_line(const probe::Transducer& t, int l) {
@@ -159,21 +233,21 @@ std::complex<double> PsfTable::plane_echo(int l, double z, double sin_tilt) cons
 }
 
 std::complex<double> PsfTable::plane_echo_at(int l, int i, int tilt) const {
-    const int id = row_id(l, i);
+    const int row = row_id(l, i), id = row;
     const uint64_t key = (uint64_t(uint32_t(id)) << 32) | uint32_t(tilt + 1000000);
-    if (auto it = plane_echoes_.find(key); it != plane_echoes_.end()) return it->second;
+    if (auto it = store_->plane_echoes.find(key); it != store_->plane_echoes.end())
+        return it->second;
     std::shared_ptr<const probe::LineFields> fields;
+    const int line = row_line_[std::size_t(row)];
     {
-        const std::lock_guard<std::mutex> lock(cache_mutex_);
-        auto& slot = row_fields_[row_line_[std::size_t(id)]];
-        if (!slot)
-            slot =
-                std::make_shared<probe::LineFields>(fields_of_line(t_, row_line_[std::size_t(id)]));
+        const std::lock_guard<std::mutex> lock(store_->fields_mutex);
+        auto& slot = store_->fields[line];
+        if (!slot) slot = std::make_shared<probe::LineFields>(fields_of_line(t_, line));
         fields = slot;
     }
     // Computed outside the lock (two threads may both compute one: the same value).
     const std::complex<double> value = fields->plane_echo(row_depth_mm(i), tilt / kTiltSteps);
-    if (plane_echoes_.size() < kMaxPlaneEchoes) plane_echoes_.emplace(key, value);
+    if (store_->plane_echoes.size() < kMaxPlaneEchoes) store_->plane_echoes.emplace(key, value);
     return value;
 }
 
@@ -186,7 +260,7 @@ int PsfTable::row_id(int l, int i) const {
 const PsfTable::Row& PsfTable::row(int l, int i) const {
     l = std::clamp(l, 0, lines_ - 1);
     i = std::clamp(i, 0, depths_ - 1);
-    return rows_[std::size_t(row_of_[std::size_t(l) * std::size_t(depths_) + std::size_t(i)])];
+    return *rows_[std::size_t(row_of_[std::size_t(l) * std::size_t(depths_) + std::size_t(i)])];
 }
 
 namespace {

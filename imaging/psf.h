@@ -35,8 +35,9 @@ class PsfTable {
     // The table of `t` (computed on first use, kept for the next frames of the same
     // probe set-up).
     static std::shared_ptr<const PsfTable> of(const probe::Transducer& t);
-    // The table of `t` computed afresh and not kept (benchmarks, tests).
+    // The table of `t` computed afresh, sharing no rows, and not kept (benchmarks, tests).
     static std::shared_ptr<const PsfTable> build(const probe::Transducer& t);
+    struct RowStore;  // rows shared between tables (psf.cpp)
 
     struct Row {
         double dx = 0.0;                     // lateral spacing (mm)
@@ -46,11 +47,16 @@ class PsfTable {
         double power = 0.0;                  // sum |H|^2 dx (1/mm)
     };
 
+    // How far across a line its row reaches at depth z (mm): +-6 main lobes of the
+    // receive, lambda max(F_rx(z), 1/2) each.
+    static double reach_mm(const probe::Transducer& t, double z);
+    // How far across a line a point target's echo is drawn (mm): three times the reach,
+    // and half the transmit aperture more (near the face the transmit beam is as wide as
+    // its aperture): beyond, its broadband echo is 45 dB and more below its peak.
+    static double point_reach_mm(const probe::Transducer& t, double z);
     double dz() const { return dz_; }
-    // Lines share rows: the row of line l at depth index i, and for a row, the line whose
-    // geometry made it (its fields give the row's other quantities, the plane echo).
+    // Lines share rows: the row of line l at depth index i.
     int row_id(int l, int i) const;
-    int row_line(int id) const { return row_line_[std::size_t(id)]; }
     double row_depth_mm(int i) const { return std::max(i * dz_, 0.5 * dz_); }
     // The fields of the line that made a row, with the table's snapping (t: the table's).
     static probe::LineFields fields_of_line(const probe::Transducer& t, int l);
@@ -145,24 +151,26 @@ class PsfTable {
     double dz_ = 1.0, k_ = 0.0;
     int lines_ = 0, depths_ = 0;
     double focal_power_ = 1.0;
-    std::vector<Row> rows_;
-    std::vector<int> row_of_;    // [line * depths + i] -> rows_
-    std::vector<int> row_line_;  // rows_ -> the line that made it
+    std::shared_ptr<RowStore> store_;
+    std::vector<const Row*> rows_;  // the store's rows when the table was made, numbered as there
+    std::vector<int> row_line_;     // rows_ -> the line that made it (its fields: plane echoes)
+    std::vector<int> row_of_;       // [line * depths + i] -> rows_
     probe::Transducer t_;
-    // Plane echoes by row and tilt step: read by every reflection of every frame from
-    // all threads at once, so without a lock (behind one mutex the threads queued at
-    // every reflection). Filled up to kMaxPlaneEchoes, computed afresh beyond.
+    // Plane echoes (in the store, by its row and tilt step) are read by every reflection
+    // of every frame from all threads at once, so without a lock (behind one mutex the
+    // threads queued at every reflection). Filled up to kMaxPlaneEchoes, computed afresh
+    // beyond.
     static constexpr std::size_t kMaxPlaneEchoes = std::size_t(1) << 22;  // ~100 MB
-    // Mixed keys: the table's buckets are a power of two, and the row sits in the key's
-    // high half.
+    // The sub-line weights.
+    mutable std::mutex cache_mutex_;
+    mutable std::unordered_map<int, std::shared_ptr<const SubLineWeights>> sub_line_weights_;
+
+  public:
+    // Mixed keys: the plane echoes' buckets are a power of two, and the row sits in the
+    // key's high half.
     struct MixedKey {
         std::size_t operator()(uint64_t key) const { return std::size_t(base::mix64(key)); }
     };
-    mutable tbb::concurrent_unordered_map<uint64_t, std::complex<double>, MixedKey> plane_echoes_;
-    // The fields of the lines that made rows, and the sub-line weights.
-    mutable std::mutex cache_mutex_;
-    mutable std::unordered_map<int, std::shared_ptr<const probe::LineFields>> row_fields_;
-    mutable std::unordered_map<int, std::shared_ptr<const SubLineWeights>> sub_line_weights_;
 };
 
 // The receive weight of every particle of `sources` (map frame; the probe face centre at

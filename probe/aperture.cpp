@@ -88,9 +88,8 @@ BroadbandEcho broadband_echo(const PulseEcho::Band& band, const std::complex<dou
     const int M = band.count();
     BroadbandEcho out;
     // c_m = s_m H_m; the envelope |e(t)| is that of the baseband sum b(t) = sum_m c_m
-    // w(t)^m, w = exp(i 2 pi step t), evaluated by Horner's rule on a grid of a quarter of
-    // the band's inverse span across the window 1 / step, then refined by a parabola
-    // through the largest |b|^2 and its neighbours.
+    // w(t)^m, w = exp(i 2 pi step t): |b|^2 on the band's search grid, the peak refined by
+    // a parabola through the largest and its neighbours, b there by Horner's rule.
     thread_local std::vector<std::complex<double>> c;
     c.resize(std::size_t(M));
     double energy = 0.0;
@@ -100,26 +99,40 @@ BroadbandEcho broadband_echo(const PulseEcho::Band& band, const std::complex<dou
     }
     out.power = energy / band.power;
     if (!(energy > 0.0)) return out;
-    const double span = std::max(M - 1, 1) * band.step_hz, dt = 0.25 / span;
-    const int half = int(std::ceil(0.5 / (band.step_hz * dt)));
+    const double dt = band.search_dt;
+    const int half = band.search_half;
     auto baseband = [&](double t) {
         const std::complex<double> w = std::polar(1.0, 2.0 * std::numbers::pi * band.step_hz * t);
         std::complex<double> b = 0.0;
         for (int m = M - 1; m >= 0; --m) b = b * w + c[std::size_t(m)];
         return b;
     };
+    // |b|^2 on the grid from the band's phasors (real arithmetic: it vectorises).
+    thread_local std::vector<double> c_re, c_im, norms;
+    c_re.resize(std::size_t(M)), c_im.resize(std::size_t(M));
+    for (int m = 0; m < M; ++m)
+        c_re[std::size_t(m)] = c[std::size_t(m)].real(), c_im[std::size_t(m)] = c[std::size_t(m)].imag();
+    norms.resize(std::size_t(2 * half + 1));
+    const double* grid = reinterpret_cast<const double*>(band.search.data());
+    for (int k = 0; k <= 2 * half; ++k) {
+        const double* w = grid + 2 * std::size_t(k) * std::size_t(M);
+        double re = 0.0, im = 0.0;
+        for (int m = 0; m < M; ++m) {
+            const double wr = w[2 * m], wi = w[2 * m + 1];
+            re += c_re[std::size_t(m)] * wr - c_im[std::size_t(m)] * wi;
+            im += c_re[std::size_t(m)] * wi + c_im[std::size_t(m)] * wr;
+        }
+        norms[std::size_t(k)] = re * re + im * im;
+    }
     int best = 0;
-    double best_norm = -1.0, left = 0.0, right = 0.0;
-    std::vector<double> norms(std::size_t(2 * half + 1));
-    for (int k = -half; k <= half; ++k) norms[std::size_t(k + half)] = std::norm(baseband(k * dt));
+    double best_norm = -1.0;
     for (int k = -half; k <= half; ++k)
-        if (norms[std::size_t(k + half)] > best_norm)
-            best_norm = norms[std::size_t(k + half)], best = k;
-    left = norms[std::size_t(std::max(best - 1 + half, 0))];
-    right = norms[std::size_t(std::min(best + 1 + half, 2 * half))];
+        if (norms[std::size_t(k + half)] > best_norm) best_norm = norms[std::size_t(k + half)], best = k;
+    const double left = norms[std::size_t(std::max(best - 1 + half, 0))];
+    const double right = norms[std::size_t(std::min(best + 1 + half, 2 * half))];
     const double curvature = left - 2.0 * best_norm + right;
-    const double shift =
-        curvature < 0.0 ? std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5) : 0.0;
+    const double shift = curvature < 0.0 ? std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5)
+                                         : 0.0;
     const double t = (best + shift) * dt;
     // e(t*) with the carrier exp(i 2 pi f0 t*) taken out: the phase an echo placed at t = 0
     // with the pulse's carrier must have to match the true echo at its peak.

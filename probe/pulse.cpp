@@ -161,6 +161,13 @@ PulseEcho::Band PulseEcho::band(double spread_s, double floor) const {
         b.weight.push_back(spectrum(b.frequency_hz(m)) * b.step_hz);
         b.power += std::norm(b.weight.back());
     }
+    const double span = std::max(b.count() - 1, 1) * b.step_hz;
+    b.search_dt = 0.25 / span;
+    b.search_half = int(std::ceil(0.5 / (b.step_hz * b.search_dt)));
+    for (int k = -b.search_half; k <= b.search_half; ++k)
+        for (int m = 0; m < b.count(); ++m)
+            b.search.push_back(
+                std::polar(1.0, 2.0 * std::numbers::pi * m * b.step_hz * k * b.search_dt));
     return b;
 }
 

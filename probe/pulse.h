@@ -63,6 +63,13 @@ class PulseEcho {
         double first_hz = 0.0, step_hz = 0.0;
         std::vector<std::complex<double>> weight;  // s_m
         double power = 0.0;                        // sum |s_m|^2
+        // The grid an echo's envelope peak is searched on (probe::broadband_echo): times
+        // t_k = k search_dt for |k| <= search_half across the window 1 / step, a quarter
+        // of the band's inverse span apart, and their baseband phasors exp(i 2 pi m step
+        // t_k) at [(k + search_half) count + m].
+        double search_dt = 0.0;
+        int search_half = 0;
+        std::vector<std::complex<double>> search;
         int count() const { return int(weight.size()); }
         double frequency_hz(int m) const { return first_hz + m * step_hz; }
         // sum_m s_m exp(i 2 pi f_m t): the waveform (analytic) as the band sums it.

@@ -528,6 +528,42 @@ TEST(Psf, ReceiveWeightsAreKeptForTheSameParticlesOnly) {
 namespace sonotrace {
 namespace {
 
+// Rows shared between the tables of probe settings that differ in depth alone (an
+// optimisation that claims to change nothing): a table assembled from a store that a
+// shallower and a deeper table filled first equals one computed afresh, bit for bit, in
+// every row, its power and its plane echoes.
+TEST(Psf, TablesSharingRowsAcrossDepthsEqualFreshOnes) {
+    for (const char* preset : {"convex", "linear", "phased"}) {
+        probe::Transducer t = probe::find_transducer(preset, "test");
+        t.lines = 24;
+        t.depth_mm = 0.8 * probe::find_transducer(preset, "test").depth_mm;
+        for (const double depth : {0.6 * t.depth_mm, 1.2 * t.depth_mm}) {
+            probe::Transducer other = t;
+            other.depth_mm = depth;
+            imaging::PsfTable::of(other)->plane_echo(t.lines / 3, 0.5 * depth, 0.05);
+        }
+        const auto shared = imaging::PsfTable::of(t), fresh = imaging::PsfTable::build(t);
+        ASSERT_EQ(shared->depths(), fresh->depths()) << preset;
+        ASSERT_EQ(shared->dz(), fresh->dz()) << preset;
+        long differing = 0;
+        for (int l = 0; l < t.lines; ++l)
+            for (int i = 0; i < fresh->depths(); ++i) {
+                const auto &a = shared->row(l, i), &b = fresh->row(l, i);
+                differing += a.dx != b.dx || a.half != b.half || a.power != b.power ||
+                             a.h.size() != b.h.size() ||
+                             std::memcmp(a.h.data(), b.h.data(), a.h.size() * sizeof a.h[0]) != 0 ||
+                             std::memcmp(a.receive_power.data(), b.receive_power.data(),
+                                         a.receive_power.size() * sizeof a.receive_power[0]) != 0;
+            }
+        EXPECT_EQ(differing, 0) << preset;
+        EXPECT_EQ(shared->focal_power(), fresh->focal_power()) << preset;
+        for (int l : {0, t.lines / 3, t.lines - 1})
+            for (const double z : {0.3 * t.depth_mm, 0.5 * t.depth_mm})
+                EXPECT_EQ(shared->plane_echo(l, z, 0.05), fresh->plane_echo(l, z, 0.05))
+                    << preset << " line " << l << " z " << z;
+    }
+}
+
 // Two optimisations that claim to change nothing, against the plain forms they replace:
 // the sub-line weights kept per table row (PsfTable::sub_line_weights) are at_row at
 // j d(z_i) for every line and depth index, and the speckle sums four sub-lines at a time
