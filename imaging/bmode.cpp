@@ -782,7 +782,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                 // peak (test: BroadbandFields.PointEchoesFadeBeforeTheirReach).
                 if (std::abs(q.x) > PsfTable::point_reach_mm(t, q.y)) continue;
                 const std::complex<double> h = f.broadband(q, receive_at(q.y)).two_way.echo;
-                add_pulse(pulse, q.y * depth_to_samples, fs, p.amplitude * h, out, N);
+                add_pulse(pulse, (q.y + p.delay_mm) * depth_to_samples, fs, p.amplitude * h, out,
+                          N);
             }
         }
     });

@@ -124,6 +124,9 @@ struct PointEcho {
     glm::dvec2 position{0.0};
     double amplitude = 0.0;
     double core_radius_mm = 0.0;  // traced echoes this close are the target's own (dropped)
+    // The one-way travel time of the straight path from the face, less c0's, times c0
+    // (mm): the echo comes from that much deeper (integral of (c0 / c - 1) ds).
+    double delay_mm = 0.0;
 };
 
 // The RF lines of a frame. `events` and `profile` come from one trace of `sources`

@@ -153,7 +153,8 @@ struct PsfTableBuilder {
             for (int i = 0; i < depths; ++i)
                 table->row_of_[std::size_t(l) * std::size_t(depths) + std::size_t(i)] =
                     store->row_of_depth[std::size_t(i)][std::size_t(l)];
-        for (std::size_t r = 0; r < store->rows.size(); ++r) table->rows_.push_back(&store->rows[r]);
+        for (std::size_t r = 0; r < store->rows.size(); ++r)
+            table->rows_.push_back(&store->rows[r]);
         table->row_line_ = store->line;
         tbb::parallel_for(0, int(jobs.size()), [&](int n) {
             const Job& job = jobs[std::size_t(n)];

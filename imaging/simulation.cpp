@@ -338,8 +338,8 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
         // March the straight path up to the core, in double: attenuation and impedance runs.
         const double length = glm::length(to - from) - 0.5 * piece.diameter_mm - margin_mm;
         const glm::dvec2 direction = glm::normalize(to - from);
-        double optical = 0.0, transmission = 1.0;
-        double run_start = 0.0, previous = 0.0;
+        double optical = 0.0, transmission = 1.0, delay = 0.0;
+        double run_start = 0.0, previous = 0.0, previous_s = 0.0;
         int run_sign = 0;
         auto close_run = [&](double z_end) {
             const double r = (z_end - run_start) / (z_end + run_start);
@@ -357,6 +357,8 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
                 continue;
             }
             optical += tissue::attenuation_per_mm(texel.attenuation, t.frequency_mhz) * step;
+            delay += (double(texel.refractive_index) - 1.0) * (s - previous_s);
+            previous_s = s;
             const double change = z - previous;
             const int sign = std::abs(change) < 1e-6 * z ? 0 : (change > 0.0 ? 1 : -1);
             if (sign != 0 && run_sign != 0 && sign != run_sign) {  // the run turned: close it
@@ -368,7 +370,7 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
         }
         if (steps > 0) close_run(previous);
         echoes.push_back({to, strength * transmission * std::exp(-optical),
-                          0.5 * piece.diameter_mm + margin_mm});
+                          0.5 * piece.diameter_mm + margin_mm, delay});
     }
     return echoes;
 }

@@ -185,8 +185,10 @@ class TargetCores {
 // The echoes of the targets that cross this plane (points weighted by the elevation
 // profile of the slice, tissue/point_target.h), at their map-frame positions, with the
 // two-way losses of the straight path from the face to each: attenuation, and 1 - R^2
-// of every impedance step on the way (a smoothed step counts once, as one monotone run).
-// `margin_mm` keeps a target's own painted core out of its path.
+// of every impedance step on the way (a smoothed step counts once, as one monotone run);
+// and the path's travel time against c0's, as the extra range its echo seems to come
+// from (PointEcho::delay_mm). `margin_mm` keeps a target's own painted core out of its
+// path.
 std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targets,
                                     const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                                     const probe::Pose& pose, const probe::Transducer& t,

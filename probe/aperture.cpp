@@ -111,7 +111,8 @@ BroadbandEcho broadband_echo(const PulseEcho::Band& band, const std::complex<dou
     thread_local std::vector<double> c_re, c_im, norms;
     c_re.resize(std::size_t(M)), c_im.resize(std::size_t(M));
     for (int m = 0; m < M; ++m)
-        c_re[std::size_t(m)] = c[std::size_t(m)].real(), c_im[std::size_t(m)] = c[std::size_t(m)].imag();
+        c_re[std::size_t(m)] = c[std::size_t(m)].real(),
+        c_im[std::size_t(m)] = c[std::size_t(m)].imag();
     norms.resize(std::size_t(2 * half + 1));
     const double* grid = reinterpret_cast<const double*>(band.search.data());
     for (int k = 0; k <= 2 * half; ++k) {
@@ -127,12 +128,13 @@ BroadbandEcho broadband_echo(const PulseEcho::Band& band, const std::complex<dou
     int best = 0;
     double best_norm = -1.0;
     for (int k = -half; k <= half; ++k)
-        if (norms[std::size_t(k + half)] > best_norm) best_norm = norms[std::size_t(k + half)], best = k;
+        if (norms[std::size_t(k + half)] > best_norm)
+            best_norm = norms[std::size_t(k + half)], best = k;
     const double left = norms[std::size_t(std::max(best - 1 + half, 0))];
     const double right = norms[std::size_t(std::min(best + 1 + half, 2 * half))];
     const double curvature = left - 2.0 * best_norm + right;
-    const double shift = curvature < 0.0 ? std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5)
-                                         : 0.0;
+    const double shift =
+        curvature < 0.0 ? std::clamp(0.5 * (left - right) / curvature, -0.5, 0.5) : 0.0;
     const double t = (best + shift) * dt;
     // e(t*) with the carrier exp(i 2 pi f0 t*) taken out: the phase an echo placed at t = 0
     // with the pulse's carrier must have to match the true echo at its peak.
