@@ -244,5 +244,37 @@ TEST(Dataset, DamagedOrMisnumberedShardsAreMadeAgainNeverKept) {
     expect_made_again("its header is damaged");
 }
 
+// A dataset's identity is the content its spec names, not the spec's text alone (issue
+// 50, item 9): two of three shards made, then a phantom the spec names edited (a radius
+// 5 -> 9), the next run refuses the old shards (exit 1 from the CLI) instead of mixing
+// frames of two phantoms into one dataset; the same phantom restored, the run resumes
+// them. A phantom copied byte for byte under another name keeps the identity only if its
+// spec names the same path (the path is part of the spec).
+TEST(Dataset, ShardsOfAnEditedPhantomAreRefusedNotMixed) {
+    ScratchDir dir;
+    const std::string phantom = dir / "cysts.json";
+    const std::string original = bytes_of(kPhantoms + "/cyst_and_stone.json");
+    std::ofstream(phantom, std::ios::binary) << original;
+    nlohmann::json j = small_spec();
+    j["sources"] = {{{"phantom", phantom}}};
+    const Spec spec = parse_spec(j, "spec");
+    RunOptions o;
+    o.out_dir = dir / "out";
+    make_dataset(spec, o);
+    std::filesystem::remove(shard_path(o.out_dir, 2));
+    std::string edited = original;
+    const std::size_t at = edited.find("\"radius\": 5");
+    ASSERT_NE(at, std::string::npos) << "the catalogue phantom changed: pick another edit";
+    edited.replace(at, 12, "\"radius\": 9");
+    std::ofstream(phantom, std::ios::binary | std::ios::trunc) << edited;
+    const Spec changed = parse_spec(j, "spec");
+    EXPECT_NE(changed.digest(), spec.digest());
+    expect_input_error([&] { make_dataset(changed, o); }, "shard_00000", "spec_digest",
+                       "is not a shard of this spec");
+    std::ofstream(phantom, std::ios::binary | std::ios::trunc) << original;
+    const RunReport resumed = make_dataset(parse_spec(j, "spec"), o);
+    EXPECT_EQ(resumed.shards_written, 1u);
+}
+
 }  // namespace
 }  // namespace sonotrace::imaging::dataset

@@ -64,8 +64,9 @@ std::vector<uint64_t> missing_shards(const Spec& spec, const std::string& dir, u
         const ShardCheck check = check_shard(path, spec.digest(), k);
         if (check.verdict == ShardCheck::foreign)
             throw base::InputError(path, "spec_digest",
-                                   "is not a shard of this spec: make the dataset in another "
-                                   "--out, or remove the old shards");
+                                   "is not a shard of this spec (the spec, a file it names or "
+                                   "the program's version differs): make the dataset in "
+                                   "another --out, or remove the old shards");
         if (check.verdict == ShardCheck::damaged) {  // made again, replacing it
             missing.push_back(k);
             if (damaged) damaged->push_back(path + ": " + check.why);

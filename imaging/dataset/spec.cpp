@@ -1,9 +1,12 @@
 #include "imaging/dataset/spec.h"
 
+#include "sonotrace_version.h"
+
 #include <cmath>
 #include <filesystem>
 
 #include "tissue/base/error.h"
+#include "tissue/base/file_read.h"
 #include "tissue/base/file_status.h"
 #include "tissue/base/hash.h"
 #include "tissue/base/json_util.h"
@@ -68,7 +71,7 @@ json canonical_numbers(const json& j) {
 uint64_t Spec::digest() const {
     uint64_t h = 0x73706563ull;
     for (const char c : canonical) h = base::mix64(h ^ uint8_t(c));
-    return h;
+    return base::mix64(h ^ inputs);
 }
 
 Spec parse_spec(const json& j, const std::string& source) {
@@ -158,8 +161,32 @@ Spec parse_spec(const json& j, const std::string& source) {
             if (s.contains("spacing"))
                 out.scene.spacing = jsonio::get_string(s, "spacing", source, where);
         }
+        // What the source's files hold (an image stack: each of its files).
+        auto add_content = [&](const std::string& path, const std::string& key) {
+            const std::string field = jsonio::join(where, key);
+            if (path.find('%') != std::string::npos &&
+                base::file_status(path, source, field).type() ==
+                    std::filesystem::file_type::not_found) {
+                for (const std::string& member : tissue::list_image_stack(path))
+                    spec.inputs = base::mix64(spec.inputs ^ base::content_digest(member, field));
+                return;
+            }
+            spec.inputs = base::mix64(spec.inputs ^ base::content_digest(path, field));
+        };
+        if (!out.scene.phantom.empty()) add_content(out.scene.phantom, "phantom");
+        if (s.contains("volume")) add_content(out.scene.volume, "volume");
+        if (!out.scene.tf.empty()) {  // a file, or a preset's name (its table is the program's)
+            const std::filesystem::path p(out.scene.tf);
+            const std::string resolved = p.is_absolute() ? out.scene.tf : (base / p).string();
+            if (base::file_status(resolved, source, jsonio::join(where, "tf")).type() ==
+                std::filesystem::file_type::regular)
+                add_content(resolved, "tf");
+        }
         spec.sources.push_back(std::move(out));
     }
+    // The program's version: another version may make other frames of the same spec.
+    for (const char c : std::string(SONOTRACE_VERSION))
+        spec.inputs = base::mix64(spec.inputs ^ uint8_t(c));
     // -- probes and parameter ranges
     if (j.contains("probes")) {
         const json& p = j["probes"];

@@ -72,11 +72,16 @@ struct Spec {
     int trace_dimensions = 2;
     bool write_bmode = true, write_labels = true, write_envelope = false, write_rf = false,
          write_energy = false;
-    // The spec as read, canonical (sorted keys, no whitespace): what identifies a dataset.
+    // The spec as read, canonical (sorted keys, no whitespace), and a digest of what it
+    // names and what makes the frames: each source file's content (a phantom, a volume
+    // file, a DICOM directory's files, an image stack's files, a transfer-function file)
+    // and the program's version. Together they identify a dataset.
     std::string canonical;
+    uint64_t inputs = 0;
 
     uint64_t shards() const { return (frames + frames_per_shard - 1) / frames_per_shard; }
-    // A 64-bit digest of `canonical`: shards of another spec are refused, not mixed in.
+    // A 64-bit digest of `canonical` and `inputs`: shards of another spec, or of the same
+    // spec over files that changed since, are refused, not mixed in.
     uint64_t digest() const;
 };
 

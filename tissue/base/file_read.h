@@ -3,6 +3,7 @@
 // or a device could block for ever or never end), it is opened without blocking, and its
 // size is checked against a cap before anything is allocated.
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 namespace sonotrace::base {
@@ -11,5 +12,10 @@ namespace sonotrace::base {
 // is missing, not a regular file, larger than `max_bytes`, or cannot be read.
 std::string read_regular_file(const std::string& path, std::size_t max_bytes,
                               const std::string& field = "");
+
+// A 64-bit digest of what `path` holds, read in pieces (any size): a regular file's bytes;
+// a directory's regular files (recursively, by name), each name and its bytes. Throws
+// InputError as read_regular_file does for what is neither (a FIFO, a device).
+uint64_t content_digest(const std::string& path, const std::string& field = "");
 
 }  // namespace sonotrace::base
