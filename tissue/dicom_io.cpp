@@ -16,6 +16,7 @@
 #include <sanitizer/common_interface_defs.h>
 #endif
 
+#include <gdcmAttribute.h>
 #include <gdcmImage.h>
 #include <gdcmImageReader.h>
 #include <gdcmReader.h>
@@ -155,8 +156,26 @@ struct SliceHeader {
     std::optional<double> slice_thickness;
     double slope = 1.0, intercept = 0.0;  // RescaleSlope, RescaleIntercept
     int frames = 1;
-    double along_normal = 0.0;  // position projected on the slice normal, mm
+    double along_normal = 0.0;     // position projected on the slice normal, mm
+    double declared_pixels = 0.0;  // rows x columns x frames
 };
+
+// How far a file's pixel data may expand when decoded: deflate's limit is 1032:1 and
+// RLE's 128:1; JPEG 2000 packs a uniform image tighter, so the bound is looser still. A
+// 766-byte RLE file declaring 40000 x 40000 pixels (3.2 GB decoded) is refused by it
+// before any decoding.
+constexpr double kMaxDecodedPerFileByte = 10000.0;
+
+// An unsigned short element (US), if present (GDCM swaps a big-endian file's bytes).
+template <std::uint16_t Group, std::uint16_t Element>
+std::optional<unsigned> unsigned_short_of(const gdcm::DataSet& data) {
+    if (!data.FindDataElement(gdcm::Tag(Group, Element))) return std::nullopt;
+    const gdcm::ByteValue* value = data.GetDataElement(gdcm::Tag(Group, Element)).GetByteValue();
+    if (!value || value->GetLength() != 2) return std::nullopt;
+    gdcm::Attribute<Group, Element> a;
+    a.SetFromDataSet(data);
+    return unsigned(a.GetValue());
+}
 
 // Refuses a file whose elements declare more bytes than it holds, before GDCM reads it:
 // GDCM allocates a declared length before it finds the file short (a 714-byte file
@@ -335,6 +354,25 @@ std::optional<SliceHeader> read_header(const std::string& file) {
         }
         header.frames = int((*f)[0]);
     }
+    // What decoding would allocate, refused before it: more than the file can encode.
+    const unsigned rows = unsigned_short_of<0x0028, 0x0010>(data).value_or(0),
+                   columns = unsigned_short_of<0x0028, 0x0011>(data).value_or(0),
+                   bits = unsigned_short_of<0x0028, 0x0100>(data).value_or(16);
+    header.declared_pixels = double(rows) * columns * header.frames;
+    const double declared_bytes = header.declared_pixels * std::max(1u, (bits + 7) / 8);
+    std::error_code error;
+    const double file_bytes = double(std::filesystem::file_size(file, error));
+    const bool encapsulated =
+        reader.GetFile().GetHeader().GetDataSetTransferSyntax().IsEncapsulated();
+    const double holds = error ? 0.0 : (encapsulated ? kMaxDecodedPerFileByte : 1.0) * file_bytes;
+    if (!error && declared_bytes > holds)
+        throw base::InputError(file, kRows.field(),
+                               "declares " + std::to_string(columns) + " x " +
+                                   std::to_string(rows) + " x " + std::to_string(header.frames) +
+                                   " pixels (" + std::to_string(std::uint64_t(declared_bytes)) +
+                                   " bytes), more than " +
+                                   (encapsulated ? "any lossless encoding of its " : "its ") +
+                                   std::to_string(std::uint64_t(file_bytes)) + " bytes holds");
     return header;
 }
 
@@ -761,6 +799,10 @@ DicomReadResult read_dicom_here(const std::string& path) {
                                "no DICOM file here holds an image (reports, presentation "
                                "states and DICOMDIR files have none)");
     }
+    // The whole series' voxels (as floats) against the free memory, before any decoding.
+    double declared_voxels = 0.0;
+    for (const SliceHeader& slice : slices) declared_voxels += slice.declared_pixels;
+    base::check_allocation(declared_voxels * sizeof(float), path, kRows.field());
     DicomReadResult result = read_series(std::move(slices), path);
     if (skipped > 0) {
         result.warnings.push_back(path + ": " + std::to_string(skipped) +
