@@ -16,26 +16,45 @@
 
 namespace sonotrace::base {
 
+namespace {
+
+// A regular file opened for reading without blocking (opening a FIFO for reading would
+// otherwise wait for a writer), closed when it goes out of scope; its size.
+struct RegularFile {
+    int fd = -1;
+    std::size_t size = 0;
+    RegularFile(const std::string& path, const std::string& field) {
+        auto fail = [&](const std::string& what) { throw InputError(path, field, what); };
+        if (path.find('\0') != std::string::npos) fail("the name holds a NUL character");
+        fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+        if (fd < 0) fail(errno == ENOENT ? "file not found" : std::string(std::strerror(errno)));
+        struct stat info {};
+        if (::fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+            const std::string why =
+                S_ISREG(info.st_mode) ? std::strerror(errno) : "is not a regular file";
+            ::close(fd);
+            fail(why);
+        }
+        size = std::size_t(info.st_size);
+    }
+    RegularFile(const RegularFile&) = delete;
+    RegularFile& operator=(const RegularFile&) = delete;
+    ~RegularFile() { ::close(fd); }
+};
+
+}  // namespace
+
 std::string read_regular_file(const std::string& path, std::size_t max_bytes,
                               const std::string& field) {
     auto fail = [&](const std::string& what) { throw InputError(path, field, what); };
-    if (path.find('\0') != std::string::npos) fail("the name holds a NUL character");
-    // O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer.
-    const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-    if (fd < 0) fail(errno == ENOENT ? "file not found" : std::string(std::strerror(errno)));
-    struct Closer {
-        int fd;
-        ~Closer() { ::close(fd); }
-    } closer{fd};
-    struct stat info {};
-    if (::fstat(fd, &info) != 0) fail(std::strerror(errno));
-    if (!S_ISREG(info.st_mode)) fail("is not a regular file");
-    if (std::size_t(info.st_size) > max_bytes)
-        fail("is " + std::to_string(info.st_size) + " bytes; this input is limited to " +
+    const RegularFile file(path, field);
+    const int fd = file.fd;
+    if (file.size > max_bytes)
+        fail("is " + std::to_string(file.size) + " bytes; this input is limited to " +
              std::to_string(max_bytes) + " bytes");
-    check_allocation(double(info.st_size), path, field);
+    check_allocation(double(file.size), path, field);
     // One byte more than the size: a file that grows while it is read is caught.
-    std::string bytes(std::size_t(info.st_size) + 1, '\0');
+    std::string bytes(file.size + 1, '\0');
     std::size_t done = 0;
     while (done < bytes.size()) {
         const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
@@ -53,15 +72,8 @@ namespace {
 
 uint64_t file_digest(const std::string& path, const std::string& field, uint64_t h) {
     auto fail = [&](const std::string& what) { throw InputError(path, field, what); };
-    const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-    if (fd < 0) fail(errno == ENOENT ? "file not found" : std::string(std::strerror(errno)));
-    struct Closer {
-        int fd;
-        ~Closer() { ::close(fd); }
-    } closer{fd};
-    struct stat info {};
-    if (::fstat(fd, &info) != 0) fail(std::strerror(errno));
-    if (!S_ISREG(info.st_mode)) fail("is not a regular file");
+    const RegularFile file(path, field);
+    const int fd = file.fd;
     std::vector<unsigned char> buffer(std::size_t(1) << 20);
     uint64_t length = 0;
     for (;;) {
