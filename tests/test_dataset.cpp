@@ -237,11 +237,82 @@ TEST(Dataset, DamagedOrMisnumberedShardsAreMadeAgainNeverKept) {
     std::string header = sound[0];
     header[5] ^= 1;  // "sonotrace shard" no longer
     overwrite(0, header);
-    expect_made_again("no shard header");
+    expect_made_again("its header is damaged or missing");
     header = sound[0];
     header[300] = 'x';  // in the header's zero padding
     overwrite(0, header);
-    expect_made_again("its header is damaged");
+    expect_made_again("its header is damaged or missing");
+}
+
+// `sonotrace dataset --verify DIR`: the manifest lists each shard's checksum (the one in
+// the shard's header, which covers its content), and the verification reads every shard
+// back: a flipped byte, a missing shard, a shard swapped for another and a checksum edited
+// in the manifest are each named; a malformed manifest is an InputError naming the field,
+// and a manifest naming a file outside the dataset is refused before anything is read.
+TEST(Dataset, VerifyNamesEveryDamagedMissingOrSwappedShard) {
+    ScratchDir dir;
+    const Spec spec = parse_spec(small_spec(), "spec");
+    RunOptions o;
+    o.out_dir = dir / "out";
+    make_dataset(spec, o);
+    const std::string manifest_path = dir / "out/manifest.json";
+    const nlohmann::json manifest = nlohmann::json::parse(bytes_of(manifest_path));
+    ASSERT_EQ(manifest["content_checksums"].size(), spec.shards());
+    for (uint64_t k = 0; k < spec.shards(); ++k) {
+        const std::string bytes = bytes_of(shard_path(o.out_dir, k));
+        char hex[17];
+        std::snprintf(hex, sizeof hex, "%016llx",
+                      static_cast<unsigned long long>(content_checksum(bytes)));
+        EXPECT_EQ(manifest["content_checksums"][shard_path("", k)], hex) << k;
+    }
+    EXPECT_TRUE(verify_dataset(o.out_dir, {}).problems.empty());
+
+    const std::string shard0 = bytes_of(shard_path(o.out_dir, 0));
+    std::string flipped = bytes_of(shard_path(o.out_dir, 1));
+    flipped[flipped.size() / 2] ^= 0x01;
+    std::ofstream(shard_path(o.out_dir, 1), std::ios::binary | std::ios::trunc) << flipped;
+    std::filesystem::remove(shard_path(o.out_dir, 2));
+    VerifyReport report = verify_dataset(o.out_dir, {});
+    EXPECT_EQ(report.shards, spec.shards());
+    ASSERT_EQ(report.problems.size(), 2u);
+    EXPECT_NE(report.problems[0].find("shard_00001.h5: its content does not match"),
+              std::string::npos)
+        << report.problems[0];
+    EXPECT_NE(report.problems[1].find("shard_00002.h5"), std::string::npos);
+    EXPECT_NE(report.problems[1].find("file not found"), std::string::npos);
+
+    make_dataset(spec, o);  // the run remakes them
+    EXPECT_TRUE(verify_dataset(o.out_dir, {}).problems.empty());
+    std::ofstream(shard_path(o.out_dir, 1), std::ios::binary | std::ios::trunc) << shard0;
+    report = verify_dataset(o.out_dir, {});
+    ASSERT_EQ(report.problems.size(), 1u);
+    EXPECT_NE(report.problems[0].find("holds shard 0, not shard 1"), std::string::npos);
+    make_dataset(spec, o);
+
+    // A sound shard whose checksum the manifest does not list.
+    nlohmann::json edited = manifest;
+    edited["content_checksums"]["shard_00000.h5"] = "0123456789abcdef";
+    std::ofstream(manifest_path, std::ios::trunc) << edited.dump();
+    report = verify_dataset(o.out_dir, {});
+    ASSERT_EQ(report.problems.size(), 1u);
+    EXPECT_NE(report.problems[0].find("not the manifest's"), std::string::npos);
+
+    auto expect_refused = [&](const std::function<void(nlohmann::json&)>& edit,
+                              const std::string& field, const std::string& text) {
+        nlohmann::json j = manifest;
+        edit(j);
+        std::ofstream(manifest_path, std::ios::trunc) << j.dump();
+        expect_input_error([&] { verify_dataset(o.out_dir, {}); }, "manifest.json", field, text);
+    };
+    expect_refused([](auto& j) { j.erase("content_checksums"); }, "content_checksums", "missing");
+    expect_refused([](auto& j) { j["spec_digest"] = "xyz"; }, "spec_digest", "hex digits");
+    expect_refused([](auto& j) { j["shards"][0] = "../../etc/passwd"; }, "shards[0]",
+                   "is not \"shard_00000.h5\"");
+    expect_refused([](auto& j) { j["content_checksums"].erase("shard_00002.h5"); },
+                   "content_checksums.shard_00002.h5", "missing");
+    std::filesystem::remove(manifest_path);
+    expect_input_error([&] { verify_dataset(o.out_dir, {}); }, "manifest.json", "",
+                       "not a finished dataset");
 }
 
 // A dataset's identity is the content its spec names, not the spec's text alone (issue

@@ -308,7 +308,8 @@ TEST(OutputTransaction, TwoOutputsOfOneNameAreRefused) {
 }
 
 // Temporaries of runs that no longer exist (killed) are removed by the next run into the
-// directory; those of live processes are left alone.
+// directory; those of live processes, and those of another host (its process ids mean
+// nothing here: a directory shared over NFS), are left alone.
 TEST(OutputTransaction, TheNextRunRemovesStaleTemporaries) {
     test::ScratchDir dir;
     const pid_t dead = [] {  // a child that has exited and been reaped
@@ -318,14 +319,20 @@ TEST(OutputTransaction, TheNextRunRemovesStaleTemporaries) {
         waitpid(child, &status, 0);
         return child;
     }();
-    const std::string stale = dir / (".partial-" + std::to_string(dead) + "-0-bmode.png");
-    const std::string live = dir / (".partial-" + std::to_string(getppid()) + "-0-bmode.png");
-    std::ofstream(stale) << "x";
-    std::ofstream(live) << "x";
+    const std::string stale = dir / (".partial-" + base::temporary_owner(dead) + "-0-bmode.png");
+    const std::string live =
+        dir / (".partial-" + base::temporary_owner(getppid()) + "-0-bmode.png");
+    const std::string other_host =
+        dir / (".partial-" + std::to_string(dead) + ".0123456789abcdef-0-bmode.png");
+    const std::string no_host = dir / (".partial-" + std::to_string(dead) + "-0-labels.png");
+    for (const std::string& file : {stale, live, other_host, no_host}) std::ofstream(file) << "x";
     base::OutputTransaction t;
     std::ofstream(t.stage(dir / "bmode.png")) << "frame";
     EXPECT_FALSE(std::filesystem::exists(stale));
     EXPECT_TRUE(std::filesystem::exists(live));
+    EXPECT_TRUE(std::filesystem::exists(other_host));
+    EXPECT_TRUE(std::filesystem::exists(no_host));
+    EXPECT_EQ(base::output_name(t.stage(dir / "labels.png")), dir / "labels.png");
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_status.h"
+#include "tissue/base/json_util.h"
 #include "tissue/base/memory.h"
 #include "tissue/tissue_table.h"
 
@@ -22,23 +23,34 @@ std::string shard_path(const std::string& dir, uint64_t shard) {
 
 namespace {
 
-nlohmann::json manifest(const Spec& spec) {
+std::string hex16(uint64_t value) {
+    char text[24];
+    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(value));
+    return text;
+}
+
+// The manifest of the shards in `dir`, each checked by this run or written by it: their
+// checksums are read from their headers.
+nlohmann::json manifest(const Spec& spec, const std::string& dir) {
     nlohmann::json shards = nlohmann::json::array(), sources = nlohmann::json::array();
-    for (uint64_t k = 0; k < spec.shards(); ++k)
-        shards.push_back(std::filesystem::path(shard_path("", k)).filename().string());
+    nlohmann::json checksums = nlohmann::json::object();
+    for (uint64_t k = 0; k < spec.shards(); ++k) {
+        const std::string name = std::filesystem::path(shard_path("", k)).filename().string();
+        shards.push_back(name);
+        checksums[name] = hex16(read_shard_header(shard_path(dir, k)).content_checksum);
+    }
     for (const SourceSpec& s : spec.sources) sources.push_back(s.label);
     nlohmann::json legend = {{"0", "outside the scanned region"}};
     for (std::size_t i = 0; i < tissue::tissue_table().size(); ++i)
         legend[std::to_string(i + 1)] = tissue::tissue_label_name(int(i) + 1);
-    char digest[24];
-    std::snprintf(digest, sizeof digest, "%016llx", static_cast<unsigned long long>(spec.digest()));
     return {{"version", SONOTRACE_VERSION},
             {"spec", nlohmann::json::parse(spec.canonical)},
-            {"spec_digest", digest},
+            {"spec_digest", hex16(spec.digest())},
             {"frames", spec.frames},
             {"frames_per_shard", spec.frames_per_shard},
             {"image", {{"width", spec.width}, {"height", spec.height}}},
             {"shards", shards},
+            {"content_checksums", checksums},
             {"sources", sources},
             {"labels", legend},
             {"layout",
@@ -47,7 +59,9 @@ nlohmann::json manifest(const Spec& spec) {
              "focus_mm, gain_db, dynamic_range_db, position, lateral, axial, elevation in "
              "world mm, pixel_mm, origin_mm = probe-plane position of pixel (0, 0) as "
              "(lateral, depth), valid_width, valid_height = the scanned grid in the top-left "
-             "corner); envelope, rf, energy: float32 per frame under /<name>/<index>"}};
+             "corner); envelope, rf, energy: float32 per frame under /<name>/<index>; a "
+             "512-byte user block (spec_digest, shard, content_checksum) before the HDF5, "
+             "checked by `sonotrace dataset --verify DIR`"}};
 }
 
 }  // namespace
@@ -100,7 +114,7 @@ std::string write_manifest(const Spec& spec, const std::string& dir) {
     const std::string path = (std::filesystem::path(dir) / "manifest.json").string();
     // The shards' renames reach the disk before the manifest that names them.
     base::sync_directory(dir);
-    const std::string text = manifest(spec).dump(2) + "\n";
+    const std::string text = manifest(spec, dir).dump(2) + "\n";
     base::write_file(transaction.stage(path), text.data(), text.size());
     transaction.commit();
     return path;
@@ -111,6 +125,61 @@ void check_shard_fits_memory(const Spec& spec) {
     // bmode and labels (one byte a pixel each) twice over, before any optional output.
     const double bytes = 4.0 * double(spec.frames_per_shard) * spec.width * spec.height;
     base::check_allocation(bytes, spec.path, "frames_per_shard");
+}
+
+namespace {
+
+uint64_t parse_hex16(const nlohmann::json& value, const std::string& source,
+                     const std::string& field) {
+    const std::string text = value.is_string() ? value.get<std::string>() : "";
+    if (text.size() != 16 || text.find_first_not_of("0123456789abcdef") != std::string::npos)
+        throw base::InputError(source, field, "is not 16 lower-case hex digits");
+    return std::stoull(text, nullptr, 16);
+}
+
+}  // namespace
+
+VerifyReport verify_dataset(const std::string& dir,
+                            const std::function<void(uint64_t done, uint64_t total)>& progress) {
+    const std::string path = (std::filesystem::path(dir) / "manifest.json").string();
+    if (base::file_status(path, path, "").type() == std::filesystem::file_type::not_found)
+        throw base::InputError(path, "",
+                               "file not found: not a finished dataset (a run that stopped "
+                               "writes its manifest when the same command completes it)");
+    const nlohmann::json m = base::jsonio::read_file(path);
+    base::jsonio::require_object(m, path, "");
+    for (const char* key : {"spec_digest", "shards", "content_checksums"})
+        if (!m.contains(key)) throw base::InputError(path, key, "missing");
+    const uint64_t digest = parse_hex16(m["spec_digest"], path, "spec_digest");
+    const nlohmann::json& shards = m["shards"];
+    const nlohmann::json& checksums = m["content_checksums"];
+    if (!shards.is_array()) throw base::InputError(path, "shards", "is not an array");
+    if (!checksums.is_object())
+        throw base::InputError(path, "content_checksums", "is not an object");
+    VerifyReport report;
+    report.shards = shards.size();
+    for (uint64_t k = 0; k < shards.size(); ++k) {
+        const std::string field = "shards[" + std::to_string(k) + "]";
+        const std::string file = shard_path(dir, k);
+        const std::string name = std::filesystem::path(file).filename().string();
+        // Only the names this program writes, in order: never a path out of `dir`.
+        if (!shards[k].is_string() || shards[k].get<std::string>() != name)
+            throw base::InputError(path, field, "is not \"" + name + "\"");
+        if (!checksums.contains(name))
+            throw base::InputError(path, "content_checksums." + name, "missing");
+        const uint64_t listed = parse_hex16(checksums[name], path, "content_checksums." + name);
+        try {
+            const ShardCheck check = check_shard(file, digest, k);
+            if (check.verdict != ShardCheck::ok)
+                report.problems.push_back(file + ": " + check.why);
+            else if (check.header.content_checksum != listed)
+                report.problems.push_back(file + ": its checksum is not the manifest's");
+        } catch (const base::InputError& e) {  // missing, not a regular file, unreadable
+            report.problems.push_back(e.what());
+        }
+        if (progress) progress(k + 1, shards.size());
+    }
+    return report;
 }
 
 RunReport make_dataset(const Spec& spec, const RunOptions& options) {

@@ -37,6 +37,17 @@ struct RunReport {
 
 RunReport make_dataset(const Spec& spec, const RunOptions& options);
 
+// Checks a finished dataset in `dir` against its manifest: every shard the manifest names
+// is there, sound (header, content checksum), of the manifest's spec, under its own number,
+// with the checksum the manifest lists. Throws InputError naming manifest.json (and the
+// field) when the manifest is missing or malformed; damaged shards are listed, not thrown.
+struct VerifyReport {
+    uint64_t shards = 0;                // named by the manifest
+    std::vector<std::string> problems;  // "path: why", one per unsound shard
+};
+VerifyReport verify_dataset(const std::string& dir,
+                            const std::function<void(uint64_t done, uint64_t total)>& progress);
+
 // Throws InputError (field frames_per_shard) when one shard's frames cannot be held in the
 // memory this machine has free: checked before the first frame, not found out by swapping.
 void check_shard_fits_memory(const Spec& spec);

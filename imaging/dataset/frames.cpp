@@ -45,8 +45,8 @@ FrameMaker::FrameMaker(const Spec& spec) : spec_(spec) {
                     for (double focus : corners(spec_.focus_mm)) {
                         const std::string where =
                             "sources[" + std::to_string(n) + "] with probe " + preset +
-                            (d > 0 ? ", depth " + std::to_string(d) : "") +
-                            (focus > 0 ? ", focus " + std::to_string(focus) : "");
+                            (d > 0 ? ", depth " + base::number_text(d) + " mm" : "") +
+                            (focus > 0 ? ", focus " + base::number_text(focus) + " mm" : "");
                         transducer_of(preset, f, d, focus, spec_.path)
                             .validate(spec_.path + " (" + where + ")");
                     }

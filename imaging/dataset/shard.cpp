@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <optional>
+#include <string_view>
 
 #include "sonotrace_version.h"
 #include "tissue/base/atomic_output.h"
@@ -284,23 +285,45 @@ std::string shard_header(uint64_t spec_digest, uint64_t shard, uint64_t checksum
     return std::string(text, sizeof text);
 }
 
-ShardCheck check_shard(const std::string& path, uint64_t spec_digest, uint64_t shard) {
-    const std::string bytes = base::read_regular_file(path, kMaxShardBytes);
-    if (bytes.size() < kShardHeaderBytes) return {ShardCheck::damaged, "shorter than its header"};
+std::optional<ShardHeader> parse_shard_header(std::string_view head) {
+    if (head.size() < kShardHeaderBytes) return std::nullopt;
+    // NUL padded; a damaged header without a NUL must not be read past its end.
+    const std::string text(head.data(), strnlen(head.data(), kShardHeaderBytes));
     unsigned long long digest = 0, index = 0, checksum = 0;
-    if (std::sscanf(bytes.c_str(),
+    if (std::sscanf(text.c_str(),
                     "sonotrace shard\nspec_digest %16llx\nshard %llu\ncontent_checksum %16llx",
-                    &digest, &index, &checksum) != 3)
-        return {ShardCheck::damaged, "no shard header"};
-    if (digest != spec_digest) return {ShardCheck::foreign, "is a shard of another spec"};
-    if (bytes.compare(0, kShardHeaderBytes, shard_header(digest, index, checksum)) != 0)
-        return {ShardCheck::damaged, "its header is damaged"};
-    if (index != shard)
+                    &digest, &index, &checksum) != 3 ||
+        head.substr(0, kShardHeaderBytes) != shard_header(digest, index, checksum))
+        return std::nullopt;
+    return ShardHeader{digest, index, checksum};
+}
+
+ShardCheck check_shard_bytes(const std::string& bytes, std::optional<uint64_t> spec_digest,
+                             std::optional<uint64_t> shard) {
+    if (bytes.size() < kShardHeaderBytes) return {ShardCheck::damaged, "shorter than its header"};
+    const std::optional<ShardHeader> header = parse_shard_header(bytes);
+    if (!header) return {ShardCheck::damaged, "its header is damaged or missing"};
+    if (spec_digest && header->spec_digest != *spec_digest)
+        return {ShardCheck::foreign, "is a shard of another spec", *header};
+    if (shard && header->shard != *shard)
         return {ShardCheck::damaged,
-                "holds shard " + std::to_string(index) + ", not shard " + std::to_string(shard)};
-    if (content_checksum(bytes) != checksum)
-        return {ShardCheck::damaged, "its content does not match its checksum"};
-    return {ShardCheck::ok, ""};
+                "holds shard " + std::to_string(header->shard) + ", not shard " +
+                    std::to_string(*shard),
+                *header};
+    if (content_checksum(bytes) != header->content_checksum)
+        return {ShardCheck::damaged, "its content does not match its checksum", *header};
+    return {ShardCheck::ok, "", *header};
+}
+
+ShardCheck check_shard(const std::string& path, uint64_t spec_digest, uint64_t shard) {
+    return check_shard_bytes(base::read_regular_file(path, kMaxShardBytes), spec_digest, shard);
+}
+
+ShardHeader read_shard_header(const std::string& path) {
+    const std::optional<ShardHeader> header =
+        parse_shard_header(base::read_regular_file_head(path, kShardHeaderBytes));
+    if (!header) throw base::InputError(path, "", "has no sound shard header");
+    return *header;
 }
 
 }  // namespace sonotrace::imaging::dataset

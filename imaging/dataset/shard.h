@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "imaging/dataset/frames.h"
@@ -41,12 +42,27 @@ inline constexpr std::size_t kShardHeaderBytes = 512;
 uint64_t content_checksum(const std::string& file);
 std::string shard_header(uint64_t spec_digest, uint64_t shard, uint64_t checksum);
 
+// What a shard's header says.
+struct ShardHeader {
+    uint64_t spec_digest = 0, shard = 0, content_checksum = 0;
+};
+// The header in a shard's first kShardHeaderBytes, if they hold a sound one.
+std::optional<ShardHeader> parse_shard_header(std::string_view head);
 struct ShardCheck {
     enum Verdict { ok, damaged, foreign } verdict;
     std::string why;  // for damaged and foreign
+    ShardHeader header{};
 };
+// Checks a shard's bytes: its header, its content against the header's checksum, and,
+// when given, that it is shard `shard` of the spec of `spec_digest` (a header naming
+// another spec is `foreign`, whatever its content).
+ShardCheck check_shard_bytes(const std::string& bytes, std::optional<uint64_t> spec_digest,
+                             std::optional<uint64_t> shard);
 // Reads and checks shard file `shard` of the spec of `spec_digest`. Throws
 // base::InputError naming `path` if it is not a regular file or cannot be read.
 ShardCheck check_shard(const std::string& path, uint64_t spec_digest, uint64_t shard);
+// The header of the shard at `path`, read alone (its content is not checked: for shards
+// this run has checked or written). Throws base::InputError naming `path` if it has none.
+ShardHeader read_shard_header(const std::string& path);
 
 }  // namespace sonotrace::imaging::dataset

@@ -155,6 +155,32 @@ def test_read_shard_gives_the_arrays_of_a_dataset(tmp_path):
     assert shard["attributes"]["frame_count"] == 2
 
 
+def sealed(body, shard=0, spec_digest=0):
+    """A shard's 512-byte header over `body` (the bytes after it), as imaging/dataset/shard.h
+    describes it, computed here from that description: splitmix64's finaliser over the
+    little-endian 8-byte words of the file after the header, its tail byte by byte, then
+    its length."""
+    mask = (1 << 64) - 1
+
+    def mix(x):
+        x = (x + 0x9E3779B97F4A7C15) & mask
+        x = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & mask
+        x = ((x ^ (x >> 27)) * 0x94D049BB133111EB) & mask
+        return x ^ (x >> 31)
+
+    whole = bytes(512) + body
+    h, at = 0x73686172642D6331, 512
+    while at + 8 <= len(whole):
+        h = mix(h ^ int.from_bytes(whole[at:at + 8], "little"))
+        at += 8
+    for b in whole[at:]:
+        h = mix(h ^ b)
+    h = mix(h ^ len(whole))
+    header = (f"sonotrace shard\nspec_digest {spec_digest:016x}\nshard {shard}\n"
+              f"content_checksum {h:016x}\n").encode()
+    return header + bytes(512 - len(header)) + body
+
+
 def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
     # A FIFO used to block h5py's open() for ever; damaged files raised ValueError, OSError,
     # IndexError ... without naming the file.
@@ -162,7 +188,12 @@ def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(sonotrace.InputError, match="fifo.h5: is not a regular file"):
         sonotrace.read_shard(str(fifo))
-    (tmp_path / "junk.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(200))
+    junk = b"\x89HDF\r\n\x1a\n" + bytes(200)
+    (tmp_path / "junk.h5").write_bytes(junk)
+    with pytest.raises(sonotrace.InputError, match="junk.h5: not a sound shard: shorter"):
+        sonotrace.read_shard(str(tmp_path / "junk.h5"))
+    # Sealed with a sound header, the junk reaches h5py, whose error names the file too.
+    (tmp_path / "junk.h5").write_bytes(sealed(junk))
     with pytest.raises(sonotrace.InputError, match="junk.h5: not a readable shard"):
         sonotrace.read_shard(str(tmp_path / "junk.h5"))
     with pytest.raises(sonotrace.InputError, match="missing.h5: file not found"):
@@ -170,12 +201,31 @@ def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
     # A small file declaring 8 GB of bmode (chunks never written) is refused before NumPy
     # allocates it; it was read and filled.
     import h5py
-    with h5py.File(tmp_path / "bomb.h5", "w") as f:
+    with h5py.File(tmp_path / "bomb.h5", "w", userblock_size=512) as f:
         f.create_dataset("bmode", shape=(2000, 2000, 2000), dtype="u1", chunks=(1, 2000, 2000),
                          compression="gzip")
     assert (tmp_path / "bomb.h5").stat().st_size < 100_000
+    (tmp_path / "bomb.h5").write_bytes(sealed((tmp_path / "bomb.h5").read_bytes()[512:]))
     with pytest.raises(sonotrace.InputError, match="bomb.h5: field '/bmode': declares 8e"):
         sonotrace.read_shard(str(tmp_path / "bomb.h5"))
+
+
+def test_read_shard_refuses_a_shard_whose_bytes_changed(tmp_path):
+    # A flipped byte used to reach h5py ("inflate() failed" or, worse, wrong pixels).
+    spec = {"frames": 1, "frames_per_shard": 1, "seed": 2, "image": {"width": 32, "height": 24},
+            "sources": [{"phantom": CYST}], "depth_mm": 25, "focus_mm": 20,
+            "quality": "interactive", "write": ["bmode"]}
+    (tmp_path / "spec.json").write_text(json.dumps(spec))
+    subprocess.run([BINARY, "dataset", str(tmp_path / "spec.json"), "--out",
+                    str(tmp_path / "out"), "-q"], check=True)
+    path = tmp_path / "out" / "shard_00000.h5"
+    data = bytearray(path.read_bytes())
+    digest = int(bytes(data[:512]).split(b"\n")[1].split()[1], 16)
+    assert sealed(bytes(data[512:]), 0, digest) == bytes(data), "this test's checksum differs"
+    data[len(data) // 2] ^= 1
+    path.write_bytes(bytes(data))
+    with pytest.raises(sonotrace.InputError, match="does not match its checksum"):
+        sonotrace.read_shard(str(path))
 
 
 def test_a_volume_name_is_never_a_format(tmp_path):

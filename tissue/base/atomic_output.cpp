@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include <system_error>
 
 #include "tissue/base/error.h"
+#include "tissue/base/hash.h"
 
 namespace sonotrace::base {
 
@@ -21,13 +23,33 @@ namespace fs = std::filesystem;
 
 namespace {
 constexpr std::string_view kStagedPrefix = ".partial-";
+
+// This machine, as 16 hex digits (a host name may hold '-', the names' separator): a
+// temporary names its process by "PID.HOST", so that a run on another host sharing the
+// directory (NFS, a cluster's scratch) never judges a temporary by a process id of its own.
+const std::string& host_tag() {
+    static const std::string tag = [] {
+        char name[256] = {};
+        if (::gethostname(name, sizeof name - 1) != 0) name[0] = '\0';
+        uint64_t h = 0x686f73742d746167ull;
+        for (const char* c = name; *c; ++c) h = mix64(h ^ uint8_t(*c));
+        char text[17];
+        std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+        return std::string(text);
+    }();
+    return tag;
+}
+}  // namespace
+
+std::string temporary_owner(long pid) {
+    return std::to_string(pid) + "." + host_tag();
 }
 
 std::string output_name(const std::string& path) {
     const fs::path p(path);
     const std::string name = p.filename().string();
     if (name.rfind(kStagedPrefix, 0) != 0) return path;
-    // .partial-PID-COUNTER-NAME
+    // .partial-PID.HOST-COUNTER-NAME
     std::size_t at = kStagedPrefix.size();
     for (int dash = 0; dash < 2 && at != std::string::npos; ++dash) {
         at = name.find('-', at);
@@ -87,15 +109,20 @@ OutputTransaction::~OutputTransaction() {
 
 namespace {
 
-// Removes the staged temporaries (and commit backups) that a process no longer running left
-// in `dir`: a run killed mid-way cannot clean up after itself, the next one does.
+// Removes the staged temporaries (and commit backups) that a process of this host no longer
+// running left in `dir`: a run killed mid-way cannot clean up after itself, the next one
+// does. Another host's temporaries are left alone: its process ids mean nothing here.
 void remove_stale_temporaries(const fs::path& dir) {
     std::error_code ec;
     for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
         const std::string name = it->path().filename().string();
         if (name.rfind(kStagedPrefix, 0) != 0) continue;
-        const std::string pid_text = name.substr(
+        const std::string owner = name.substr(
             kStagedPrefix.size(), name.find('-', kStagedPrefix.size()) - kStagedPrefix.size());
+        const std::size_t dot = owner.find('.');
+        const std::string pid_text = owner.substr(0, dot);
+        if (dot == std::string::npos || owner != temporary_owner(std::atol(pid_text.c_str())))
+            continue;
         char* end_of_pid = nullptr;
         const long pid = std::strtol(pid_text.c_str(), &end_of_pid, 10);
         if (pid_text.empty() || *end_of_pid != '\0' || pid <= 0) continue;
@@ -108,7 +135,7 @@ void remove_stale_temporaries(const fs::path& dir) {
 
 std::string staged_name(const fs::path& dir, const std::string& name) {
     static std::atomic<unsigned> counter{0};
-    return (dir / (std::string(kStagedPrefix) + std::to_string(getpid()) + "-" +
+    return (dir / (std::string(kStagedPrefix) + temporary_owner(getpid()) + "-" +
                    std::to_string(counter++) + "-" + name))
         .string();
 }

@@ -26,6 +26,12 @@ void write_file(const std::string& path, const void* data, std::size_t size,
 // Makes the renames and creations in directory `dir` durable (fsync of the directory).
 void sync_directory(const std::string& dir);
 
+// How a staged temporary names the process that writes it: "PID.HOST", HOST 16 hex digits
+// of this machine's name. A later run removes a temporary whose process is gone only when
+// HOST is its own: on a directory shared between hosts, a process id of another host
+// means nothing here.
+std::string temporary_owner(long pid);
+
 class OutputTransaction {
   public:
     OutputTransaction() = default;

@@ -44,28 +44,46 @@ struct RegularFile {
 
 }  // namespace
 
+namespace {
+
+// Up to `limit` bytes from the start of an open file (one more when `whole`, so that a file
+// that grows while it is read is caught).
+std::string read_up_to(int fd, std::size_t limit, const std::string& path,
+                       const std::string& field) {
+    std::string bytes(limit, '\0');
+    std::size_t done = 0;
+    while (done < bytes.size()) {
+        const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0)
+            throw InputError(path, field, std::string("read error: ") + std::strerror(errno));
+        if (n == 0) break;
+        done += std::size_t(n);
+    }
+    bytes.resize(done);
+    return bytes;
+}
+
+}  // namespace
+
 std::string read_regular_file(const std::string& path, std::size_t max_bytes,
                               const std::string& field) {
     auto fail = [&](const std::string& what) { throw InputError(path, field, what); };
     const RegularFile file(path, field);
-    const int fd = file.fd;
     if (file.size > max_bytes)
         fail("is " + std::to_string(file.size) + " bytes; this input is limited to " +
              std::to_string(max_bytes) + " bytes");
     check_allocation(double(file.size), path, field);
     // One byte more than the size: a file that grows while it is read is caught.
-    std::string bytes(file.size + 1, '\0');
-    std::size_t done = 0;
-    while (done < bytes.size()) {
-        const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n < 0) fail(std::string("read error: ") + std::strerror(errno));
-        if (n == 0) break;
-        done += std::size_t(n);
-    }
-    if (done > max_bytes) fail("grew beyond the size limit while it was read");
-    bytes.resize(done);
+    std::string bytes = read_up_to(file.fd, file.size + 1, path, field);
+    if (bytes.size() > max_bytes) fail("grew beyond the size limit while it was read");
     return bytes;
+}
+
+std::string read_regular_file_head(const std::string& path, std::size_t bytes,
+                                   const std::string& field) {
+    const RegularFile file(path, field);
+    return read_up_to(file.fd, std::min(bytes, file.size), path, field);
 }
 
 namespace {

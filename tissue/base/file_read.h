@@ -13,6 +13,11 @@ namespace sonotrace::base {
 std::string read_regular_file(const std::string& path, std::size_t max_bytes,
                               const std::string& field = "");
 
+// The first `bytes` bytes of `path` (fewer if it is shorter), with read_regular_file's
+// checks of what `path` is.
+std::string read_regular_file_head(const std::string& path, std::size_t bytes,
+                                   const std::string& field = "");
+
 // A 64-bit digest of what `path` holds, read in pieces (any size): a regular file's bytes;
 // a directory's regular files (recursively, by name), each name and its bytes. Throws
 // InputError as read_regular_file does for what is neither (a FIFO, a device).

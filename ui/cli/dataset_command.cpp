@@ -9,6 +9,7 @@
 #include <iostream>
 
 #include "imaging/dataset/mpi.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::ui {
 
@@ -25,6 +26,13 @@ constexpr ParameterDoc kDatasetOutDoc = {
     "--out", "",
     "directory of the shards (shard_NNNNN.h5) and manifest.json; a run into a directory that "
     "holds some shards of the same spec makes only the missing ones"};
+
+constexpr ParameterDoc kVerifyDoc = {
+    "--verify", "",
+    "check the finished dataset in this directory instead of making one: every shard its "
+    "manifest names is there, whole and unchanged (header, content checksum, the manifest's "
+    "checksum); exit 1 naming each damaged or missing shard (a run of its spec into the same "
+    "--out makes them again)"};
 
 // SIGINT and SIGTERM stop after the frame in flight (its shard is abandoned and made
 // again by the next run); a second signal exits at once.
@@ -49,14 +57,43 @@ CLI::App* add_dataset_command(CLI::App& app, DatasetOptions& o) {
         "Make a dataset of B-mode frames with exact ground truth (labels, pose, probe, "
         "parameters) from a JSON spec: frame i is a pure function of the spec and i, frames are "
         "stored in HDF5 shards (h5py reads them) with a manifest. Interrupted runs resume.");
-    cmd->add_option(kSpecDoc.flag, o.spec, kSpecDoc.description)->required();
+    CLI::Option* spec = cmd->add_option(kSpecDoc.flag, o.spec, kSpecDoc.description);
+    CLI::Option* verify = add_parameter(*cmd, kVerifyDoc, o.verify);
+    spec->excludes(verify);
     add_parameter(*cmd, kDatasetOutDoc, o.out_dir);
     add_parameter(*cmd, kThreadsDoc, o.threads)->check(CLI::Range(0, 1024));
     cmd->add_flag("-q,--quiet", o.quiet, "no progress on stderr");
     return cmd;
 }
 
+namespace {
+
+int run_verify(const DatasetOptions& o) {
+    ProgressBar bar("verifying " + o.verify, o.quiet);
+    const imaging::dataset::VerifyReport report = imaging::dataset::verify_dataset(
+        o.verify, [&](uint64_t done, uint64_t total) { bar.update(done, total, ""); });
+    bar.finish();
+    for (const std::string& problem : report.problems)
+        std::cerr << "sonotrace: " << problem << "\n";
+    if (!report.problems.empty())
+        throw base::InputError(o.verify, "",
+                               std::to_string(report.problems.size()) + " of " +
+                                   std::to_string(report.shards) +
+                                   " shards are damaged or missing; a run of the dataset's "
+                                   "spec into this directory makes them again");
+    if (!o.quiet)
+        std::cerr << "sonotrace: " << o.verify << ": all " << report.shards << " shards verified\n";
+    return 0;
+}
+
+}  // namespace
+
 int run_dataset_command(const DatasetOptions& o) {
+    if (!o.verify.empty()) return run_verify(o);
+    if (o.spec.empty())
+        throw base::InputError("spec", "",
+                               "missing: give a dataset spec (a JSON file), or "
+                               "--verify DIR to check a finished dataset");
     const auto thread_limit = limit_threads(o.threads);
     const imaging::dataset::Spec spec = imaging::dataset::read_spec(o.spec);
     // Under MPI only rank 0 draws the progress (make_dataset_mpi calls it there alone).

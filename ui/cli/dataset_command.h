@@ -9,6 +9,7 @@ namespace sonotrace::ui {
 struct DatasetOptions {
     std::string spec;
     std::string out_dir = "out/dataset";
+    std::string verify;  // a finished dataset's directory, checked instead of made
     int threads = 0;
     bool quiet = false;
 };

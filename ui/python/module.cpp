@@ -227,6 +227,11 @@ PYBIND11_MODULE(sonotrace, m) {
             // size checked); h5py reads the HDF5 (a shard is plain HDF5, shard.h) from memory.
             const std::string bytes =
                 base::read_regular_file(path, imaging::dataset::kMaxShardBytes);
+            // Only a shard whose header and content checksum agree reaches h5py.
+            const imaging::dataset::ShardCheck check =
+                imaging::dataset::check_shard_bytes(bytes, std::nullopt, std::nullopt);
+            if (check.verdict != imaging::dataset::ShardCheck::ok)
+                throw base::InputError(path, "", "not a sound shard: " + check.why);
             try {
                 py::object image = py::module_::import("io").attr("BytesIO")(py::bytes(bytes));
                 py::object file = py::module_::import("h5py").attr("File")(image, "r");
