@@ -16,7 +16,8 @@ dir="${SONOTRACE_FUZZ_DIR:-build-fuzz}"
 jobs="${SONOTRACE_JOBS:-$(nproc)}"
 say() { printf '\033[1msonotrace fuzz:\033[0m %s\n' "$*" >&2; }
 
-all_targets="nifti dicom raw_sidecar image transfer_function json phantom pose vtk frame_sidecar"
+# Every tests/fuzz/fuzz_<target>.cpp is a target (tests/fuzz/CMakeLists.txt builds them all).
+all_targets="$(cd tests/fuzz && ls fuzz_*.cpp | sed 's/^fuzz_//; s/\.cpp$//' | tr '\n' ' ')"
 targets="${SONOTRACE_FUZZ_TARGETS:-$all_targets}"
 for target in $targets; do
   case " $all_targets " in
@@ -34,6 +35,8 @@ cmake --build "$dir" -j "$jobs" --target fuzz_all
 seeds() {  # the repository's own files for a target, beside tests/fuzz/seeds/<target>
   case "$1" in
     json | phantom) echo phantoms ;;
+    dataset_spec) echo phantoms/datasets ;;
+    dicom_series) echo tests/fuzz/seeds/dicom ;;
     transfer_function) echo tissue/presets ;;
   esac
 }
@@ -60,4 +63,14 @@ for target in $targets; do
     status=1
   fi
 done
+# The Python module's inputs (tests/fuzz/fuzz_python.py), with the Release build's module:
+# the sanitizer build has none (Python cannot load ASan).
+release="${SONOTRACE_RELEASE_DIR:-build}"
+if ls "$release"/python/sonotrace*.so >/dev/null 2>&1 && [ -z "${SONOTRACE_FUZZ_TARGETS:-}" ]; then
+  if SONOTRACE_BINARY="$release/sonotrace" SONOTRACE_SOURCE_DIR="$PWD" \
+      SONOTRACE_PYTHON_DIR="$release/python" python3 tests/fuzz/fuzz_python.py \
+      --seconds "$seconds" --seed "$seed" --crashes "$dir/crashes" >&2; then :; else status=1; fi
+else
+  say "python: skipped (no Python module in $release/python, or SONOTRACE_FUZZ_TARGETS set)"
+fi
 exit "$status"

@@ -246,6 +246,50 @@ TEST(DicomIo, TiltedGantryGivesASlantedSliceAxis) {
     }
 }
 
+// Issue 50, item 14: a sheared stack (5 mm in-plane shift per 2 mm slice) is read with
+// its slanted slice axis, each slice's voxels at the positions its file records (the
+// expected positions are the ones written), and the reader says so; an orthogonal series
+// draws no such warning.
+TEST(DicomIo, AShearedStackKeepsItsSlantedAxisAndIsReported) {
+    ScratchDir dir;
+    const ObliquePlane plane;
+    const glm::dvec3 step = 2.0 * plane.normal + 5.0 * plane.column;
+    write_series(dir, plane, glm::dvec3(1, 2, 3), step, 4);
+    const DicomReadResult sheared = read_dicom(dir.path().string());
+    for (int k = 0; k < 4; ++k)
+        for (const glm::dvec3& ij : {glm::dvec3(0, 0, 0), glm::dvec3(3, 2, 0)})
+            expect_near(sheared.volume.geometry().index_to_world(ij + glm::dvec3(0, 0, k)),
+                        lps_to_ras(glm::dvec3(1, 2, 3) + double(k) * step + ij.x * 0.5 * plane.row +
+                                   ij.y * 0.8 * plane.column),
+                        1e-5, "slice " + std::to_string(k));
+    ASSERT_EQ(sheared.warnings.size(), 1u);
+    EXPECT_NE(sheared.warnings[0].find("step 2 mm along their normal and 5 mm across it"),
+              std::string::npos)
+        << sheared.warnings[0];
+
+    ScratchDir straight;
+    write_series(straight, plane, glm::dvec3(1, 2, 3), 2.0 * plane.normal, 3);
+    EXPECT_TRUE(read_dicom(straight.path().string()).warnings.empty());
+}
+
+// The fuzzer's series seed (tests/fuzz/seeds/dicom_series: files joined by the fuzz
+// targets' separator) is a readable series, so the fuzzer starts from a sound one.
+TEST(DicomIo, SeriesSeedOfTheFuzzerIsASoundSeries) {
+    std::ifstream in(SONOTRACE_SOURCE_DIR "/tests/fuzz/seeds/dicom_series/four_sheared_slices",
+                     std::ios::binary);
+    const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string separator = "\n#sonotrace-next-file#\n";
+    ScratchDir dir;
+    std::size_t at = 0, files = 0;
+    for (std::size_t next; (next = all.find(separator, at)) != std::string::npos;
+         at = next + separator.size())
+        std::ofstream(dir / ("IM" + std::to_string(files++)), std::ios::binary)
+            << all.substr(at, next - at);
+    std::ofstream(dir / ("IM" + std::to_string(files++)), std::ios::binary) << all.substr(at);
+    ASSERT_EQ(files, 4u);
+    EXPECT_EQ(read_dicom(dir.path().string()).volume.dims(), glm::ivec3(4, 3, 4));
+}
+
 TEST(DicomIo, OneSliceIsATwoDimensionalVolume) {
     ScratchDir dir;
     SliceSpec spec;

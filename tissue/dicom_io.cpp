@@ -697,6 +697,21 @@ DicomReadResult read_series(std::vector<SliceHeader> slices, const std::string& 
 
     DicomReadResult result;
     VolumeGeometry geometry = series_geometry(slices, source);
+    if (slices.size() > 1) {
+        // A tilted gantry or a sheared stack: the slice axis is kept slanted (every voxel at
+        // its recorded position); said, since a viewer that assumes orthogonal axes (or a
+        // NIfTI qform) shows such a volume straightened.
+        const glm::dvec3 k_axis = geometry.direction[2];
+        const glm::dvec3 normal = glm::cross(geometry.direction[0], geometry.direction[1]);
+        const double across = glm::length(glm::cross(k_axis, normal)) * geometry.spacing.z;
+        if (across > 1e-3 * geometry.spacing.z + 1e-4)
+            result.warnings.push_back(
+                source + ": the slices step " +
+                base::number_text(std::abs(glm::dot(k_axis, normal)) * geometry.spacing.z) +
+                " mm along their normal and " + base::number_text(across) +
+                " mm across it (a tilted gantry or a sheared stack): the volume keeps the "
+                "slanted slice axis, every voxel at the position its file records");
+    }
     if (!slices.front().position && slices.size() == 1) {
         result.warnings.push_back(slices.front().file + ": no " + kImagePosition.field() +
                                   "; the image is placed at the origin");

@@ -103,6 +103,58 @@ def test_an_output_directory_that_cannot_be_made_ends_the_job_naming_it(tmp_path
     assert "terminate called" not in run.stderr
 
 
+def rank_pid(rank):
+    """The process id of this binary running as MPI rank `rank` (read from /proc), or None."""
+    binary = os.path.realpath(BINARY)
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            if os.readlink(f"/proc/{pid}/exe") != binary:
+                continue
+            environ = open(f"/proc/{pid}/environ", "rb").read().split(b"\0")
+        except OSError:
+            continue
+        if f"OMPI_COMM_WORLD_RANK={rank}".encode() in environ:
+            return int(pid)
+    return None
+
+
+@needs_mpirun
+@pytest.mark.parametrize("killed_rank", [0, 1])
+def test_a_killed_rank_ends_the_job_and_the_next_run_completes_it(tmp_path, reference,
+                                                                   killed_rank):
+    # A rank killed (SIGKILL: no handler runs, nothing of it is said) must not leave the
+    # other waiting: Open MPI ends the job. What the killed rank was writing is a hidden
+    # temporary, removed by the next run, which makes the same bytes as an unbroken run.
+    spec, expected = reference
+    out = tmp_path / "out"
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               ASAN_OPTIONS="detect_leaks=0")
+    job = subprocess.Popen(["mpirun", "-n", "2", "--oversubscribe", BINARY, "dataset", str(spec),
+                            "--out", str(out), "--threads", "1", "-q"], env=env,
+                           stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    pid = None
+    while pid is None and time.time() < deadline and job.poll() is None:
+        pid = rank_pid(killed_rank)
+        time.sleep(0.01)
+    if pid is None:
+        job.kill()
+        pytest.skip("the job ended before its rank could be found")
+    os.kill(pid, signal.SIGKILL)
+    started = time.time()
+    _, stderr = job.communicate(timeout=60)
+    assert time.time() - started < 60
+    if job.returncode == 0:
+        pytest.skip("the job had finished when the signal came")
+    # mpirun's own exit (128 + 9) and message: the killed process can say nothing itself.
+    assert job.returncode == 137, stderr
+    assert f"rank {killed_rank}" in stderr and "signal 9" in stderr, stderr
+    assert not (out / "manifest.json").exists()
+    run = mpirun(["dataset", str(spec), "--out", str(out), "--threads", "1", "-q"])
+    assert run.returncode == 0, run.stderr
+    assert contents(out) == expected
+
+
 def test_a_killed_run_resumes_to_the_same_bytes(tmp_path, reference):
     spec, expected = reference
     out = tmp_path / "out"

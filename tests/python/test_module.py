@@ -16,6 +16,7 @@ import pytest
 
 sys.path.insert(0, os.environ["SONOTRACE_PYTHON_DIR"])
 import sonotrace  # noqa: E402
+from shard_seal import sealed  # noqa: E402
 
 BINARY = os.environ["SONOTRACE_BINARY"]
 SOURCE = os.environ["SONOTRACE_SOURCE_DIR"]
@@ -153,32 +154,6 @@ def test_read_shard_gives_the_arrays_of_a_dataset(tmp_path):
     assert list(shard["frames"]["index"]) == [0, 1]
     assert sorted(shard["envelope"]) == [0, 1]
     assert shard["attributes"]["frame_count"] == 2
-
-
-def sealed(body, shard=0, spec_digest=0):
-    """A shard's 512-byte header over `body` (the bytes after it), as imaging/dataset/shard.h
-    describes it, computed here from that description: splitmix64's finaliser over the
-    little-endian 8-byte words of the file after the header, its tail byte by byte, then
-    its length."""
-    mask = (1 << 64) - 1
-
-    def mix(x):
-        x = (x + 0x9E3779B97F4A7C15) & mask
-        x = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & mask
-        x = ((x ^ (x >> 27)) * 0x94D049BB133111EB) & mask
-        return x ^ (x >> 31)
-
-    whole = bytes(512) + body
-    h, at = 0x73686172642D6331, 512
-    while at + 8 <= len(whole):
-        h = mix(h ^ int.from_bytes(whole[at:at + 8], "little"))
-        at += 8
-    for b in whole[at:]:
-        h = mix(h ^ b)
-    h = mix(h ^ len(whole))
-    header = (f"sonotrace shard\nspec_digest {spec_digest:016x}\nshard {shard}\n"
-              f"content_checksum {h:016x}\n").encode()
-    return header + bytes(512 - len(header)) + body
 
 
 def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
