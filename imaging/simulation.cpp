@@ -12,6 +12,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "imaging/mirror_ghosts.h"
 #include "imaging/psf.h"
 #include "probe/array_geometry.h"
 #include "probe/elevation.h"
@@ -324,6 +325,8 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
         }
     }
     std::vector<PointEcho> echoes;
+    if (pieces.empty()) return echoes;
+    const MirrorSearch mirrors(map, grid.to_map, t);
     for (const Piece& piece : pieces) {
         const glm::dvec3 d = piece.at - pose.position;
         const double strength = piece.strength;
@@ -371,6 +374,11 @@ std::vector<PointEcho> point_echoes(const std::vector<tissue::PointTarget>& targ
         if (steps > 0) close_run(previous);
         echoes.push_back({to, strength * transmission * std::exp(-optical),
                           0.5 * piece.diameter_mm + margin_mm, delay});
+        for (const MirrorGhost& g : mirrors.ghosts(plane, 0.5 * piece.diameter_mm + margin_mm)) {
+            echoes.push_back({g.at + grid.to_map,
+                              strength * g.reflection * g.reflection * std::exp(-g.optical), 0.0,
+                              g.delay_mm});
+        }
     }
     return echoes;
 }

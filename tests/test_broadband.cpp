@@ -324,6 +324,118 @@ TEST(BroadbandFields, AWireUnderASlowLayerImagesDeeperByItsTravelTime) {
     EXPECT_NEAR(with - without, expected, 0.1);
 }
 
+// A wire 7.5 mm in front of an air interface tilted 20 degrees, in a medium without
+// scatterers: the beam that the interface turns lights the wire, and the echo returning the
+// same way images at the wire mirrored through the interface (image source: the same
+// path length as the straight one to the mirrored point). Expected position from the
+// mirror formula alone, P' = P - 2 ((P - C).n) n; the ghost is sought as the envelope's
+// peak within 4 mm of it (sub-line and sub-sample by parabolas) and must lie within 1 mm
+// (issue 51). By the image source its echo is R^2 (air: 0.999) times that of a wire at P'
+// in the same medium without the interface: within 1 dB. Without the interface nothing
+// shows at P' (< -40 dB).
+TEST(BroadbandFields, AWireBeforeATiltedMirrorCastsItsGhostAtTheMirroredPoint) {
+    const glm::dvec2 wire(20.0, 24.0), plane_point(20.0, 32.0);
+    const double tilt = 20.0 * std::numbers::pi / 180.0;
+    const glm::dvec2 normal(-std::sin(tilt), std::cos(tilt));
+    const glm::dvec2 mirrored = wire - 2.0 * glm::dot(wire - plane_point, normal) * normal;
+    auto frame = [&](bool mirror, const glm::dvec2& at) {
+        nlohmann::json shapes = nlohmann::json::array();
+        if (mirror)
+            shapes.push_back({{"type", "half_space"},
+                              {"point", {plane_point.x, plane_point.y, 0}},
+                              {"normal", {normal.x, normal.y, 0}},
+                              {"tissue", "air"},
+                              {"roughness", 0}});
+        const nlohmann::json j = {
+            {"name", "mirror"},
+            {"size", {40, 50, 10}},
+            {"resolution", 0.125},
+            {"smoothing", 0.2},
+            {"background",
+             {{"speed_of_sound", 1540},
+              {"density", 1000},
+              {"attenuation", 0},
+              {"backscatter", 0},
+              {"scatterer_density", 0},
+              {"roughness", 0}}},
+            {"shapes", shapes},
+            {"targets",
+             {{{"type", "wire"}, {"at", {at.x, at.y}}, {"diameter", 0.1}, {"reflectivity", 0.3}}}},
+            {"probe", {{"preset", "linear"}}}};
+        const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
+        imaging::SimulationSettings s;
+        s.transducer = probe::find_transducer("linear", "test");
+        s.transducer.depth_mm = 48.0;
+        s.targets = ph.targets;
+        imaging::ScenePlacement scene;
+        scene.pose = ph.pose;
+        const imaging::PlaneMapper mapper = [&ph](const tissue::VolumeGeometry& grid,
+                                                  tissue::Volume* labels) {
+            return phantoms::rasterise(ph, grid, labels);
+        };
+        return std::make_pair(imaging::simulate_plane(mapper, scene, s, false).frame, s.transducer);
+    };
+    // The envelope's peak within `radius` of a probe-plane point: (position, value).
+    auto peak_near = [](const imaging::Frame& f, const probe::Transducer& t,
+                        const glm::dvec2& phantom_point, const glm::dvec2& wire_point,
+                        const glm::dvec2& wire_plane, double radius) {
+        const probe::ScanGeometry geometry(t);
+        const glm::dvec2 centre = wire_plane + (phantom_point - wire_point);
+        const double dz = f.envelope.depth_mm(1) - f.envelope.depth_mm(0);
+        int best_l = -1, best_i = -1;
+        for (int l = 1; l + 1 < f.envelope.lines; ++l)
+            for (int i = 1; i + 1 < f.envelope.samples; ++i) {
+                const glm::dvec2 p = geometry.point(l, f.envelope.depth_mm(i));
+                if (glm::length(p - centre) > radius) continue;
+                if (best_l < 0 || f.envelope.at(l, i) > f.envelope.at(best_l, best_i))
+                    best_l = l, best_i = i;
+            }
+        auto vertex = [](double a, double b, double c) {
+            const double d = a - 2.0 * b + c;
+            return d < 0.0 ? 0.5 * (a - c) / d : 0.0;
+        };
+        const double across =
+            vertex(f.envelope.at(best_l - 1, best_i), f.envelope.at(best_l, best_i),
+                   f.envelope.at(best_l + 1, best_i));
+        const double along =
+            vertex(f.envelope.at(best_l, best_i - 1), f.envelope.at(best_l, best_i),
+                   f.envelope.at(best_l, best_i + 1));
+        const glm::dvec2 at =
+            geometry.point(best_l + across, f.envelope.depth_mm(best_i) + along * dz);
+        return std::make_pair(at - wire_plane + wire_point, double(f.envelope.at(best_l, best_i)));
+    };
+    const auto [with, t] = frame(true, wire);
+    const auto [without, t0] = frame(false, wire);
+    const auto [image_source, t1] = frame(false, mirrored);
+    // The wire's own image fixes the phantom -> probe-plane offset (it lies on its place).
+    const probe::ScanGeometry geometry(t);
+    glm::dvec2 wire_plane(0.0);
+    {
+        double best = -1.0;
+        for (int l = 0; l < with.envelope.lines; ++l)
+            for (int i = 0; i < with.envelope.samples; ++i)
+                if (with.envelope.at(l, i) > best &&
+                    std::abs(with.envelope.depth_mm(i) - 24.0) < 3.0)
+                    best = with.envelope.at(l, i),
+                    wire_plane = geometry.point(l, with.envelope.depth_mm(i));
+    }
+    const auto [direct_at, direct] = peak_near(with, t, wire, wire, wire_plane, 2.0);
+    const auto [ghost_at, ghost] = peak_near(with, t, mirrored, wire, wire_plane, 4.0);
+    const auto [none_at, none] = peak_near(without, t, mirrored, wire, wire_plane, 4.0);
+    const auto [source_at, source] = peak_near(image_source, t, mirrored, wire, wire_plane, 4.0);
+    std::printf(
+        "wire at (%.2f, %.2f); ghost at (%.2f, %.2f), mirrored point (%.2f, %.2f): "
+        "%.2f mm off, %.2f dB of a wire there; without the mirror %.1f dB\n",
+        direct_at.x, direct_at.y, ghost_at.x, ghost_at.y, mirrored.x, mirrored.y,
+        glm::length(ghost_at - mirrored), 20.0 * std::log10(ghost / source),
+        20.0 * std::log10(std::max(none, 1e-30) / direct));
+    EXPECT_LT(glm::length(direct_at - wire), 0.3);
+    EXPECT_LT(glm::length(ghost_at - mirrored), 1.0);
+    EXPECT_LT(glm::length(source_at - mirrored), 0.3);
+    EXPECT_NEAR(20.0 * std::log10(ghost / source), 0.0, 1.0);
+    EXPECT_LT(none, 0.01 * direct);
+}
+
 // The speckle's share of the table (LineFields::speckle on the energy band) against the
 // dense reference: the lateral power integral sum |S H|^2 dx / sum |S|^2, which sets the
 // mean speckle level, within 0.3 dB from 5 to 40 mm (issue 51: speckle level within 1.5
