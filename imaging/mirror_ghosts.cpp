@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 
+#include "probe/array_geometry.h"
 #include "tissue/acoustic_properties.h"
 
 namespace sonotrace::imaging {

@@ -56,6 +56,10 @@ TEST(DatasetSpec, BadSpecsNameTheFileAndField) {
         expect_input_error([&] { read_spec(file); }, "spec.json", field, text);
     };
     check([](auto& j) { j["colour"] = 1; }, "colour", "unknown key");
+    // A pattern is a volume's (an image stack), never a phantom's: a fuzz input whose phantom
+    // ".%3dfrniotomy" was listed as a stack.
+    check([](auto& j) { j["sources"][0]["phantom"] = ".%3dfrniotomy"; }, "sources[0].phantom",
+          "no such file");
     check([](auto& j) { j.erase("frames"); }, "frames", "");
     check([](auto& j) { j["frames"] = 2.5; }, "frames", "whole number");
     check([](auto& j) { j["depth_mm"] = {30, 20}; }, "depth_mm", "low must not exceed high");

@@ -91,6 +91,19 @@ TEST(ImageIo, StacksFromDirectoryAndPatternInNumericOrder) {
     v = load_volume({dir / "stack/slice_%d.png", glm::dvec3(1, 1, 1)});
     ASSERT_EQ(v.volume.dims().z, 11);
     EXPECT_EQ(v.volume.at(0, 0, 10), 110.0f);
+
+    // The first index is found from one listing of the directory: zero-padded wider than
+    // four digits, starting at 7, beside files the pattern does not match.
+    std::filesystem::create_directories(dir / "padded");
+    for (int k = 7; k <= 9; ++k) {
+        char name[32];
+        std::snprintf(name, sizeof name, "padded/s%06d.png", k);
+        write_oiio(dir / name, 1, 1, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>{uint8_t(k)});
+    }
+    write_oiio(dir / "padded/s3.png", 1, 1, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>{3});
+    write_oiio(dir / "padded/s00000x.png", 1, 1, 1, OIIO::TypeDesc::UINT8, std::vector<uint8_t>{1});
+    v = load_volume({dir / "padded/s%06d.png", glm::dvec3(1)});
+    EXPECT_EQ(v.volume.voxels(), Voxels({7, 8, 9}));
 }
 
 TEST(ImageIo, OurGrayWriterRoundTrips) {

@@ -200,8 +200,35 @@ std::vector<std::string> list_image_stack(const std::string& spec) {
         return files;
     }
     const ImagePattern pattern = parse_image_pattern(spec);
-    int first = 0;
-    while (first < kPatternIndexLimit && !fs::exists(pattern.name(first))) ++first;
+    int first = kPatternIndexLimit;
+    const fs::path prefix(pattern.prefix);
+    if (pattern.suffix.find('/') == std::string::npos && !pattern.prefix.empty() &&
+        pattern.prefix.back() != '/') {
+        // The first index from one listing of the directory, not 10,000 probes (a pattern
+        // matching nothing took seconds, and minutes on a network file system).
+        const fs::path dir = prefix.has_parent_path() ? prefix.parent_path() : fs::path(".");
+        const std::string stem = prefix.filename().string();
+        std::error_code ec;
+        for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+            const std::string name = it->path().filename().string();
+            if (name.size() <= stem.size() + pattern.suffix.size() || name.rfind(stem, 0) != 0 ||
+                !name.ends_with(pattern.suffix))
+                continue;
+            const std::string middle =
+                name.substr(stem.size(), name.size() - stem.size() - pattern.suffix.size());
+            // Padding (' ' or '0'), then at most four digits: indices below 10,000.
+            const std::size_t digits = std::min(middle.find_first_not_of(" 0"), middle.size());
+            if (middle.size() - digits > 4 ||
+                middle.find_first_not_of("0123456789", digits) != std::string::npos)
+                continue;
+            const int index = digits == middle.size() ? 0 : std::stoi(middle.substr(digits));
+            const std::string path = prefix.has_parent_path() ? (dir / name).string() : name;
+            if (index < first && pattern.name(index) == path) first = index;
+        }
+    } else {
+        first = 0;
+        while (first < kPatternIndexLimit && !fs::exists(pattern.name(first))) ++first;
+    }
     if (first == kPatternIndexLimit)
         throw base::InputError(spec, "", "no file matches the pattern (indices 0..9999)");
     for (int index = first; fs::exists(pattern.name(index)); ++index)

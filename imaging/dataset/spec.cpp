@@ -123,6 +123,7 @@ Spec parse_spec(const json& j, const std::string& source) {
             throw InputError(source, where, "needs exactly one of scene, phantom and volume");
         // Files are relative to the spec's directory, as a shell user would expect of a
         // file that names others.
+        // A volume may be an image-stack pattern (img_%03d.png); a phantom is one file.
         auto file = [&](const std::string& key) {
             const std::string name = jsonio::get_string(s, key, source, where);
             const std::filesystem::path p(name);
@@ -130,7 +131,7 @@ Spec parse_spec(const json& j, const std::string& source) {
             const std::string field = jsonio::join(where, key);
             if (base::file_status(resolved, source, field).type() ==
                 std::filesystem::file_type::not_found) {
-                if (name.find('%') == std::string::npos)
+                if (key != "volume" || name.find('%') == std::string::npos)
                     throw InputError(source, field, "no such file: " + resolved);
                 try {  // an image-stack pattern: at least its first file must exist
                     tissue::list_image_stack(resolved);
