@@ -103,8 +103,19 @@ def test_an_output_directory_that_cannot_be_made_ends_the_job_naming_it(tmp_path
     assert "terminate called" not in run.stderr
 
 
-def rank_pid(rank):
-    """The process id of this binary running as MPI rank `rank` (read from /proc), or None."""
+def parent_of(pid):
+    """The parent process id of `pid` (from /proc), or 0."""
+    try:
+        stat = open(f"/proc/{pid}/stat").read()
+    except OSError:
+        return 0
+    return int(stat[stat.rindex(")") + 2:].split()[1])
+
+
+def rank_pid(rank, job):
+    """The process id of this binary running as MPI rank `rank` under mpirun `job` (read from
+    /proc), or None. Only the job's own descendants: another test's job may run the same
+    binary at the same time."""
     binary = os.path.realpath(BINARY)
     for pid in filter(str.isdigit, os.listdir("/proc")):
         try:
@@ -113,7 +124,12 @@ def rank_pid(rank):
             environ = open(f"/proc/{pid}/environ", "rb").read().split(b"\0")
         except OSError:
             continue
-        if f"OMPI_COMM_WORLD_RANK={rank}".encode() in environ:
+        if f"OMPI_COMM_WORLD_RANK={rank}".encode() not in environ:
+            continue
+        ancestor = int(pid)
+        while ancestor > 1 and ancestor != job:
+            ancestor = parent_of(ancestor)
+        if ancestor == job:
             return int(pid)
     return None
 
@@ -135,7 +151,7 @@ def test_a_killed_rank_ends_the_job_and_the_next_run_completes_it(tmp_path, refe
     deadline = time.time() + 60
     pid = None
     while pid is None and time.time() < deadline and job.poll() is None:
-        pid = rank_pid(killed_rank)
+        pid = rank_pid(killed_rank, job.pid)
         time.sleep(0.01)
     if pid is None:
         job.kill()
