@@ -12,6 +12,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <filesystem>
 #include <memory>
 #include <sstream>
 
@@ -197,6 +198,9 @@ PYBIND11_MODULE(sonotrace, m) {
         try {
             if (p) std::rethrow_exception(p);
         } catch (const base::InputError& e) {
+            PyErr_SetString(input_error.ptr(), e.what());
+        } catch (const std::filesystem::filesystem_error& e) {
+            // A path the system refuses (too long, a loop): bad input, as the CLI says.
             PyErr_SetString(input_error.ptr(), e.what());
         }
     });
