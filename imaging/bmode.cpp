@@ -238,6 +238,27 @@ struct BackscatterGrid {
     }
 }
 
+}  // namespace
+
+void spread_over_step(std::array<double, 4>* values, int n, double period) {
+    if (!(period > 1.0) || n <= 0) return;
+    const int whole = int(period);
+    const double fraction = period - double(whole), inverse = 1.0 / period;
+    const std::vector<std::array<double, 4>> in(values, values + n);
+    std::array<double, 4> sum{};  // of in[i - whole + 1 .. i]
+    for (int i = 0; i < n; ++i) {
+        const std::array<double, 4>& entering = in[std::size_t(i)];
+        const std::array<double, 4>* last = i >= whole ? &in[std::size_t(i - whole)] : nullptr;
+        for (std::size_t c = 0; c < 4; ++c) {
+            sum[c] += entering[c];
+            if (last) sum[c] -= (*last)[c];
+            values[i][c] = (sum[c] + (last ? fraction * (*last)[c] : 0.0)) * inverse;
+        }
+    }
+}
+
+namespace {
+
 // What depends on depth only (speckle_lines): the sub-line spacing (mm) and its inverse.
 struct AtDepth {
     double d_sub, inverse_d_sub;
@@ -286,6 +307,7 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     const auto lattice = std::make_unique_for_overwrite<glm::vec3[]>(size);
     const int profile_lines = std::min(L, profile.lines);
     const int r = box3_radius(smooth_sigma);
+    const double step_samples = 2.0 * profile.step_mm * 1e-3 / kC0 * fs;
     tbb::parallel_for(0, L, [&](int l) {
         const std::size_t row = std::size_t(l) * std::size_t(N);
         double* const light_row = light.get() + row;
@@ -320,6 +342,7 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
             peak = std::max(peak, vi);
         }
         if (!(peak > 0.0)) return no_echo();  // a line without echo
+        spread_over_step(m, N, step_samples);
         const Moments* smoothed = smooth_box3(m - r, scratch, N, r);
         for (int i = 0; i < N; ++i) {
             const Moments& mi = smoothed[i];
@@ -816,10 +839,47 @@ const std::array<float, kHilbertReach / 2>& hilbert_taps() {
 
 }  // namespace
 
-LineData envelope(const LineData& rf) {
+PixelBand pixel_band(const probe::Transducer& t, const LineData& layout, double pixel_mm) {
+    PixelBand band;
+    const probe::PulseEcho pulse(t);
+    band.carrier_hz = pulse.frequency_hz();
+    const double fs = layout.fs_hz;
+    const double samples_per_mm = 2.0 * 1e-3 / kC0 * fs;
+    const double pulse_sigma = pulse.envelope_fwhm_s() * fs / kFwhmPerSigma;
+    const double target = kPixelSigmas * pixel_mm * samples_per_mm;
+    const double extra2 = target * target - pulse_sigma * pulse_sigma;
+    if (!(extra2 > 0.25)) return band;  // under half a sample: nothing to show that aliases
+    band.box_radius = box3_radius(std::sqrt(extra2));
+    if (band.box_radius == 0) return band;
+    // The boxes' response at baseband frequency f (cycles per sample): (sin(pi f b) / (b
+    // sin(pi f)))^3, b = 2 r + 1; weighted by the pulse-echo spectrum's power.
+    const double b = 2.0 * band.box_radius + 1.0;
+    const probe::PulseEcho::Band spectrum = pulse.band(0.0, 1e-3);
+    double kept = 0.0;
+    for (int m = 0; m < spectrum.count(); ++m) {
+        const double f = (spectrum.frequency_hz(m) - band.carrier_hz) / fs;
+        const double box =
+            std::abs(std::sin(std::numbers::pi * f)) < 1e-12
+                ? 1.0
+                : std::sin(std::numbers::pi * f * b) / (b * std::sin(std::numbers::pi * f));
+        kept += std::norm(spectrum.weight[std::size_t(m)]) * std::pow(box, 6.0);
+    }
+    band.gain = kept > 0.0 ? std::sqrt(spectrum.power / kept) : 1.0;
+    return band;
+}
+
+LineData envelope(const LineData& rf, const PixelBand& band) {
     LineData env = rf;
     const auto& taps = hilbert_taps();
     const int n = rf.samples, K = kHilbertReach;
+    // The carrier's phasors by sample, shared by the lines.
+    std::vector<std::complex<double>> carrier;
+    if (band.box_radius > 0) {
+        carrier.resize(std::size_t(n));
+        for (int i = 0; i < n; ++i)
+            carrier[std::size_t(i)] =
+                std::polar(1.0, -2.0 * std::numbers::pi * band.carrier_hz * i / rf.fs_hz);
+    }
     tbb::parallel_for(0, rf.lines, [&](int l) {
         // The line between K zeros at each end: the taps read past the ends without a
         // branch per sample.
@@ -836,7 +896,24 @@ LineData envelope(const LineData& rf) {
             for (int i = 0; i < n; ++i) h[i] += c * (before[i] - after[i]);
         }
         float* out = env.values.data() + std::size_t(l) * std::size_t(n);
-        for (int i = 0; i < n; ++i) out[i] = std::sqrt(x[i] * x[i] + h[i] * h[i]);
+        if (band.box_radius == 0) {
+            for (int i = 0; i < n; ++i) out[i] = std::sqrt(x[i] * x[i] + h[i] * h[i]);
+            return;
+        }
+        // At baseband, low-passed by the boxes (padded by r zeros either side, as
+        // smooth_box3 reads), then its magnitude.
+        const int r = band.box_radius;
+        std::vector<Moments> buffer(2 * std::size_t(n + 2 * r), Moments{});
+        Moments* const m = buffer.data() + r;
+        for (int i = 0; i < n; ++i) {
+            const std::complex<double> a =
+                std::complex<double>(x[i], h[i]) * carrier[std::size_t(i)];
+            m[i] = {a.real(), a.imag(), 0.0, 0.0};
+        }
+        const Moments* smoothed = smooth_box3(m - r, buffer.data() + n + 2 * r, n, r);
+        for (int i = 0; i < n; ++i)
+            out[i] = float(band.gain * std::sqrt(smoothed[i][0] * smoothed[i][0] +
+                                                 smoothed[i][1] * smoothed[i][1]));
     });
     return env;
 }

@@ -26,6 +26,7 @@
 // an anechoic region between lines whose beams graze tissue stays dark); each line
 // sums them weighted by its complex H, so the mean level follows the lateral power
 // integral |H|^2 dx (brightest at the focus) and the grain grows away from it.
+#include <array>
 #include <cmath>
 #include <complex>
 #include <cstdint>
@@ -143,15 +144,45 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                        std::shared_ptr<const simulator::ReceiveWeights> receive = nullptr,
                        const tissue::AcousticMap<2>* map = nullptr);
 
+// What an image of `pixel_mm` pixels can show of a transducer's line data without
+// aliasing: the analytic signal taken to baseband at the carrier and low-passed there
+// (three running boxes of 2 box_radius + 1 samples, close to a Gaussian) so that the
+// axial resolution (the pulse's envelope, as a Gaussian's sigma) reaches kPixelSigmas
+// pixels where it is finer; where the pulse is already as long, no filter (box_radius 0:
+// no resolution is lost where the pixel is smaller than the PSF). Coherent, before
+// detection, so that speckle stays Rayleigh (SNR 1.91) with grains as large as the pixels
+// can show, rather than averaged into a smoother texture; `gain` restores speckle's
+// mean power, sum_m |s_m|^2 / sum_m |s_m B(f_m - f0)|^2 over the pulse-echo spectrum s
+// and the boxes' response B.
+struct PixelBand {
+    double carrier_hz = 0.0;
+    int box_radius = 0;
+    double gain = 1.0;
+};
+// sigma of the displayed axial resolution, in pixels: the detected intensity's spectrum at
+// the pixels' Nyquist frequency exp(-pi^2 sigma^2 / 2) = -15 dB.
+inline constexpr double kPixelSigmas = 0.85;
+PixelBand pixel_band(const probe::Transducer& t, const LineData& layout, double pixel_mm);
+
 // Envelope of every line: magnitude of the analytic signal (a finite Hilbert transformer,
-// accurate across the RF band; nothing of an echo reaches farther than 48 samples).
-LineData envelope(const LineData& rf);
+// accurate across the RF band; nothing of an echo reaches farther than 48 samples), with
+// a pixel band low-passed to it first (what the display and scan conversion take).
+LineData envelope(const LineData& rf, const PixelBand& band = {});
+
+// Spreads each of `n` samples' four values over the `period` samples from it on (itself
+// first, the last one fractional), by a running sum: a track-length profile whose steps
+// deposit what they scatter along their length at their start
+// (simulator::EchoProfile::step_mm) is a comb of the steps' echo-time period
+// 2 step / c0 fs, which this turns into what the steps scatter, constant where they are
+// equal. Sums are kept (but for what spreads past the end). period <= 1: nothing changes.
+void spread_over_step(std::array<double, 4>* values, int n, double period);
 
 // TGC and log compression, per sample.
 LineData compress(const LineData& envelope, const ImagingSettings& settings);
 
 // The white scatterer field fixed in world coordinates: trilinear interpolation of
-// independent zero-mean values on a lattice of `cell_mm`, scaled to unit mean square.
+// independent zero-mean values on a lattice of `cell_mm`, scaled to unit mean square at
+// every point.
 class ScattererField {
   public:
     ScattererField(uint64_t seed, double cell_mm);
@@ -190,9 +221,14 @@ class ScattererField {
             v += w * value(key + uint32_t(di) * kSpreadI + uint32_t(dj) * kSpreadJ +
                            uint32_t(dk) * kSpreadK);
         }
-        // Trilinear blending of independent values has mean square prod((1-f)^2 + f^2),
-        // 8/27 on average over a cell: rescale to 1.
-        return v * 1.8371173f;  // sqrt(27 / 8)
+        // Trilinear blending of independent values has mean square prod((1-f)^2 + f^2):
+        // rescaled to 1 at every point. (Scaled by its average over a cell, 8/27, the
+        // field's level rose and fell with the lattice's phase, and lines sampling the
+        // lattice at a phase that drifts from line to line showed as stripes of +-1 dB.)
+        const float gx = (1.0f - fx) * (1.0f - fx) + fx * fx,
+                    gy = (1.0f - fy) * (1.0f - fy) + fy * fy,
+                    gz = (1.0f - fz) * (1.0f - fz) + fz * fz;
+        return v / std::sqrt(gx * gy * gz);
     }
 
   private:

@@ -333,10 +333,11 @@ double PsfTable::power(int l, double z) const {
 }
 
 PsfTable::LineReceive::LineReceive(const PsfTable& table, int l)
-    : dz_(table.dz_), depths_(table.depths_), rows_(std::size_t(table.depths_)) {
+    : inverse_dz_(1.0 / table.dz_), depths_(table.depths_), rows_(std::size_t(table.depths_)) {
     for (int i = 0; i < depths_; ++i) {
         const Row& r = table.row(l, i);
-        rows_[std::size_t(i)] = {r.dx, double(r.half), double(2 * r.half), r.receive_power.data()};
+        rows_[std::size_t(i)] = {1.0 / r.dx, double(r.half), double(2 * r.half),
+                                 r.receive_power.data()};
     }
 }
 
@@ -374,6 +375,7 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
         const auto& line = of_line[std::size_t(l)];
         struct Launch {
             double x, z, dx, dz, t0, energy;  // line frame: across, along
+            double inverse_dz;                // 1 / dz where dz > 1e-3 (the means use)
             double e = 0.0, de = 0.0;         // elevation (3D)
         };
         // The receive's power at a point of a line's frame, in 3D times the lens's.
@@ -391,33 +393,39 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
                                     glm::dvec2(face_in_map.x, face_in_map.y) - axis.origin;
             // In 3D the in-plane components per mm of path: slower across the plane.
             const glm::dvec2 d(s.direction.x, s.direction.y);
-            Launch launch{glm::dot(from, across), glm::dot(from, axis.direction),
-                          glm::dot(d, across),    glm::dot(d, axis.direction),
-                          double(s.time_s),       double(s.energy)};
+            const double along = glm::dot(d, axis.direction);
+            Launch launch{glm::dot(from, across),
+                          glm::dot(from, axis.direction),
+                          glm::dot(d, across),
+                          glm::dot(d, axis.direction),
+                          double(s.time_s),
+                          double(s.energy),
+                          along > 1e-3 ? 1.0 / along : 0.0};
             if constexpr (Dim == 3) {
                 launch.e = double(s.position.z) - face_in_map.z;
                 launch.de = double(s.direction.z);
             }
             launches.push_back(launch);
         }
-        // The mean over the line's particles at a range (0.5 mm apart, as needed; NaN: not
-        // yet). Ranges are positive: keys from 0.
-        std::vector<double> mean_at;
-        auto mean = [&](double z) {
-            const auto key = std::size_t(std::lround(z / 0.5));
-            if (key >= mean_at.size())
-                mean_at.resize(key + 1 + key / 4, std::numeric_limits<double>::quiet_NaN());
-            double& value = mean_at[key];
+        // The reciprocal of the mean over the line's particles at a range (0.5 mm apart,
+        // as needed; NaN: not yet; 0: no particle within the receive's reach). Ranges are
+        // positive: keys from 0.
+        std::vector<double> inverse_mean_at;
+        auto inverse_mean = [&](double z) {
+            const auto key = std::size_t(std::lround(z * 2.0));
+            if (key >= inverse_mean_at.size())
+                inverse_mean_at.resize(key + 1 + key / 4, std::numeric_limits<double>::quiet_NaN());
+            double& value = inverse_mean_at[key];
             if (!std::isnan(value)) return value;
             const double zk = std::max(0.5 * double(key), 0.25);
             double sum = 0.0, energy = 0.0;
             for (const Launch& p : launches) {
                 if (!(p.dz > 1e-3)) continue;
-                sum += p.energy *
-                       power(p.x + (zk - p.z) * p.dx / p.dz, zk, p.e + (zk - p.z) * p.de / p.dz);
+                const double to = (zk - p.z) * p.inverse_dz;
+                sum += p.energy * power(p.x + to * p.dx, zk, p.e + to * p.de);
                 energy += p.energy;
             }
-            value = energy > 0.0 ? sum / energy : 0.0;
+            value = energy > 0.0 && sum > 0.0 ? energy / sum : 0.0;
             return value;
         };
         for (std::size_t p = 0; p < launches.size(); ++p) {
@@ -429,9 +437,9 @@ std::shared_ptr<const simulator::ReceiveWeights> compute_receive_weights(
                 const double s = ((b + 0.5) * bin_s - a.t0) * mm_per_s;
                 const double z = a.z + s * a.dz;
                 if (!(z > 0.0)) continue;
-                const double m = mean(z);
-                if (!(m > 0.0)) continue;  // no particle within the receive's reach: as is
-                row[b] = float(power(a.x + s * a.dx, z, a.e + s * a.de) / m);
+                const double inverse = inverse_mean(z);
+                if (!(inverse > 0.0)) continue;  // no particle within the receive's reach: as is
+                row[b] = float(power(a.x + s * a.dx, z, a.e + s * a.de) * inverse);
             }
         }
     });

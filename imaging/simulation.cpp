@@ -536,6 +536,7 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
             plane_profile.lines = p3.lines;
             plane_profile.bins = p3.bins;
             plane_profile.bin_s = p3.bin_s;
+            plane_profile.step_mm = p3.step_mm;  // its time, not its projection, sets the comb
             plane_profile.intensity = p3.intensity;
             plane_profile.illumination = p3.illumination;
             for (const auto& v : p3.illuminated_position)
@@ -565,7 +566,13 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
     });
     if (settings.keep_echoes) frame.echoes = std::move(echoes);
     stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
-    stage("compression", [&] { frame.display = compress(frame.envelope, imaging); });
+    // The display takes what its pixels can show (PixelBand); the envelope stays the
+    // pulse's, at the RF's resolution.
+    stage("compression", [&] {
+        const PixelBand band = pixel_band(t, frame.rf, imaging.pixel_mm);
+        frame.display =
+            compress(band.box_radius > 0 ? envelope(frame.rf, band) : frame.envelope, imaging);
+    });
     stage("scan conversion",
           [&] { frame.image = scan_convert(frame.display, t, imaging.pixel_mm); });
     return frame;

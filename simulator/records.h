@@ -95,6 +95,10 @@ template <int Dim>
 struct EchoProfile {
     int lines = 0, bins = 0;
     double bin_s = 0.0;
+    // The tracer's full step (mm): each step's terms sit in the bin of its start, though it
+    // scatters all along its length, so a profile of equal steps is a comb of their
+    // period that the image spreads over the step (imaging::spread_over_step).
+    double step_mm = 0.0;
     std::vector<float> intensity;  // [line * bins + bin], energy units
     // The same sum without the backscatter^2, over every step: the energy that lights the
     // bin's tissue, whatever scatters it (the image lights each point of the beam by it

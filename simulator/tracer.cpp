@@ -1504,6 +1504,10 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
         p.lines = sources.empty() ? 0 : int(max_line) + 1;
         p.bins = settings.echo_profile->bins;
         p.bin_s = settings.echo_profile->bin_s;
+        // As LineTracer steps: step_texels of the smallest spacing.
+        double texel_mm = map.spacing()[0];
+        for (int a = 1; a < Dim; ++a) texel_mm = std::min(texel_mm, double(map.spacing()[a]));
+        p.step_mm = double(float(settings.step_texels) * float(texel_mm));
         p.intensity.assign(std::size_t(p.lines) * std::size_t(p.bins), 0.0f);
         p.illumination.assign(p.intensity.size(), 0.0f);
         p.illuminated_position.assign(p.intensity.size(), Vec<Dim>(0.0f));

@@ -262,6 +262,43 @@ TEST(BroadbandFields, PointEchoesFadeBeforeTheirReach) {
     }
 }
 
+// A frame of the whole pipeline (linear preset, imaging `depth_mm`) of a scatter-free
+// phantom `size_mm` across holding `shapes` and one 0.1 mm wire at `wire`, with the
+// transducer it was made with.
+std::pair<imaging::Frame, probe::Transducer> wire_frame(const nlohmann::json& shapes,
+                                                        const glm::dvec2& wire,
+                                                        const glm::dvec2& size_mm,
+                                                        double depth_mm) {
+    const nlohmann::json j = {
+        {"name", "wire"},
+        {"size", {size_mm.x, size_mm.y, 10}},
+        {"resolution", 0.125},
+        {"smoothing", 0.2},
+        {"background",
+         {{"speed_of_sound", 1540},
+          {"density", 1000},
+          {"attenuation", 0},
+          {"backscatter", 0},
+          {"scatterer_density", 0},
+          {"roughness", 0}}},
+        {"shapes", shapes},
+        {"targets",
+         {{{"type", "wire"}, {"at", {wire.x, wire.y}}, {"diameter", 0.1}, {"reflectivity", 0.3}}}},
+        {"probe", {{"preset", "linear"}}}};
+    const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
+    imaging::SimulationSettings s;
+    s.transducer = probe::find_transducer("linear", "test");
+    s.transducer.depth_mm = depth_mm;
+    s.targets = ph.targets;
+    imaging::ScenePlacement scene;
+    scene.pose = ph.pose;
+    const imaging::PlaneMapper mapper = [&ph](const tissue::VolumeGeometry& grid,
+                                              tissue::Volume* labels) {
+        return phantoms::rasterise(ph, grid, labels);
+    };
+    return {imaging::simulate_plane(mapper, scene, s, false).frame, s.transducer};
+}
+
 // A wire under a 15 mm layer at 1450 m/s (impedance matched: no echo of its own) images
 // deeper than without it by the travel-time difference, 15 (1540 / 1450 - 1) = 0.931 mm,
 // within 0.1 mm (issue 51): the envelope's peak on the wire's line, refined by a parabola,
@@ -279,34 +316,8 @@ TEST(BroadbandFields, AWireUnderASlowLayerImagesDeeperByItsTravelTime) {
                               {"backscatter", 0},
                               {"scatterer_density", 0},
                               {"roughness", 0}});
-        const nlohmann::json j = {
-            {"name", "layer"},
-            {"size", {40, 40, 10}},
-            {"resolution", 0.125},
-            {"smoothing", 0.2},
-            {"background",
-             {{"speed_of_sound", 1540},
-              {"density", 1000},
-              {"attenuation", 0},
-              {"backscatter", 0},
-              {"scatterer_density", 0},
-              {"roughness", 0}}},
-            {"shapes", shapes},
-            {"targets",
-             {{{"type", "wire"}, {"at", {20, 30}}, {"diameter", 0.1}, {"reflectivity", 0.3}}}},
-            {"probe", {{"preset", "linear"}}}};
-        const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
-        imaging::SimulationSettings s;
-        s.transducer = probe::find_transducer("linear", "test");
-        s.targets = ph.targets;
-        imaging::ScenePlacement scene;
-        scene.pose = ph.pose;
-        const imaging::PlaneMapper mapper = [&ph](const tissue::VolumeGeometry& grid,
-                                                  tissue::Volume* labels) {
-            return phantoms::rasterise(ph, grid, labels);
-        };
-        const imaging::Frame f = imaging::simulate_plane(mapper, scene, s, false).frame;
-        const int line = s.transducer.lines / 2;
+        const auto [f, t] = wire_frame(shapes, {20.0, 30.0}, {40.0, 40.0}, 40.0);
+        const int line = t.lines / 2;
         int best = 0;
         for (int i = 1; i + 1 < f.envelope.samples; ++i)
             if (f.envelope.at(line, i) > f.envelope.at(line, best)) best = i;
@@ -346,34 +357,7 @@ TEST(BroadbandFields, AWireBeforeATiltedMirrorCastsItsGhostAtTheMirroredPoint) {
                               {"normal", {normal.x, normal.y, 0}},
                               {"tissue", "air"},
                               {"roughness", 0}});
-        const nlohmann::json j = {
-            {"name", "mirror"},
-            {"size", {40, 50, 10}},
-            {"resolution", 0.125},
-            {"smoothing", 0.2},
-            {"background",
-             {{"speed_of_sound", 1540},
-              {"density", 1000},
-              {"attenuation", 0},
-              {"backscatter", 0},
-              {"scatterer_density", 0},
-              {"roughness", 0}}},
-            {"shapes", shapes},
-            {"targets",
-             {{{"type", "wire"}, {"at", {at.x, at.y}}, {"diameter", 0.1}, {"reflectivity", 0.3}}}},
-            {"probe", {{"preset", "linear"}}}};
-        const phantoms::Phantom ph = phantoms::parse_phantom(j, "test");
-        imaging::SimulationSettings s;
-        s.transducer = probe::find_transducer("linear", "test");
-        s.transducer.depth_mm = 48.0;
-        s.targets = ph.targets;
-        imaging::ScenePlacement scene;
-        scene.pose = ph.pose;
-        const imaging::PlaneMapper mapper = [&ph](const tissue::VolumeGeometry& grid,
-                                                  tissue::Volume* labels) {
-            return phantoms::rasterise(ph, grid, labels);
-        };
-        return std::make_pair(imaging::simulate_plane(mapper, scene, s, false).frame, s.transducer);
+        return wire_frame(shapes, at, {40.0, 50.0}, 48.0);
     };
     // The envelope's peak within `radius` of a probe-plane point: (position, value).
     auto peak_near = [](const imaging::Frame& f, const probe::Transducer& t,

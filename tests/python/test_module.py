@@ -185,6 +185,31 @@ def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
         sonotrace.read_shard(str(tmp_path / "bomb.h5"))
 
 
+def test_read_shard_refuses_chunks_that_disagree_with_their_shape(tmp_path):
+    # A finding of the Python fuzzer: a sealed shard whose bmode dataspace said rank 2 while
+    # its chunk layout kept rank 3 had HDF5 allocate 22 GB (the process was killed). Made
+    # here the same way: the dataspace message's rank byte patched from 3 to 2 (HDF5's
+    # version-1 dataspace message: version, rank, flags, 5 reserved bytes, the 8-byte
+    # dimensions, then as many maximum dimensions; version-1 object headers carry no
+    # checksum).
+    import h5py
+    path = tmp_path / "rank.h5"
+    with h5py.File(path, "w", userblock_size=512, libver="earliest") as f:
+        f.create_dataset("bmode", data=np.zeros((2, 20, 24), np.uint8), chunks=(1, 20, 24),
+                         compression="gzip")
+    data = bytearray(path.read_bytes())
+    dims = struct.pack("<3Q", 2, 20, 24)
+    at = data.find(dims)
+    assert at > 0 and data.find(dims, at + 1) == at + 24, "dimensions, then the maximum ones"
+    assert data[at - 8] == 1 and data[at - 7] == 3, "a version-1 dataspace message of rank 3"
+    data[at - 7] = 2
+    path.write_bytes(sealed(bytes(data[512:])))
+    with pytest.raises(sonotrace.InputError,
+                       match="rank.h5: field '/bmode': its chunks have 3 dimensions and its "
+                             "shape 2"):
+        sonotrace.read_shard(str(path))
+
+
 def test_read_shard_refuses_a_shard_whose_bytes_changed(tmp_path):
     # A flipped byte used to reach h5py ("inflate() failed" or, worse, wrong pixels).
     spec = {"frames": 1, "frames_per_shard": 1, "seed": 2, "image": {"width": 32, "height": 24},
