@@ -14,6 +14,7 @@
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
 #include "tissue/base/hash.h"
+#include "tissue/base/isolated.h"
 
 namespace sonotrace::imaging::dataset {
 
@@ -317,6 +318,94 @@ ShardCheck check_shard_bytes(const std::string& bytes, std::optional<uint64_t> s
 
 ShardCheck check_shard(const std::string& path, uint64_t spec_digest, uint64_t shard) {
     return check_shard_bytes(base::read_regular_file(path, kMaxShardBytes), spec_digest, shard);
+}
+
+namespace {
+
+// Reads every dataset and root attribute of a shard image with HDF5, checking first what
+// each declares against what the file can hold: nullopt if all of it reads, else why not.
+std::optional<std::string> read_every_part(const std::string& bytes) {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    const double largest = kShardReadExpansion * double(bytes.size()) + double(1 << 20);
+    Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+    H5Pset_fapl_core(fapl, std::size_t(1) << 20, false);
+    // HDF5 copies the image (its callbacks are not set): the bytes stay ours.
+    if (H5Pset_file_image(fapl, const_cast<char*>(bytes.data()), bytes.size()) < 0)
+        return "HDF5 refused its image";
+    Handle file(H5Fopen(kImageName, H5F_ACC_RDONLY, fapl), H5Fclose);
+    if (!file.ok()) return "HDF5 cannot open it";
+    struct Visit {
+        double largest;
+        std::optional<std::string> why;
+    } visit{largest, std::nullopt};
+    auto each = [](hid_t root, const char* name, const H5O_info_t* info, void* data) -> herr_t {
+        auto& v = *static_cast<Visit*>(data);
+        if (info->type != H5O_TYPE_DATASET) return 0;
+        const std::string where = std::string("dataset '") + name + "'";
+        Handle dataset(H5Dopen2(root, name, H5P_DEFAULT), H5Dclose);
+        Handle space(dataset.ok() ? H5Dget_space(dataset) : -1, H5Sclose);
+        Handle type(dataset.ok() ? H5Dget_type(dataset) : -1, H5Tclose);
+        Handle plist(dataset.ok() ? H5Dget_create_plist(dataset) : -1, H5Pclose);
+        if (!space.ok() || !type.ok() || !plist.ok()) return v.why = where + " cannot be opened", 1;
+        const int rank = H5Sget_simple_extent_ndims(space);
+        const hssize_t points = H5Sget_simple_extent_npoints(space);
+        const double size = double(H5Tget_size(type)), declared = double(points) * size;
+        if (rank < 0 || points < 0 || !(size > 0.0) || declared > v.largest)
+            return v.why = where + " declares more than the file can hold", 1;
+        if (H5Pget_layout(plist) == H5D_CHUNKED) {
+            // HDF5 allocates a whole chunk, and a selection per chunk it reads.
+            hsize_t chunk[H5S_MAX_RANK];
+            const int chunk_rank = H5Pget_chunk(plist, H5S_MAX_RANK, chunk);
+            std::vector<hsize_t> dims(std::size_t(std::max(rank, 0)));
+            H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+            if (chunk_rank != rank)
+                return v.why = where + " has chunks of " + std::to_string(chunk_rank) +
+                               " dimensions and a shape of " + std::to_string(rank),
+                       1;
+            double chunk_bytes = size, chunks = 1.0;
+            for (int a = 0; a < rank; ++a) {
+                const double extent = std::max(double(chunk[a]), 1.0);
+                chunk_bytes *= extent;
+                chunks *= std::ceil(double(dims[std::size_t(a)]) / extent);
+            }
+            if (chunk_bytes > v.largest || chunks > double(kMaxShardChunks))
+                return v.why = where + " is stored in too many or too large chunks", 1;
+        }
+        std::vector<char> values(static_cast<std::size_t>(declared));
+        if (H5Dread(dataset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
+            return v.why = where + " cannot be read", 1;
+        return 0;
+    };
+    if (H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_INC, each, &visit, H5O_INFO_BASIC) < 0 && !visit.why)
+        return std::string("HDF5 cannot list its contents");
+    if (visit.why) return visit.why;
+    H5O_info_t root{};
+    if (H5Oget_info2(file, &root, H5O_INFO_NUM_ATTRS) < 0)
+        return std::string("HDF5 cannot list its attributes");
+    for (hsize_t a = 0; a < root.num_attrs; ++a) {
+        Handle attribute(
+            H5Aopen_by_idx(file, ".", H5_INDEX_NAME, H5_ITER_INC, a, H5P_DEFAULT, H5P_DEFAULT),
+            H5Aclose);
+        Handle space(attribute.ok() ? H5Aget_space(attribute) : -1, H5Sclose);
+        Handle type(attribute.ok() ? H5Aget_type(attribute) : -1, H5Tclose);
+        if (!space.ok() || !type.ok()) return std::string("an attribute cannot be opened");
+        const double declared =
+            double(H5Sget_simple_extent_npoints(space)) * double(H5Tget_size(type));
+        if (!(declared >= 0.0) || declared > largest)
+            return std::string("an attribute declares more than the file can hold");
+        std::vector<char> value(std::size_t(declared) + 1);
+        if (H5Aread(attribute, type, value.data()) < 0)
+            return std::string("an attribute cannot be read");
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<std::string> unreadable_shard(const std::string& bytes) {
+    // In a child: HDF5 crashes on some malformed files (a fuzzer's shard, its checksum
+    // resealed, made h5py's read segfault), and a file declaring gigabytes would take them.
+    return base::in_child_process([&] { return read_every_part(bytes); }, std::size_t(4) << 30);
 }
 
 ShardHeader read_shard_header(const std::string& path) {

@@ -61,6 +61,15 @@ ShardCheck check_shard_bytes(const std::string& bytes, std::optional<uint64_t> s
 // Reads and checks shard file `shard` of the spec of `spec_digest`. Throws
 // base::InputError naming `path` if it is not a regular file or cannot be read.
 ShardCheck check_shard(const std::string& path, uint64_t spec_digest, uint64_t shard);
+// A sound shard holds nothing larger than its bytes inflate to (deflate stops near
+// 1032:1) and stores each dataset a frame a chunk.
+inline constexpr double kShardReadExpansion = 1100.0;
+inline constexpr long kMaxShardChunks = 1L << 16;
+// Why HDF5 cannot read every dataset and attribute of a shard's bytes (each checked
+// against what the file can hold before it is read), or nullopt if it can: read in a
+// child process, so that a malformed file HDF5 crashes on is a refusal, not a crash (what
+// read_shard() in Python checks before h5py sees the bytes).
+std::optional<std::string> unreadable_shard(const std::string& bytes);
 // The header of the shard at `path`, read alone (its content is not checked: for shards
 // this run has checked or written). Throws base::InputError naming `path` if it has none.
 ShardHeader read_shard_header(const std::string& path);

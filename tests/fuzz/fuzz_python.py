@@ -99,6 +99,12 @@ def mutate(rng, data):
 
 
 def child(args):
+    # The cases run under a cap on their address space: a case that asks for gigabytes is a
+    # finding (MemoryError), not a machine the kernel's OOM killer must rescue (a shard
+    # whose layout made HDF5 allocate 22 GB took other processes with it).
+    import resource
+    cap = 8 << 30
+    resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
     sys.path.insert(0, os.environ["SONOTRACE_PYTHON_DIR"])
     sys.path.insert(0, SOURCE + "/tests/python")
     import sonotrace
