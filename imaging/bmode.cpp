@@ -839,7 +839,8 @@ const std::array<float, kHilbertReach / 2>& hilbert_taps() {
 
 }  // namespace
 
-PixelBand pixel_band(const probe::Transducer& t, const LineData& layout, double pixel_mm) {
+namespace {
+PixelBand make_pixel_band(const probe::Transducer& t, const LineData& layout, double pixel_mm) {
     PixelBand band;
     const probe::PulseEcho pulse(t);
     band.carrier_hz = pulse.frequency_hz();
@@ -867,9 +868,25 @@ PixelBand pixel_band(const probe::Transducer& t, const LineData& layout, double 
     band.gain = kept > 0.0 ? std::sqrt(spectrum.power / kept) : 1.0;
     return band;
 }
+}  // namespace
 
-LineData envelope(const LineData& rf, const PixelBand& band) {
+PixelBand pixel_band(const probe::Transducer& t, const LineData& layout, double pixel_mm) {
+    // Kept for the next frames: the pulse's tables and spectrum cost more than the filter.
+    const std::array<double, 6> key{t.frequency_mhz, t.bandwidth,  t.band_shape,
+                                    t.cycles,        layout.fs_hz, pixel_mm};
+    static std::mutex mutex;
+    static std::vector<std::pair<std::array<double, 6>, PixelBand>> kept;
+    const std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& [k, band] : kept)
+        if (k == key) return band;
+    kept.emplace_back(key, make_pixel_band(t, layout, pixel_mm));
+    if (kept.size() > 8) kept.erase(kept.begin());
+    return kept.back().second;
+}
+
+LineData envelope(const LineData& rf, const PixelBand& band, LineData* unbanded) {
     LineData env = rf;
+    if (unbanded) *unbanded = rf;
     const auto& taps = hilbert_taps();
     const int n = rf.samples, K = kHilbertReach;
     // The carrier's phasors by sample, shared by the lines.
@@ -896,15 +913,25 @@ LineData envelope(const LineData& rf, const PixelBand& band) {
             for (int i = 0; i < n; ++i) h[i] += c * (before[i] - after[i]);
         }
         float* out = env.values.data() + std::size_t(l) * std::size_t(n);
+        float* plain =
+            unbanded ? unbanded->values.data() + std::size_t(l) * std::size_t(n) : nullptr;
         if (band.box_radius == 0) {
             for (int i = 0; i < n; ++i) out[i] = std::sqrt(x[i] * x[i] + h[i] * h[i]);
+            if (plain) std::copy_n(out, n, plain);
             return;
         }
+        if (plain)
+            for (int i = 0; i < n; ++i) plain[i] = std::sqrt(x[i] * x[i] + h[i] * h[i]);
         // At baseband, low-passed by the boxes (padded by r zeros either side, as
         // smooth_box3 reads), then its magnitude.
         const int r = band.box_radius;
-        std::vector<Moments> buffer(2 * std::size_t(n + 2 * r), Moments{});
+        // Scratch per thread (a zeroed buffer per line cost more than the filter): only the
+        // padding must be zero, the rest is written before it is read.
+        thread_local std::vector<Moments> buffer;
+        buffer.resize(2 * std::size_t(n + 2 * r));
         Moments* const m = buffer.data() + r;
+        for (Moments* padding : {buffer.data(), m + n, m + n + r, m + 2 * n + 2 * r})
+            std::fill_n(padding, r, Moments{});
         for (int i = 0; i < n; ++i) {
             const std::complex<double> a =
                 std::complex<double>(x[i], h[i]) * carrier[std::size_t(i)];

@@ -166,8 +166,9 @@ PixelBand pixel_band(const probe::Transducer& t, const LineData& layout, double 
 
 // Envelope of every line: magnitude of the analytic signal (a finite Hilbert transformer,
 // accurate across the RF band; nothing of an echo reaches farther than 48 samples), with
-// a pixel band low-passed to it first (what the display and scan conversion take).
-LineData envelope(const LineData& rf, const PixelBand& band = {});
+// a pixel band low-passed to it first (what the display and scan conversion take); with
+// `unbanded`, the plain envelope too, from the same analytic signal.
+LineData envelope(const LineData& rf, const PixelBand& band = {}, LineData* unbanded = nullptr);
 
 // Spreads each of `n` samples' four values over the `period` samples from it on (itself
 // first, the last one fractional), by a running sum: a track-length profile whose steps

@@ -565,14 +565,13 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
                                  imaging, points, trace.receive_weights, &plane);
     });
     if (settings.keep_echoes) frame.echoes = std::move(echoes);
-    stage("envelope", [&] { frame.envelope = envelope(frame.rf); });
     // The display takes what its pixels can show (PixelBand); the envelope stays the
-    // pulse's, at the RF's resolution.
-    stage("compression", [&] {
-        const PixelBand band = pixel_band(t, frame.rf, imaging.pixel_mm);
-        frame.display =
-            compress(band.box_radius > 0 ? envelope(frame.rf, band) : frame.envelope, imaging);
+    // pulse's, at the RF's resolution. Both from one analytic signal.
+    LineData shown;
+    stage("envelope", [&] {
+        shown = envelope(frame.rf, pixel_band(t, frame.rf, imaging.pixel_mm), &frame.envelope);
     });
+    stage("compression", [&] { frame.display = compress(shown, imaging); });
     stage("scan conversion",
           [&] { frame.image = scan_convert(frame.display, t, imaging.pixel_mm); });
     return frame;
