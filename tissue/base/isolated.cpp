@@ -58,6 +58,7 @@ std::optional<std::string> in_child_process(const std::function<std::optional<st
             std::signal(deadly, SIG_DFL);
 #ifdef SONOTRACE_ASAN
         __sanitizer_set_death_callback(nullptr);
+        (void)memory_limit_bytes;
 #else
         if (memory_limit_bytes > 0) {
             const rlimit limit{memory_limit_bytes, memory_limit_bytes};
