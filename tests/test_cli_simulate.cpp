@@ -1,6 +1,7 @@
 // `sonotrace simulate` end to end: the default frame and its sidecar, byte-identical
 // frames on 1 and 2 threads, JSON scene files, and bad input that fails cleanly.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <chrono>
 #include <thread>
@@ -92,6 +93,8 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
         {"--sweep sideways:10:1", "axis"},
         {"--sweep elevation:10:0", "step"},
         {"--video mkv --sweep elevation:2:1", "--video"},
+        // A file of poses that is a FIFO with no writer: reading it blocked for ever.
+        {"--sweep " + (dir / "poses.fifo"), "poses.fifo: field '--sweep': is not a regular file"},
         {"--scene /no/scene.json", "/no/scene.json"},
         {"--volume /no/such.nii", "/no/such.nii"},
         {"--phantom /no/phantom.json", "/no/phantom.json"},
@@ -121,6 +124,7 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
         {"--probe convex --fov 1e300", "field 'fov': must be in [0.001, 180] degrees, got 1e+300"},
         {"--name .hidden", "--name"},
         {"--name " + std::string(250, 'a'), "--name"}};
+    ASSERT_EQ(::mkfifo((dir / "poses.fifo").c_str(), 0600), 0);
     std::ofstream(dir / "far_target.json") << R"({"name": "x", "size": [40, 40, 10],
         "background": {"tissue": "water"}, "targets": [{"type": "wire", "at": [20, 45]}]})";
     for (const auto& c : cases) {

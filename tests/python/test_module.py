@@ -186,6 +186,14 @@ def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
         sonotrace.read_shard(str(tmp_path / "bomb.h5"))
 
 
+def test_a_sweep_file_that_is_a_fifo_is_an_input_error(tmp_path):
+    # A finding of the Python fuzzer: a FIFO given as the file of poses blocked for ever.
+    fifo = tmp_path / "poses"
+    os.mkfifo(fifo)
+    with pytest.raises(sonotrace.InputError, match="poses: field '--sweep': is not a regular"):
+        next(iter(sonotrace.sweep(sweep=str(fifo), **FAST)))
+
+
 def test_read_shard_refuses_chunks_that_disagree_with_their_shape(tmp_path):
     # A finding of the Python fuzzer: a sealed shard whose bmode dataspace said rank 2 while
     # its chunk layout kept rank 3 had HDF5 allocate 22 GB (the process was killed). Made

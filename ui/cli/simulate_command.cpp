@@ -25,6 +25,7 @@
 #include "sonotrace_version.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
+#include "tissue/base/file_read.h"
 #include "tissue/base/json_util.h"
 #include "tissue/image_io.h"
 #include "tissue/property_maps.h"
@@ -355,6 +356,9 @@ void apply_scene_file(CLI::App& command, const std::string& path) {
     }
 }
 
+// A file of poses: a million lines of them.
+constexpr std::size_t kMaxSweepFileBytes = std::size_t(256) << 20;
+
 // --sweep: AXIS:LENGTH:STEP moves the scene's probe from -LENGTH/2 to +LENGTH/2 along
 // AXIS (elevation, lateral, axial: the probe's own axes; or X,Y,Z in world mm); or a
 // text file with one --pose per line.
@@ -362,8 +366,9 @@ std::vector<SweepPlacement> sweep_placements(const std::string& sweep,
                                              const imaging::ScenePlacement& base) {
     std::vector<SweepPlacement> out;
     if (sweep.empty()) return {{base, 0.0}};
-    if (std::filesystem::exists(sweep)) {
-        std::ifstream in(sweep);
+    if (std::error_code missing; std::filesystem::exists(sweep, missing)) {
+        // Read as a regular file only: a FIFO named here blocked the run for ever.
+        std::istringstream in(base::read_regular_file(sweep, kMaxSweepFileBytes, "--sweep"));
         int line_number = 0;
         for (std::string line; std::getline(in, line);) {
             ++line_number;
