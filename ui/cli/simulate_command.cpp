@@ -366,7 +366,7 @@ std::vector<SweepPlacement> sweep_placements(const std::string& sweep,
                                              const imaging::ScenePlacement& base) {
     std::vector<SweepPlacement> out;
     if (sweep.empty()) return {{base, 0.0}};
-    if (std::error_code missing; std::filesystem::exists(sweep, missing)) {
+    if (std::filesystem::exists(sweep)) {
         // Read as a regular file only: a FIFO named here blocked the run for ever.
         std::istringstream in(base::read_regular_file(sweep, kMaxSweepFileBytes, "--sweep"));
         int line_number = 0;
