@@ -156,21 +156,21 @@ TEST(FrameArtefacts, HomogeneousSpeckleShowsNoStripesAtDatasetSizes) {
             const imaging::Frame f = homogeneous_frame(preset, pixel);
             const cv::Mat& image = f.image.image;
             const cv::Mat& inside = f.image.inside;
-            std::vector<double> rows, columns;
-            for (int r = 0; r < image.rows; ++r) {
-                double sum = 0.0;
-                int count = 0;
-                for (int c = 0; c < image.cols; ++c)
-                    if (inside.at<uint8_t>(r, c)) sum += image.at<float>(r, c), ++count;
-                if (count > image.cols / 4) rows.push_back(sum / count);
-            }
-            for (int c = 0; c < image.cols; ++c) {
-                double sum = 0.0;
-                int count = 0;
-                for (int r = 0; r < image.rows; ++r)
-                    if (inside.at<uint8_t>(r, c)) sum += image.at<float>(r, c), ++count;
-                if (count > image.rows / 4) columns.push_back(sum / count);
-            }
+            // The means of the scanned pixels of each row (transposed: of each column) that
+            // is at least a quarter inside.
+            auto means = [](const cv::Mat& values, const cv::Mat& in) {
+                std::vector<double> out;
+                for (int r = 0; r < values.rows; ++r) {
+                    double sum = 0.0;
+                    int count = 0;
+                    for (int c = 0; c < values.cols; ++c)
+                        if (in.at<uint8_t>(r, c)) sum += values.at<float>(r, c), ++count;
+                    if (count > values.cols / 4) out.push_back(sum / count);
+                }
+                return out;
+            };
+            const std::vector<double> rows = means(image, inside),
+                                      columns = means(image.t(), inside.t());
             // The speckle's SNR on the envelope-domain image: display v -> 10^(v DR / 20),
             // each row over its mean (the depth's level), pooled over the middle rows and
             // columns. Reported, not yet held to issue 52's 1.91 +- 0.15: the scan
