@@ -520,20 +520,6 @@ void add_pulse(const probe::PulseEcho& pulse, double at, double fs, std::complex
     }
 }
 
-// Log compression with the dB scale folded in: clamp(scale ln(envelope) + offset, 0, 1).
-// base::log_float rather than std::log: the loop over a line vectorises (the call was
-// most of the stage). Infinite envelopes clamp to the largest float first.
-inline float compressed(float envelope, float scale, float offset) {
-    const float level = scale * base::log_float(std::min(envelope, 3.4e38f)) + offset;
-    return envelope > 0.0f ? std::clamp(level, 0.0f, 1.0f) : 0.0f;
-}
-float compression_scale(double dynamic_range_db) {
-    return float(20.0 / std::numbers::ln10 / dynamic_range_db);  // 20 log10 x = (20 / ln 10) ln x
-}
-float compression_offset(double gain_db, double dynamic_range_db) {
-    return float((gain_db + dynamic_range_db) / dynamic_range_db);
-}
-
 }  // namespace
 
 double tgc_gain_db(const std::vector<TgcPoint>& curve, double depth_mm) {
@@ -549,12 +535,37 @@ double tgc_gain_db(const std::vector<TgcPoint>& curve, double depth_mm) {
     return curve.back().gain_db;
 }
 
+namespace {
+// 20 log10 x = (20 / ln 10) ln x, over the range; the gain shifts the range's top.
+float compression_scale(double dynamic_range_db) {
+    return float(20.0 / std::numbers::ln10 / dynamic_range_db);
+}
+float compression_offset(double gain_db, double dynamic_range_db) {
+    return float((gain_db + dynamic_range_db) / dynamic_range_db);
+}
+}  // namespace
+
+Compression::Compression(int samples, double fs_hz, const ImagingSettings& settings)
+    : scale_(compression_scale(settings.dynamic_range_db)), offset_(std::size_t(samples)) {
+    for (int i = 0; i < samples; ++i) {
+        const double depth_mm = 0.5 * kC0 * (double(i) / fs_hz) * 1e3;
+        offset_[std::size_t(i)] = compression_offset(
+            settings.gain_db + tgc_gain_db(settings.tgc, depth_mm), settings.dynamic_range_db);
+    }
+}
+
 float log_compress(float envelope, double gain_db, double dynamic_range_db) {
-    return compressed(envelope, compression_scale(dynamic_range_db),
-                      compression_offset(gain_db, dynamic_range_db));
+    ImagingSettings settings;
+    settings.gain_db = gain_db, settings.dynamic_range_db = dynamic_range_db;
+    const Compression compression(1, 1.0, settings);  // no TGC: the one offset at every depth
+    return compression(envelope, compression.offset(0));
 }
 
 double LineData::depth_mm(int i) const {
+    return 0.5 * kC0 * (double(i) / fs_hz) * 1e3;
+}
+
+double BasebandLines::depth_mm(int i) const {
     return 0.5 * kC0 * (double(i) / fs_hz) * 1e3;
 }
 
@@ -848,6 +859,7 @@ PixelBand make_pixel_band(const probe::Transducer& t, const LineData& layout, do
     const double samples_per_mm = 2.0 * 1e-3 / kC0 * fs;
     const double pulse_sigma = pulse.envelope_fwhm_s() * fs / kFwhmPerSigma;
     const double target = kPixelSigmas * pixel_mm * samples_per_mm;
+    band.sigma_samples = std::max(target, pulse_sigma);
     const double extra2 = target * target - pulse_sigma * pulse_sigma;
     if (!(extra2 > 0.25)) return band;  // under half a sample: nothing to show that aliases
     band.box_radius = box3_radius(std::sqrt(extra2));
@@ -884,14 +896,23 @@ PixelBand pixel_band(const probe::Transducer& t, const LineData& layout, double 
     return kept.back().second;
 }
 
-LineData envelope(const LineData& rf, const PixelBand& band, LineData* unbanded) {
-    LineData env = rf;
+namespace {
+// The analytic signal of every line and what is asked of it: the banded envelope, the
+// plain one, the banded baseband signal (envelope(), baseband()).
+void detect(const LineData& rf, const PixelBand& band, LineData* banded, LineData* unbanded,
+            BasebandLines* baseband) {
+    if (banded) *banded = rf;
     if (unbanded) *unbanded = rf;
+    if (baseband) {
+        baseband->lines = rf.lines, baseband->samples = rf.samples, baseband->fs_hz = rf.fs_hz;
+        baseband->sigma_samples = band.sigma_samples;
+        baseband->values.resize(rf.values.size());
+    }
     const auto& taps = hilbert_taps();
     const int n = rf.samples, K = kHilbertReach;
     // The carrier's phasors by sample, shared by the lines.
     std::vector<std::complex<double>> carrier;
-    if (band.box_radius > 0) {
+    if (band.box_radius > 0 || baseband) {
         carrier.resize(std::size_t(n));
         for (int i = 0; i < n; ++i)
             carrier[std::size_t(i)] =
@@ -912,12 +933,19 @@ LineData envelope(const LineData& rf, const PixelBand& band, LineData* unbanded)
             const float* after = centre + k;
             for (int i = 0; i < n; ++i) h[i] += c * (before[i] - after[i]);
         }
-        float* out = env.values.data() + std::size_t(l) * std::size_t(n);
+        float* out = banded ? banded->values.data() + std::size_t(l) * std::size_t(n) : nullptr;
         float* plain =
             unbanded ? unbanded->values.data() + std::size_t(l) * std::size_t(n) : nullptr;
+        std::complex<float>* shown =
+            baseband ? baseband->values.data() + std::size_t(l) * std::size_t(n) : nullptr;
         if (band.box_radius == 0) {
-            for (int i = 0; i < n; ++i) out[i] = std::sqrt(x[i] * x[i] + h[i] * h[i]);
-            if (plain) std::copy_n(out, n, plain);
+            for (float* to : {out, plain})
+                if (to)
+                    for (int i = 0; i < n; ++i) to[i] = std::sqrt(x[i] * x[i] + h[i] * h[i]);
+            if (shown)
+                for (int i = 0; i < n; ++i)
+                    shown[i] = std::complex<float>(std::complex<double>(x[i], h[i]) *
+                                                   carrier[std::size_t(i)]);
             return;
         }
         if (plain)
@@ -938,132 +966,28 @@ LineData envelope(const LineData& rf, const PixelBand& band, LineData* unbanded)
             m[i] = {a.real(), a.imag(), 0.0, 0.0};
         }
         const Moments* smoothed = smooth_box3(m - r, buffer.data() + n + 2 * r, n, r);
-        for (int i = 0; i < n; ++i)
-            out[i] = float(band.gain * std::sqrt(smoothed[i][0] * smoothed[i][0] +
-                                                 smoothed[i][1] * smoothed[i][1]));
+        if (out)
+            for (int i = 0; i < n; ++i)
+                out[i] = float(band.gain * std::sqrt(smoothed[i][0] * smoothed[i][0] +
+                                                     smoothed[i][1] * smoothed[i][1]));
+        if (shown)
+            for (int i = 0; i < n; ++i)
+                shown[i] = std::complex<float>(float(band.gain * smoothed[i][0]),
+                                               float(band.gain * smoothed[i][1]));
     });
-    return env;
 }
-
-LineData compress(const LineData& envelope, const ImagingSettings& settings) {
-    LineData out = envelope;
-    const float scale = compression_scale(settings.dynamic_range_db);
-    std::vector<float> offset(std::size_t(envelope.samples));
-    for (int i = 0; i < envelope.samples; ++i)
-        offset[std::size_t(i)] =
-            compression_offset(settings.gain_db + tgc_gain_db(settings.tgc, envelope.depth_mm(i)),
-                               settings.dynamic_range_db);
-    tbb::parallel_for(0, envelope.lines, [&](int l) {
-        const std::size_t row = std::size_t(l) * std::size_t(envelope.samples);
-        const float* __restrict in = envelope.values.data() + row;
-        float* __restrict to = out.values.data() + row;
-        const float* __restrict level = offset.data();
-        for (int i = 0; i < envelope.samples; ++i) to[i] = compressed(in[i], scale, level[i]);
-    });
-    return out;
-}
-
-namespace {
-
-// Where each pixel of a scan conversion reads the line data. The arctangent per pixel of
-// a fan costs as much as the rest of the conversion, so the table is kept for the next
-// frames of the same geometry (a sweep, the GUI).
-struct ScanTable {
-    std::array<double, 9> key{};
-    int rows = 0, cols = 0;
-    glm::dvec2 origin{0.0};
-    std::vector<int32_t> first;      // l0 * samples + s0, -1 outside the scanned region
-    std::vector<int32_t> next_line;  // offset to line l0 + 1 (0 with one line)
-    std::vector<float> line_frac, sample_frac;
-};
-
-std::shared_ptr<const ScanTable> scan_table(const LineData& data, const probe::Transducer& t,
-                                            double pixel_mm) {
-    const probe::ScanGeometry geometry(t);
-    // Not a structured binding: the lambdas below capture lo (clang 14, the fuzz build's
-    // compiler, cannot capture bindings).
-    const std::pair<glm::dvec2, glm::dvec2> bounds = geometry.bounds();
-    const glm::dvec2 lo = bounds.first, hi = bounds.second;
-    const std::array<double, 9> key{double(int(t.type)), double(data.lines), double(data.samples),
-                                    data.fs_hz,          pixel_mm,           t.depth_mm,
-                                    t.radius_mm,         t.fov_deg,          t.array_length_mm()};
-    static std::mutex mutex;
-    static std::vector<std::shared_ptr<const ScanTable>> cache;  // most recent last
-    {
-        const std::lock_guard<std::mutex> lock(mutex);
-        for (const auto& table : cache)
-            if (table->key == key) return table;
-    }
-    auto table = std::make_shared<ScanTable>();
-    table->key = key;
-    table->origin = lo;
-    table->cols = int(std::floor((hi.x - lo.x) / pixel_mm)) + 1;
-    table->rows = int(std::floor((hi.y - lo.y) / pixel_mm)) + 1;
-    const std::size_t pixels = std::size_t(table->rows) * std::size_t(table->cols);
-    table->first.assign(pixels, -1);
-    table->next_line.assign(pixels, 0);
-    table->line_frac.assign(pixels, 0.0f);
-    table->sample_frac.assign(pixels, 0.0f);
-    const double samples_per_mm = 2.0 * 1e-3 / kC0 * data.fs_hz;
-    tbb::parallel_for(0, table->rows, [&](int r) {
-        for (int c = 0; c < table->cols; ++c) {
-            const glm::dvec2 p = lo + glm::dvec2(c, r) * pixel_mm;
-            const glm::dvec2 ld = geometry.line_and_depth(p);
-            if (!(ld.x >= -0.5 && ld.x <= data.lines - 0.5 && ld.y >= 0.0 && ld.y <= t.depth_mm))
-                continue;
-            const double sm = std::clamp(ld.y * samples_per_mm, 0.0, double(data.samples - 1));
-            const int s0 = std::min(int(sm), data.samples - 2);
-            const std::size_t at = std::size_t(r) * std::size_t(table->cols) + std::size_t(c);
-            if (geometry.closed() && data.lines > 1 && (ld.x < 0.0 || ld.x > data.lines - 1)) {
-                // Between the last line and the first, which neighbour on a closed array.
-                const double l = ld.x < 0.0 ? ld.x + data.lines : ld.x;
-                const int last = data.lines - 1;
-                table->first[at] = last * data.samples + s0;
-                table->next_line[at] = -last * data.samples;
-                table->line_frac[at] = float(l - last);
-                table->sample_frac[at] = float(sm - s0);
-                continue;
-            }
-            const double l = std::clamp(ld.x, 0.0, double(data.lines - 1));
-            const int l0 = std::min(int(l), std::max(data.lines - 2, 0));
-            table->first[at] = l0 * data.samples + s0;
-            table->next_line[at] = std::min(l0 + 1, data.lines - 1) == l0 ? 0 : data.samples;
-            table->line_frac[at] = float(l - l0);
-            table->sample_frac[at] = float(sm - s0);
-        }
-    });
-    const std::lock_guard<std::mutex> lock(mutex);
-    cache.push_back(table);
-    if (cache.size() > 4) cache.erase(cache.begin());
-    return table;
-}
-
 }  // namespace
 
-ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, double pixel_mm,
-                           float outside) {
-    const auto table = scan_table(data, t, pixel_mm);
-    ScanConverted out;
-    out.pixel_mm = pixel_mm;
-    out.origin = table->origin;
-    out.image = cv::Mat(table->rows, table->cols, CV_32F, cv::Scalar(outside));
-    out.inside = cv::Mat(table->rows, table->cols, CV_8U, cv::Scalar(0));
-    tbb::parallel_for(0, table->rows, [&](int r) {
-        float* image = out.image.ptr<float>(r);
-        uint8_t* inside = out.inside.ptr<uint8_t>(r);
-        for (int c = 0; c < table->cols; ++c) {
-            const std::size_t at = std::size_t(r) * std::size_t(table->cols) + std::size_t(c);
-            if (table->first[at] < 0) continue;
-            // Bilinear between the two samples of the two lines around the pixel.
-            const float* a = data.values.data() + table->first[at];
-            const float* b = a + table->next_line[at];
-            const float fl = table->line_frac[at], fsm = table->sample_frac[at];
-            const float va = a[0] * (1 - fsm) + a[1] * fsm, vb = b[0] * (1 - fsm) + b[1] * fsm;
-            image[c] = va * (1 - fl) + vb * fl;
-            inside[c] = 255;
-        }
-    });
-    return out;
+LineData envelope(const LineData& rf, const PixelBand& band, LineData* unbanded) {
+    LineData banded;
+    detect(rf, band, &banded, unbanded, nullptr);
+    return banded;
+}
+
+BasebandLines baseband(const LineData& rf, const PixelBand& band, LineData* unbanded) {
+    BasebandLines lines;
+    detect(rf, band, nullptr, unbanded, &lines);
+    return lines;
 }
 
 }  // namespace sonotrace::imaging

@@ -5,8 +5,9 @@
 //   reflection events      --plane response of the line's two-way PSF-->  echo per line
 //   scatter echo profile   --x tissue-fixed speckle field, PSF-weighted sum across-->
 //   point targets          --each line's exact two-way field H at the target-->
-//   complex pre-RF --(*) pulse-echo waveform--> RF --analytic signal--> envelope --TGC-->
-//   log compression --scan conversion--> image
+//   complex pre-RF --(*) pulse-echo waveform--> RF --analytic signal--> baseband, banded
+//   to the pixels --scan conversion (coherent between lines), TGC, log compression--> image
+//   (imaging/scan_conversion.h)
 //
 // The tracer carries where the energy goes (refraction, shadowing, multiple reflections,
 // attenuation); the aperture's two-way field H = T R (probe/aperture.h, tabulated per
@@ -158,17 +159,32 @@ struct PixelBand {
     double carrier_hz = 0.0;
     int box_radius = 0;
     double gain = 1.0;
+    double sigma_samples = 0.0;  // the displayed axial resolution, a Gaussian's sigma
 };
 // sigma of the displayed axial resolution, in pixels: the detected intensity's spectrum at
 // the pixels' Nyquist frequency exp(-pi^2 sigma^2 / 2) = -15 dB.
 inline constexpr double kPixelSigmas = 0.85;
 PixelBand pixel_band(const probe::Transducer& t, const LineData& layout, double pixel_mm);
 
+// Lines x samples of a detected signal at baseband: the analytic signal times exp(-i 2 pi
+// f0 t), low-passed to the display's pixels (PixelBand), whose magnitude is the displayed
+// envelope. What the display's scan conversion interpolates, coherently, between lines.
+struct BasebandLines {
+    int lines = 0, samples = 0;
+    double fs_hz = 0.0;
+    double sigma_samples = 0.0;               // axial resolution, a Gaussian's sigma (PixelBand)
+    std::vector<std::complex<float>> values;  // [line * samples + i]
+    double depth_mm(int i) const;             // c0 * t / 2
+};
+
 // Envelope of every line: magnitude of the analytic signal (a finite Hilbert transformer,
 // accurate across the RF band; nothing of an echo reaches farther than 48 samples), with
-// a pixel band low-passed to it first (what the display and scan conversion take); with
-// `unbanded`, the plain envelope too, from the same analytic signal.
+// a pixel band low-passed to it first; with `unbanded`, the plain envelope too, from the
+// same analytic signal.
 LineData envelope(const LineData& rf, const PixelBand& band = {}, LineData* unbanded = nullptr);
+// The same signal banded, at baseband (what the display's scan conversion takes; `band`
+// from pixel_band, whose carrier it is taken down from), and the plain envelope.
+BasebandLines baseband(const LineData& rf, const PixelBand& band, LineData* unbanded = nullptr);
 
 // Spreads each of `n` samples' four values over the `period` samples from it on (itself
 // first, the last one fractional), by a running sum: a track-length profile whose steps
@@ -178,8 +194,25 @@ LineData envelope(const LineData& rf, const PixelBand& band = {}, LineData* unba
 // equal. Sums are kept (but for what spreads past the end). period <= 1: nothing changes.
 void spread_over_step(std::array<double, 4>* values, int n, double period);
 
-// TGC and log compression, per sample.
-LineData compress(const LineData& envelope, const ImagingSettings& settings);
+// TGC and log compression as the display applies them: 20 log10(envelope) + gain + TGC(depth)
+// mapped from -range..0 dB to 0..1 and clamped, folded into scale ln(envelope) +
+// offset(depth); the offsets by sample of a layout (`samples` at `fs_hz`).
+class Compression {
+  public:
+    Compression(int samples, double fs_hz, const ImagingSettings& settings);
+    float offset(int i) const { return offset_[std::size_t(i)]; }
+    float scale() const { return scale_; }
+    // base::log_float rather than std::log: loops over pixels or samples vectorise (the
+    // call was most of the stage). Infinite envelopes clamp to the largest float first.
+    float operator()(float envelope, float offset) const {
+        const float level = scale_ * base::log_float(std::min(envelope, 3.4e38f)) + offset;
+        return envelope > 0.0f ? std::clamp(level, 0.0f, 1.0f) : 0.0f;
+    }
+
+  private:
+    float scale_ = 1.0f;
+    std::vector<float> offset_;
+};
 
 // The white scatterer field fixed in world coordinates: trilinear interpolation of
 // independent zero-mean values on a lattice of `cell_mm`, scaled to unit mean square at
@@ -242,17 +275,6 @@ class ScattererField {
     uint32_t seed_;
     double inverse_cell_;
 };
-
-// Scan conversion of line data onto a Cartesian grid of `pixel_mm` covering the scanned
-// region (bilinear between lines and samples). Pixels outside the region are `outside`.
-struct ScanConverted {
-    cv::Mat image;      // CV_32F, rows = depth (y), cols = lateral (x)
-    cv::Mat inside;     // CV_8U, 255 where the pixel lies in the scanned region
-    glm::dvec2 origin;  // probe-plane position (mm) of pixel (0, 0)'s centre
-    double pixel_mm = 0.0;
-};
-ScanConverted scan_convert(const LineData& data, const probe::Transducer& t, double pixel_mm,
-                           float outside = 0.0f);
 
 namespace detail {
 // One line's speckle sums over the samples [begin, end) between two PSF table rows: for

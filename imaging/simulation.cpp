@@ -567,13 +567,11 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
     if (settings.keep_echoes) frame.echoes = std::move(echoes);
     // The display takes what its pixels can show (PixelBand); the envelope stays the
     // pulse's, at the RF's resolution. Both from one analytic signal.
-    LineData shown;
+    BasebandLines shown;
     stage("envelope", [&] {
-        shown = envelope(frame.rf, pixel_band(t, frame.rf, imaging.pixel_mm), &frame.envelope);
+        shown = baseband(frame.rf, pixel_band(t, frame.rf, imaging.pixel_mm), &frame.envelope);
     });
-    stage("compression", [&] { frame.display = compress(shown, imaging); });
-    stage("scan conversion",
-          [&] { frame.image = scan_convert(frame.display, t, imaging.pixel_mm); });
+    stage("scan conversion", [&] { frame.image = scan_convert_display(shown, t, imaging); });
     return frame;
 }
 

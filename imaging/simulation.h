@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "imaging/bmode.h"
+#include "imaging/scan_conversion.h"
 #include "probe/beam.h"
 #include "probe/pose.h"
 #include "probe/transducer.h"
@@ -152,8 +153,8 @@ void light_from_slab(tissue::PropertyMaps& plane, const PlaneGrid& plane_grid,
 MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid);
 
 struct Frame {
-    LineData rf, envelope, display;  // display = TGC + log compression, 0..1
-    ScanConverted image;             // scan-converted display
+    LineData rf, envelope;
+    ScanConverted image;  // the display: TGC + log compression, 0..1, scan-converted
     simulator::EnergyLedger ledger;
     simulator::TraceStats stats;
     // Energy deposition map on the grid of the plane, up to the close of the echo window

@@ -1,7 +1,8 @@
 #!/bin/sh
 # Renders the README's B-mode pictures into docs/images/: the default frame and the
 # temporal view (through the skull) beside their ground truth, the temporal view to the
-# far skull, the point-target grid and the radial array. Usage: scripts/readme_pictures.sh [build-dir]
+# far skull, the point-target grid, the radial array and frames of the example dataset at
+# its 128 x 128 pixels. Usage: scripts/readme_pictures.sh [build-dir]
 set -eu
 build=${1:-build}
 tmp=$(mktemp -d)
@@ -27,3 +28,16 @@ cp "$tmp/points/bmode.png" docs/images/bmode-point-grid.png
 "$build/sonotrace" simulate -q --phantom phantoms/radial_ring.json --labels --out "$tmp/radial"
 oiiotool "$tmp/radial/bmode.png" --ch 0,0,0 "$tmp/radial/bmode_labels_preview.png" \
     --mosaic:pad=8 2x1 -o docs/images/bmode-radial.png
+# The example dataset's first four frames (128 x 128, as a network sees them), each pixel
+# drawn as 2 x 2 so that the pixels show.
+"$build/sonotrace" dataset -q phantoms/datasets/example.json --out "$tmp/dataset"
+python3 - "$tmp/dataset/shard_00000.h5" "$tmp/frame" <<'PY'
+import sys
+import h5py
+with h5py.File(sys.argv[1], "r") as f:
+    for i, grey in enumerate(f["bmode"][:4]):  # uint8 grey levels
+        with open(f"{sys.argv[2]}{i}.pgm", "wb") as out:
+            out.write(b"P5 %d %d 255\n" % (grey.shape[1], grey.shape[0]) + grey.tobytes())
+PY
+oiiotool "$tmp/frame0.pgm" "$tmp/frame1.pgm" "$tmp/frame2.pgm" "$tmp/frame3.pgm" \
+    --mosaic:pad=4 4x1 --resample 1048x264 --ch 0,0,0 -o docs/images/dataset-frames.png

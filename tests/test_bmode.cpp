@@ -10,6 +10,7 @@
 
 #include "imaging/anatomy_truth.h"
 #include "imaging/bmode.h"
+#include "imaging/scan_conversion.h"
 #include "probe/aperture.h"
 #include "probe/pulse.h"
 #include "probe/transducer.h"
@@ -359,21 +360,19 @@ TEST(Bmode, TgcAndLogCompressionFollowTheirFormulas) {
     EXPECT_EQ(imaging::log_compress(1e-9f, 0.0, 60.0), 0.0f);  // below the range: black
     EXPECT_EQ(imaging::log_compress(0.0f, 0.0, 60.0), 0.0f);
 
-    // compress(): TGC applied at each sample's depth c0 t / 2.
-    LineData env;
-    env.lines = 1;
-    env.samples = 1000;
-    env.fs_hz = 20e6;
-    env.values.assign(1000, 1e-3f);  // -60 dB
+    // Compression: TGC applied at each sample's depth c0 t / 2.
     imaging::ImagingSettings s;
-    s.tgc = {{0.0, 0.0}, {38.5, 20.0}};  // sample i sits at i * 0.0385 mm
+    s.tgc = {{0.0, 0.0}, {38.5, 20.0}};  // sample i sits at i * 0.0385 mm at 20 MHz
     s.gain_db = 30.0;
     s.dynamic_range_db = 40.0;
-    const LineData out = imaging::compress(env, s);
+    const double fs = 20e6;
+    const imaging::Compression compression(1000, fs, s);
     for (int i : {0, 250, 500, 999}) {
-        const double depth = 0.5 * kC0 * (i / env.fs_hz) * 1e3;
+        const double depth = 0.5 * kC0 * (i / fs) * 1e3;
         const double db = -60.0 + 30.0 + std::min(20.0, 20.0 * depth / 38.5);
-        EXPECT_NEAR(out.at(0, i), std::clamp((db + 40.0) / 40.0, 0.0, 1.0), 1e-5) << i;
+        EXPECT_NEAR(compression(1e-3f, compression.offset(i)),  // -60 dB
+                    std::clamp((db + 40.0) / 40.0, 0.0, 1.0), 1e-5)
+            << i;
     }
 }
 
@@ -390,35 +389,45 @@ TEST(Bmode, ScanConversionPutsKnownPointsAtTheirPixels) {
         for (int i = sample - 8; i <= sample + 8; ++i)
             data.at(line, i) = 1.0f;  // finer than pixels
         const double pixel = 0.1;
-        const imaging::ScanConverted sc = imaging::scan_convert(data, t, pixel);
-        // Centroid of the pixels brighter than half.
-        glm::dvec2 sum(0.0);
-        double weight = 0.0;
-        for (int r = 0; r < sc.image.rows; ++r) {
-            for (int c = 0; c < sc.image.cols; ++c) {
-                const float v = sc.image.at<float>(r, c);
-                if (v > 0.5f) sum += double(v) * glm::dvec2(c, r), weight += v;
+        // The same lines as the display takes them: baseband 1 there, 0 elsewhere, shown
+        // at level 1 (gain 0 dB) and 0.
+        imaging::BasebandLines lines;
+        lines.lines = data.lines, lines.samples = data.samples, lines.fs_hz = data.fs_hz;
+        lines.sigma_samples = 2.0;
+        for (float v : data.values) lines.values.emplace_back(v, 0.0f);
+        imaging::ImagingSettings shown;
+        shown.pixel_mm = pixel;
+        for (const imaging::ScanConverted& sc : {imaging::scan_convert(data, t, pixel),
+                                                 imaging::scan_convert_display(lines, t, shown)}) {
+            // Centroid of the pixels brighter than half.
+            glm::dvec2 sum(0.0);
+            double weight = 0.0;
+            for (int r = 0; r < sc.image.rows; ++r) {
+                for (int c = 0; c < sc.image.cols; ++c) {
+                    const float v = sc.image.at<float>(r, c);
+                    if (v > 0.5f) sum += double(v) * glm::dvec2(c, r), weight += v;
+                }
             }
+            ASSERT_GT(weight, 0.0) << t.name;
+            const glm::dvec2 found = sc.origin + sum / weight * pixel;
+            glm::dvec2 expected;
+            if (t.type == probe::TransducerType::linear) {
+                const double span = t.elements * t.pitch_mm;
+                expected = {-0.5 * span + (line + 0.5) * span / t.lines, depth};
+            } else {
+                // Fans from the arc's centre (0, -R): convex and radial arrays have an arc.
+                const double r = t.type == probe::TransducerType::phased ? 0.0 : t.radius_mm;
+                const double fov = t.fov_deg * std::numbers::pi / 180.0;
+                const double angle = -0.5 * fov + (line + 0.5) * fov / t.lines;
+                expected = {(r + depth) * std::sin(angle), (r + depth) * std::cos(angle) - r};
+            }
+            EXPECT_NEAR(found.x, expected.x, pixel) << t.name;
+            EXPECT_NEAR(found.y, expected.y, pixel) << t.name;
+            // Inside mask: the face's centre line is inside, a far corner is not.
+            EXPECT_EQ(sc.inside.at<uint8_t>(sc.inside.rows - 1, 0),
+                      t.type == probe::TransducerType::linear ? 255 : 0)
+                << t.name;
         }
-        ASSERT_GT(weight, 0.0) << t.name;
-        const glm::dvec2 found = sc.origin + sum / weight * pixel;
-        glm::dvec2 expected;
-        if (t.type == probe::TransducerType::linear) {
-            const double span = t.elements * t.pitch_mm;
-            expected = {-0.5 * span + (line + 0.5) * span / t.lines, depth};
-        } else {
-            // Fans from the arc's centre (0, -R): convex and radial arrays have an arc.
-            const double r = t.type == probe::TransducerType::phased ? 0.0 : t.radius_mm;
-            const double fov = t.fov_deg * std::numbers::pi / 180.0;
-            const double angle = -0.5 * fov + (line + 0.5) * fov / t.lines;
-            expected = {(r + depth) * std::sin(angle), (r + depth) * std::cos(angle) - r};
-        }
-        EXPECT_NEAR(found.x, expected.x, pixel) << t.name;
-        EXPECT_NEAR(found.y, expected.y, pixel) << t.name;
-        // Inside mask: the face's centre line is inside, a far corner is not.
-        EXPECT_EQ(sc.inside.at<uint8_t>(sc.inside.rows - 1, 0),
-                  t.type == probe::TransducerType::linear ? 255 : 0)
-            << t.name;
     }
 }
 

@@ -163,8 +163,12 @@ def test_a_killed_rank_ends_the_job_and_the_next_run_completes_it(tmp_path, refe
     if job.returncode == 0:
         pytest.skip("the job had finished when the signal came")
     # mpirun's own exit (128 + 9) and message: the killed process can say nothing itself.
+    # Which message depends on a race inside Open MPI: when the other rank sees the lost
+    # connection and exits first (seen on a loaded machine), mpirun reports that exit
+    # instead of the signal.
     assert job.returncode == 137, stderr
-    assert f"rank {killed_rank}" in stderr and "signal 9" in stderr, stderr
+    assert (f"rank {killed_rank}" in stderr and "signal 9" in stderr) or \
+        "returned a non-zero exit code" in stderr, stderr
     assert not (out / "manifest.json").exists()
     run = mpirun(["dataset", str(spec), "--out", str(out), "--threads", "1", "-q"])
     assert run.returncode == 0, run.stderr
