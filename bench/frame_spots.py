@@ -10,8 +10,8 @@ clear of any other label: interfaces are not spots) whose level (10 log10 of its
 intensity) is more than 15 dB above the median level of the parenchyma patches within
 5 mm of it (the issue's 10 mm neighbourhood) is a spot. Ventricles: the CSF's connected
 components of at least 20 mm^2 (not the thin sulci), eroded by 1 mm, against the
-parenchyma eroded by 1 mm, as mean intensities, per group of seeds (their frames
-summed). Runs the Python module (SONOTRACE_PYTHON_DIR, default build/python).
+parenchyma eroded by 1 mm, per group of seeds (their frames pooled): as the mean grey
+level in dB (what the eye compares) and, in brackets, as mean intensities. Runs the Python module (SONOTRACE_PYTHON_DIR, default build/python).
 """
 import argparse
 import os
@@ -84,7 +84,9 @@ def measure(frame, dynamic_range_db, pixel_mm):
         worst = max(worst, excess)
         if excess > 15.0:
             spots.append((r * mm, c * mm, excess))
+    db = grey * dynamic_range_db / 255.0
     return {
+        "ventricles_db": db[ventricles].sum(), "parenchyma_db": db[parenchyma].sum(),
         "ventricles": intensity[ventricles].sum(), "ventricle_pixels": int(ventricles.sum()),
         "parenchyma": intensity[parenchyma].sum(), "parenchyma_pixels": int(parenchyma.sum()),
         "patches": int((~np.isnan(level)).sum()), "spots": spots, "worst": worst,
@@ -107,6 +109,7 @@ def main():
     import sonotrace
     options = dict(kv.split("=", 1) for kv in args.option)
     groups, spots, patches, worst = [], 0, 0, 0.0
+    by_depth = {}  # spots by 5 mm band of depth, and how far off the frame's axis (mm)
     group = None
     for k in range(args.seeds):
         seed = args.first_seed + k
@@ -114,14 +117,22 @@ def main():
         image = frame.sidecar["image"]
         m = measure(frame, image["dynamic_range_db"], image["pixel_spacing_mm"][0])
         spots += len(m["spots"])
+        pixel = image["pixel_spacing_mm"][0]
+        for y, x, _ in m["spots"]:
+            depth = image["origin_mm"][1] + y * pixel
+            lateral = abs(image["origin_mm"][0] + x * pixel)
+            band = by_depth.setdefault(int(depth // 5) * 5, [])
+            band.append(lateral / max(depth, 1e-9))
         patches += m["patches"]
         worst = max(worst, m["worst"])
         where = ", ".join(f"({x}, {y}) px +{e:.0f} dB" for y, x, e in m["spots"][:6])
         print(f"seed {seed}: {len(m['spots'])} spots of {m['patches']} patches, "
               f"largest excess {m['worst']:.1f} dB{': ' + where if where else ''}", flush=True)
         if k % args.group == 0:
-            group = {"v": 0.0, "vn": 0, "p": 0.0, "pn": 0, "first": seed}
+            group = {"v": 0.0, "vn": 0, "p": 0.0, "pn": 0, "vdb": 0.0, "pdb": 0.0, "first": seed}
             groups.append(group)
+        group["vdb"] += m["ventricles_db"]
+        group["pdb"] += m["parenchyma_db"]
         group["v"] += m["ventricles"]
         group["vn"] += m["ventricle_pixels"]
         group["p"] += m["parenchyma"]
@@ -129,8 +140,14 @@ def main():
     for g in groups:
         if g["vn"] and g["pn"]:
             contrast = 10.0 * np.log10((g["v"] / g["vn"]) / (g["p"] / g["pn"]))
+            seen = g["vdb"] / g["vn"] - g["pdb"] / g["pn"]
             print(f"seeds {g['first']}-{g['first'] + args.group - 1}: ventricles "
-                  f"{contrast:+.1f} dB against the parenchyma ({g['vn']} and {g['pn']} pixels)")
+                  f"{seen:+.1f} dB ({contrast:+.1f} dB in intensity) against the parenchyma "
+                  f"({g['vn']} and {g['pn']} pixels)")
+    for depth in sorted(by_depth):
+        tangents = by_depth[depth]
+        print(f"  {depth:3d}-{depth + 5:3d} mm: {len(tangents):5d} spots, "
+              f"median |x| / depth {np.median(tangents):.2f}")
     print(f"{args.view}: {spots} spots over {patches} patches of {args.seeds} frames, "
           f"largest excess {worst:.1f} dB")
 
