@@ -486,5 +486,41 @@ TEST(ScanConversion, ARadialFrameClosesTheCircle) {
     EXPECT_GT(seam_high, 1.4);  // and line 0's on the other
 }
 
+// The display pairs a radial array's last line with its first: lines of one level whose
+// phase alternates by a third of a turn read that level everywhere between lines, the
+// seam included (the power the phase step takes midway, 1 - 3 f (1 - f), restored from
+// the pair's own means; paired with itself, the seam would dip 6 dB midway).
+TEST(ScanConversion, TheDisplayAcrossARadialSeamPairsTheLastLineWithTheFirst) {
+    probe::Transducer t = probe::find_transducer("radial", "test");
+    t.lines = 64;
+    imaging::BasebandLines lines;
+    lines.lines = t.lines;
+    lines.fs_hz = 20e6;
+    lines.samples = int(std::ceil(2.0 * t.depth_mm * 1e-3 / kC0 * lines.fs_hz)) + 1;
+    lines.sigma_samples = 2.0;
+    for (int l = 0; l < t.lines; ++l)
+        for (int i = 0; i < lines.samples; ++i)
+            lines.values.push_back(std::polar(1.0f, float(l % 2) * 2.0f * 3.14159265f / 3.0f));
+    imaging::ImagingSettings settings;
+    settings.pixel_mm = 0.2;
+    settings.gain_db = -30.0;  // level 1 shown at (60 - 30) / 60 = 0.5
+    const imaging::ScanConverted frame = imaging::scan_convert_display(lines, t, settings);
+    const glm::dvec2 centre(0.0, -t.radius_mm);
+    double lowest = 1.0, highest = 0.0;
+    for (int k = 0; k < 3600; ++k) {
+        const double angle = 2.0 * std::numbers::pi * k / 3600.0;
+        const glm::dvec2 p = centre + (t.radius_mm + 0.5 * t.depth_mm) *
+                                          glm::dvec2(std::sin(angle), std::cos(angle));
+        const int c = int(std::lround((p.x - frame.origin.x) / settings.pixel_mm)),
+                  row = int(std::lround((p.y - frame.origin.y) / settings.pixel_mm));
+        ASSERT_TRUE(frame.inside.at<uint8_t>(row, c));
+        const double v = frame.image.at<float>(row, c);
+        lowest = std::min(lowest, v), highest = std::max(highest, v);
+    }
+    // 0.01 of the 60 dB range: 0.6 dB.
+    EXPECT_NEAR(lowest, 0.5, 0.01);
+    EXPECT_NEAR(highest, 0.5, 0.01);
+}
+
 }  // namespace
 }  // namespace sonotrace
