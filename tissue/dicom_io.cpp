@@ -1,20 +1,7 @@
 #include "tissue/dicom_io.h"
 
-#include <fcntl.h>
 #include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
-// A sanitizer build (the fuzzers', ASan's): the child's death must stay the child's.
-#if defined(__SANITIZE_ADDRESS__)
-#define SONOTRACE_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define SONOTRACE_ASAN 1
-#endif
-#endif
-#ifdef SONOTRACE_ASAN
-#include <sanitizer/common_interface_defs.h>
-#endif
 
 #include <gdcmAttribute.h>
 #include <gdcmImage.h>
@@ -26,7 +13,6 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
-#include <csignal>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -41,6 +27,7 @@
 
 #include "tissue/base/error.h"
 #include "tissue/base/file_status.h"
+#include "tissue/base/isolated.h"
 #include "tissue/base/memory.h"
 
 namespace fs = std::filesystem;
@@ -827,63 +814,7 @@ DicomReadResult read_dicom_here(const std::string& path) {
 }
 
 // The child's answer through a pipe: a status byte, then the result or the error.
-class PipeWriter {
-  public:
-    explicit PipeWriter(int fd) : fd_(fd) {}
-    void bytes(const void* data, std::size_t n) {
-        const char* p = static_cast<const char*>(data);
-        while (n > 0) {
-            const ssize_t written = ::write(fd_, p, n);
-            if (written < 0 && errno == EINTR) continue;
-            if (written <= 0) _exit(2);  // the parent went away
-            p += written;
-            n -= std::size_t(written);
-        }
-    }
-    template <class T>
-    void value(const T& v) {
-        bytes(&v, sizeof v);
-    }
-    void text(const std::string& s) {
-        value(std::uint64_t(s.size()));
-        bytes(s.data(), s.size());
-    }
-
-  private:
-    int fd_;
-};
-
-class PipeReader {
-  public:
-    explicit PipeReader(int fd) : fd_(fd) {}
-    // False when the child's answer ends early (it died).
-    bool bytes(void* data, std::size_t n) {
-        char* p = static_cast<char*>(data);
-        while (n > 0) {
-            const ssize_t got = ::read(fd_, p, n);
-            if (got < 0 && errno == EINTR) continue;
-            if (got <= 0) return false;
-            p += got;
-            n -= std::size_t(got);
-        }
-        return true;
-    }
-    template <class T>
-    bool value(T& v) {
-        return bytes(&v, sizeof v);
-    }
-    bool text(std::string& s) {
-        std::uint64_t n = 0;
-        if (!value(n) || n > (1u << 20)) return false;
-        s.resize(n);
-        return bytes(s.data(), n);
-    }
-
-  private:
-    int fd_;
-};
-
-void send_result(PipeWriter& out, const DicomReadResult& r) {
+void send_result(base::PipeWriter& out, const DicomReadResult& r) {
     const VolumeGeometry& g = r.volume.geometry();
     out.value(std::uint8_t(0));
     out.value(g);
@@ -901,86 +832,59 @@ DicomReadResult read_dicom(const std::string& path) {
     // Debian's GDCM keeps its assertions, and some malformed files trip them (an abort),
     // and its decoders are C code fed with the file's bytes: the file is read in a child
     // process, so that a crash there is a refusal of the file here.
-    int fds[2];
-    if (::pipe(fds) != 0)
-        throw std::runtime_error("pipe() failed: " + std::string(std::strerror(errno)));
-    const pid_t child = ::fork();
-    if (child < 0) {
-        ::close(fds[0]);
-        ::close(fds[1]);
-        throw std::runtime_error("fork() failed: " + std::string(std::strerror(errno)));
-    }
-    if (child == 0) {
-        ::close(fds[0]);
-        // A crash here ends the child quietly, whatever handlers the parent installed (a
-        // fuzzer's would record the child's death as its own finding).
-        for (const int deadly : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL})
-            std::signal(deadly, SIG_DFL);
-#ifdef SONOTRACE_ASAN
-        // The same for a sanitizer's death: ASan's operator new dies where the budget below
-        // makes a gigabyte element fail (production throws bad_alloc, a refusal), and the
-        // fuzzer's death callback wrote each such input as a crash of its own.
-        __sanitizer_set_death_callback(nullptr);
-#endif
-        // GDCM's assertion messages are not ours to print: the answer goes through the pipe.
-        const int null = ::open("/dev/null", O_WRONLY);
-        if (null >= 0) ::dup2(null, STDERR_FILENO);
-        PipeWriter out(fds[1]);
-        try {
-            send_result(out, read_dicom_here(path));
-        } catch (const std::bad_alloc&) {
-            out.value(std::uint8_t(1));
-            out.text(path);
-            out.text("");
-            out.text(
-                "declares more data than it holds (beyond the reading's memory budget): "
-                "the file is malformed");
-        } catch (const base::InputError& e) {
-            out.value(std::uint8_t(1));
-            out.text(e.source());
-            out.text(e.field());
-            out.text(e.what());
-        } catch (const std::exception& e) {
-            out.value(std::uint8_t(2));
-            out.text(e.what());
-        }
-        _exit(0);  // no destructors or exit handlers of the parent's state
-    }
-    ::close(fds[1]);
-    PipeReader in(fds[0]);
     std::uint8_t status = 255;
-    bool complete = in.value(status);
+    bool complete = false;
     DicomReadResult result;
     std::string source, field, what;
-    if (complete && status == 0) {
-        VolumeGeometry g;
-        std::uint64_t warnings = 0;
-        complete = in.value(g) && in.text(result.modality) && in.text(result.series_description) &&
-                   in.value(result.slice_count) && in.value(warnings) && warnings < 1000;
-        for (std::uint64_t w = 0; complete && w < warnings; ++w) {
-            complete = in.text(result.warnings.emplace_back());
-        }
-        if (complete) {
-            result.volume = Volume(g);
-            complete = in.bytes(result.volume.voxels().data(),
-                                result.volume.voxels().size() * sizeof(float));
-        }
-    } else if (complete && status == 1) {
-        complete = in.text(source) && in.text(field) && in.text(what);
-    } else if (complete && status == 2) {
-        complete = in.text(what);
-    }
-    ::close(fds[0]);
-    int exit_status = 0;
-    while (::waitpid(child, &exit_status, 0) < 0 && errno == EINTR) {
-    }
-    if (!complete || !WIFEXITED(exit_status) || WEXITSTATUS(exit_status) != 0) {
-        const std::string how = WIFSIGNALED(exit_status)
-                                    ? std::string("signal ") + strsignal(WTERMSIG(exit_status))
-                                    : "exit status " + std::to_string(WEXITSTATUS(exit_status));
+    const std::optional<std::string> ended = base::run_forked(
+        [&](int fd) {
+            base::PipeWriter out(fd);
+            try {
+                send_result(out, read_dicom_here(path));
+            } catch (const std::bad_alloc&) {
+                out.value(std::uint8_t(1));
+                out.text(path);
+                out.text("");
+                out.text(
+                    "declares more data than it holds (beyond the reading's memory budget): "
+                    "the file is malformed");
+            } catch (const base::InputError& e) {
+                out.value(std::uint8_t(1));
+                out.text(e.source());
+                out.text(e.field());
+                out.text(e.what());
+            } catch (const std::exception& e) {
+                out.value(std::uint8_t(2));
+                out.text(e.what());
+            }
+        },
+        [&](int fd) {
+            base::PipeReader in(fd);
+            complete = in.value(status);
+            if (complete && status == 0) {
+                VolumeGeometry g;
+                std::uint64_t warnings = 0;
+                complete = in.value(g) && in.text(result.modality) &&
+                           in.text(result.series_description) && in.value(result.slice_count) &&
+                           in.value(warnings) && warnings < 1000;
+                for (std::uint64_t w = 0; complete && w < warnings; ++w)
+                    complete = in.text(result.warnings.emplace_back());
+                if (complete) {
+                    result.volume = Volume(g);
+                    complete = in.bytes(result.volume.voxels().data(),
+                                        result.volume.voxels().size() * sizeof(float));
+                }
+            } else if (complete && status == 1) {
+                complete = in.text(source) && in.text(field) && in.text(what);
+            } else if (complete && status == 2) {
+                complete = in.text(what);
+            }
+        },
+        0, /*quiet: GDCM's assertion messages are not ours to print*/ true);
+    if (!complete || ended)
         throw base::InputError(path, "",
-                               "GDCM failed reading it (" + how + "): the file is malformed");
-    }
+                               "GDCM failed reading it (" + ended.value_or("exit status 0") +
+                                   "): the file is malformed");
     if (status == 1) {
         // The child's message less the source and field that InputError puts in front.
         const std::string prefix = source + (field.empty() ? "" : ": field '" + field + "'") + ": ";

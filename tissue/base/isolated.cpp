@@ -1,12 +1,12 @@
 #include "tissue/base/isolated.h"
 
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <csignal>
-#include <cstdint>
 #include <cstring>
 #include <new>
 #include <stdexcept>
@@ -25,38 +25,49 @@
 
 namespace sonotrace::base {
 
-namespace {
-// The whole message through the pipe; false if the reader went away.
-bool write_all(int fd, const char* p, std::size_t n) {
+void PipeWriter::bytes(const void* data, std::size_t n) {
+    const char* p = static_cast<const char*>(data);
     while (n > 0) {
-        const ssize_t written = ::write(fd, p, n);
+        const ssize_t written = ::write(fd_, p, n);
         if (written < 0 && errno == EINTR) continue;
-        if (written <= 0) return false;
+        if (written <= 0) _exit(2);  // the parent went away
         p += written;
         n -= std::size_t(written);
     }
+}
+
+bool PipeReader::bytes(void* data, std::size_t n) {
+    char* p = static_cast<char*>(data);
+    while (n > 0) {
+        const ssize_t got = ::read(fd_, p, n);
+        if (got < 0 && errno == EINTR) continue;
+        if (got <= 0) return false;
+        p += got;
+        n -= std::size_t(got);
+    }
     return true;
 }
-}  // namespace
 
-std::optional<std::string> in_child_process(const std::function<std::optional<std::string>()>& work,
-                                            std::size_t memory_limit_bytes) {
+std::optional<std::string> run_forked(const std::function<void(int fd)>& child,
+                                      const std::function<void(int fd)>& parent,
+                                      std::size_t memory_limit_bytes, bool quiet) {
     int fds[2];
     if (::pipe(fds) != 0)
         throw std::runtime_error("pipe() failed: " + std::string(std::strerror(errno)));
-    const pid_t child = ::fork();
-    if (child < 0) {
+    const pid_t pid = ::fork();
+    if (pid < 0) {
         ::close(fds[0]);
         ::close(fds[1]);
         throw std::runtime_error("fork() failed: " + std::string(std::strerror(errno)));
     }
-    if (child == 0) {
+    if (pid == 0) {
         ::close(fds[0]);
-        // A crash ends the child quietly, whatever handlers the parent installed (a
-        // fuzzer's would record the child's death as its own finding).
         for (const int deadly : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL})
             std::signal(deadly, SIG_DFL);
 #ifdef SONOTRACE_ASAN
+        // ASan's operator new dies where a memory budget makes a gigabyte allocation fail
+        // (production throws bad_alloc, a refusal); the fuzzer's death callback would write
+        // each such input as a crash of its own.
         __sanitizer_set_death_callback(nullptr);
         (void)memory_limit_bytes;
 #else
@@ -65,44 +76,68 @@ std::optional<std::string> in_child_process(const std::function<std::optional<st
             ::setrlimit(RLIMIT_AS, &limit);
         }
 #endif
-        std::uint8_t status = 0;
-        std::string message;
-        try {
-            if (const std::optional<std::string> why = work()) status = 1, message = *why;
-        } catch (const std::bad_alloc&) {
-            status = 2;
-        } catch (const std::exception& e) {
-            status = 1, message = e.what();
+        if (quiet) {
+            const int null = ::open("/dev/null", O_WRONLY);
+            if (null >= 0) ::dup2(null, STDERR_FILENO);
         }
-        const std::uint64_t size = message.size();
-        const bool sent = write_all(fds[1], reinterpret_cast<const char*>(&status), 1) &&
-                          write_all(fds[1], reinterpret_cast<const char*>(&size), sizeof size) &&
-                          write_all(fds[1], message.data(), message.size());
-        _exit(sent ? 0 : 3);  // no destructors or exit handlers of the parent's state
+        try {
+            child(fds[1]);
+        } catch (...) {
+            _exit(4);  // the child's work lets nothing escape; if it did, no answer
+        }
+        _exit(0);  // no destructors or exit handlers of the parent's state
     }
     ::close(fds[1]);
-    std::string answer;
-    char buffer[4096];
-    for (;;) {
-        const ssize_t got = ::read(fds[0], buffer, sizeof buffer);
-        if (got < 0 && errno == EINTR) continue;
-        if (got <= 0) break;
-        answer.append(buffer, std::size_t(got));
+    parent(fds[0]);
+    // Whatever the parent left unread: read to the end, so that the child is not left
+    // blocked on a full pipe.
+    for (char drain[4096];;) {
+        const ssize_t got = ::read(fds[0], drain, sizeof drain);
+        if (got > 0 || (got < 0 && errno == EINTR)) continue;
+        break;
     }
     ::close(fds[0]);
-    int exit_status = 0;
-    while (::waitpid(child, &exit_status, 0) < 0 && errno == EINTR) {
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
     }
-    if (WIFSIGNALED(exit_status))
-        return "crashed (signal " + std::string(strsignal(WTERMSIG(exit_status))) + ")";
-    if (answer.size() < 1 + sizeof(std::uint64_t) || !WIFEXITED(exit_status) ||
-        WEXITSTATUS(exit_status) != 0)
-        return "ended without an answer (exit status " +
-               std::to_string(WIFEXITED(exit_status) ? WEXITSTATUS(exit_status) : -1) + ")";
-    const auto status = std::uint8_t(answer[0]);
+    if (WIFSIGNALED(status)) return "signal " + std::string(strsignal(WTERMSIG(status)));
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+        return "exit status " + std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    return std::nullopt;
+}
+
+std::optional<std::string> in_child_process(const std::function<std::optional<std::string>()>& work,
+                                            std::size_t memory_limit_bytes) {
+    // The answer: a status byte (0 sound, 1 why not, 2 out of memory), then the reason.
+    std::uint8_t status = 255;
+    std::string why;
+    bool answered = false;
+    const std::optional<std::string> ended = run_forked(
+        [&](int fd) {
+            PipeWriter out(fd);
+            std::uint8_t s = 0;
+            std::string message;
+            try {
+                if (const std::optional<std::string> reason = work()) s = 1, message = *reason;
+            } catch (const std::bad_alloc&) {
+                s = 2;
+            } catch (const std::exception& e) {
+                s = 1, message = e.what();
+            }
+            out.value(s);
+            out.text(message);
+        },
+        [&](int fd) {
+            PipeReader in(fd);
+            answered = in.value(status) && in.text(why, std::size_t(1) << 30);
+        },
+        memory_limit_bytes);
+    if (ended && ended->rfind("signal ", 0) == 0) return "crashed (" + *ended + ")";
+    if (ended || !answered)
+        return "ended without an answer (" + ended.value_or("exit status 0") + ")";
     if (status == 0) return std::nullopt;
     if (status == 2) return std::string("ran out of memory");
-    return answer.substr(1 + sizeof(std::uint64_t));
+    return why;
 }
 
 }  // namespace sonotrace::base

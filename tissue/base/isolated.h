@@ -2,6 +2,7 @@
 // Work on untrusted bytes in a child process: a C library that crashes on a malformed file
 // (HDF5, GDCM's decoders) ends the child, and the caller gets a refusal instead of a
 // crash of its own.
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
@@ -16,5 +17,54 @@ namespace sonotrace::base {
 // memory needs the whole address space).
 std::optional<std::string> in_child_process(const std::function<std::optional<std::string>()>& work,
                                             std::size_t memory_limit_bytes = 0);
+
+// The same for answers larger than a message (a volume, streamed): `child` runs in a
+// forked child and writes its answer to the pipe it is given (PipeWriter), `parent` reads
+// it here (PipeReader). In the child the deadly signals end it quietly whatever handlers
+// the parent installed (a fuzzer's would record the child's death as its own finding),
+// as does a sanitizer's death; `quiet` sends its stderr to /dev/null. nullopt when the
+// child exited 0, otherwise how it ended: "signal Segmentation fault", "exit status 3".
+std::optional<std::string> run_forked(const std::function<void(int fd)>& child,
+                                      const std::function<void(int fd)>& parent,
+                                      std::size_t memory_limit_bytes = 0, bool quiet = false);
+
+// A child's answer, written whole (a child whose parent went away exits with status 2).
+class PipeWriter {
+  public:
+    explicit PipeWriter(int fd) : fd_(fd) {}
+    void bytes(const void* data, std::size_t n);
+    template <class T>
+    void value(const T& v) {
+        bytes(&v, sizeof v);
+    }
+    void text(const std::string& s) {
+        value(std::uint64_t(s.size()));
+        bytes(s.data(), s.size());
+    }
+
+  private:
+    int fd_;
+};
+
+// The parent's side: each read false when the answer ends early (the child died).
+class PipeReader {
+  public:
+    explicit PipeReader(int fd) : fd_(fd) {}
+    bool bytes(void* data, std::size_t n);
+    template <class T>
+    bool value(T& v) {
+        return bytes(&v, sizeof v);
+    }
+    // A text of at most `longest` bytes.
+    bool text(std::string& s, std::size_t longest = std::size_t(1) << 20) {
+        std::uint64_t n = 0;
+        if (!value(n) || n > longest) return false;
+        s.resize(n);
+        return bytes(s.data(), n);
+    }
+
+  private:
+    int fd_;
+};
 
 }  // namespace sonotrace::base
