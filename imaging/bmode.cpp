@@ -548,9 +548,9 @@ float compression_offset(double gain_db, double dynamic_range_db) {
 Compression::Compression(int samples, double fs_hz, const ImagingSettings& settings)
     : scale_(compression_scale(settings.dynamic_range_db)), offset_(std::size_t(samples)) {
     for (int i = 0; i < samples; ++i) {
-        const double depth_mm = 0.5 * kC0 * (double(i) / fs_hz) * 1e3;
         offset_[std::size_t(i)] = compression_offset(
-            settings.gain_db + tgc_gain_db(settings.tgc, depth_mm), settings.dynamic_range_db);
+            settings.gain_db + tgc_gain_db(settings.tgc, sample_depth_mm(i, fs_hz)),
+            settings.dynamic_range_db);
     }
 }
 
@@ -561,12 +561,12 @@ float log_compress(float envelope, double gain_db, double dynamic_range_db) {
     return compression(envelope, compression.offset(0));
 }
 
-double LineData::depth_mm(int i) const {
+double sample_depth_mm(int i, double fs_hz) {
     return 0.5 * kC0 * (double(i) / fs_hz) * 1e3;
 }
 
-double BasebandLines::depth_mm(int i) const {
-    return 0.5 * kC0 * (double(i) / fs_hz) * 1e3;
+double LineData::depth_mm(int i) const {
+    return sample_depth_mm(i, fs_hz);
 }
 
 LineData rf_layout(const probe::Transducer& t, const ImagingSettings& settings) {

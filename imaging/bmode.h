@@ -82,6 +82,9 @@ struct ImagingSettings {
     uint64_t seed = 1;      // of the scatterer field
 };
 
+// The depth (mm) of sample i at fs_hz: c0 t / 2.
+double sample_depth_mm(int i, double fs_hz);
+
 // Lines x samples of one quantity (RF, envelope, log-compressed), sample i at echo time
 // i / fs (0 = the face).
 struct LineData {
@@ -174,7 +177,6 @@ struct BasebandLines {
     double fs_hz = 0.0;
     double sigma_samples = 0.0;               // axial resolution, a Gaussian's sigma (PixelBand)
     std::vector<std::complex<float>> values;  // [line * samples + i]
-    double depth_mm(int i) const;             // c0 * t / 2
 };
 
 // Envelope of every line: magnitude of the analytic signal (a finite Hilbert transformer,
@@ -201,6 +203,7 @@ class Compression {
   public:
     Compression(int samples, double fs_hz, const ImagingSettings& settings);
     float offset(int i) const { return offset_[std::size_t(i)]; }
+    const float* offsets() const { return offset_.data(); }  // by sample
     float scale() const { return scale_; }
     // base::log_float rather than std::log: loops over pixels or samples vectorise (the
     // call was most of the stage). Infinite envelopes clamp to the largest float first.

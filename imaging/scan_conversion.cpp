@@ -221,9 +221,6 @@ ScanConverted scan_convert_display(const BasebandLines& lines, const probe::Tran
         }
     });
     const Compression compression(n, lines.fs_hz, settings);
-    std::vector<float> offsets(std::size_t(n) + 1);
-    for (int i = 0; i < n; ++i) offsets[std::size_t(i)] = compression.offset(i);
-    offsets[std::size_t(n)] = offsets[std::size_t(n) - 1];
     ScanConverted out;
     out.pixel_mm = settings.pixel_mm;
     out.origin = table->origin;
@@ -236,7 +233,7 @@ ScanConverted scan_convert_display(const BasebandLines& lines, const probe::Tran
         display_row(table->cols, table->first.data() + at, table->next_line.data() + at,
                     table->line_frac.data() + at, table->sample_frac.data() + at,
                     table->sample.data() + at, reinterpret_cast<const float*>(samples.data()),
-                    offsets.data(), 0.5f * compression.scale(), scratch.data(),
+                    compression.offsets(), 0.5f * compression.scale(), scratch.data(),
                     out.image.ptr<float>(r));
         uint8_t* inside = out.inside.ptr<uint8_t>(r);
         for (int c = 0; c < table->cols; ++c)
