@@ -13,13 +13,15 @@ using namespace sonotrace;
 
 void table_build(benchmark::State& state, const char* preset) {
     const probe::Transducer t = probe::find_transducer(preset, "bench");
-    int rows = 0;
+    int rows = 0, computed = 0;
     for (auto _ : state) {
         const auto table = imaging::PsfTable::build(t);
         rows = table->row_count();
+        computed = table->computed_rows();
         benchmark::DoNotOptimize(table.get());
     }
     state.counters["rows"] = rows;
+    state.counters["computed"] = computed;
 }
 
 // A new imaging depth of a probe whose rows other depths already made (a dataset drawing

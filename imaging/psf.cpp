@@ -11,6 +11,7 @@
 #include <memory>
 #include <mutex>
 #include <numbers>
+#include <numeric>
 
 #include "probe/aperture.h"
 #include "probe/array_geometry.h"
@@ -84,8 +85,21 @@ std::shared_ptr<PsfTable::RowStore> shared_row_store(const probe::Transducer& t)
 }  // namespace
 
 struct PsfTableBuilder {
+    using Key = std::array<long, 7>;
+    // Rows computed from the fields (exact) or interpolated from four exact ones.
+    struct Job {
+        int line, depth, id;
+        bool far;  // the far lattice's fields (lines snapped to whole elements)
+    };
+    struct Blend {
+        int id, depth;
+        std::array<int, 4> corner;  // rows at (l0, i0), (l1, i0), (l0, i1), (l1, i1)
+        double across, along;       // weights of l1 and i1
+    };
+
     static std::shared_ptr<PsfTable> build(const probe::Transducer& t,
-                                           std::shared_ptr<PsfTable::RowStore> store) {
+                                           std::shared_ptr<PsfTable::RowStore> store,
+                                           RowLattice lattice) {
         auto table = std::make_shared<PsfTable>();
         table->t_ = t;
         table->store_ = store;
@@ -95,29 +109,57 @@ struct PsfTableBuilder {
         table->dz_ = row_spacing_mm(t);
         table->depths_ = int(std::ceil(t.depth_mm / table->dz_)) + 2;
         const int depths = table->depths_;
+        const int L = t.lines;
         auto depth_of = [&](int i) { return std::max(i * table->dz_, 0.5 * table->dz_); };
-        const std::lock_guard<std::mutex> building(store->build);
-        // The lines' fields, where new depths ask for keys or rows.
-        std::vector<probe::LineFields> fields;
-        if (int(store->row_of_depth.size()) < depths) {
-            fields.reserve(std::size_t(t.lines));
-            for (int l = 0; l < t.lines; ++l) fields.push_back(PsfTable::fields_of_line(t, l));
-        }
-
-        // Rows by what determines them: the line's sub-element offset and its active
-        // element ranges relative to its centre element (phased lines: the line itself),
-        // kept by depth index in the store: a deeper table adds the depths it lacks.
-        using Key = std::array<long, 7>;
-        struct Job {
-            int line, depth, id;
+        // The lattice (RowLattice). In the near zone, depths every `Dn`-th and the zone's
+        // last computed for every line; beyond, depths from `near` on every `D`-th, lines
+        // every `S`-th and those near the array's ends. A table computes rows up to the
+        // lattice depth at or past its last: every row has its anchors, and a row is the
+        // same whichever table (of whatever depth) made it.
+        const int near = std::min(lattice.near_depths(t, table->dz_), depths);
+        const int D = std::max(lattice.depth_step, 1), S = std::max(lattice.line_step, 1);
+        auto anchor_depth = [&](int i) { return i < near || (i - near) % D == 0; };
+        auto previous_anchor_depth = [&](int i) {
+            return i < near ? i : near + (i - near) / D * D;
         };
-        std::vector<Job> jobs;
-        const probe::ScanGeometry geometry(t);
+        auto next_anchor_depth = [&](int i) {
+            return i < near ? i : near + (i - near + D - 1) / D * D;
+        };
+        const int computed = next_anchor_depth(depths - 1) + 1;
+        const std::lock_guard<std::mutex> building(store->build);
         const int known = int(store->row_of_depth.size());
-        if (known < depths) {
-            store->row_of_depth.resize(std::size_t(depths), std::vector<int>(std::size_t(t.lines)));
-            for (int l = 0; l < t.lines; ++l) {
-                const probe::LineArray& a = fields[std::size_t(l)].array();
+        std::vector<probe::LineFields> fields, far_fields;
+        std::vector<Job> jobs;
+        std::vector<Blend> blends;
+        if (known < computed) {
+            fields.reserve(std::size_t(L));
+            for (int l = 0; l < L; ++l)
+                fields.emplace_back(t, probe::line_array(t, l, lattice.snap_fraction * t.pitch_mm));
+            const probe::ScanGeometry geometry(t);
+            // Anchor lines d from either end of the scan, d + 1 apart at the ends and d / 3
+            // further in, at most S: at the array's ends the apertures are clipped and the
+            // beam turns fastest from line to line.
+            std::vector<char> is_anchor(static_cast<std::size_t>(L), 0);
+            for (double d = 0.0; d < L; d += std::clamp(std::floor(d / 3.0), 1.0, double(S))) {
+                is_anchor[std::size_t(d)] = 1;
+                is_anchor[std::size_t(L - 1 - int(d))] = 1;
+            }
+            auto anchor_line = [&](int l) { return is_anchor[std::size_t(l)] != 0; };
+            std::vector<int> previous_anchor(static_cast<std::size_t>(L)),
+                next_anchor(static_cast<std::size_t>(L));
+            for (int l = 0, last = 0; l < L; ++l)
+                previous_anchor[std::size_t(l)] = last = anchor_line(l) ? l : last;
+            for (int l = L - 1, last = L - 1; l >= 0; --l)
+                next_anchor[std::size_t(l)] = last = anchor_line(l) ? l : last;
+            if (computed > near)
+                for (int l = 0; l < L; ++l)
+                    far_fields.push_back(
+                        anchor_line(l) ? probe::LineFields(t, probe::line_array(t, l, t.pitch_mm))
+                                       : fields[std::size_t(l)]);
+            // What determines a row: the line's sub-element offset and its active element
+            // ranges relative to its centre element (phased lines: the line itself).
+            auto key_of = [&](const probe::LineFields& f, int l, int i, long kind) {
+                const probe::LineArray& a = f.array();
                 int centre = 0;
                 for (int e = 1; e < int(a.along.size()); ++e)
                     if (std::abs(a.along[std::size_t(e)]) < std::abs(a.along[std::size_t(centre)]))
@@ -130,26 +172,75 @@ struct PsfTableBuilder {
                 };
                 const auto tx =
                     range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization));
+                const auto rx = range(probe::aperture_weights(a, t.receive_aperture_mm(depth_of(i)),
+                                                              t.rx_apodization));
                 const bool steered = !geometry.array().aperture_centre(geometry.line(l));
                 const long offset =
                     steered ? 1000000L + l : std::lround(a.along[std::size_t(centre)] * 1e4);
-                for (int i = known; i < depths; ++i) {
-                    const auto rx = range(probe::aperture_weights(
-                        a, t.receive_aperture_mm(depth_of(i)), t.rx_apodization));
-                    const Key key{offset, tx.first, tx.second, rx.first, rx.second, i, 0};
-                    auto [stored, fresh] = store->index.try_emplace(key, int(store->rows.size()));
-                    if (fresh) {
-                        store->rows.emplace_back();
-                        store->line.push_back(l);
-                        jobs.push_back({l, i, stored->second});
-                    }
-                    store->row_of_depth[std::size_t(i)][std::size_t(l)] = stored->second;
+                return Key{offset, tx.first, tx.second, rx.first, rx.second, i, kind};
+            };
+            store->row_of_depth.resize(std::size_t(computed), std::vector<int>(std::size_t(L)));
+            auto add = [&](const Key& key, int l, int i) {
+                auto [stored, fresh] = store->index.try_emplace(key, int(store->rows.size()));
+                if (fresh) {
+                    store->rows.emplace_back();
+                    store->line.push_back(l);
                 }
-            }
+                store->row_of_depth[std::size_t(i)][std::size_t(l)] = stored->second;
+                return std::pair(stored->second, fresh);
+            };
+            auto anchor = [&](int l, int i) {
+                return anchor_depth(i) && (i < near || anchor_line(l));
+            };
+            // From the middle out: a row that lines share is made by the most central.
+            std::vector<int> middle_out(static_cast<std::size_t>(L));
+            std::iota(middle_out.begin(), middle_out.end(), 0);
+            std::stable_sort(middle_out.begin(), middle_out.end(), [&](int a, int b) {
+                return std::abs(2 * a - (L - 1)) < std::abs(2 * b - (L - 1));
+            });
+            // The anchors first, computed from the fields.
+            for (int i = known; i < computed; ++i)
+                for (const int l : middle_out) {
+                    if (!anchor(l, i)) continue;
+                    const bool far = i >= near;
+                    const auto& f = far ? far_fields[std::size_t(l)] : fields[std::size_t(l)];
+                    const auto [id, fresh] = add(key_of(f, l, i, far ? 1 : 0), l, i);
+                    if (fresh) jobs.push_back({l, i, id, far});
+                }
+            // Then the rows between them, bilinear in line and depth; rows whose corners
+            // are one row (lines inside the array, away from its ends) are that row.
+            for (int i = known; i < computed; ++i)
+                for (int l = 0; l < L; ++l) {
+                    if (anchor(l, i)) continue;
+                    const int i0 = previous_anchor_depth(i), i1 = next_anchor_depth(i);
+                    const int l0 = i < near ? l : previous_anchor[std::size_t(l)];
+                    const int l1 = i < near ? l : next_anchor[std::size_t(l)];
+                    auto row_at = [&](int line, int depth) {
+                        return store->row_of_depth[std::size_t(depth)][std::size_t(line)];
+                    };
+                    const std::array<int, 4> corner{row_at(l0, i0), row_at(l1, i0), row_at(l0, i1),
+                                                    row_at(l1, i1)};
+                    const double across = l1 > l0 ? double(l - l0) / double(l1 - l0) : 0.0;
+                    const double along = i1 > i0 ? double(i - i0) / double(i1 - i0) : 0.0;
+                    if (corner[0] == corner[1] && corner[0] == corner[2] &&
+                        corner[0] == corner[3]) {
+                        store->row_of_depth[std::size_t(i)][std::size_t(l)] = corner[0];
+                        continue;
+                    }
+                    const Key key{corner[0],
+                                  corner[1],
+                                  corner[2],
+                                  corner[3],
+                                  std::lround(across * 1e6),
+                                  std::lround(along * 1e6) * 100000L + i,
+                                  2};
+                    const auto [id, fresh] = add(key, l, i);
+                    if (fresh) blends.push_back({id, i, corner, across, along});
+                }
         }
         // The table numbers rows as the store does, and sees those made so far.
-        table->row_of_.resize(std::size_t(t.lines) * std::size_t(depths));
-        for (int l = 0; l < t.lines; ++l)
+        table->row_of_.resize(std::size_t(L) * std::size_t(depths));
+        for (int l = 0; l < L; ++l)
             for (int i = 0; i < depths; ++i)
                 table->row_of_[std::size_t(l) * std::size_t(depths) + std::size_t(i)] =
                     store->row_of_depth[std::size_t(i)][std::size_t(l)];
@@ -158,7 +249,8 @@ struct PsfTableBuilder {
         table->row_line_ = store->line;
         tbb::parallel_for(0, int(jobs.size()), [&](int n) {
             const Job& job = jobs[std::size_t(n)];
-            const probe::LineFields& f = fields[std::size_t(job.line)];
+            const probe::LineFields& f =
+                job.far ? far_fields[std::size_t(job.line)] : fields[std::size_t(job.line)];
             const double z = depth_of(job.depth);
             const auto receive = f.receive_aperture(z);
             PsfTable::Row& row = store->rows[std::size_t(job.id)];
@@ -171,6 +263,28 @@ struct PsfTableBuilder {
                 row.h[std::size_t(j + kHalfRow)] = std::complex<float>(s.weight);
                 row.receive_power[std::size_t(j + kHalfRow)] = float(s.receive_power);
                 row.power += s.power * row.dx;
+            }
+        });
+        table->computed_rows_ = int(jobs.size());
+        tbb::parallel_for(0, int(blends.size()), [&](int n) {
+            const Blend& b = blends[std::size_t(n)];
+            const std::array<double, 4> w{(1.0 - b.across) * (1.0 - b.along),
+                                          b.across * (1.0 - b.along), (1.0 - b.across) * b.along,
+                                          b.across * b.along};
+            PsfTable::Row& row = store->rows[std::size_t(b.id)];
+            row.dx = PsfTable::reach_mm(t, depth_of(b.depth)) / kHalfRow;
+            const PsfTable::Row* c[4];
+            for (int k = 0; k < 4; ++k) c[k] = &store->rows[std::size_t(b.corner[std::size_t(k)])];
+            row.half = kHalfRow;
+            row.h.assign(std::size_t(2 * kHalfRow + 1), 0.0f);
+            row.receive_power.assign(row.h.size(), 0.0f);
+            for (int k = 0; k < 4; ++k) {
+                const auto wk = float(w[std::size_t(k)]);
+                for (std::size_t j = 0; j < row.h.size(); ++j) {
+                    row.h[j] += wk * c[k]->h[j];
+                    row.receive_power[j] += wk * c[k]->receive_power[j];
+                }
+                row.power += w[std::size_t(k)] * c[k]->power;
             }
         });
         table->focal_power_ = table->power(t.lines / 2, t.focus_mm);
@@ -188,7 +302,8 @@ std::shared_ptr<const PsfTable> PsfTable::of(const probe::Transducer& t) {
         for (const auto& [k, table] : cache)
             if (k == key) return table;
     }
-    std::shared_ptr<const PsfTable> table = PsfTableBuilder::build(t, shared_row_store(t));
+    std::shared_ptr<const PsfTable> table =
+        PsfTableBuilder::build(t, shared_row_store(t), RowLattice{});
     const std::lock_guard<std::mutex> lock(mutex);
     cache.emplace_back(key, table);
     if (cache.size() > 4) cache.erase(cache.begin());
@@ -203,8 +318,17 @@ double PsfTable::point_reach_mm(const probe::Transducer& t, double z) {
     return 3.0 * reach_mm(t, z) + 0.5 * t.active_aperture_mm();
 }
 
-std::shared_ptr<const PsfTable> PsfTable::build(const probe::Transducer& t) {
-    return PsfTableBuilder::build(t, std::make_shared<RowStore>());
+std::shared_ptr<const PsfTable> PsfTable::build(const probe::Transducer& t, RowLattice lattice) {
+    return PsfTableBuilder::build(t, std::make_shared<RowStore>(), lattice);
+}
+
+int RowLattice::near_depths(const probe::Transducer& t, double dz) const {
+    if (!(near_elements < 1e9)) return std::numeric_limits<int>::max();
+    int i = 1;
+    while (t.receive_aperture_mm(i * dz) < near_elements * t.pitch_mm &&
+           i * dz < t.depth_mm + 2.0 * dz)
+        ++i;
+    return i;
 }
 
 probe::LineFields PsfTable::fields_of_line(const probe::Transducer& t, int l) {

@@ -15,6 +15,7 @@
 // planar reflectors and the lateral power integral.
 #include <algorithm>
 #include <complex>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <unordered_map>
@@ -30,13 +31,45 @@
 
 namespace sonotrace::imaging {
 
+// Which rows of a table are computed from the fields (LineFields::speckle at each of a
+// row's samples: a transmit and a receive element sum on the energy band) and which are
+// interpolated from computed ones. A new probe setting pays for the computed rows alone.
+//   near_elements  (elements, default 8): the near zone, where the receive aperture is
+//                  narrower than this many elements. Its beam is a few elements wide and
+//                  turns with the line's sub-element offset and the aperture's growth by
+//                  one element: every row there is computed (interpolating every second
+//                  depth missed the row's power by 2 dB).
+//   depth_step     (rows, default 8): beyond it, depth rows `depth_step` apart are computed
+//                  (8 dz: 3.5 mm on the convex preset, against a transmit depth of field
+//                  of about 7 lambda F^2 = 12 mm).
+//   line_step      (lines, default 8): and lines at most this far apart, denser towards
+//                  the ends of the scan (1 apart at the end, d / 3 at d lines from it),
+//                  where the apertures are clipped by the array and the beam turns
+//                  fastest from line to line. Beyond the near zone lines are snapped to
+//                  whole elements (so that lines inside the array share one row).
+//   snap_fraction  (pitches, default 1/8): lines share rows at sub-element offsets this
+//                  far apart (0: each line its own geometry).
+// The rows between are bilinear in line and depth, sample by sample (every row samples
+// its own receive lobe, so sample j of neighbours is the same place in the beam), and so
+// is their lateral power. Their error against a table of every row computed, each line
+// unsnapped: Psf.InterpolatedRowsFollowComputedOnes.
+struct RowLattice {
+    double near_elements = 8.0;
+    int depth_step = 8, line_step = 8;
+    double snap_fraction = 0.125;
+    // Depth indices (rows dz apart) of the near zone.
+    int near_depths(const probe::Transducer& t, double dz) const;
+    static RowLattice every_row() { return {std::numeric_limits<double>::infinity(), 1, 1, 0.0}; }
+};
+
 class PsfTable {
   public:
     // The table of `t` (computed on first use, kept for the next frames of the same
     // probe set-up).
     static std::shared_ptr<const PsfTable> of(const probe::Transducer& t);
     // The table of `t` computed afresh, sharing no rows, and not kept (benchmarks, tests).
-    static std::shared_ptr<const PsfTable> build(const probe::Transducer& t);
+    static std::shared_ptr<const PsfTable> build(const probe::Transducer& t,
+                                                 RowLattice lattice = RowLattice{});
     struct RowStore;  // rows shared between tables (psf.cpp)
 
     struct Row {
@@ -62,6 +95,9 @@ class PsfTable {
     static probe::LineFields fields_of_line(const probe::Transducer& t, int l);
     int depths() const { return depths_; }
     int row_count() const { return int(rows_.size()); }
+    // Rows computed from the fields when the table was made (the rest interpolated or
+    // shared).
+    int computed_rows() const { return computed_rows_; }
     // The row of line l at depth index i (z = i dz), i clamped to the table.
     const Row& row(int l, int i) const;
     // H of line l at (x, z) (line frame, mm): linear in depth between rows and across
@@ -151,7 +187,7 @@ class PsfTable {
     // of the angular span.
     std::complex<double> plane_echo_at(int l, int i, int tilt_step) const;
     double dz_ = 1.0, k_ = 0.0;
-    int lines_ = 0, depths_ = 0;
+    int lines_ = 0, depths_ = 0, computed_rows_ = 0;
     double focal_power_ = 1.0;
     std::shared_ptr<RowStore> store_;
     std::vector<const Row*> rows_;  // the store's rows when the table was made, numbered as there

@@ -156,6 +156,7 @@ LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std
         x_.push_back(float(array_.position[e].x)), y_.push_back(float(array_.position[e].y));
         nx_.push_back(float(array_.normal[e].x)), ny_.push_back(float(array_.normal[e].y));
     }
+    tx_elements_ = pack(tx_weights_);
     for (auto [spectrum, use] :
          {std::pair(&echo_, BandUse::echo), std::pair(&energy_, BandUse::energy)}) {
         spectrum->band = pulse_band(t, use);
@@ -298,22 +299,29 @@ constexpr int kMaxFrequencies = 64;
 
 }  // namespace
 
-void LineFields::sum_spectrum(const glm::dvec2& q, const std::vector<double>& weights,
-                              const glm::dvec2& focus, const Spectrum& spectrum,
-                              std::complex<double>* out) const {
-    const PulseEcho::Band& band = *spectrum.band;
+LineFields::Elements LineFields::pack(const std::vector<double>& weights) const {
     std::size_t first = 0, last = weights.size();
     while (first < last && weights[first] == 0.0) ++first;
     while (last > first && weights[last - 1] == 0.0) --last;
     const std::size_t n = last - first, padded = (n + kLanes - 1) / kLanes * kLanes;
-    // Scratch per thread; the padding's elements have no gain.
-    thread_local std::vector<float> w, x, y, nx, ny, scratch;
-    w.assign(padded, 0.0f), x.assign(padded, 0.0f), y.assign(padded, 1.0f);
-    nx.assign(padded, 0.0f), ny.assign(padded, 1.0f);
+    Elements p;
+    p.w.assign(padded, 0.0f), p.x.assign(padded, 0.0f), p.y.assign(padded, 1.0f);
+    p.nx.assign(padded, 0.0f), p.ny.assign(padded, 1.0f);
     for (std::size_t e = 0; e < n; ++e) {
-        w[e] = float(weights[first + e]);
-        x[e] = x_[first + e], y[e] = y_[first + e], nx[e] = nx_[first + e], ny[e] = ny_[first + e];
+        p.w[e] = float(weights[first + e]);
+        p.x[e] = x_[first + e], p.y[e] = y_[first + e];
+        p.nx[e] = nx_[first + e], p.ny[e] = ny_[first + e];
     }
+    return p;
+}
+
+void LineFields::sum_spectrum(const glm::dvec2& q, const Elements& elements,
+                              const glm::dvec2& focus, const Spectrum& spectrum,
+                              std::complex<double>* out) const {
+    const PulseEcho::Band& band = *spectrum.band;
+    const std::size_t padded = elements.w.size();
+    const Elements& p = elements;
+    thread_local std::vector<float> scratch;  // per thread
     scratch.resize(12 * padded);
     float* base = scratch.data();
     const SpectrumTerms terms{base,
@@ -331,10 +339,10 @@ void LineFields::sum_spectrum(const glm::dvec2& q, const std::vector<double>& we
     const double f0 = band.centre_hz;
     // In chunks of at most kMaxFrequencies (a long-skirted band of a long pulse has more).
     for (int m0 = 0; m0 < band.count(); m0 += kMaxFrequencies) {
-        spectrum_terms(padded, x.data(), y.data(), nx.data(), ny.data(), w.data(), float(q.x),
-                       float(q.y), float(focus.x), float(focus.y), float(1.0 / t_.wavelength_mm()),
-                       float(0.5 * element_width_), float(band.frequency_hz(m0) / f0),
-                       float(band.step_hz / f0), terms);
+        spectrum_terms(padded, p.x.data(), p.y.data(), p.nx.data(), p.ny.data(), p.w.data(),
+                       float(q.x), float(q.y), float(focus.x), float(focus.y),
+                       float(1.0 / t_.wavelength_mm()), float(0.5 * element_width_),
+                       float(band.frequency_hz(m0) / f0), float(band.step_hz / f0), terms);
         spectrum_sums(padded, std::min(kMaxFrequencies, band.count() - m0),
                       spectrum.inverse_ratio.data() + m0, terms, out + m0);
     }
@@ -346,8 +354,8 @@ double LineFields::two_way_spectrum(const glm::dvec2& q, const Receive& aperture
     const int M = band.count();
     thread_local std::vector<std::complex<double>> rx;
     rx.resize(std::size_t(M));
-    sum_spectrum(q, tx_weights_, {0.0, t_.focus_mm}, spectrum, out);
-    sum_spectrum(q, aperture.weights, {0.0, aperture.focus_mm}, spectrum, rx.data());
+    sum_spectrum(q, tx_elements_, {0.0, t_.focus_mm}, spectrum, out);
+    sum_spectrum(q, aperture.elements, {0.0, aperture.focus_mm}, spectrum, rx.data());
     double receive_energy = 0.0;
     for (int m = 0; m < M; ++m) {
         const double ratio = 1.0 / double(spectrum.inverse_ratio[std::size_t(m)]);
@@ -411,6 +419,7 @@ LineFields::Receive LineFields::receive_aperture(double focus_mm) const {
     Receive r;
     r.focus_mm = focus_mm;
     r.weights = aperture_weights(array_, t_.receive_aperture_mm(focus_mm), t_.rx_apodization);
+    r.elements = pack(r.weights);
     double sum2 = 0.0;
     for (double v : r.weights) sum2 += v * v;
     r.norm = 1.0 / std::sqrt(t_.wavelength_mm() / t_.pitch_mm * sum2);

@@ -93,9 +93,16 @@ class LineFields {
     std::complex<double> transmit(const glm::dvec2& q) const;
     // The receive aperture focused at depth `focus_mm` on the axis (width focus / rx
     // F-number, at most the array): weights and their normalisation.
+    // The elements of an aperture with a weight, in float and padded with weightless
+    // elements to a multiple of eight (the vectorised sums' lanes): packed once per
+    // aperture, not per point.
+    struct Elements {
+        std::vector<float> w, x, y, nx, ny;
+    };
     struct Receive {
         std::vector<double> weights;
         double norm = 1.0, focus_mm = 0.0;
+        Elements elements;
     };
     Receive receive_aperture(double focus_mm) const;
     std::complex<double> receive(const glm::dvec2& q, const Receive& aperture) const;
@@ -163,9 +170,10 @@ class LineFields {
     Spectrum echo_, energy_;
     // The sum at every frequency f_m of a band (out: its count values), the directivity
     // and the phase at f_m.
-    void sum_spectrum(const glm::dvec2& q, const std::vector<double>& weights,
-                      const glm::dvec2& focus, const Spectrum& spectrum,
-                      std::complex<double>* out) const;
+    void sum_spectrum(const glm::dvec2& q, const Elements& elements, const glm::dvec2& focus,
+                      const Spectrum& spectrum, std::complex<double>* out) const;
+    Elements pack(const std::vector<double>& weights) const;
+    Elements tx_elements_;
     // T_m R_m on a band, each normalised at f_m (the norms scale as sqrt(f_m / f0)), into
     // out, and sum_m |s_m R_m|^2 / sum_m |s_m|^2.
     double two_way_spectrum(const glm::dvec2& q, const Receive& aperture, const Spectrum& spectrum,
