@@ -53,7 +53,14 @@ RowStoreKey row_store_key(const probe::Transducer& t, double dz) {
 // takes a prefix. With them the plane echoes and the fields of the lines that made rows.
 struct PsfTable::RowStore {
     std::mutex build;  // one table's missing rows at a time
-    std::map<std::array<long, 7>, int> index;
+    struct KeyHash {
+        std::size_t operator()(const std::array<long, 7>& key) const {
+            uint64_t h = 0;
+            for (const long v : key) h = base::mix64(h ^ uint64_t(v));
+            return std::size_t(h);
+        }
+    };
+    std::unordered_map<std::array<long, 7>, int, KeyHash> index;
     std::deque<Row> rows;   // stable addresses: tables point into it
     std::vector<int> line;  // the line that made each row (read under `build` only)
     std::vector<std::vector<int>> row_of_depth;  // [depth index][line] -> rows
@@ -157,27 +164,45 @@ struct PsfTableBuilder {
                         anchor_line(l) ? probe::LineFields(t, probe::line_array(t, l, t.pitch_mm))
                                        : fields[std::size_t(l)]);
             // What determines a row: the line's sub-element offset and its active element
-            // ranges relative to its centre element (phased lines: the line itself).
-            auto key_of = [&](const probe::LineFields& f, int l, int i, long kind) {
-                const probe::LineArray& a = f.array();
+            // ranges relative to its centre element (phased lines: the line itself). What
+            // does not change with depth is found once per line (and lattice).
+            struct LineKey {
                 int centre = 0;
+                long offset = 0;
+                std::pair<long, long> tx;
+            };
+            std::vector<LineKey> line_keys[2];
+            auto range = [](const std::vector<double>& w, int centre) {
+                int first = -1, last = -1;
+                for (int e = 0; e < int(w.size()); ++e)
+                    if (w[std::size_t(e)] != 0.0) last = e, first = first < 0 ? e : first;
+                return std::pair<long, long>(first - centre, last - centre);
+            };
+            auto line_key = [&](const probe::LineFields& f, int l, bool far) -> const LineKey& {
+                std::vector<LineKey>& keys = line_keys[far];
+                if (keys.empty()) keys.resize(std::size_t(L), LineKey{-1, 0, {}});
+                LineKey& k = keys[std::size_t(l)];
+                if (k.centre >= 0) return k;
+                const probe::LineArray& a = f.array();
+                k.centre = 0;
                 for (int e = 1; e < int(a.along.size()); ++e)
-                    if (std::abs(a.along[std::size_t(e)]) < std::abs(a.along[std::size_t(centre)]))
-                        centre = e;
-                auto range = [&](const std::vector<double>& w) {
-                    int first = -1, last = -1;
-                    for (int e = 0; e < int(w.size()); ++e)
-                        if (w[std::size_t(e)] != 0.0) last = e, first = first < 0 ? e : first;
-                    return std::pair<long, long>(first - centre, last - centre);
-                };
-                const auto tx =
-                    range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization));
-                const auto rx = range(probe::aperture_weights(a, t.receive_aperture_mm(depth_of(i)),
-                                                              t.rx_apodization));
+                    if (std::abs(a.along[std::size_t(e)]) <
+                        std::abs(a.along[std::size_t(k.centre)]))
+                        k.centre = e;
+                k.tx = range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization),
+                             k.centre);
                 const bool steered = !geometry.array().aperture_centre(geometry.line(l));
-                const long offset =
-                    steered ? 1000000L + l : std::lround(a.along[std::size_t(centre)] * 1e4);
-                return Key{offset, tx.first, tx.second, rx.first, rx.second, i, kind};
+                k.offset =
+                    steered ? 1000000L + l : std::lround(a.along[std::size_t(k.centre)] * 1e4);
+                return k;
+            };
+            auto key_of = [&](const probe::LineFields& f, int l, int i, bool far) {
+                const LineKey& k = line_key(f, l, far);
+                const auto rx =
+                    range(probe::aperture_weights(f.array(), t.receive_aperture_mm(depth_of(i)),
+                                                  t.rx_apodization),
+                          k.centre);
+                return Key{k.offset, k.tx.first, k.tx.second, rx.first, rx.second, i, long(far)};
             };
             store->row_of_depth.resize(std::size_t(computed), std::vector<int>(std::size_t(L)));
             auto add = [&](const Key& key, int l, int i) {
@@ -204,7 +229,7 @@ struct PsfTableBuilder {
                     if (!anchor(l, i)) continue;
                     const bool far = i >= near;
                     const auto& f = far ? far_fields[std::size_t(l)] : fields[std::size_t(l)];
-                    const auto [id, fresh] = add(key_of(f, l, i, far ? 1 : 0), l, i);
+                    const auto [id, fresh] = add(key_of(f, l, i, far), l, i);
                     if (fresh) jobs.push_back({l, i, id, far});
                 }
             // Then the rows between them, bilinear in line and depth; rows whose corners
