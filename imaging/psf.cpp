@@ -118,11 +118,11 @@ struct PsfTableBuilder {
         const int depths = table->depths_;
         const int L = t.lines;
         auto depth_of = [&](int i) { return std::max(i * table->dz_, 0.5 * table->dz_); };
-        // The lattice (RowLattice). In the near zone, depths every `Dn`-th and the zone's
-        // last computed for every line; beyond, depths from `near` on every `D`-th, lines
-        // every `S`-th and those near the array's ends. A table computes rows up to the
-        // lattice depth at or past its last: every row has its anchors, and a row is the
-        // same whichever table (of whatever depth) made it.
+        // The lattice (RowLattice): the rows computed are every row of the near zone and,
+        // from depth index `near` on, every `D`-th depth's rows of the anchor lines (at
+        // most `S` apart). A table computes rows up to the lattice depth at or past its
+        // last: every row has its anchors, and a row is the same whichever table (of
+        // whatever depth) made it.
         const int near = std::min(lattice.near_depths(t, table->dz_), depths);
         const int D = std::max(lattice.depth_step, 1), S = std::max(lattice.line_step, 1);
         auto anchor_depth = [&](int i) { return i < near || (i - near) % D == 0; };
