@@ -7,11 +7,11 @@
 #include <cmath>
 #include <deque>
 #include <limits>
-#include <map>
 #include <memory>
 #include <mutex>
 #include <numbers>
 #include <numeric>
+#include <optional>
 
 #include "probe/aperture.h"
 #include "probe/array_geometry.h"
@@ -135,7 +135,9 @@ struct PsfTableBuilder {
         const int computed = next_anchor_depth(depths - 1) + 1;
         const std::lock_guard<std::mutex> building(store->build);
         const int known = int(store->row_of_depth.size());
-        std::vector<probe::LineFields> fields, far_fields;
+        std::vector<probe::LineFields> fields;
+        // Beyond the near zone the anchor lines' fields, snapped to whole elements.
+        std::vector<std::optional<probe::LineFields>> far_fields(static_cast<std::size_t>(L));
         std::vector<Job> jobs;
         std::vector<Blend> blends;
         if (known < computed) {
@@ -160,9 +162,8 @@ struct PsfTableBuilder {
                 next_anchor[std::size_t(l)] = last = anchor_line(l) ? l : last;
             if (computed > near)
                 for (int l = 0; l < L; ++l)
-                    far_fields.push_back(
-                        anchor_line(l) ? probe::LineFields(t, probe::line_array(t, l, t.pitch_mm))
-                                       : fields[std::size_t(l)]);
+                    if (anchor_line(l))
+                        far_fields[std::size_t(l)].emplace(t, probe::line_array(t, l, t.pitch_mm));
             // What determines a row: the line's sub-element offset and its active element
             // ranges relative to its centre element (phased lines: the line itself). What
             // does not change with depth is found once per line (and lattice).
@@ -228,7 +229,7 @@ struct PsfTableBuilder {
                 for (const int l : middle_out) {
                     if (!anchor(l, i)) continue;
                     const bool far = i >= near;
-                    const auto& f = far ? far_fields[std::size_t(l)] : fields[std::size_t(l)];
+                    const auto& f = far ? *far_fields[std::size_t(l)] : fields[std::size_t(l)];
                     const auto [id, fresh] = add(key_of(f, l, i, far), l, i);
                     if (fresh) jobs.push_back({l, i, id, far});
                 }
@@ -275,7 +276,7 @@ struct PsfTableBuilder {
         tbb::parallel_for(0, int(jobs.size()), [&](int n) {
             const Job& job = jobs[std::size_t(n)];
             const probe::LineFields& f =
-                job.far ? far_fields[std::size_t(job.line)] : fields[std::size_t(job.line)];
+                job.far ? *far_fields[std::size_t(job.line)] : fields[std::size_t(job.line)];
             const double z = depth_of(job.depth);
             const auto receive = f.receive_aperture(z);
             PsfTable::Row& row = store->rows[std::size_t(job.id)];
