@@ -5,15 +5,17 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <deque>
 #include <limits>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <numbers>
 #include <numeric>
 #include <optional>
+#include <tuple>
 
 #include "probe/aperture.h"
+#include "probe/aperture_terms.h"
 #include "probe/array_geometry.h"
 #include "probe/elevation.h"
 #include "tissue/acoustic_map.h"
@@ -21,7 +23,7 @@
 namespace sonotrace::imaging {
 
 namespace {
-constexpr int kHalfRow = 24;             // J: +-6 main lobes at a quarter lobe per sample
+constexpr int kHalfRow = PsfTable::kHalfRow;
 constexpr double kSnapFraction = 0.125;  // lines share rows at offsets 1/8 pitch apart
 }  // namespace
 
@@ -61,7 +63,20 @@ struct PsfTable::RowStore {
         }
     };
     std::unordered_map<std::array<long, 7>, int, KeyHash> index;
-    std::deque<Row> rows;   // stable addresses: tables point into it
+    // Rows in chunks (stable addresses: tables point into them), allocated a chunk at a
+    // time: one allocation per row was a tenth of a table's build.
+    struct Rows {
+        static constexpr std::size_t kChunk = 64;  // 40 kB: under malloc's mmap threshold
+        std::vector<std::unique_ptr<Row[]>> chunks;
+        std::size_t count = 0;
+        Row& operator[](std::size_t r) { return chunks[r / kChunk][r % kChunk]; }
+        std::size_t size() const { return count; }
+        void emplace_back() {
+            if (count == chunks.size() * kChunk) chunks.push_back(std::make_unique<Row[]>(kChunk));
+            ++count;
+        }
+    };
+    Rows rows;
     std::vector<int> line;  // the line that made each row (read under `build` only)
     std::vector<std::vector<int>> row_of_depth;  // [depth index][line] -> rows
     tbb::concurrent_unordered_map<uint64_t, std::complex<double>, MixedKey> plane_echoes;
@@ -98,11 +113,106 @@ struct PsfTableBuilder {
         int line, depth, id;
         bool far;  // the far lattice's fields (lines snapped to whole elements)
     };
+    // Computed rows of one depth that take their element terms from one line's array.
+    struct Group {
+        int rep, depth;
+        bool far;
+        // (job, the rep's element numbering minus the job line's)
+        std::vector<std::pair<int, int>> members;
+    };
     struct Blend {
         int id, depth;
         std::array<int, 4> corner;  // rows at (l0, i0), (l1, i0), (l0, i1), (l1, i1)
         double across, along;       // weights of l1 and i1
     };
+
+    // The rows of a group from shared element terms. A member whose elements are not
+    // where the rep's are (a ring's numbering wraps) takes the terms of its own array.
+    static void compute_group(const probe::Transducer& t, const Group& group,
+                              const std::vector<Job>& jobs,
+                              const std::vector<probe::LineFields>& fields,
+                              const std::vector<std::optional<probe::LineFields>>& far_fields,
+                              PsfTable::RowStore& store) {
+        auto fields_of = [&](int l) -> const probe::LineFields& {
+            return group.far ? *far_fields[std::size_t(l)] : fields[std::size_t(l)];
+        };
+        const double z = std::max(group.depth * row_spacing_mm(t), 0.5 * row_spacing_mm(t));
+        const probe::LineFields& rep = fields_of(group.rep);
+        struct Member {
+            int job;
+            const probe::LineFields* terms;  // whose array's terms
+            std::vector<double> tx, rx;      // weights in that array's numbering
+            double tx_norm, rx_norm;
+        };
+        std::vector<Member> members;
+        for (const auto& [n, shift] : group.members) {
+            const probe::LineFields& f = fields_of(jobs[std::size_t(n)].line);
+            const auto receive = f.receive_weights(z);
+            Member m{n,
+                     &rep,
+                     shifted(f, rep, f.transmit_weights(), shift),
+                     shifted(f, rep, receive.weights, shift),
+                     f.transmit_norm(),
+                     receive.norm};
+            if (m.tx.empty() || m.rx.empty())
+                m = {n, &f, f.transmit_weights(), receive.weights, f.transmit_norm(), receive.norm};
+            members.push_back(std::move(m));
+        }
+        for (std::size_t a = 0; a < members.size(); ++a) {
+            const probe::LineFields* terms_of = members[a].terms;
+            if (std::any_of(members.begin(), members.begin() + std::ptrdiff_t(a),
+                            [&](const Member& m) { return m.terms == terms_of; }))
+                continue;  // done with an earlier member's
+            int first = int(members[a].tx.size()), last = 0;
+            for (const Member& m : members)
+                if (m.terms == terms_of)
+                    for (const auto* w : {&m.tx, &m.rx})
+                        for (int e = 0; e < int(w->size()); ++e)
+                            if ((*w)[std::size_t(e)] != 0.0)
+                                first = std::min(first, e), last = std::max(last, e + 1);
+            probe::ApertureTerms terms(*terms_of, first, last, z);
+            struct Apertures {
+                probe::ApertureTerms::Aperture tx, rx;
+                PsfTable::Row* row;
+            };
+            std::vector<Apertures> apertures;
+            for (const Member& m : members)
+                if (m.terms == terms_of) {
+                    PsfTable::Row& row = store.rows[std::size_t(jobs[std::size_t(m.job)].id)];
+                    row.dx = PsfTable::reach_mm(t, z) / kHalfRow;
+                    apertures.push_back(
+                        {terms.aperture(m.tx, m.tx_norm), terms.aperture(m.rx, m.rx_norm), &row});
+                }
+            const double dx = PsfTable::reach_mm(t, z) / kHalfRow;
+            for (int j = -kHalfRow; j <= kHalfRow; ++j) {
+                terms.at({j * dx, z});
+                for (const Apertures& each : apertures) {
+                    const probe::LineFields::Speckle s = terms.speckle(each.tx, each.rx);
+                    each.row->h[std::size_t(j + kHalfRow)] = std::complex<float>(s.weight);
+                    each.row->receive_power[std::size_t(j + kHalfRow)] = float(s.receive_power);
+                    each.row->power += s.power * dx;
+                }
+            }
+        }
+    }
+    // Weights w of line array `from` in the numbering of `to` (element e at e + shift);
+    // empty if an element with a weight is not at the same place and facing the same way.
+    static std::vector<double> shifted(const probe::LineFields& from, const probe::LineFields& to,
+                                       const std::vector<double>& w, int shift) {
+        const probe::LineArray &a = from.array(), &b = to.array();
+        std::vector<double> out(b.position.size(), 0.0);
+        for (int e = 0; e < int(w.size()); ++e) {
+            if (w[std::size_t(e)] == 0.0) continue;
+            const int k = e + shift;
+            if (k < 0 || k >= int(out.size())) return {};
+            const auto i = std::size_t(e), j = std::size_t(k);
+            if (glm::length(a.position[i] - b.position[j]) > 1e-6 ||
+                glm::length(a.normal[i] - b.normal[j]) > 1e-6)
+                return {};
+            out[j] = w[i];
+        }
+        return out;
+    }
 
     static std::shared_ptr<PsfTable> build(const probe::Transducer& t,
                                            std::shared_ptr<PsfTable::RowStore> store,
@@ -139,6 +249,7 @@ struct PsfTableBuilder {
         // Beyond the near zone the anchor lines' fields, snapped to whole elements.
         std::vector<std::optional<probe::LineFields>> far_fields(static_cast<std::size_t>(L));
         std::vector<Job> jobs;
+        std::vector<Group> groups;
         std::vector<Blend> blends;
         if (known < computed) {
             fields.reserve(std::size_t(L));
@@ -190,8 +301,7 @@ struct PsfTableBuilder {
                     if (std::abs(a.along[std::size_t(e)]) <
                         std::abs(a.along[std::size_t(k.centre)]))
                         k.centre = e;
-                k.tx = range(probe::aperture_weights(a, t.active_aperture_mm(), t.tx_apodization),
-                             k.centre);
+                k.tx = range(f.transmit_weights(), k.centre);
                 const bool steered = !geometry.array().aperture_centre(geometry.line(l));
                 k.offset =
                     steered ? 1000000L + l : std::lround(a.along[std::size_t(k.centre)] * 1e4);
@@ -199,11 +309,10 @@ struct PsfTableBuilder {
             };
             auto key_of = [&](const probe::LineFields& f, int l, int i, bool far) {
                 const LineKey& k = line_key(f, l, far);
-                const auto rx =
-                    range(probe::aperture_weights(f.array(), t.receive_aperture_mm(depth_of(i)),
-                                                  t.rx_apodization),
-                          k.centre);
-                return Key{k.offset, k.tx.first, k.tx.second, rx.first, rx.second, i, long(far)};
+                const auto [first, last] = probe::aperture_span(
+                    f.array(), t.receive_aperture_mm(depth_of(i)), t.rx_apodization);
+                return Key{k.offset, k.tx.first, k.tx.second, first - k.centre, last - 1 - k.centre,
+                           i,        long(far)};
             };
             store->row_of_depth.resize(std::size_t(computed), std::vector<int>(std::size_t(L)));
             auto add = [&](const Key& key, int l, int i) {
@@ -233,6 +342,28 @@ struct PsfTableBuilder {
                     const auto [id, fresh] = add(key_of(f, l, i, far), l, i);
                     if (fresh) jobs.push_back({l, i, id, far});
                 }
+            // The computed rows of a depth whose lines sit at one sub-element offset share
+            // their element terms (probe/aperture_terms.h), taken from the array of the
+            // most central line at that offset; their apertures differ.
+            std::map<std::pair<long, bool>, int> rep_of_offset;
+            for (const int l : middle_out)
+                for (const bool far : {false, true}) {
+                    if (far && !far_fields[std::size_t(l)]) continue;
+                    const auto& f = far ? *far_fields[std::size_t(l)] : fields[std::size_t(l)];
+                    rep_of_offset.try_emplace({line_key(f, l, far).offset, far}, l);
+                }
+            std::map<std::tuple<bool, int, int>, int> group_of;
+            for (std::size_t n = 0; n < jobs.size(); ++n) {
+                const Job& job = jobs[n];
+                const int rep =
+                    rep_of_offset.at({line_keys[job.far][std::size_t(job.line)].offset, job.far});
+                const auto [it, fresh] =
+                    group_of.try_emplace({job.far, rep, job.depth}, int(groups.size()));
+                if (fresh) groups.push_back({rep, job.depth, job.far, {}});
+                const int shift = line_keys[job.far][std::size_t(rep)].centre -
+                                  line_keys[job.far][std::size_t(job.line)].centre;
+                groups[std::size_t(it->second)].members.emplace_back(int(n), shift);
+            }
             // Then the rows between them, bilinear in line and depth; rows whose corners
             // are one row (lines inside the array, away from its ends) are that row.
             for (int i = known; i < computed; ++i)
@@ -273,23 +404,8 @@ struct PsfTableBuilder {
         for (std::size_t r = 0; r < store->rows.size(); ++r)
             table->rows_.push_back(&store->rows[r]);
         table->row_line_ = store->line;
-        tbb::parallel_for(0, int(jobs.size()), [&](int n) {
-            const Job& job = jobs[std::size_t(n)];
-            const probe::LineFields& f =
-                job.far ? *far_fields[std::size_t(job.line)] : fields[std::size_t(job.line)];
-            const double z = depth_of(job.depth);
-            const auto receive = f.receive_aperture(z);
-            PsfTable::Row& row = store->rows[std::size_t(job.id)];
-            row.dx = PsfTable::reach_mm(t, z) / kHalfRow;
-            row.half = kHalfRow;
-            row.h.resize(std::size_t(2 * kHalfRow + 1));
-            row.receive_power.resize(row.h.size());
-            for (int j = -kHalfRow; j <= kHalfRow; ++j) {
-                const probe::LineFields::Speckle s = f.speckle({j * row.dx, z}, receive);
-                row.h[std::size_t(j + kHalfRow)] = std::complex<float>(s.weight);
-                row.receive_power[std::size_t(j + kHalfRow)] = float(s.receive_power);
-                row.power += s.power * row.dx;
-            }
+        tbb::parallel_for(0, int(groups.size()), [&](int g) {
+            compute_group(t, groups[std::size_t(g)], jobs, fields, far_fields, *store);
         });
         table->computed_rows_ = int(jobs.size());
         tbb::parallel_for(0, int(blends.size()), [&](int n) {
@@ -301,9 +417,6 @@ struct PsfTableBuilder {
             row.dx = PsfTable::reach_mm(t, depth_of(b.depth)) / kHalfRow;
             const PsfTable::Row* c[4];
             for (int k = 0; k < 4; ++k) c[k] = &store->rows[std::size_t(b.corner[std::size_t(k)])];
-            row.half = kHalfRow;
-            row.h.assign(std::size_t(2 * kHalfRow + 1), 0.0f);
-            row.receive_power.assign(row.h.size(), 0.0f);
             for (int k = 0; k < 4; ++k) {
                 const auto wk = float(w[std::size_t(k)]);
                 for (std::size_t j = 0; j < row.h.size(); ++j) {

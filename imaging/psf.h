@@ -14,6 +14,7 @@
 // The image formation reads from it the lateral weights of the speckle, the response of
 // planar reflectors and the lateral power integral.
 #include <algorithm>
+#include <array>
 #include <complex>
 #include <limits>
 #include <memory>
@@ -72,12 +73,15 @@ class PsfTable {
                                                  RowLattice lattice = RowLattice{});
     struct RowStore;  // rows shared between tables (psf.cpp)
 
+    // Every row holds +-6 lobes at a quarter lobe per sample: J = 24. Fixed arrays: a
+    // table is some ten thousand rows, and allocating each was a tenth of its build.
+    static constexpr int kHalfRow = 24;
     struct Row {
-        double dx = 0.0;                     // lateral spacing (mm)
-        int half = 0;                        // J: samples j = -J .. J
-        std::vector<std::complex<float>> h;  // H at x = (j - J) dx... index j + J
-        std::vector<float> receive_power;    // |R|^2 at the same x
-        double power = 0.0;                  // sum |H|^2 dx (1/mm)
+        double dx = 0.0;                                        // lateral spacing (mm)
+        int half = kHalfRow;                                    // J: samples j = -J .. J
+        std::array<std::complex<float>, 2 * kHalfRow + 1> h{};  // H at x = j dx, index j + J
+        std::array<float, 2 * kHalfRow + 1> receive_power{};    // |R|^2 at the same x
+        double power = 0.0;                                     // sum |H|^2 dx (1/mm)
     };
 
     // How far across a line its row reaches at depth z (mm): +-6 main lobes of the
@@ -90,6 +94,8 @@ class PsfTable {
     double dz() const { return dz_; }
     // Lines share rows: the row of line l at depth index i.
     int row_id(int l, int i) const;
+    // The line whose fields made the row of line l at depth index i.
+    int line_of_row(int l, int i) const { return row_line_[std::size_t(row_id(l, i))]; }
     double row_depth_mm(int i) const { return std::max(i * dz_, 0.5 * dz_); }
     // The fields of the line that made a row, with the table's snapping (t: the table's).
     static probe::LineFields fields_of_line(const probe::Transducer& t, int l);

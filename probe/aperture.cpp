@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "probe/array_geometry.h"
+#include "probe/field_kernels.h"
 #include "tissue/base/fast_math.h"
 
 #include <vector>
@@ -37,19 +38,35 @@ LineArray line_array(const Transducer& t, int l, double snap_along) {
         a.normal.push_back(p.normal);
         a.along.push_back(along);
     }
+    const auto [lowest, highest] = std::minmax_element(a.along.begin(), a.along.end());
+    if (lowest != a.along.end()) a.lowest = *lowest, a.highest = *highest;
     return a;
 }
+
+namespace {
+// The span [lo, hi] (mm along the array) an aperture of width_mm centred on the line
+// occupies: at least two pitches, so that it holds an element wherever it sits, clipped
+// by the array's ends (a ring's elements are numbered from anywhere along it).
+std::pair<double, double> aperture_window(const LineArray& array, double width_mm) {
+    const double half = 0.5 * std::max(width_mm, 2.0 * array.pitch_mm);
+    const double first = array.lowest - 0.5 * array.pitch_mm,
+                 last = array.highest + 0.5 * array.pitch_mm;
+    return {std::max(-half, first), std::min(half, last)};
+}
+
+std::size_t nearest_element(const LineArray& array) {
+    std::size_t nearest = 0;
+    for (std::size_t e = 1; e < array.along.size(); ++e)
+        if (std::abs(array.along[e]) < std::abs(array.along[nearest])) nearest = e;
+    return nearest;
+}
+}  // namespace
 
 std::vector<double> aperture_weights(const LineArray& array, double width_mm, Apodization a) {
     const std::size_t n = array.along.size();
     std::vector<double> w(n, 0.0);
     if (n == 0) return w;
-    // At least two pitches, so that the aperture holds an element wherever it sits.
-    const double half = 0.5 * std::max(width_mm, 2.0 * array.pitch_mm);
-    // The array's ends (a ring's elements are numbered from anywhere along it).
-    const auto [lowest, highest] = std::minmax_element(array.along.begin(), array.along.end());
-    const double first = *lowest - 0.5 * array.pitch_mm, last = *highest + 0.5 * array.pitch_mm;
-    const double lo = std::max(-half, first), hi = std::min(half, last);
+    const auto [lo, hi] = aperture_window(array, width_mm);
     double total = 0.0;
     for (std::size_t e = 0; e < n; ++e) {
         const double s = array.along[e];
@@ -57,13 +74,25 @@ std::vector<double> aperture_weights(const LineArray& array, double width_mm, Ap
         w[e] = apodization_weight(a, (s - lo) / std::max(hi - lo, 1e-12));
         total += w[e];
     }
-    if (!(total > 0.0)) {  // a window whose only elements sit on its zero edges
-        std::size_t nearest = 0;
-        for (std::size_t e = 1; e < n; ++e)
-            if (std::abs(array.along[e]) < std::abs(array.along[nearest])) nearest = e;
-        w[nearest] = 1.0;
-    }
+    // A window whose only elements sit on its zero edges.
+    if (!(total > 0.0)) w[nearest_element(array)] = 1.0;
     return w;
+}
+
+std::pair<int, int> aperture_span(const LineArray& array, double width_mm, Apodization a) {
+    const int n = int(array.along.size());
+    if (n == 0) return {0, 0};
+    const auto [lo, hi] = aperture_window(array, width_mm);
+    auto weighted = [&](int e) {
+        const double s = array.along[std::size_t(e)];
+        return s >= lo && s <= hi &&
+               apodization_weight(a, (s - lo) / std::max(hi - lo, 1e-12)) > 0.0;
+    };
+    int first = 0, last = n;
+    while (first < last && !weighted(first)) ++first;
+    while (last > first && !weighted(last - 1)) --last;
+    if (first == last) first = int(nearest_element(array)), last = first + 1;
+    return {first, last};
 }
 
 std::shared_ptr<const PulseEcho::Band> pulse_band(const Transducer& t, BandUse use) {
@@ -163,11 +192,22 @@ LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std
         const PulseEcho::Band& b = *spectrum->band;
         for (int m = 0; m < b.count(); ++m)
             spectrum->inverse_ratio.push_back(float(b.centre_hz / b.frequency_hz(m)));
+        for (const float inverse : spectrum->inverse_ratio)
+            spectrum->root_ratio.push_back(std::sqrt(1.0 / double(inverse)));
         spectrum->centre = int(std::lround((b.centre_hz - b.first_hz) / b.step_hz));
     }
 }
 
 namespace {
+
+using kernels::kLanes;
+using kernels::Lanes;
+using kernels::load;
+using kernels::phasors;
+using kernels::spectrum_terms;
+using kernels::SpectrumTerms;
+// The sums' partial sums per frequency, on the stack: longer bands go in chunks.
+constexpr int kMaxFrequencies = 64;
 
 // An element of width w seen at angle theta from its normal: sinc(pi w sin theta /
 // lambda) cos theta, 0 behind it. The sinc as sin(2 pi u) / (2 pi u) at u = (w / 2 lambda)
@@ -202,68 +242,6 @@ inline float directivity(float sin_theta, float cos_theta, float half_width_in_l
         re[e] = gain * c, im[e] = -gain * s;  // exp(-i k path)
     }
 }
-
-// Per element, what the field's spectrum needs (LineFields::sum_spectrum): the gain w
-// cos(theta)+ / sqrt(r) without the sinc, 1 / (2 pi u) of the sinc's argument u at f0, and
-// the phasors at the band's first frequency and of one step of it: exp(-i 2 pi path f /
-// c0) for the phase and exp(i 2 pi u f / f0) whose imaginary part is the sinc's numerator.
-struct SpectrumTerms {
-    float *gain, *inverse_u, *p_re, *p_im, *ps_re, *ps_im, *d_re, *d_im, *ds_re, *ds_im;
-    float *turns, *u;  // scratch: the path in wavelengths at f0 and the sinc's argument
-};
-
-// re + i im = exp(i 2 pi sign a ratio), element by element (a loop of its own: it
-// vectorises, as the whole of spectrum_terms' work in one loop did not).
-[[gnu::target_clones("avx2", "default")]] void phasors(std::size_t n, const float* __restrict a,
-                                                       float ratio, float sign,
-                                                       float* __restrict re, float* __restrict im) {
-    for (std::size_t e = 0; e < n; ++e) {
-        float s, c;
-        base::sincos_turns(a[e] * ratio, s, c);
-        re[e] = c, im[e] = sign * s;
-    }
-}
-
-[[gnu::target_clones("avx2", "default")]] void spectrum_geometry(
-    std::size_t n, const float* __restrict x, const float* __restrict y, const float* __restrict nx,
-    const float* __restrict ny, const float* __restrict weight, float qx, float qy, float fx,
-    float fy, float inverse_lambda, float half_width, float* __restrict gain,
-    float* __restrict inverse_u, float* __restrict turns, float* __restrict u) {
-    for (std::size_t e = 0; e < n; ++e) {
-        const float dx = qx - x[e], dy = qy - y[e];
-        const float r = std::max(std::sqrt(dx * dx + dy * dy), 1e-6f), inverse = 1.0f / r;
-        const float cos_theta = (dx * nx[e] + dy * ny[e]) * inverse;
-        const float sin_theta = (dx * ny[e] - dy * nx[e]) * inverse;
-        u[e] = half_width * inverse_lambda * std::abs(sin_theta) + 1e-9f;
-        gain[e] = weight[e] * std::max(cos_theta, 0.0f) / std::sqrt(r);
-        inverse_u[e] = 1.0f / (6.28318531f * u[e]);
-        const float fdx = fx - x[e], fdy = fy - y[e];
-        turns[e] = (r - std::sqrt(fdx * fdx + fdy * fdy) + fy - qy) * inverse_lambda;
-    }
-}
-
-void spectrum_terms(std::size_t n, const float* x, const float* y, const float* nx, const float* ny,
-                    const float* weight, float qx, float qy, float fx, float fy,
-                    float inverse_lambda, float half_width, float first_ratio, float step_ratio,
-                    const SpectrumTerms& out) {
-    spectrum_geometry(n, x, y, nx, ny, weight, qx, qy, fx, fy, inverse_lambda, half_width, out.gain,
-                      out.inverse_u, out.turns, out.u);
-    phasors(n, out.turns, first_ratio, -1.0f, out.p_re, out.p_im);  // exp(-i k path)
-    phasors(n, out.turns, step_ratio, -1.0f, out.ps_re, out.ps_im);
-    phasors(n, out.u, first_ratio, 1.0f, out.d_re, out.d_im);
-    phasors(n, out.u, step_ratio, 1.0f, out.ds_re, out.ds_im);
-}
-
-// Eight elements side by side (GCC's vector extension: AVX2 registers in the AVX2 clone,
-// pairs of SSE ones in the baseline; the same operations, so the same numbers).
-constexpr std::size_t kLanes = 8;
-using Lanes = float __attribute__((vector_size(kLanes * sizeof(float))));
-// Through a reference, not a return value: a 32-byte vector returned without AVX changes
-// the ABI (clang refuses it in the baseline clone).
-[[gnu::always_inline]] inline void load(Lanes& v, const float* p) {
-    std::memcpy(&v, p, sizeof v);
-}
-constexpr int kMaxFrequencies = 64;
 
 // The sums of spectrum_terms' elements at each frequency m: sum_e gain sinc p, with the
 // phasors stepped from one frequency to the next; eight elements at a time, their partial
@@ -376,17 +354,39 @@ LineFields::Broadband LineFields::broadband(const glm::dvec2& q, const Receive& 
 }
 
 LineFields::Speckle LineFields::speckle(const glm::dvec2& q, const Receive& aperture) const {
+    const int M = energy_.band->count();
+    thread_local std::vector<std::complex<double>> tx, rx;
+    tx.resize(std::size_t(M)), rx.resize(std::size_t(M));
+    sum_spectrum(q, tx_elements_, {0.0, t_.focus_mm}, energy_, tx.data());
+    sum_spectrum(q, aperture.elements, {0.0, aperture.focus_mm}, energy_, rx.data());
+    return speckle_of_sums(tx.data(), rx.data(), tx_norm_, aperture.norm);
+}
+
+LineFields::Speckle LineFields::speckle_of_sums(const std::complex<double>* transmit_sums,
+                                                const std::complex<double>* receive_sums,
+                                                double transmit_norm, double receive_norm) const {
+    // In real arithmetic: the table's rows ask here for every sample of every aperture.
     const PulseEcho::Band& band = *energy_.band;
-    thread_local std::vector<std::complex<double>> h;
-    h.resize(std::size_t(band.count()));
     Speckle s;
-    s.receive_power = two_way_spectrum(q, aperture, energy_, h.data());
-    for (int m = 0; m < band.count(); ++m)
-        s.power += std::norm(band.weight[std::size_t(m)] * h[std::size_t(m)]);
+    double centre_re = 0.0, centre_im = 0.0;
+    for (int m = 0; m < band.count(); ++m) {
+        // Each field normalised at f_m: the norms scale as sqrt(f_m / f0).
+        const double root = energy_.root_ratio[std::size_t(m)];
+        const double w2 = std::norm(band.weight[std::size_t(m)]);
+        const double rn = receive_norm * root, tn = transmit_norm * root;
+        const double r_re = rn * receive_sums[m].real(), r_im = rn * receive_sums[m].imag();
+        const double t_re = tn * transmit_sums[m].real(), t_im = tn * transmit_sums[m].imag();
+        const double h_re = t_re * r_re - t_im * r_im, h_im = t_re * r_im + t_im * r_re;
+        s.receive_power += w2 * (r_re * r_re + r_im * r_im);
+        s.power += w2 * (h_re * h_re + h_im * h_im);
+        if (m == energy_.centre) centre_re = h_re, centre_im = h_im;
+    }
+    s.receive_power /= band.power;
     s.power /= band.power;
-    const std::complex<double> centre = h[std::size_t(energy_.centre)];
-    const double magnitude = std::abs(centre);
-    s.weight = std::sqrt(s.power) * (magnitude > 0.0 ? centre / magnitude : 1.0);
+    const double magnitude = std::hypot(centre_re, centre_im);
+    s.weight = magnitude > 0.0
+                   ? std::sqrt(s.power) / magnitude * std::complex<double>(centre_re, centre_im)
+                   : std::complex<double>(std::sqrt(s.power), 0.0);
     return s;
 }
 
@@ -415,14 +415,19 @@ std::complex<double> LineFields::transmit(const glm::dvec2& q) const {
     return tx_norm_ * sum(q, tx_weights_, {0.0, t_.focus_mm});
 }
 
-LineFields::Receive LineFields::receive_aperture(double focus_mm) const {
+LineFields::Receive LineFields::receive_weights(double focus_mm) const {
     Receive r;
     r.focus_mm = focus_mm;
     r.weights = aperture_weights(array_, t_.receive_aperture_mm(focus_mm), t_.rx_apodization);
-    r.elements = pack(r.weights);
     double sum2 = 0.0;
     for (double v : r.weights) sum2 += v * v;
     r.norm = 1.0 / std::sqrt(t_.wavelength_mm() / t_.pitch_mm * sum2);
+    return r;
+}
+
+LineFields::Receive LineFields::receive_aperture(double focus_mm) const {
+    Receive r = receive_weights(focus_mm);
+    r.elements = pack(r.weights);
     return r;
 }
 

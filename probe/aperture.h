@@ -36,9 +36,10 @@ namespace sonotrace::probe {
 
 // The array in one line's frame.
 struct LineArray {
-    std::vector<glm::dvec2> position;  // element centres (mm, line frame)
-    std::vector<glm::dvec2> normal;    // unit, into the tissue
-    std::vector<double> along;         // mm along the array, relative to the line's centre on it
+    std::vector<glm::dvec2> position;    // element centres (mm, line frame)
+    std::vector<glm::dvec2> normal;      // unit, into the tissue
+    std::vector<double> along;           // mm along the array, relative to the line's centre on it
+    double lowest = 0.0, highest = 0.0;  // the least and the greatest `along`
     double pitch_mm = 0.0;
 };
 
@@ -51,6 +52,9 @@ LineArray line_array(const Transducer& t, int l, double snap_along = 0.0);
 // Active aperture of a line: elements with |along| <= half_width (clipped by the array)
 // weighted by the apodization across the span they occupy.
 std::vector<double> aperture_weights(const LineArray& array, double width_mm, Apodization a);
+// The elements [first, last) between the first and the last with a weight: the same as
+// aperture_weights' nonzero span, without computing the weights between.
+std::pair<int, int> aperture_span(const LineArray& array, double width_mm, Apodization a);
 
 // The frequencies the broadband fields sum over (PulseEcho::Band), kept per pulse
 // (centre frequency, bandwidth, band shape, cycles). For echoes (`echo`): the pulse-echo
@@ -105,6 +109,8 @@ class LineFields {
         Elements elements;
     };
     Receive receive_aperture(double focus_mm) const;
+    // The same without `elements` (ApertureTerms sums from the weights).
+    Receive receive_weights(double focus_mm) const;
     std::complex<double> receive(const glm::dvec2& q, const Receive& aperture) const;
     std::complex<double> receive(const glm::dvec2& q, double focus_mm) const {
         return receive(q, receive_aperture(focus_mm));
@@ -132,6 +138,11 @@ class LineFields {
         double power = 0.0, receive_power = 0.0;
     };
     Speckle speckle(const glm::dvec2& q, const Receive& aperture) const;
+    // The same from the transmit and the receive sums at each frequency of the energy
+    // band (unnormalised, `sum` at each f_m) and the apertures' norms.
+    Speckle speckle_of_sums(const std::complex<double>* transmit_sums,
+                            const std::complex<double>* receive_sums, double transmit_norm,
+                            double receive_norm) const;
     // The broadband echo at q (what a point target's image shows).
     std::complex<double> two_way(const glm::dvec2& q) const { return broadband(q).two_way.echo; }
     // The echo of an infinite planar reflector through (0, z) whose normal, pointing away
@@ -154,8 +165,11 @@ class LineFields {
     std::complex<double> sum(const glm::dvec2& q, const std::vector<double>& weights,
                              const glm::dvec2& focus) const;
     const PulseEcho::Band& band() const { return *echo_.band; }
+    const std::vector<double>& transmit_weights() const { return tx_weights_; }
+    double transmit_norm() const { return tx_norm_; }
 
   private:
+    friend class ApertureTerms;
     Transducer t_;
     LineArray array_;
     std::vector<double> tx_weights_;
@@ -165,6 +179,7 @@ class LineFields {
     struct Spectrum {
         std::shared_ptr<const PulseEcho::Band> band;
         std::vector<float> inverse_ratio;  // f0 / f_m
+        std::vector<double> root_ratio;    // sqrt(f_m / f0): a field's norm at f_m over f0's
         int centre = 0;                    // m of f0
     };
     Spectrum echo_, energy_;

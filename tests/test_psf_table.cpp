@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "imaging/psf.h"
+#include "probe/aperture.h"
 #include "probe/beam.h"
 #include "probe/transducer.h"
 
@@ -52,6 +53,56 @@ TEST(Psf, TablesSharingRowsAcrossDepthsEqualFreshOnes) {
             for (const double z : {0.3 * t.depth_mm, 0.5 * t.depth_mm})
                 EXPECT_EQ(shared->plane_echo(l, z, 0.05), fresh->plane_echo(l, z, 0.05))
                     << preset << " line " << l << " z " << z;
+    }
+}
+
+// The computed rows share element terms between the lines of one depth at one
+// sub-element offset (probe/aperture_terms.h), an optimisation that claims to change
+// only the rounding: every row the lattice computes (all lines in the near zone; the
+// first and last line, always anchors, beyond it) against LineFields::speckle of the
+// line's own array and apertures (the plain per-line element sum), within 2e-4 of the
+// row's peak in H and in the receive sensitivity and 1e-4 in power (float sums of up to
+// 128 elements whose phases are taken against different references).
+TEST(Psf, RowsFromSharedTermsEqualEachLinesOwnSums) {
+    for (const char* preset : {"convex", "linear", "phased", "radial"}) {
+        const probe::Transducer t = probe::find_transducer(preset, "test");
+        const auto table = imaging::PsfTable::build(t);
+        const imaging::RowLattice lattice;
+        const int near = std::min(lattice.near_depths(t, table->dz()), table->depths());
+        double worst_h = 0.0, worst_receive = 0.0, worst_power = 0.0;
+        int rows = 0;
+        for (int i = 0; i < table->depths(); i += i < near ? 1 : lattice.depth_step) {
+            const double z = table->row_depth_mm(i);
+            for (int l = 0; l < t.lines; l += i < near ? 1 : t.lines - 1) {
+                // The line that made the row (lines whose apertures cover the same
+                // elements share it; at the array's ends their windows differ by up to
+                // 1e-3 of H's peak).
+                const probe::LineFields fields(
+                    t, probe::line_array(t, table->line_of_row(l, i),
+                                         (i < near ? lattice.snap_fraction : 1.0) * t.pitch_mm));
+                const auto receive = fields.receive_aperture(z);
+                const auto& row = table->row(l, i);
+                double peak = 0.0, receive_peak = 0.0, h = 0.0, r = 0.0, power = 0.0;
+                for (int j = -row.half; j <= row.half; ++j) {
+                    const auto s = fields.speckle({j * row.dx, z}, receive);
+                    const auto k = std::size_t(j + row.half);
+                    peak = std::max(peak, std::abs(s.weight));
+                    receive_peak = std::max(receive_peak, s.receive_power);
+                    h = std::max(h, std::abs(std::complex<double>(row.h[k]) - s.weight));
+                    r = std::max(r, std::abs(double(row.receive_power[k]) - s.receive_power));
+                    power += s.power * row.dx;
+                }
+                worst_h = std::max(worst_h, h / peak);
+                worst_receive = std::max(worst_receive, r / receive_peak);
+                worst_power = std::max(worst_power, std::abs(row.power / power - 1.0));
+                ++rows;
+            }
+        }
+        std::printf("%s: %d rows; H %.2e, receive %.2e, power %.2e of the peak\n", preset, rows,
+                    worst_h, worst_receive, worst_power);
+        EXPECT_LT(worst_h, 5e-4) << preset;
+        EXPECT_LT(worst_receive, 2e-4) << preset;
+        EXPECT_LT(worst_power, 1e-4) << preset;
     }
 }
 
