@@ -130,11 +130,11 @@ struct PsfTableBuilder {
     // where the rep's are (a ring's numbering wraps) takes the terms of its own array.
     static void compute_group(const probe::Transducer& t, const Group& group,
                               const std::vector<Job>& jobs,
-                              const std::vector<probe::LineFields>& fields,
+                              const std::vector<std::optional<probe::LineFields>>& fields,
                               const std::vector<std::optional<probe::LineFields>>& far_fields,
                               PsfTable::RowStore& store) {
         auto fields_of = [&](int l) -> const probe::LineFields& {
-            return group.far ? *far_fields[std::size_t(l)] : fields[std::size_t(l)];
+            return group.far ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
         };
         const double z = std::max(group.depth * row_spacing_mm(t), 0.5 * row_spacing_mm(t));
         const probe::LineFields& rep = fields_of(group.rep);
@@ -172,7 +172,7 @@ struct PsfTableBuilder {
                                 first = std::min(first, e), last = std::max(last, e + 1);
             probe::ApertureTerms terms(*terms_of, first, last, z);
             struct Apertures {
-                probe::ApertureTerms::Aperture tx, rx;
+                int tx, rx;
                 PsfTable::Row* row;
             };
             std::vector<Apertures> apertures;
@@ -180,8 +180,8 @@ struct PsfTableBuilder {
                 if (m.terms == terms_of) {
                     PsfTable::Row& row = store.rows[std::size_t(jobs[std::size_t(m.job)].id)];
                     row.dx = PsfTable::reach_mm(t, z) / kHalfRow;
-                    apertures.push_back(
-                        {terms.aperture(m.tx, m.tx_norm), terms.aperture(m.rx, m.rx_norm), &row});
+                    apertures.push_back({terms.add_transmit(m.tx, m.tx_norm),
+                                         terms.add_receive(m.rx, m.rx_norm), &row});
                 }
             const double dx = PsfTable::reach_mm(t, z) / kHalfRow;
             for (int j = -kHalfRow; j <= kHalfRow; ++j) {
@@ -245,16 +245,14 @@ struct PsfTableBuilder {
         const int computed = next_anchor_depth(depths - 1) + 1;
         const std::lock_guard<std::mutex> building(store->build);
         const int known = int(store->row_of_depth.size());
-        std::vector<probe::LineFields> fields;
-        // Beyond the near zone the anchor lines' fields, snapped to whole elements.
-        std::vector<std::optional<probe::LineFields>> far_fields(static_cast<std::size_t>(L));
+        // The lines' fields (snapped to sub-element offsets) and, beyond the near zone,
+        // the anchor lines' fields (snapped to whole elements).
+        std::vector<std::optional<probe::LineFields>> fields,
+            far_fields(static_cast<std::size_t>(L));
         std::vector<Job> jobs;
         std::vector<Group> groups;
         std::vector<Blend> blends;
         if (known < computed) {
-            fields.reserve(std::size_t(L));
-            for (int l = 0; l < L; ++l)
-                fields.emplace_back(t, probe::line_array(t, l, lattice.snap_fraction * t.pitch_mm));
             const probe::ScanGeometry geometry(t);
             // Anchor lines d from either end of the scan, d + 1 apart at the ends and d / 3
             // further in, at most S: at the array's ends the apertures are clipped and the
@@ -271,10 +269,13 @@ struct PsfTableBuilder {
                 previous_anchor[std::size_t(l)] = last = anchor_line(l) ? l : last;
             for (int l = L - 1, last = L - 1; l >= 0; --l)
                 next_anchor[std::size_t(l)] = last = anchor_line(l) ? l : last;
-            if (computed > near)
-                for (int l = 0; l < L; ++l)
-                    if (anchor_line(l))
-                        far_fields[std::size_t(l)].emplace(t, probe::line_array(t, l, t.pitch_mm));
+            fields.resize(std::size_t(L));
+            tbb::parallel_for(0, L, [&](int l) {
+                fields[std::size_t(l)].emplace(
+                    t, probe::line_array(t, l, lattice.snap_fraction * t.pitch_mm));
+                if (computed > near && anchor_line(l))
+                    far_fields[std::size_t(l)].emplace(t, probe::line_array(t, l, t.pitch_mm));
+            });
             // What determines a row: the line's sub-element offset and its active element
             // ranges relative to its centre element (phased lines: the line itself). What
             // does not change with depth is found once per line (and lattice).
@@ -338,7 +339,7 @@ struct PsfTableBuilder {
                 for (const int l : middle_out) {
                     if (!anchor(l, i)) continue;
                     const bool far = i >= near;
-                    const auto& f = far ? *far_fields[std::size_t(l)] : fields[std::size_t(l)];
+                    const auto& f = far ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
                     const auto [id, fresh] = add(key_of(f, l, i, far), l, i);
                     if (fresh) jobs.push_back({l, i, id, far});
                 }
@@ -349,7 +350,7 @@ struct PsfTableBuilder {
             for (const int l : middle_out)
                 for (const bool far : {false, true}) {
                     if (far && !far_fields[std::size_t(l)]) continue;
-                    const auto& f = far ? *far_fields[std::size_t(l)] : fields[std::size_t(l)];
+                    const auto& f = far ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
                     rep_of_offset.try_emplace({line_key(f, l, far).offset, far}, l);
                 }
             std::map<std::tuple<bool, int, int>, int> group_of;
@@ -377,22 +378,30 @@ struct PsfTableBuilder {
                     };
                     const std::array<int, 4> corner{row_at(l0, i0), row_at(l1, i0), row_at(l0, i1),
                                                     row_at(l1, i1)};
-                    const double across = l1 > l0 ? double(l - l0) / double(l1 - l0) : 0.0;
-                    const double along = i1 > i0 ? double(i - i0) / double(i1 - i0) : 0.0;
+                    double across = l1 > l0 ? double(l - l0) / double(l1 - l0) : 0.0;
+                    double along = i1 > i0 ? double(i - i0) / double(i1 - i0) : 0.0;
+                    // A weight between two equal rows is 0, so that the lines (or depths)
+                    // between them share one row.
+                    if (corner[0] == corner[1] && corner[2] == corner[3]) across = 0.0;
+                    if (corner[0] == corner[2] && corner[1] == corner[3]) along = 0.0;
                     if (corner[0] == corner[1] && corner[0] == corner[2] &&
                         corner[0] == corner[3]) {
                         store->row_of_depth[std::size_t(i)][std::size_t(l)] = corner[0];
                         continue;
                     }
-                    const Key key{corner[0],
-                                  corner[1],
-                                  corner[2],
-                                  corner[3],
-                                  std::lround(across * 1e6),
-                                  std::lround(along * 1e6) * 100000L + i,
-                                  2};
-                    const auto [id, fresh] = add(key, l, i);
-                    if (fresh) blends.push_back({id, i, corner, across, along});
+                    // A row of its own, but for lines between two equal rows, which share
+                    // the first one's (the lines of a depth come in order).
+                    if (across == 0.0 && l > 0 && !blends.empty() && blends.back().depth == i &&
+                        blends.back().corner == corner && blends.back().along == along &&
+                        blends.back().across == 0.0) {
+                        store->row_of_depth[std::size_t(i)][std::size_t(l)] = blends.back().id;
+                        continue;
+                    }
+                    const int id = int(store->rows.size());
+                    store->rows.emplace_back();
+                    store->line.push_back(l);
+                    store->row_of_depth[std::size_t(i)][std::size_t(l)] = id;
+                    blends.push_back({id, i, corner, across, along});
                 }
         }
         // The table numbers rows as the store does, and sees those made so far.

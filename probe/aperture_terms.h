@@ -27,21 +27,15 @@ class ApertureTerms {
     // The elements [first, last) of `fields`' array, the transmit focused where `fields`
     // focuses it and the receive at depth `receive_focus_mm` on the axis.
     ApertureTerms(const LineFields& fields, int first, int last, double receive_focus_mm);
-    // An aperture's weights on elements [first, first + w.size()) of the array, padded
-    // with zero weights to a whole number of lanes (and within the terms' span: make
-    // them with aperture()), and its norm.
-    struct Aperture {
-        std::vector<float> w;
-        int first = 0;
-        double norm = 1.0;
-    };
-    // The aperture of `weights` (one per element of the array, zero outside it) with norm.
-    Aperture aperture(const std::vector<double>& weights, double norm) const;
-    // The terms at q (line frame, mm).
+    // An aperture to sum at every point: its weights (one per element of the array, 0
+    // outside [first, last)) and norm. Returns its number (equal apertures are one).
+    int add_transmit(const std::vector<double>& weights, double norm);
+    int add_receive(const std::vector<double>& weights, double norm);
+    // The terms at q (line frame, mm), and every aperture's sums there.
     void at(const glm::dvec2& q);
     // The speckle (LineFields::speckle) of a transmit and a receive aperture at the last
     // point.
-    LineFields::Speckle speckle(const Aperture& transmit, const Aperture& receive) const;
+    LineFields::Speckle speckle(int transmit, int receive) const;
 
   private:
     const LineFields& fields_;
@@ -51,7 +45,17 @@ class ApertureTerms {
     std::vector<float> tx_re_, tx_im_, rx_re_, rx_im_;
     std::vector<float> terms_[4];  // transmit re, im; receive re, im
     std::vector<float> x_, y_, nx_, ny_, ones_;
-    mutable std::vector<std::complex<double>> tx_sums_, rx_sums_;
+    // An aperture's weights on elements [first, first + w.size()) of the span, padded
+    // with zero weights to whole lanes.
+    struct Aperture {
+        std::vector<float> w;
+        int first = 0;
+        double norm = 1.0;
+        bool operator==(const Aperture&) const = default;
+    };
+    int add(std::vector<Aperture>& apertures, const std::vector<double>& weights, double norm);
+    std::vector<Aperture> transmits_, receives_;
+    std::vector<std::complex<double>> sums_[2];  // transmit, receive: [aperture * M + m]
 };
 
 }  // namespace sonotrace::probe
