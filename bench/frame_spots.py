@@ -11,7 +11,9 @@ intensity) is more than 15 dB above the median level of the parenchyma patches w
 5 mm of it (the issue's 10 mm neighbourhood) is a spot. Ventricles: the CSF's connected
 components of at least 20 mm^2 (not the thin sulci), eroded by 1 mm, against the
 parenchyma eroded by 1 mm, per group of seeds (their frames pooled): as the mean grey
-level in dB (what the eye compares) and, in brackets, as mean intensities. Runs the Python module (SONOTRACE_PYTHON_DIR, default build/python).
+level in dB (what the eye compares) and, in brackets, as mean intensities. Sulci: the
+same of the pia-arachnoid's samples (imaging/sulcal_membranes.h: the 0.5 mm band of the
+sulcal CSF along the cortex) against the parenchyma. Runs the Python module (SONOTRACE_PYTHON_DIR, default build/python).
 """
 import argparse
 import os
@@ -20,7 +22,7 @@ from collections import deque
 
 import numpy as np
 
-BRAIN, CSF = 7, 8  # the labels' legend (the frame's sidecar)
+BRAIN, CSF, PIA = 7, 8, 14  # the labels' legend (the frame's sidecar)
 
 
 def erode(mask, radius):
@@ -87,6 +89,7 @@ def measure(frame, dynamic_range_db, pixel_mm):
     db = grey * dynamic_range_db / 255.0
     return {
         "ventricles_db": db[ventricles].sum(), "parenchyma_db": db[parenchyma].sum(),
+        "sulci_db": db[labels == PIA].sum(), "sulci_pixels": int((labels == PIA).sum()),
         "ventricles": intensity[ventricles].sum(), "ventricle_pixels": int(ventricles.sum()),
         "parenchyma": intensity[parenchyma].sum(), "parenchyma_pixels": int(parenchyma.sum()),
         "patches": int((~np.isnan(level)).sum()), "spots": spots, "worst": worst,
@@ -129,7 +132,8 @@ def main():
         print(f"seed {seed}: {len(m['spots'])} spots of {m['patches']} patches, "
               f"largest excess {m['worst']:.1f} dB{': ' + where if where else ''}", flush=True)
         if k % args.group == 0:
-            group = {"v": 0.0, "vn": 0, "p": 0.0, "pn": 0, "vdb": 0.0, "pdb": 0.0, "first": seed}
+            group = {"v": 0.0, "vn": 0, "p": 0.0, "pn": 0, "vdb": 0.0, "pdb": 0.0, "sdb": 0.0,
+                     "sn": 0, "first": seed}
             groups.append(group)
         group["vdb"] += m["ventricles_db"]
         group["pdb"] += m["parenchyma_db"]
@@ -137,6 +141,8 @@ def main():
         group["vn"] += m["ventricle_pixels"]
         group["p"] += m["parenchyma"]
         group["pn"] += m["parenchyma_pixels"]
+        group["sdb"] += m["sulci_db"]
+        group["sn"] += m["sulci_pixels"]
     for g in groups:
         if g["vn"] and g["pn"]:
             contrast = 10.0 * np.log10((g["v"] / g["vn"]) / (g["p"] / g["pn"]))
@@ -144,6 +150,10 @@ def main():
             print(f"seeds {g['first']}-{g['first'] + args.group - 1}: ventricles "
                   f"{seen:+.1f} dB ({contrast:+.1f} dB in intensity) against the parenchyma "
                   f"({g['vn']} and {g['pn']} pixels)")
+        if g["sn"] and g["pn"]:
+            print(f"seeds {g['first']}-{g['first'] + args.group - 1}: sulci "
+                  f"{g['sdb'] / g['sn'] - g['pdb'] / g['pn']:+.1f} dB against the parenchyma "
+                  f"({g['sn']} pixels)")
     for depth in sorted(by_depth):
         tangents = by_depth[depth]
         print(f"  {depth:3d}-{depth + 5:3d} mm: {len(tangents):5d} spots, "

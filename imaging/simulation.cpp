@@ -693,7 +693,9 @@ cv::Vec3b label_colour(int label) {
         {150, 170, 190},  // soft tissue
         {80, 230, 250},   // dura (falx): pale yellow
         {220, 80, 220},   // choroid plexus: magenta
+        {60, 140, 250},   // pia-arachnoid (sulci): orange
     };
+    static_assert(std::size(kColours) == 14, "a colour per tissue_table() entry");
     return label >= 1 && label <= int(std::size(kColours)) ? kColours[label - 1]
                                                            : cv::Vec3b(0, 0, 0);
 }

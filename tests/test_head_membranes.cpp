@@ -10,6 +10,7 @@
 #include "imaging/colin27.h"
 #include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
+#include "imaging/sulcal_membranes.h"
 #include "probe/transducer.h"
 #include "tissue/nifti_io.h"
 #include "tissue/property_maps.h"
@@ -224,6 +225,69 @@ TEST(HeadMembranes, TheDefaultFrameShowsTheFalxBrighterThanTheBrainBesideIt) {
     ASSERT_GT(n_beside, 1000);
     EXPECT_GT(falx / n_falx, beside / n_beside + 0.05)
         << "falx " << falx / n_falx << ", brain beside it " << beside / n_beside;
+}
+
+// The sulci's pia-arachnoid (imaging/sulcal_membranes.h) on a synthetic brain map at
+// 0.25 mm, whose answers follow from the rule's geometry: a 1 mm line of CSF between
+// brain (a sulcus) and a 1 mm line of half-volume CSF (fraction 0.6, as a T1 shows a
+// thinner sulcus: brain-like, 0.4 below its banks) become pia throughout, being thinner
+// than the 3 mm opening and within 0.5 mm of brain; a 16 mm disc of CSF (a ventricle)
+// keeps its CSF, walls included; CSF beside another tissue (fat) stays CSF; a map
+// without brain changes nowhere.
+TEST(SulcalMembranes, ThinCsfBetweenBrainBecomesPiaAndWideCsfStaysCsf) {
+    tissue::VolumeGeometry grid;
+    grid.dims = {200, 200, 1};
+    grid.spacing = {0.25, 0.25, 1.0};
+    const auto& brain = tissue::find_tissue("brain", "", "");
+    const auto& csf = tissue::find_tissue("csf", "", "");
+    const auto& fat = tissue::find_tissue("fat", "", "");
+    auto make = [&](bool with_brain) {
+        tissue::PropertyMaps maps;
+        for (auto& f : maps.fields) f = tissue::Volume(grid);
+        for (int j = 0; j < 200; ++j)
+            for (int i = 0; i < 200; ++i) {
+                const double x = i * 0.25, y = j * 0.25;
+                tissue::AcousticProperties p = with_brain ? brain.properties : fat.properties;
+                if (x >= 10.0 && x < 11.0) p = csf.properties;  // sulcus
+                if (x >= 20.0 && x < 21.0) p = tissue::lerp(csf.properties, brain.properties, 0.6f);
+                if (std::hypot(x - 36.0, y - 25.0) < 8.0) p = csf.properties;  // ventricle
+                if (x >= 5.0 && x < 6.0 && y < 10.0) p = csf.properties;       // by fat:
+                if (x >= 3.0 && x < 5.0 && y < 10.0) p = fat.properties;       // not a sulcus
+                for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
+                    maps.fields[f].at(i, j) = p.values[f];
+            }
+        return maps;
+    };
+    tissue::PropertyMaps maps = make(true);
+    tissue::Volume labels(grid);
+    const std::size_t changed = imaging::add_sulcal_membranes(maps, &labels);
+    const float pia = float(tissue::tissue_label_of("pia_arachnoid"));
+    int sulcus = 0, partial = 0, ventricle = 0, by_fat = 0, elsewhere = 0;
+    for (int j = 0; j < 200; ++j)
+        for (int i = 0; i < 200; ++i) {
+            const double x = i * 0.25, y = j * 0.25;
+            const bool is_pia = labels.at(i, j) == pia;
+            EXPECT_EQ(is_pia, maps[tissue::Property::backscatter].at(i, j) == 1.0f);
+            const bool inner = y > 2.0 && y < 48.0;  // clear of the map's edges
+            if (x >= 10.0 && x < 11.0)
+                sulcus += inner && !is_pia;
+            else if (x >= 20.0 && x < 21.0)
+                partial += inner && !is_pia;
+            else if (std::hypot(x - 36.0, y - 25.0) < 8.5)
+                ventricle += is_pia;
+            else if (x >= 5.0 && x < 6.0 && y < 10.0)
+                by_fat += is_pia;
+            else
+                elsewhere += is_pia;
+        }
+    EXPECT_EQ(sulcus, 0) << "sulcus samples left as CSF";
+    EXPECT_EQ(partial, 0) << "half-volume sulcus samples left as they were";
+    EXPECT_EQ(ventricle, 0) << "ventricle samples made pia";
+    EXPECT_EQ(by_fat, 0) << "CSF beside fat made pia";
+    EXPECT_EQ(elsewhere, 0) << "pia beyond the sulci";
+    EXPECT_GT(changed, std::size_t(2 * 4 * 184));
+    tissue::PropertyMaps no_brain = make(false);
+    EXPECT_EQ(imaging::add_sulcal_membranes(no_brain), std::size_t(0));
 }
 
 }  // namespace

@@ -20,7 +20,7 @@ constexpr AcousticProperties props(float c, float rho, float alpha, float backsc
 // usual echogenicity ranking of clinical images (fluids anechoic, fat and muscle
 // hypoechoic, parenchyma mid-grey, bone bright); they are modelling choices, not
 // measurements.
-constexpr std::array<TissueEntry, 13> kTable = {{
+constexpr std::array<TissueEntry, 14> kTable = {{
     //                                     c     rho    alpha  bsc   n/mm3  rough
     {"water", "water (37 C)", props(1524, 993, 0.0022f, 0.0f, 0.0f, 0.0f), "Duck 1990"},
     {"blood", "blood", props(1584, 1060, 0.15f, 0.02f, 5.0f, 0.0f), "Duck 1990; IT'IS 4.1"},
@@ -43,6 +43,10 @@ constexpr std::array<TissueEntry, 13> kTable = {{
      "fibrous collagen: between brain and tendon (Duck 1990); hyperechoic in cranial US"},
     {"choroid_plexus", "choroid plexus", props(1560, 1050, 0.8f, 0.9f, 20.0f, 0.3f),
      "blood-rich villous epithelium: soft-tissue values; hyperechoic in cranial US"},
+    {"pia_arachnoid", "pia-arachnoid and its vessels (sulci)",
+     props(1560, 1050, 0.8f, 1.0f, 20.0f, 0.3f),
+     "thin collagenous membranes with vessels: soft-tissue values; the sulci are bright "
+     "lines in intraoperative and transcranial US"},
 }};
 
 }  // namespace

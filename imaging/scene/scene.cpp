@@ -8,6 +8,7 @@
 #include <set>
 
 #include "imaging/colin27.h"
+#include "imaging/sulcal_membranes.h"
 #include "probe/placement.h"
 #include "tissue/base/error.h"
 #include "tissue/base/memory.h"
@@ -170,6 +171,7 @@ tissue::PropertyMaps VolumeSource::plane_properties(const tissue::VolumeGeometry
     tissue::PropertyMaps maps = tissue::classify(values, *tf);
     if (is_default)
         add_colin27_anatomy(loaded.volume, *tf, outside, grid, maps, labels, !scalp_turned_back);
+    add_sulcal_membranes(maps, labels);
     return maps;
 }
 
@@ -277,6 +279,10 @@ std::vector<Scene::Material> Scene::materials() const {
         labels.insert(tissue::tissue_label_of("dura"));
         labels.insert(tissue::tissue_label_of("choroid_plexus"));
     }
+    // The sulci's membranes, where brain meets CSF (add_sulcal_membranes).
+    if (labels.count(tissue::tissue_label_of("brain")) &&
+        labels.count(tissue::tissue_label_of("csf")))
+        labels.insert(tissue::tissue_label_of("pia_arachnoid"));
     for (int l : labels)
         if (l >= 1 && l <= int(table.size()))
             out.push_back({tissue_name(l), table[std::size_t(l) - 1].properties});
