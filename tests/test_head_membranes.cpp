@@ -233,7 +233,8 @@ TEST(HeadMembranes, TheDefaultFrameShowsTheFalxBrighterThanTheBrainBesideIt) {
 // thinner sulcus: brain-like, 0.4 below its banks) become pia throughout, being thinner
 // than the 3 mm opening and within 0.5 mm of brain; a 16 mm disc of CSF (a ventricle)
 // keeps its CSF, walls included; CSF beside another tissue (fat) stays CSF; a map
-// without brain changes nowhere.
+// without brain changes nowhere. The membranes take the pia's backscatter (1.0, which no
+// other sample has here) and keep their speed.
 TEST(SulcalMembranes, ThinCsfBetweenBrainBecomesPiaAndWideCsfStaysCsf) {
     tissue::VolumeGeometry grid;
     grid.dims = {200, 200, 1};
@@ -269,6 +270,11 @@ TEST(SulcalMembranes, ThinCsfBetweenBrainBecomesPiaAndWideCsfStaysCsf) {
             const bool is_pia = labels.at(i, j) == pia;
             EXPECT_EQ(is_pia, maps[tissue::Property::backscatter].at(i, j) == 1.0f);
             const bool inner = y > 2.0 && y < 48.0;  // clear of the map's edges
+            // The membrane scatters; its samples keep their speed (no new interface).
+            if (x >= 10.0 && x < 11.0) {
+                EXPECT_EQ(maps[tissue::Property::speed_of_sound].at(i, j),
+                          csf.properties[tissue::Property::speed_of_sound]);
+            }
             if (x >= 10.0 && x < 11.0)
                 sulcus += inner && !is_pia;
             else if (x >= 20.0 && x < 21.0)
