@@ -61,6 +61,7 @@
 #include "imaging/colin27.h"
 #include "imaging/picture.h"
 #include "imaging/psf.h"
+#include "imaging/receive_weights.h"
 #include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "imaging/trace_pictures.h"

@@ -16,6 +16,7 @@
 #include <unordered_map>
 
 #include "imaging/psf.h"
+#include "imaging/receive_weights.h"
 #include "probe/aperture.h"
 #include "probe/pulse.h"
 #include "simulator/interactions.h"

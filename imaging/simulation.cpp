@@ -14,6 +14,7 @@
 
 #include "imaging/mirror_ghosts.h"
 #include "imaging/psf.h"
+#include "imaging/receive_weights.h"
 #include "probe/array_geometry.h"
 #include "probe/elevation.h"
 #include "probe/placement.h"

@@ -17,6 +17,7 @@
 
 #include "imaging/bmode.h"
 #include "imaging/psf.h"
+#include "imaging/receive_weights.h"
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
 #include "probe/aperture.h"
