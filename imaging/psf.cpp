@@ -1,6 +1,8 @@
 #include "imaging/psf.h"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
 
 #include <algorithm>
 #include <array>
@@ -204,9 +206,9 @@ struct PsfTableBuilder {
             const int k = e + shift;
             if (k < 0 || k >= int(out.size())) return {};
             const auto i = std::size_t(e), j = std::size_t(k);
-            if (glm::length(a.position[i] - b.position[j]) > 1e-6 ||
-                glm::length(a.normal[i] - b.normal[j]) > 1e-6)
-                return {};
+            const glm::dvec2 moved = a.position[i] - b.position[j],
+                             turned = a.normal[i] - b.normal[j];
+            if (glm::dot(moved, moved) > 1e-12 || glm::dot(turned, turned) > 1e-12) return {};
             out[j] = w[i];
         }
         return out;
@@ -411,9 +413,17 @@ struct PsfTableBuilder {
         for (std::size_t r = 0; r < store->rows.size(); ++r)
             table->rows_.push_back(&store->rows[r]);
         table->row_line_ = store->line;
-        tbb::parallel_for(0, int(groups.size()), [&](int g) {
-            compute_group(t, groups[std::size_t(g)], jobs, fields, far_fields, *store);
-        });
+        // A task per group, the far ones (a whole depth's anchor lines, four times a near
+        // group's work) first: halving the range put them all on one thread.
+        std::stable_sort(groups.begin(), groups.end(),
+                         [](const Group& a, const Group& b) { return a.far > b.far; });
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, int(groups.size()), 1),
+            [&](const tbb::blocked_range<int>& range) {
+                for (int g = range.begin(); g < range.end(); ++g)
+                    compute_group(t, groups[std::size_t(g)], jobs, fields, far_fields, *store);
+            },
+            tbb::simple_partitioner());
         table->computed_rows_ = int(jobs.size());
         tbb::parallel_for(0, int(blends.size()), [&](int n) {
             const Blend& b = blends[std::size_t(n)];

@@ -383,7 +383,7 @@ LineFields::Speckle LineFields::speckle_of_sums(const std::complex<double>* tran
     }
     s.receive_power /= band.power;
     s.power /= band.power;
-    const double magnitude = std::hypot(centre_re, centre_im);
+    const double magnitude = std::sqrt(centre_re * centre_re + centre_im * centre_im);
     s.weight = magnitude > 0.0
                    ? std::sqrt(s.power) / magnitude * std::complex<double>(centre_re, centre_im)
                    : std::complex<double>(std::sqrt(s.power), 0.0);
