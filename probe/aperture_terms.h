@@ -11,8 +11,8 @@
 // the focusing delays exp(-i k_m (|p_e| - |f - p_e| + f_y)) to their focus f: together
 // LineFields::sum's phase |q - p_e| - |f - p_e| + f_y - q_y. The terms are computed once
 // per point (the sums' directivity, spreading and phasors: most of their cost) and each
-// aperture's sums are a weighted sum of them, sped up by the apertures sharing them.
-// Test: ApertureTerms.SumsEqualEachLinesOwnFields (against LineFields::speckle).
+// aperture's sums are a weighted sum of them. Test: Psf.RowsFromSharedTermsEqualEachLinesOwnSums
+// (every computed row of the PSF table against LineFields::speckle of its line).
 #include <complex>
 #include <vector>
 
