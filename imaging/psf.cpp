@@ -116,6 +116,7 @@ struct PsfTableBuilder {
     // Computed rows of one depth that take their element terms from one line's array.
     struct Group {
         int rep, depth;
+        double depth_mm;
         bool far;
         // (job, the rep's element numbering minus the job line's)
         std::vector<std::pair<int, int>> members;
@@ -136,7 +137,7 @@ struct PsfTableBuilder {
         auto fields_of = [&](int l) -> const probe::LineFields& {
             return group.far ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
         };
-        const double z = std::max(group.depth * row_spacing_mm(t), 0.5 * row_spacing_mm(t));
+        const double z = group.depth_mm;
         const probe::LineFields& rep = fields_of(group.rep);
         struct Member {
             int job;
@@ -176,14 +177,14 @@ struct PsfTableBuilder {
                 PsfTable::Row* row;
             };
             std::vector<Apertures> apertures;
+            const double dx = PsfTable::reach_mm(t, z) / kHalfRow;
             for (const Member& m : members)
                 if (m.terms == terms_of) {
                     PsfTable::Row& row = store.rows[std::size_t(jobs[std::size_t(m.job)].id)];
-                    row.dx = PsfTable::reach_mm(t, z) / kHalfRow;
+                    row.dx = dx;
                     apertures.push_back({terms.add_transmit(m.tx, m.tx_norm),
                                          terms.add_receive(m.rx, m.rx_norm), &row});
                 }
-            const double dx = PsfTable::reach_mm(t, z) / kHalfRow;
             for (int j = -kHalfRow; j <= kHalfRow; ++j) {
                 terms.at({j * dx, z});
                 for (const Apertures& each : apertures) {
@@ -360,7 +361,7 @@ struct PsfTableBuilder {
                     rep_of_offset.at({line_keys[job.far][std::size_t(job.line)].offset, job.far});
                 const auto [it, fresh] =
                     group_of.try_emplace({job.far, rep, job.depth}, int(groups.size()));
-                if (fresh) groups.push_back({rep, job.depth, job.far, {}});
+                if (fresh) groups.push_back({rep, job.depth, depth_of(job.depth), job.far, {}});
                 const int shift = line_keys[job.far][std::size_t(rep)].centre -
                                   line_keys[job.far][std::size_t(job.line)].centre;
                 groups[std::size_t(it->second)].members.emplace_back(int(n), shift);

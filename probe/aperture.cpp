@@ -206,7 +206,7 @@ using kernels::load;
 using kernels::phasors;
 using kernels::spectrum_terms;
 using kernels::SpectrumTerms;
-// The sums' partial sums per frequency, on the stack: longer bands go in chunks.
+// At most this many frequencies per pass (the sums' accumulators live on the stack).
 constexpr int kMaxFrequencies = 64;
 
 // An element of width w seen at angle theta from its normal: sinc(pi w sin theta /
@@ -252,20 +252,11 @@ inline float directivity(float sin_theta, float cos_theta, float half_width_in_l
                                                              std::complex<double>* out) {
     Lanes re[kMaxFrequencies] = {}, im[kMaxFrequencies] = {};
     for (std::size_t e = 0; e < n; e += kLanes) {
-        Lanes gain, inverse_u, p_re, p_im, ps_re, ps_im, d_re, d_im, ds_re, ds_im;
-        load(gain, t.gain + e), load(inverse_u, t.inverse_u + e);
-        load(p_re, t.p_re + e), load(p_im, t.p_im + e);
-        load(ps_re, t.ps_re + e), load(ps_im, t.ps_im + e);
-        load(d_re, t.d_re + e), load(d_im, t.d_im + e);
-        load(ds_re, t.ds_re + e), load(ds_im, t.ds_im + e);
-        gain *= inverse_u;
-        for (int m = 0; m < frequencies; ++m) {
-            const Lanes g = gain * d_im * inverse_ratio[m];
-            re[m] += g * p_re, im[m] += g * p_im;
-            const Lanes pr = p_re * ps_re - p_im * ps_im;
-            p_im = p_re * ps_im + p_im * ps_re, p_re = pr;
-            const Lanes dr = d_re * ds_re - d_im * ds_im;
-            d_im = d_re * ds_im + d_im * ds_re, d_re = dr;
+        kernels::SpectrumLanes s(t, e);
+        for (int m = 0; m < frequencies; ++m, s.next()) {
+            Lanes g;
+            s.amplitude(inverse_ratio[m], g);
+            re[m] += g * s.p_re, im[m] += g * s.p_im;
         }
     }
     for (int m = 0; m < frequencies; ++m) {

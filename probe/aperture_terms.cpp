@@ -24,17 +24,12 @@ using kernels::store;
     const kernels::SpectrumTerms& t, const float* __restrict tx_re, const float* __restrict tx_im,
     const float* __restrict rx_re, const float* __restrict rx_im, float* const* out) {
     for (std::size_t e = 0; e < n; e += kLanes) {
-        Lanes gain, inverse_u, p_re, p_im, ps_re, ps_im, d_re, d_im, ds_re, ds_im;
-        load(gain, t.gain + e), load(inverse_u, t.inverse_u + e);
-        load(p_re, t.p_re + e), load(p_im, t.p_im + e);
-        load(ps_re, t.ps_re + e), load(ps_im, t.ps_im + e);
-        load(d_re, t.d_re + e), load(d_im, t.d_im + e);
-        load(ds_re, t.ds_re + e), load(ds_im, t.ds_im + e);
-        gain *= inverse_u;
-        for (int m = 0; m < frequencies; ++m) {
+        kernels::SpectrumLanes s(t, e);
+        for (int m = 0; m < frequencies; ++m, s.next()) {
             const std::size_t at = std::size_t(m) * stride + e;
-            const Lanes g = gain * d_im * inverse_ratio[m];
-            const Lanes b_re = g * p_re, b_im = g * p_im;
+            Lanes g;
+            s.amplitude(inverse_ratio[m], g);
+            const Lanes b_re = g * s.p_re, b_im = g * s.p_im;
             Lanes f_re, f_im;
             load(f_re, tx_re + at), load(f_im, tx_im + at);
             store(out[0] + at, b_re * f_re - b_im * f_im);
@@ -42,10 +37,6 @@ using kernels::store;
             load(f_re, rx_re + at), load(f_im, rx_im + at);
             store(out[2] + at, b_re * f_re - b_im * f_im);
             store(out[3] + at, b_re * f_im + b_im * f_re);
-            const Lanes pr = p_re * ps_re - p_im * ps_im;
-            p_im = p_re * ps_im + p_im * ps_re, p_re = pr;
-            const Lanes dr = d_re * ds_re - d_im * ds_im;
-            d_im = d_re * ds_im + d_im * ds_re, d_re = dr;
         }
     }
 }

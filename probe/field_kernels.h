@@ -45,4 +45,29 @@ constexpr std::size_t padded(std::size_t n) {
     return (n + kLanes - 1) / kLanes * kLanes;
 }
 
+// Eight elements' SpectrumTerms walked through the band's frequencies: amplitude() is
+// gain sinc at the current one (ratio f0 / f_m scales the sinc's 1 / u), p its phasor
+// exp(-i k_m path), next() steps both phasors to the following frequency.
+struct SpectrumLanes {
+    Lanes gain, p_re, p_im, ps_re, ps_im, d_re, d_im, ds_re, ds_im;
+    [[gnu::always_inline]] SpectrumLanes(const SpectrumTerms& t, std::size_t e) {
+        Lanes inverse_u;
+        load(gain, t.gain + e), load(inverse_u, t.inverse_u + e);
+        load(p_re, t.p_re + e), load(p_im, t.p_im + e);
+        load(ps_re, t.ps_re + e), load(ps_im, t.ps_im + e);
+        load(d_re, t.d_re + e), load(d_im, t.d_im + e);
+        load(ds_re, t.ds_re + e), load(ds_im, t.ds_im + e);
+        gain *= inverse_u;
+    }
+    [[gnu::always_inline]] void amplitude(float ratio, Lanes& out) const {
+        out = gain * d_im * ratio;
+    }
+    [[gnu::always_inline]] void next() {
+        const Lanes pr = p_re * ps_re - p_im * ps_im;
+        p_im = p_re * ps_im + p_im * ps_re, p_re = pr;
+        const Lanes dr = d_re * ds_re - d_im * ds_im;
+        d_im = d_re * ds_im + d_im * ds_re, d_re = dr;
+    }
+};
+
 }  // namespace sonotrace::probe::kernels
