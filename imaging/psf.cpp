@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <array>
@@ -15,6 +16,7 @@
 #include <numeric>
 #include <optional>
 #include <tuple>
+#include <type_traits>
 
 #include "probe/aperture.h"
 #include "probe/aperture_terms.h"
@@ -64,17 +66,28 @@ struct PsfTable::RowStore {
     };
     std::unordered_map<std::array<long, 7>, int, KeyHash> index;
     // Rows in chunks (stable addresses: tables point into them), allocated a chunk at a
-    // time: one allocation per row was a tenth of a table's build.
+    // time (one allocation per row was a tenth of a table's build) and left raw: a row is
+    // constructed where it is filled (start), so the threads that fill the rows, not the
+    // set-up that numbers them, take the first touch of their pages.
     struct Rows {
+        static_assert(std::is_trivially_destructible_v<Row>);
         static constexpr std::size_t kChunk = 64;  // 40 kB: under malloc's mmap threshold
-        std::vector<std::unique_ptr<Row[]>> chunks;
+        std::vector<Row*> chunks;
         std::size_t count = 0;
+        Rows() = default;
+        Rows(const Rows&) = delete;
+        Rows& operator=(const Rows&) = delete;
+        ~Rows() {
+            for (Row* chunk : chunks) std::allocator<Row>().deallocate(chunk, kChunk);
+        }
         Row& operator[](std::size_t r) { return chunks[r / kChunk][r % kChunk]; }
         std::size_t size() const { return count; }
         void emplace_back() {
-            if (count == chunks.size() * kChunk) chunks.push_back(std::make_unique<Row[]>(kChunk));
+            if (count == chunks.size() * kChunk)
+                chunks.push_back(std::allocator<Row>().allocate(kChunk));
             ++count;
         }
+        static Row& start(Row* row) { return *std::construct_at(row); }
     };
     Rows rows;
     std::vector<int> line;  // the line that made each row (read under `build` only)
@@ -106,12 +119,30 @@ std::shared_ptr<PsfTable::RowStore> shared_row_store(const probe::Transducer& t)
 }
 }  // namespace
 
+namespace {
+// out += w c, the samples as floats (complex<float> is two of them, [complex.numbers]),
+// through restrict pointers: as complex arrays that might overlap the loop stayed scalar.
+void blend_into(PsfTable::Row& out, const PsfTable::Row& c, float w) {
+    constexpr std::size_t n = 2 * PsfTable::kHalfRow + 1;
+    float* __restrict h = reinterpret_cast<float*>(out.h.data());
+    const float* __restrict ch = reinterpret_cast<const float*>(c.h.data());
+    for (std::size_t j = 0; j < 2 * n; ++j) h[j] += w * ch[j];
+    float* __restrict r = out.receive_power.data();
+    const float* __restrict cr = c.receive_power.data();
+    for (std::size_t j = 0; j < n; ++j) r[j] += w * cr[j];
+}
+}  // namespace
+
 struct PsfTableBuilder {
     using Key = std::array<long, 7>;
     // Rows computed from the fields (exact) or interpolated from four exact ones.
     struct Job {
         int line, depth, id;
-        bool far;  // the far lattice's fields (lines snapped to whole elements)
+        bool far;                     // the far lattice's fields (lines snapped to whole elements)
+        std::pair<int, int> receive;  // the receive aperture's elements [first, last)
+        int elements;                 // in the line's array
+        int mirror_of = -1;           // the job whose row this one mirrors, if any
+        PsfTable::Row* row = nullptr;
     };
     // Computed rows of one depth that take their element terms from one line's array.
     struct Group {
@@ -129,11 +160,10 @@ struct PsfTableBuilder {
 
     // The rows of a group from shared element terms. A member whose elements are not
     // where the rep's are (a ring's numbering wraps) takes the terms of its own array.
-    static void compute_group(const probe::Transducer& t, const Group& group,
-                              const std::vector<Job>& jobs,
+    static void compute_group(const Group& group, const std::vector<Job>& jobs,
                               const std::vector<std::optional<probe::LineFields>>& fields,
                               const std::vector<std::optional<probe::LineFields>>& far_fields,
-                              PsfTable::RowStore& store) {
+                              double dx) {
         auto fields_of = [&](int l) -> const probe::LineFields& {
             return group.far ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
         };
@@ -171,30 +201,101 @@ struct PsfTableBuilder {
                         for (int e = 0; e < int(w->size()); ++e)
                             if ((*w)[std::size_t(e)] != 0.0)
                                 first = std::min(first, e), last = std::max(last, e + 1);
+            // An array symmetric about its line over the elements summed (element e's
+            // mirror image is element S - e): the terms at -x are those at x of the
+            // mirrored elements, so a row at -x is its mirrored apertures' sums at x.
+            const int S = mirror_index_sum(terms_of->array(), first, last);
+            if (S >= 0) {
+                const int lo = std::min(first, S + 1 - last), hi = std::max(last, S + 1 - first);
+                first = lo, last = hi;
+            }
             probe::ApertureTerms terms(*terms_of, first, last, z);
             struct Apertures {
-                int tx, rx;
+                int tx, rx, mirrored_tx, mirrored_rx;
                 PsfTable::Row* row;
             };
             std::vector<Apertures> apertures;
-            const double dx = PsfTable::reach_mm(t, z) / kHalfRow;
             for (const Member& m : members)
                 if (m.terms == terms_of) {
-                    PsfTable::Row& row = store.rows[std::size_t(jobs[std::size_t(m.job)].id)];
+                    PsfTable::Row& row =
+                        PsfTable::RowStore::Rows::start(jobs[std::size_t(m.job)].row);
                     row.dx = dx;
-                    apertures.push_back({terms.add_transmit(m.tx, m.tx_norm),
-                                         terms.add_receive(m.rx, m.rx_norm), &row});
+                    Apertures entry{terms.add_transmit(m.tx, m.tx_norm),
+                                    terms.add_receive(m.rx, m.rx_norm), -1, -1, &row};
+                    if (S >= 0) {
+                        entry.mirrored_tx = terms.add_transmit(mirrored(m.tx, S), m.tx_norm);
+                        entry.mirrored_rx = terms.add_receive(mirrored(m.rx, S), m.rx_norm);
+                    }
+                    apertures.push_back(entry);
                 }
-            for (int j = -kHalfRow; j <= kHalfRow; ++j) {
+            auto sample = [&](int j, const Apertures& each, int tx, int rx) {
+                const probe::LineFields::Speckle s = terms.speckle(tx, rx);
+                each.row->h[std::size_t(j + kHalfRow)] = std::complex<float>(s.weight);
+                each.row->receive_power[std::size_t(j + kHalfRow)] = float(s.receive_power);
+                each.row->power += s.power * dx;
+            };
+            for (int j = S >= 0 ? 0 : -kHalfRow; j <= kHalfRow; ++j) {
                 terms.at({j * dx, z});
                 for (const Apertures& each : apertures) {
-                    const probe::LineFields::Speckle s = terms.speckle(each.tx, each.rx);
-                    each.row->h[std::size_t(j + kHalfRow)] = std::complex<float>(s.weight);
-                    each.row->receive_power[std::size_t(j + kHalfRow)] = float(s.receive_power);
-                    each.row->power += s.power * dx;
+                    sample(j, each, each.tx, each.rx);
+                    if (S >= 0 && j > 0) sample(-j, each, each.mirrored_tx, each.mirrored_rx);
                 }
             }
         }
+    }
+    // The index sum S of an array whose element e is the mirror image (x -> -x) of element
+    // S - e for every e in [first, last) and its mirror images, to 1e-9 mm; -1 if none.
+    static int mirror_index_sum(const probe::LineArray& a, int first, int last) {
+        const int n = int(a.position.size());
+        int centre = 0;
+        for (int e = 1; e < n; ++e)
+            if (std::abs(a.position[std::size_t(e)].x) <
+                std::abs(a.position[std::size_t(centre)].x))
+                centre = e;
+        auto mirrors = [&](int e, int k) {
+            if (e < 0 || k < 0 || e >= n || k >= n) return false;
+            const glm::dvec2 p = a.position[std::size_t(e)], q = a.position[std::size_t(k)];
+            const glm::dvec2 u = a.normal[std::size_t(e)], v = a.normal[std::size_t(k)];
+            return std::abs(p.x + q.x) <= 1e-9 && std::abs(p.y - q.y) <= 1e-9 &&
+                   std::abs(u.x + v.x) <= 1e-12 && std::abs(u.y - v.y) <= 1e-12;
+        };
+        for (const int S : {2 * centre, 2 * centre - 1, 2 * centre + 1}) {
+            if (!mirrors(centre, S - centre)) continue;
+            const int lo = std::min(first, S + 1 - last), hi = std::max(last, S + 1 - first);
+            bool all = true;
+            for (int e = lo; e < hi && all; ++e) all = mirrors(e, S - e);
+            if (all) return S;
+        }
+        return -1;
+    }
+    // w mirrored: element e takes the weight of element S - e.
+    static std::vector<double> mirrored(const std::vector<double>& w, int S) {
+        std::vector<double> out(w.size(), 0.0);
+        for (int e = 0; e < int(w.size()); ++e)
+            if (S - e >= 0 && S - e < int(w.size())) out[std::size_t(e)] = w[std::size_t(S - e)];
+        return out;
+    }
+    // Whether line b sees the array as line a does, mirrored (x -> -x, element e ->
+    // N - 1 - e), with the transmit aperture mirrored: then b's rows are a's reversed
+    // wherever their receive apertures' spans mirror too (the sums depend on distances
+    // and |sin theta| alone; the apodizations are symmetric). To 1e-6 mm and 1e-9.
+    static bool mirror_images(const probe::LineFields& a, const probe::LineFields& b) {
+        const probe::LineArray &p = a.array(), &q = b.array();
+        const std::size_t n = p.position.size();
+        if (q.position.size() != n || q.along.size() != n || p.along.size() != n) return false;
+        const std::vector<double>&u = a.transmit_weights(), &v = b.transmit_weights();
+        if (u.size() != n || v.size() != n ||
+            std::abs(a.transmit_norm() / b.transmit_norm() - 1.0) > 1e-9)
+            return false;
+        for (std::size_t e = 0; e < n; ++e) {
+            const std::size_t k = n - 1 - e;
+            const glm::dvec2 moved = p.position[e] - glm::dvec2(-q.position[k].x, q.position[k].y),
+                             turned = p.normal[e] - glm::dvec2(-q.normal[k].x, q.normal[k].y);
+            if (glm::dot(moved, moved) > 1e-12 || glm::dot(turned, turned) > 1e-12 ||
+                std::abs(p.along[e] + q.along[k]) > 1e-6 || std::abs(u[e] - v[k]) > 1e-9)
+                return false;
+        }
+        return true;
     }
     // Weights w of line array `from` in the numbering of `to` (element e at e + shift);
     // empty if an element with a weight is not at the same place and facing the same way.
@@ -253,6 +354,7 @@ struct PsfTableBuilder {
         std::vector<Job> jobs;
         std::vector<Group> groups;
         std::vector<Blend> blends;
+        tbb::task_group computing;  // the computed rows
         if (known < computed) {
             const probe::ScanGeometry geometry(t);
             // Anchor lines d from either end of the scan, d + 1 apart at the ends and d / 3
@@ -309,12 +411,16 @@ struct PsfTableBuilder {
                     steered ? 1000000L + l : std::lround(a.along[std::size_t(k.centre)] * 1e4);
                 return k;
             };
-            auto key_of = [&](const probe::LineFields& f, int l, int i, bool far) {
+            auto key_of = [&](const probe::LineFields& f, int l, int i, bool far,
+                              const std::pair<int, int>& receive) {
                 const LineKey& k = line_key(f, l, far);
-                const auto [first, last] = probe::aperture_span(
-                    f.array(), t.receive_aperture_mm(depth_of(i)), t.rx_apodization);
-                return Key{k.offset, k.tx.first, k.tx.second, first - k.centre, last - 1 - k.centre,
-                           i,        long(far)};
+                return Key{k.offset,
+                           k.tx.first,
+                           k.tx.second,
+                           receive.first - k.centre,
+                           receive.second - 1 - k.centre,
+                           i,
+                           long(far)};
             };
             store->row_of_depth.resize(std::size_t(computed), std::vector<int>(std::size_t(L)));
             auto add = [&](const Key& key, int l, int i) {
@@ -326,8 +432,11 @@ struct PsfTableBuilder {
                 store->row_of_depth[std::size_t(i)][std::size_t(l)] = stored->second;
                 return std::pair(stored->second, fresh);
             };
+            // (Flags: the depth test divides, and the loops below visit every row.)
+            std::vector<char> is_anchor_depth(static_cast<std::size_t>(computed));
+            for (int i = 0; i < computed; ++i) is_anchor_depth[std::size_t(i)] = anchor_depth(i);
             auto anchor = [&](int l, int i) {
-                return anchor_depth(i) && (i < near || anchor_line(l));
+                return is_anchor_depth[std::size_t(i)] && (i < near || anchor_line(l));
             };
             // From the middle out: a row that lines share is made by the most central.
             std::vector<int> middle_out(static_cast<std::size_t>(L));
@@ -335,15 +444,67 @@ struct PsfTableBuilder {
             std::stable_sort(middle_out.begin(), middle_out.end(), [&](int a, int b) {
                 return std::abs(2 * a - (L - 1)) < std::abs(2 * b - (L - 1));
             });
-            // The anchors first, computed from the fields.
+            // The anchors first, computed from the fields. Their receive apertures' spans
+            // (a search along the array each) in parallel.
+            auto fields_at = [&](int l, int i) -> const probe::LineFields& {
+                return i >= near ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
+            };
+            std::vector<std::pair<int, int>> receive_spans(std::size_t(computed - known) *
+                                                           std::size_t(L));
+            tbb::parallel_for(known, computed, [&](int i) {
+                if (!is_anchor_depth[std::size_t(i)]) return;
+                for (int l = 0; l < L; ++l)
+                    if (anchor(l, i))
+                        receive_spans[std::size_t(i - known) * std::size_t(L) + std::size_t(l)] =
+                            probe::aperture_span(fields_at(l, i).array(),
+                                                 t.receive_aperture_mm(depth_of(i)),
+                                                 t.rx_apodization);
+            });
+            {
+                std::size_t anchors = 0;
+                for (int i = known; i < computed; ++i)
+                    if (is_anchor_depth[std::size_t(i)])
+                        for (int l = 0; l < L; ++l) anchors += anchor(l, i);
+                store->index.reserve(store->index.size() + anchors);
+                jobs.reserve(anchors);
+            }
             for (int i = known; i < computed; ++i)
                 for (const int l : middle_out) {
+                    if (!is_anchor_depth[std::size_t(i)]) break;
                     if (!anchor(l, i)) continue;
                     const bool far = i >= near;
-                    const auto& f = far ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
-                    const auto [id, fresh] = add(key_of(f, l, i, far), l, i);
-                    if (fresh) jobs.push_back({l, i, id, far});
+                    const probe::LineFields& f = fields_at(l, i);
+                    const auto receive =
+                        receive_spans[std::size_t(i - known) * std::size_t(L) + std::size_t(l)];
+                    const auto [id, fresh] = add(key_of(f, l, i, far, receive), l, i);
+                    if (fresh)
+                        jobs.push_back({l, i, id, far, receive, int(f.array().along.size())});
                 }
+            // A row whose line is the mirror image of a line with a row computed here
+            // (line L - 1 - l on a symmetric scan, at the same depth: both new) is that
+            // row reversed.
+            std::vector<signed char> mirrored_lines[2];
+            auto mirrored_line = [&](int l, bool far) {
+                std::vector<signed char>& known_pairs = mirrored_lines[far];
+                if (known_pairs.empty()) known_pairs.assign(std::size_t(L), -1);
+                signed char& m = known_pairs[std::size_t(l)];
+                const auto& f = far ? far_fields : fields;
+                if (m < 0)
+                    m = f[std::size_t(l)] && f[std::size_t(L - 1 - l)] &&
+                        mirror_images(*f[std::size_t(L - 1 - l)], *f[std::size_t(l)]);
+                return m == 1;
+            };
+            const int first_job_id = jobs.empty() ? 0 : jobs.front().id;
+            for (Job& job : jobs) {
+                const int source =
+                    store->row_of_depth[std::size_t(job.depth)][std::size_t(L - 1 - job.line)];
+                if (source >= job.id || source < first_job_id) continue;  // or it mirrors this one
+                const Job& from = jobs[std::size_t(source - first_job_id)];
+                if (from.mirror_of >= 0 || !mirrored_line(job.line, job.far)) continue;
+                if (job.receive.first == job.elements - from.receive.second &&
+                    job.receive.second == job.elements - from.receive.first)
+                    job.mirror_of = source - first_job_id;
+            }
             // The computed rows of a depth whose lines sit at one sub-element offset share
             // their element terms (probe/aperture_terms.h), taken from the array of the
             // most central line at that offset; their apertures differ.
@@ -357,6 +518,7 @@ struct PsfTableBuilder {
             std::map<std::tuple<bool, int, int>, int> group_of;
             for (std::size_t n = 0; n < jobs.size(); ++n) {
                 const Job& job = jobs[n];
+                if (job.mirror_of >= 0) continue;
                 const int rep =
                     rep_of_offset.at({line_keys[job.far][std::size_t(job.line)].offset, job.far});
                 const auto [it, fresh] =
@@ -366,12 +528,29 @@ struct PsfTableBuilder {
                                   line_keys[job.far][std::size_t(job.line)].centre;
                 groups[std::size_t(it->second)].members.emplace_back(int(n), shift);
             }
+            // A task per group, the far ones (a whole depth's anchor lines, four times a
+            // near group's work) first: halving the range put them all on one thread. The
+            // interpolated rows are laid out meanwhile (the rows' chunks do not move).
+            std::stable_sort(groups.begin(), groups.end(),
+                             [](const Group& a, const Group& b) { return a.far > b.far; });
+            for (Job& job : jobs) job.row = &store->rows[std::size_t(job.id)];
+            computing.run([&] {
+                tbb::parallel_for(
+                    tbb::blocked_range<int>(0, int(groups.size()), 1),
+                    [&](const tbb::blocked_range<int>& some) {
+                        for (int g = some.begin(); g < some.end(); ++g)
+                            compute_group(
+                                groups[std::size_t(g)], jobs, fields, far_fields,
+                                PsfTable::reach_mm(t, groups[std::size_t(g)].depth_mm) / kHalfRow);
+                    },
+                    tbb::simple_partitioner());
+            });
             // Then the rows between them, bilinear in line and depth; rows whose corners
             // are one row (lines inside the array, away from its ends) are that row.
-            for (int i = known; i < computed; ++i)
+            for (int i = known; i < computed; ++i) {
+                const int i0 = previous_anchor_depth(i), i1 = next_anchor_depth(i);
                 for (int l = 0; l < L; ++l) {
                     if (anchor(l, i)) continue;
-                    const int i0 = previous_anchor_depth(i), i1 = next_anchor_depth(i);
                     const int l0 = i < near ? l : previous_anchor[std::size_t(l)];
                     const int l1 = i < near ? l : next_anchor[std::size_t(l)];
                     auto row_at = [&](int line, int depth) {
@@ -404,6 +583,7 @@ struct PsfTableBuilder {
                     store->row_of_depth[std::size_t(i)][std::size_t(l)] = id;
                     blends.push_back({id, i, corner, across, along});
                 }
+            }
         }
         // The table numbers rows as the store does, and sees those made so far.
         table->row_of_.resize(std::size_t(L) * std::size_t(depths));
@@ -414,34 +594,30 @@ struct PsfTableBuilder {
         for (std::size_t r = 0; r < store->rows.size(); ++r)
             table->rows_.push_back(&store->rows[r]);
         table->row_line_ = store->line;
-        // A task per group, the far ones (a whole depth's anchor lines, four times a near
-        // group's work) first: halving the range put them all on one thread.
-        std::stable_sort(groups.begin(), groups.end(),
-                         [](const Group& a, const Group& b) { return a.far > b.far; });
-        tbb::parallel_for(
-            tbb::blocked_range<int>(0, int(groups.size()), 1),
-            [&](const tbb::blocked_range<int>& range) {
-                for (int g = range.begin(); g < range.end(); ++g)
-                    compute_group(t, groups[std::size_t(g)], jobs, fields, far_fields, *store);
-            },
-            tbb::simple_partitioner());
+        computing.wait();
+        // The mirror images, from the rows they mirror.
+        tbb::parallel_for(std::size_t(0), jobs.size(), [&](std::size_t n) {
+            if (jobs[n].mirror_of < 0) return;
+            const PsfTable::Row& from = *jobs[std::size_t(jobs[n].mirror_of)].row;
+            PsfTable::Row& row = PsfTable::RowStore::Rows::start(jobs[n].row);
+            row.dx = from.dx, row.power = from.power;
+            std::reverse_copy(from.h.begin(), from.h.end(), row.h.begin());
+            std::reverse_copy(from.receive_power.begin(), from.receive_power.end(),
+                              row.receive_power.begin());
+        });
         table->computed_rows_ = int(jobs.size());
         tbb::parallel_for(0, int(blends.size()), [&](int n) {
             const Blend& b = blends[std::size_t(n)];
             const std::array<double, 4> w{(1.0 - b.across) * (1.0 - b.along),
                                           b.across * (1.0 - b.along), (1.0 - b.across) * b.along,
                                           b.across * b.along};
-            PsfTable::Row& row = store->rows[std::size_t(b.id)];
+            PsfTable::Row& row = PsfTable::RowStore::Rows::start(&store->rows[std::size_t(b.id)]);
             row.dx = PsfTable::reach_mm(t, depth_of(b.depth)) / kHalfRow;
-            const PsfTable::Row* c[4];
-            for (int k = 0; k < 4; ++k) c[k] = &store->rows[std::size_t(b.corner[std::size_t(k)])];
             for (int k = 0; k < 4; ++k) {
-                const auto wk = float(w[std::size_t(k)]);
-                for (std::size_t j = 0; j < row.h.size(); ++j) {
-                    row.h[j] += wk * c[k]->h[j];
-                    row.receive_power[j] += wk * c[k]->receive_power[j];
-                }
-                row.power += w[std::size_t(k)] * c[k]->power;
+                if (w[std::size_t(k)] == 0.0) continue;  // adds nothing
+                const PsfTable::Row& c = store->rows[std::size_t(b.corner[std::size_t(k)])];
+                blend_into(row, c, float(w[std::size_t(k)]));
+                row.power += w[std::size_t(k)] * c.power;
             }
         });
         table->focal_power_ = table->power(t.lines / 2, t.focus_mm);

@@ -89,6 +89,14 @@ std::pair<int, int> aperture_span(const LineArray& array, double width_mm, Apodi
                apodization_weight(a, (s - lo) / std::max(hi - lo, 1e-12)) > 0.0;
     };
     int first = 0, last = n;
+    // Elements in order along the array (all but a ring whose numbering wraps inside it):
+    // the window's ends found by bisection, the table asks here for every row it computes.
+    if (array.along.front() == array.lowest && array.along.back() == array.highest) {
+        first =
+            int(std::lower_bound(array.along.begin(), array.along.end(), lo) - array.along.begin());
+        last =
+            int(std::upper_bound(array.along.begin(), array.along.end(), hi) - array.along.begin());
+    }
     while (first < last && !weighted(first)) ++first;
     while (last > first && !weighted(last - 1)) --last;
     if (first == last) first = int(nearest_element(array)), last = first + 1;

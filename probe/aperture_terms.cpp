@@ -64,28 +64,48 @@ using Mask = int __attribute__((vector_size(kLanes * sizeof(int))));
 // Where reduce8 puts the sum of v[k].
 constexpr int kReduced[8] = {0, 4, 2, 6, 1, 5, 3, 7};
 
+// The lanes' sums for R = 3 or 4 frequencies (rows `stride` apart) of sum_e w_e (re + i im),
+// eight elements at a time, the weights loaded once for them: sums[2 k], sums[2 k + 1] =
+// frequency k's real and imaginary parts (zeros past R). Accumulators by name: an array of
+// them was cleared through memory at every call.
+template <int R>
+[[gnu::always_inline]] inline void weighted_lanes(std::size_t n, std::size_t stride,
+                                                  const float* __restrict w,
+                                                  const float* __restrict r,
+                                                  const float* __restrict i, Lanes* sums) {
+    static_assert(R == 3 || R == 4);
+    Lanes s0 = {}, s1 = {}, s2 = {}, s3 = {}, s4 = {}, s5 = {}, s6 = {}, s7 = {};
+    for (std::size_t e = 0; e < n; e += kLanes) {
+        Lanes weight, a, b, c, d, f, g;
+        load(weight, w + e);
+        load(a, r + e), load(b, i + e), load(c, r + stride + e), load(d, i + stride + e);
+        load(f, r + 2 * stride + e), load(g, i + 2 * stride + e);
+        s0 += weight * a, s1 += weight * b, s2 += weight * c, s3 += weight * d;
+        s4 += weight * f, s5 += weight * g;
+        if constexpr (R == 4) {
+            Lanes h, k;
+            load(h, r + 3 * stride + e), load(k, i + 3 * stride + e);
+            s6 += weight * h, s7 += weight * k;
+        }
+    }
+    sums[0] = s0, sums[1] = s1, sums[2] = s2, sums[3] = s3;
+    sums[4] = s4, sums[5] = s5, sums[6] = s6, sums[7] = s7;
+}
+
 // out[m] = sum_e w_e (re + i im)[m * stride + e] over n elements (a multiple of eight),
-// eight elements at a time for four frequencies at once (the weights loaded once for
-// them; the rows past the last frequency up to a multiple of four are zeros), the
-// lanes' partial sums added in a fixed order. Accumulators by name: an array of them was
-// cleared through memory at every call.
+// four frequencies at a time (three in a last pass of three; other passes past the last
+// frequency read the zero rows after it), the lanes' partial sums added in a fixed order.
 [[gnu::target_clones("avx2", "default")]] void weighted_sums(
     std::size_t n, int frequencies, std::size_t stride, const float* __restrict w,
     const float* __restrict re, const float* __restrict im, std::complex<double>* out) {
     for (int m0 = 0; m0 < frequencies; m0 += 4) {
         const float* r = re + std::size_t(m0) * stride;
         const float* i = im + std::size_t(m0) * stride;
-        Lanes s0 = {}, s1 = {}, s2 = {}, s3 = {}, s4 = {}, s5 = {}, s6 = {}, s7 = {};
-        for (std::size_t e = 0; e < n; e += kLanes) {
-            Lanes weight, a, b, c, d, f, g, h, k;
-            load(weight, w + e);
-            load(a, r + e), load(b, i + e), load(c, r + stride + e), load(d, i + stride + e);
-            load(f, r + 2 * stride + e), load(g, i + 2 * stride + e);
-            load(h, r + 3 * stride + e), load(k, i + 3 * stride + e);
-            s0 += weight * a, s1 += weight * b, s2 += weight * c, s3 += weight * d;
-            s4 += weight * f, s5 += weight * g, s6 += weight * h, s7 += weight * k;
-        }
-        const Lanes sums[8] = {s0, s1, s2, s3, s4, s5, s6, s7};
+        Lanes sums[8];
+        if (frequencies - m0 == 3)
+            weighted_lanes<3>(n, stride, w, r, i, sums);
+        else
+            weighted_lanes<4>(n, stride, w, r, i, sums);
         Lanes total;
         reduce8(sums, total);
         for (int m = m0; m < std::min(m0 + 4, frequencies); ++m)
@@ -161,7 +181,9 @@ int ApertureTerms::add_receive(const std::vector<double>& weights, double norm) 
 }
 
 void ApertureTerms::at(const glm::dvec2& q) {
-    const auto n = std::size_t(stride_);
+    // The span's elements, to whole lanes; the terms past them stay the zeros they were
+    // made (weighted only by the zero padding of apertures that end there).
+    const auto n = kernels::padded(std::size_t(count_));
     thread_local std::vector<float> scratch;
     scratch.resize(12 * n);
     float* s = scratch.data();
@@ -176,15 +198,15 @@ void ApertureTerms::at(const glm::dvec2& q) {
         0.0f, float(1.0 / fields_.t_.wavelength_mm()), float(0.5 * fields_.element_width_),
         float(band.frequency_hz(0) / band.centre_hz), float(band.step_hz / band.centre_hz), terms);
     float* const out[4] = {terms_[0].data(), terms_[1].data(), terms_[2].data(), terms_[3].data()};
-    focused_terms(n, frequencies_, n, spectrum.inverse_ratio.data(), terms, tx_re_.data(),
-                  tx_im_.data(), rx_re_.data(), rx_im_.data(), out);
+    focused_terms(n, frequencies_, std::size_t(stride_), spectrum.inverse_ratio.data(), terms,
+                  tx_re_.data(), tx_im_.data(), rx_re_.data(), rx_im_.data(), out);
     const auto M = std::size_t(frequencies_);
     for (const int k : {0, 1}) {
         const std::vector<Aperture>& apertures = k == 0 ? transmits_ : receives_;
         sums_[k].resize(apertures.size() * M);
         for (std::size_t a = 0; a < apertures.size(); ++a) {
             const Aperture& each = apertures[a];
-            weighted_sums(each.w.size(), frequencies_, n, each.w.data(),
+            weighted_sums(each.w.size(), frequencies_, std::size_t(stride_), each.w.data(),
                           terms_[2 * k].data() + each.first, terms_[2 * k + 1].data() + each.first,
                           sums_[k].data() + a * M);
         }
