@@ -6,6 +6,9 @@ pair (A B, B A, A B, ...), and prints the per-pair ratio B/A of a rate counter a
 median. Slow drifts of the machine's speed then cancel within a pair.
 
     bench/abba.py OLD_BINARY NEW_BINARY PAIRS [FILTER] [--counter steps/s] [--min-time 0.3]
+
+`--counter time` compares the benchmark's own time per iteration instead (as a rate,
+iterations per second: a ratio above 1 is faster).
 """
 import argparse
 import re
@@ -31,6 +34,13 @@ def main():
         out = subprocess.run([binary, "--benchmark_filter=" + args.filter,
                               "--benchmark_min_time=" + args.min_time],
                              capture_output=True, text=True, check=True).stdout
+        if args.counter == "time":  # "<name> <time> <unit> <cpu> <unit> <iterations>"
+            units = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
+            for line in out.splitlines():
+                fields = line.split()
+                if len(fields) >= 3 and fields[2] in units:
+                    return 1.0 / (float(fields[1]) * units[fields[2]])
+            raise SystemExit(f"{binary}: no time for '{args.filter}'")
         match = pattern.search(out)
         if not match:
             raise SystemExit(f"{binary}: no '{args.counter}' counter for '{args.filter}'")

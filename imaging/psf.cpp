@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -57,14 +58,6 @@ RowStoreKey row_store_key(const probe::Transducer& t, double dz) {
 // takes a prefix. With them the plane echoes and the fields of the lines that made rows.
 struct PsfTable::RowStore {
     std::mutex build;  // one table's missing rows at a time
-    struct KeyHash {
-        std::size_t operator()(const std::array<long, 7>& key) const {
-            uint64_t h = 0;
-            for (const long v : key) h = base::mix64(h ^ uint64_t(v));
-            return std::size_t(h);
-        }
-    };
-    std::unordered_map<std::array<long, 7>, int, KeyHash> index;
     // Rows in chunks (stable addresses: tables point into them), allocated a chunk at a
     // time (one allocation per row was a tenth of a table's build) and left raw: a row is
     // constructed where it is filled (start), so the threads that fill the rows, not the
@@ -354,7 +347,43 @@ struct PsfTableBuilder {
         std::vector<Job> jobs;
         std::vector<Group> groups;
         std::vector<Blend> blends;
-        tbb::task_group computing;  // the computed rows
+        // The computed rows, as tasks; the interpolated ones (far rows only) follow as soon
+        // as the far groups and their set-up are done, beside the near groups: they are
+        // memory-bound where the groups are not.
+        tbb::task_group computing;
+        auto mirror_rows = [&](bool far) {  // from the rows they mirror, of their depth
+            tbb::parallel_for(std::size_t(0), jobs.size(), [&](std::size_t n) {
+                if (jobs[n].mirror_of < 0 || jobs[n].far != far) return;
+                const PsfTable::Row& from = *jobs[std::size_t(jobs[n].mirror_of)].row;
+                PsfTable::Row& row = PsfTable::RowStore::Rows::start(jobs[n].row);
+                row.dx = from.dx, row.power = from.power;
+                std::reverse_copy(from.h.begin(), from.h.end(), row.h.begin());
+                std::reverse_copy(from.receive_power.begin(), from.receive_power.end(),
+                                  row.receive_power.begin());
+            });
+        };
+        auto blend_rows = [&] {
+            mirror_rows(true);
+            tbb::parallel_for(0, int(blends.size()), [&](int n) {
+                const Blend& b = blends[std::size_t(n)];
+                const std::array<double, 4> w{(1.0 - b.across) * (1.0 - b.along),
+                                              b.across * (1.0 - b.along),
+                                              (1.0 - b.across) * b.along, b.across * b.along};
+                PsfTable::Row& row =
+                    PsfTable::RowStore::Rows::start(&store->rows[std::size_t(b.id)]);
+                row.dx = PsfTable::reach_mm(t, depth_of(b.depth)) / kHalfRow;
+                for (int k = 0; k < 4; ++k) {
+                    if (w[std::size_t(k)] == 0.0) continue;  // adds nothing
+                    const PsfTable::Row& c = store->rows[std::size_t(b.corner[std::size_t(k)])];
+                    blend_into(row, c, float(w[std::size_t(k)]));
+                    row.power += w[std::size_t(k)] * c.power;
+                }
+            });
+        };
+        std::atomic<int> before_blends{1};  // the far groups left, and the set-up
+        auto towards_blends = [&] {
+            if (before_blends.fetch_sub(1) == 1) computing.run(blend_rows);
+        };
         if (known < computed) {
             const probe::ScanGeometry geometry(t);
             // Anchor lines d from either end of the scan, d + 1 apart at the ends and d / 3
@@ -394,13 +423,9 @@ struct PsfTableBuilder {
                     if (w[std::size_t(e)] != 0.0) last = e, first = first < 0 ? e : first;
                 return std::pair<long, long>(first - centre, last - centre);
             };
-            auto line_key = [&](const probe::LineFields& f, int l, bool far) -> const LineKey& {
-                std::vector<LineKey>& keys = line_keys[far];
-                if (keys.empty()) keys.resize(std::size_t(L), LineKey{-1, 0, {}});
-                LineKey& k = keys[std::size_t(l)];
-                if (k.centre >= 0) return k;
+            auto make_line_key = [&](const probe::LineFields& f, int l) {
                 const probe::LineArray& a = f.array();
-                k.centre = 0;
+                LineKey k;
                 for (int e = 1; e < int(a.along.size()); ++e)
                     if (std::abs(a.along[std::size_t(e)]) <
                         std::abs(a.along[std::size_t(k.centre)]))
@@ -411,9 +436,14 @@ struct PsfTableBuilder {
                     steered ? 1000000L + l : std::lround(a.along[std::size_t(k.centre)] * 1e4);
                 return k;
             };
-            auto key_of = [&](const probe::LineFields& f, int l, int i, bool far,
-                              const std::pair<int, int>& receive) {
-                const LineKey& k = line_key(f, l, far);
+            for (auto& keys : line_keys) keys.resize(std::size_t(L));
+            tbb::parallel_for(0, L, [&](int l) {
+                line_keys[0][std::size_t(l)] = make_line_key(*fields[std::size_t(l)], l);
+                if (far_fields[std::size_t(l)])
+                    line_keys[1][std::size_t(l)] = make_line_key(*far_fields[std::size_t(l)], l);
+            });
+            auto key_of = [&](int l, int i, bool far, const std::pair<int, int>& receive) {
+                const LineKey& k = line_keys[far][std::size_t(l)];
                 return Key{k.offset,
                            k.tx.first,
                            k.tx.second,
@@ -421,16 +451,6 @@ struct PsfTableBuilder {
                            receive.second - 1 - k.centre,
                            i,
                            long(far)};
-            };
-            store->row_of_depth.resize(std::size_t(computed), std::vector<int>(std::size_t(L)));
-            auto add = [&](const Key& key, int l, int i) {
-                auto [stored, fresh] = store->index.try_emplace(key, int(store->rows.size()));
-                if (fresh) {
-                    store->rows.emplace_back();
-                    store->line.push_back(l);
-                }
-                store->row_of_depth[std::size_t(i)][std::size_t(l)] = stored->second;
-                return std::pair(stored->second, fresh);
             };
             // (Flags: the depth test divides, and the loops below visit every row.)
             std::vector<char> is_anchor_depth(static_cast<std::size_t>(computed));
@@ -444,42 +464,52 @@ struct PsfTableBuilder {
             std::stable_sort(middle_out.begin(), middle_out.end(), [&](int a, int b) {
                 return std::abs(2 * a - (L - 1)) < std::abs(2 * b - (L - 1));
             });
-            // The anchors first, computed from the fields. Their receive apertures' spans
-            // (a search along the array each) in parallel.
+            // The anchors first, computed from the fields. A key holds its depth, so the
+            // rows of each depth are found apart (in parallel), then numbered in order.
             auto fields_at = [&](int l, int i) -> const probe::LineFields& {
                 return i >= near ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
             };
-            std::vector<std::pair<int, int>> receive_spans(std::size_t(computed - known) *
-                                                           std::size_t(L));
+            struct DepthRows {
+                std::vector<Key> keys;   // distinct, as their lines come from the middle out
+                std::vector<int> maker;  // the line that makes each
+                std::vector<std::pair<int, int>> receive;  // its receive aperture's span
+                std::vector<int> slot;                     // per line: its key's, -1 if none
+            };
+            std::vector<DepthRows> depth_rows(static_cast<std::size_t>(computed - known));
             tbb::parallel_for(known, computed, [&](int i) {
                 if (!is_anchor_depth[std::size_t(i)]) return;
-                for (int l = 0; l < L; ++l)
-                    if (anchor(l, i))
-                        receive_spans[std::size_t(i - known) * std::size_t(L) + std::size_t(l)] =
-                            probe::aperture_span(fields_at(l, i).array(),
-                                                 t.receive_aperture_mm(depth_of(i)),
-                                                 t.rx_apodization);
-            });
-            {
-                std::size_t anchors = 0;
-                for (int i = known; i < computed; ++i)
-                    if (is_anchor_depth[std::size_t(i)])
-                        for (int l = 0; l < L; ++l) anchors += anchor(l, i);
-                store->index.reserve(store->index.size() + anchors);
-                jobs.reserve(anchors);
-            }
-            for (int i = known; i < computed; ++i)
+                DepthRows& d = depth_rows[std::size_t(i - known)];
+                d.slot.assign(std::size_t(L), -1);
+                const bool far = i >= near;
                 for (const int l : middle_out) {
-                    if (!is_anchor_depth[std::size_t(i)]) break;
                     if (!anchor(l, i)) continue;
-                    const bool far = i >= near;
-                    const probe::LineFields& f = fields_at(l, i);
                     const auto receive =
-                        receive_spans[std::size_t(i - known) * std::size_t(L) + std::size_t(l)];
-                    const auto [id, fresh] = add(key_of(f, l, i, far, receive), l, i);
-                    if (fresh)
-                        jobs.push_back({l, i, id, far, receive, int(f.array().along.size())});
+                        probe::aperture_span(fields_at(l, i).array(),
+                                             t.receive_aperture_mm(depth_of(i)), t.rx_apodization);
+                    const Key key = key_of(l, i, far, receive);
+                    const auto it = std::find(d.keys.begin(), d.keys.end(), key);
+                    d.slot[std::size_t(l)] = int(it - d.keys.begin());
+                    if (it == d.keys.end())
+                        d.keys.push_back(key), d.maker.push_back(l), d.receive.push_back(receive);
                 }
+            });
+            store->row_of_depth.resize(std::size_t(computed), std::vector<int>(std::size_t(L)));
+            for (int i = known; i < computed; ++i) {
+                const DepthRows& d = depth_rows[std::size_t(i - known)];
+                if (d.slot.empty()) continue;  // no anchors at this depth
+                const int first = int(store->rows.size());
+                for (std::size_t k = 0; k < d.keys.size(); ++k) {
+                    const int l = d.maker[k];
+                    store->rows.emplace_back();
+                    store->line.push_back(l);
+                    jobs.push_back({l, i, first + int(k), i >= near, d.receive[k],
+                                    int(fields_at(l, i).array().along.size())});
+                }
+                for (int l = 0; l < L; ++l)
+                    if (d.slot[std::size_t(l)] >= 0)
+                        store->row_of_depth[std::size_t(i)][std::size_t(l)] =
+                            first + d.slot[std::size_t(l)];
+            }
             // A row whose line is the mirror image of a line with a row computed here
             // (line L - 1 - l on a symmetric scan, at the same depth: both new) is that
             // row reversed.
@@ -512,8 +542,7 @@ struct PsfTableBuilder {
             for (const int l : middle_out)
                 for (const bool far : {false, true}) {
                     if (far && !far_fields[std::size_t(l)]) continue;
-                    const auto& f = far ? *far_fields[std::size_t(l)] : *fields[std::size_t(l)];
-                    rep_of_offset.try_emplace({line_key(f, l, far).offset, far}, l);
+                    rep_of_offset.try_emplace({line_keys[far][std::size_t(l)].offset, far}, l);
                 }
             std::map<std::tuple<bool, int, int>, int> group_of;
             for (std::size_t n = 0; n < jobs.size(); ++n) {
@@ -534,14 +563,18 @@ struct PsfTableBuilder {
             std::stable_sort(groups.begin(), groups.end(),
                              [](const Group& a, const Group& b) { return a.far > b.far; });
             for (Job& job : jobs) job.row = &store->rows[std::size_t(job.id)];
+            before_blends += int(
+                std::count_if(groups.begin(), groups.end(), [](const Group& g) { return g.far; }));
             computing.run([&] {
                 tbb::parallel_for(
                     tbb::blocked_range<int>(0, int(groups.size()), 1),
                     [&](const tbb::blocked_range<int>& some) {
-                        for (int g = some.begin(); g < some.end(); ++g)
-                            compute_group(
-                                groups[std::size_t(g)], jobs, fields, far_fields,
-                                PsfTable::reach_mm(t, groups[std::size_t(g)].depth_mm) / kHalfRow);
+                        for (int g = some.begin(); g < some.end(); ++g) {
+                            const Group& group = groups[std::size_t(g)];
+                            compute_group(group, jobs, fields, far_fields,
+                                          PsfTable::reach_mm(t, group.depth_mm) / kHalfRow);
+                            if (group.far) towards_blends();
+                        }
                     },
                     tbb::simple_partitioner());
             });
@@ -594,32 +627,10 @@ struct PsfTableBuilder {
         for (std::size_t r = 0; r < store->rows.size(); ++r)
             table->rows_.push_back(&store->rows[r]);
         table->row_line_ = store->line;
+        towards_blends();
         computing.wait();
-        // The mirror images, from the rows they mirror.
-        tbb::parallel_for(std::size_t(0), jobs.size(), [&](std::size_t n) {
-            if (jobs[n].mirror_of < 0) return;
-            const PsfTable::Row& from = *jobs[std::size_t(jobs[n].mirror_of)].row;
-            PsfTable::Row& row = PsfTable::RowStore::Rows::start(jobs[n].row);
-            row.dx = from.dx, row.power = from.power;
-            std::reverse_copy(from.h.begin(), from.h.end(), row.h.begin());
-            std::reverse_copy(from.receive_power.begin(), from.receive_power.end(),
-                              row.receive_power.begin());
-        });
+        mirror_rows(false);
         table->computed_rows_ = int(jobs.size());
-        tbb::parallel_for(0, int(blends.size()), [&](int n) {
-            const Blend& b = blends[std::size_t(n)];
-            const std::array<double, 4> w{(1.0 - b.across) * (1.0 - b.along),
-                                          b.across * (1.0 - b.along), (1.0 - b.across) * b.along,
-                                          b.across * b.along};
-            PsfTable::Row& row = PsfTable::RowStore::Rows::start(&store->rows[std::size_t(b.id)]);
-            row.dx = PsfTable::reach_mm(t, depth_of(b.depth)) / kHalfRow;
-            for (int k = 0; k < 4; ++k) {
-                if (w[std::size_t(k)] == 0.0) continue;  // adds nothing
-                const PsfTable::Row& c = store->rows[std::size_t(b.corner[std::size_t(k)])];
-                blend_into(row, c, float(w[std::size_t(k)]));
-                row.power += w[std::size_t(k)] * c.power;
-            }
-        });
         table->focal_power_ = table->power(t.lines / 2, t.focus_mm);
         return table;
     }

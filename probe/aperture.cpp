@@ -29,6 +29,8 @@ LineArray line_array(const Transducer& t, int l, double snap_along) {
         const double first = -half + 0.5 * t.pitch_mm;  // the first element's centre
         centre = first + std::round((centre - first) / snap_along) * snap_along;
     }
+    a.position.reserve(std::size_t(t.elements)), a.normal.reserve(std::size_t(t.elements));
+    a.along.reserve(std::size_t(t.elements));
     for (int e = 0; e < t.elements; ++e) {
         const double s = -half + (e + 0.5) * t.pitch_mm;  // along the array
         double along = s - centre;
@@ -189,21 +191,37 @@ LineFields::LineFields(const Transducer& t, LineArray array) : t_(t), array_(std
     tx_norm_ = 1.0 / std::sqrt(t.wavelength_mm() / t.pitch_mm * sum2);
     k_ = 2.0 * std::numbers::pi / t.wavelength_mm();
     element_width_ = t.element_width_mm;
-    for (std::size_t e = 0; e < array_.position.size(); ++e) {
+    const std::size_t n = array_.position.size();
+    x_.reserve(n), y_.reserve(n), nx_.reserve(n), ny_.reserve(n);
+    for (std::size_t e = 0; e < n; ++e) {
         x_.push_back(float(array_.position[e].x)), y_.push_back(float(array_.position[e].y));
         nx_.push_back(float(array_.normal[e].x)), ny_.push_back(float(array_.normal[e].y));
     }
     tx_elements_ = pack(tx_weights_);
-    for (auto [spectrum, use] :
-         {std::pair(&echo_, BandUse::echo), std::pair(&energy_, BandUse::energy)}) {
-        spectrum->band = pulse_band(t, use);
-        const PulseEcho::Band& b = *spectrum->band;
-        for (int m = 0; m < b.count(); ++m)
-            spectrum->inverse_ratio.push_back(float(b.centre_hz / b.frequency_hz(m)));
-        for (const float inverse : spectrum->inverse_ratio)
-            spectrum->root_ratio.push_back(std::sqrt(1.0 / double(inverse)));
-        spectrum->centre = int(std::lround((b.centre_hz - b.first_hz) / b.step_hz));
-    }
+    echo_ = line_spectrum(t, BandUse::echo);
+    energy_ = line_spectrum(t, BandUse::energy);
+}
+
+std::shared_ptr<const LineFields::Spectrum> LineFields::line_spectrum(const Transducer& t,
+                                                                      BandUse use) {
+    // Kept per band, as pulse_band keeps the bands: every line of a probe shares them.
+    const std::shared_ptr<const PulseEcho::Band> band = pulse_band(t, use);
+    static std::mutex mutex;
+    static std::vector<std::shared_ptr<const Spectrum>> kept;
+    const std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& spectrum : kept)
+        if (spectrum->band == band) return spectrum;
+    auto spectrum = std::make_shared<Spectrum>();
+    spectrum->band = band;
+    const PulseEcho::Band& b = *band;
+    for (int m = 0; m < b.count(); ++m)
+        spectrum->inverse_ratio.push_back(float(b.centre_hz / b.frequency_hz(m)));
+    for (const float inverse : spectrum->inverse_ratio)
+        spectrum->root_ratio.push_back(std::sqrt(1.0 / double(inverse)));
+    spectrum->centre = int(std::lround((b.centre_hz - b.first_hz) / b.step_hz));
+    kept.push_back(spectrum);
+    if (kept.size() > 16) kept.erase(kept.begin());
+    return spectrum;
 }
 
 namespace {
@@ -345,19 +363,19 @@ double LineFields::two_way_spectrum(const glm::dvec2& q, const Receive& aperture
 
 LineFields::Broadband LineFields::broadband(const glm::dvec2& q, const Receive& aperture) const {
     thread_local std::vector<std::complex<double>> h;
-    h.resize(std::size_t(echo_.band->count()));
+    h.resize(std::size_t(echo_->band->count()));
     Broadband b;
-    b.receive_power = two_way_spectrum(q, aperture, echo_, h.data());
-    b.two_way = broadband_echo(*echo_.band, h.data());
+    b.receive_power = two_way_spectrum(q, aperture, *echo_, h.data());
+    b.two_way = broadband_echo(*echo_->band, h.data());
     return b;
 }
 
 LineFields::Speckle LineFields::speckle(const glm::dvec2& q, const Receive& aperture) const {
-    const int M = energy_.band->count();
+    const int M = energy_->band->count();
     thread_local std::vector<std::complex<double>> tx, rx;
     tx.resize(std::size_t(M)), rx.resize(std::size_t(M));
-    sum_spectrum(q, tx_elements_, {0.0, t_.focus_mm}, energy_, tx.data());
-    sum_spectrum(q, aperture.elements, {0.0, aperture.focus_mm}, energy_, rx.data());
+    sum_spectrum(q, tx_elements_, {0.0, t_.focus_mm}, *energy_, tx.data());
+    sum_spectrum(q, aperture.elements, {0.0, aperture.focus_mm}, *energy_, rx.data());
     return speckle_of_sums(tx.data(), rx.data(), tx_norm_, aperture.norm);
 }
 
@@ -365,12 +383,12 @@ LineFields::Speckle LineFields::speckle_of_sums(const std::complex<double>* tran
                                                 const std::complex<double>* receive_sums,
                                                 double transmit_norm, double receive_norm) const {
     // In real arithmetic: the table's rows ask here for every sample of every aperture.
-    const PulseEcho::Band& band = *energy_.band;
+    const PulseEcho::Band& band = *energy_->band;
     Speckle s;
     double centre_re = 0.0, centre_im = 0.0;
     for (int m = 0; m < band.count(); ++m) {
         // Each field normalised at f_m: the norms scale as sqrt(f_m / f0).
-        const double root = energy_.root_ratio[std::size_t(m)];
+        const double root = energy_->root_ratio[std::size_t(m)];
         const double w2 = std::norm(band.weight[std::size_t(m)]);
         const double rn = receive_norm * root, tn = transmit_norm * root;
         const double r_re = rn * receive_sums[m].real(), r_im = rn * receive_sums[m].imag();
@@ -378,7 +396,7 @@ LineFields::Speckle LineFields::speckle_of_sums(const std::complex<double>* tran
         const double h_re = t_re * r_re - t_im * r_im, h_im = t_re * r_im + t_im * r_re;
         s.receive_power += w2 * (r_re * r_re + r_im * r_im);
         s.power += w2 * (h_re * h_re + h_im * h_im);
-        if (m == energy_.centre) centre_re = h_re, centre_im = h_im;
+        if (m == energy_->centre) centre_re = h_re, centre_im = h_im;
     }
     s.receive_power /= band.power;
     s.power /= band.power;
@@ -567,7 +585,7 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
                              image_x.data(), image_y.data(), weight.data(), delay.data()};
     const float inverse_lambda = float(1.0 / lambda), half_width = float(0.5 * element_width_);
     const float mx = float(m.x), my = float(m.y);
-    const PulseEcho::Band& band = *echo_.band;
+    const PulseEcho::Band& band = *echo_->band;
     const int M = band.count();
     const double f0 = band.centre_hz;
     std::vector<std::complex<double>> total(std::size_t(M), 0.0);
@@ -605,7 +623,7 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
                                half_width, offset, float(band.frequency_hz(m0) / f0),
                                float(band.step_hz / f0), terms);
             image_source_sums(padded, std::min(kMaxFrequencies, M - m0),
-                              echo_.inverse_ratio.data() + m0, terms, tx_weights_[e],
+                              echo_->inverse_ratio.data() + m0, terms, tx_weights_[e],
                               total.data() + m0);
         }
     }
@@ -614,7 +632,7 @@ std::complex<double> LineFields::plane_echo(double z, double sin_tilt) const {
     const std::complex<double> scale =
         tx_norm_ * aperture.norm * std::sqrt(lambda) * std::polar(1.0, -0.25 * std::numbers::pi);
     for (int k = 0; k < M; ++k)
-        total[std::size_t(k)] *= scale / std::sqrt(double(echo_.inverse_ratio[std::size_t(k)]));
+        total[std::size_t(k)] *= scale / std::sqrt(double(echo_->inverse_ratio[std::size_t(k)]));
     return broadband_echo(band, total.data()).echo;
 }
 

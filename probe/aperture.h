@@ -164,7 +164,7 @@ class LineFields {
     // Elements of zero weight at either end add nothing and are skipped.
     std::complex<double> sum(const glm::dvec2& q, const std::vector<double>& weights,
                              const glm::dvec2& focus) const;
-    const PulseEcho::Band& band() const { return *echo_.band; }
+    const PulseEcho::Band& band() const { return *echo_->band; }
     const std::vector<double>& transmit_weights() const { return tx_weights_; }
     double transmit_norm() const { return tx_norm_; }
 
@@ -182,7 +182,8 @@ class LineFields {
         std::vector<double> root_ratio;    // sqrt(f_m / f0): a field's norm at f_m over f0's
         int centre = 0;                    // m of f0
     };
-    Spectrum echo_, energy_;
+    std::shared_ptr<const Spectrum> echo_, energy_;
+    static std::shared_ptr<const Spectrum> line_spectrum(const Transducer& t, BandUse use);
     // The sum at every frequency f_m of a band (out: its count values), the directivity
     // and the phase at f_m.
     void sum_spectrum(const glm::dvec2& q, const Elements& elements, const glm::dvec2& focus,

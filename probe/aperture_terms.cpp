@@ -118,7 +118,7 @@ template <int R>
 
 ApertureTerms::ApertureTerms(const LineFields& fields, int first, int last, double receive_focus_mm)
     : fields_(fields), first_(first), count_(last - first) {
-    const LineFields::Spectrum& spectrum = fields.energy_;
+    const LineFields::Spectrum& spectrum = *fields.energy_;
     frequencies_ = spectrum.band->count();
     // Room for an aperture starting anywhere in the span, padded to whole lanes.
     stride_ = int(kernels::padded(std::size_t(count_)) + kLanes);
@@ -161,13 +161,21 @@ int ApertureTerms::add(std::vector<Aperture>& apertures, const std::vector<doubl
     while (b > a && weights[std::size_t(b) - 1] == 0.0) --b;
     if (a < first_ || b > first_ + count_)
         throw std::logic_error("ApertureTerms: an aperture beyond the terms' elements");
+    // An equal one is found before a new one is made (most apertures of a group are).
+    const std::size_t size = kernels::padded(std::size_t(b - a));
+    auto equal = [&](const Aperture& x) {
+        if (x.first != a - first_ || x.norm != norm || x.w.size() != size) return false;
+        for (int e = a; e < b; ++e)
+            if (x.w[std::size_t(e - a)] != float(weights[std::size_t(e)])) return false;
+        return true;  // the padding is zeros in both
+    };
+    for (std::size_t k = 0; k < apertures.size(); ++k)
+        if (equal(apertures[k])) return int(k);
     Aperture out;
     out.first = a - first_;
     out.norm = norm;
-    out.w.assign(kernels::padded(std::size_t(b - a)), 0.0f);
+    out.w.assign(size, 0.0f);
     for (int e = a; e < b; ++e) out.w[std::size_t(e - a)] = float(weights[std::size_t(e)]);
-    for (std::size_t k = 0; k < apertures.size(); ++k)
-        if (apertures[k] == out) return int(k);
     apertures.push_back(std::move(out));
     return int(apertures.size()) - 1;
 }
@@ -190,7 +198,7 @@ void ApertureTerms::at(const glm::dvec2& q) {
     const kernels::SpectrumTerms terms{s,         s + n,     s + 2 * n,  s + 3 * n,
                                        s + 4 * n, s + 5 * n, s + 6 * n,  s + 7 * n,
                                        s + 8 * n, s + 9 * n, s + 10 * n, s + 11 * n};
-    const LineFields::Spectrum& spectrum = fields_.energy_;
+    const LineFields::Spectrum& spectrum = *fields_.energy_;
     const PulseEcho::Band& band = *spectrum.band;
     // The path |q - p_e| - |p_e| - q_y: LineFields::sum's with the focus at the origin.
     kernels::spectrum_terms(

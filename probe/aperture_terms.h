@@ -51,7 +51,6 @@ class ApertureTerms {
         std::vector<float> w;
         int first = 0;
         double norm = 1.0;
-        bool operator==(const Aperture&) const = default;
     };
     int add(std::vector<Aperture>& apertures, const std::vector<double>& weights, double norm);
     std::vector<Aperture> transmits_, receives_;
