@@ -402,12 +402,6 @@ struct PsfTableBuilder {
             for (int l = L - 1, last = L - 1; l >= 0; --l)
                 next_anchor[std::size_t(l)] = last = anchor_line(l) ? l : last;
             fields.resize(std::size_t(L));
-            tbb::parallel_for(0, L, [&](int l) {
-                fields[std::size_t(l)].emplace(
-                    t, probe::line_array(t, l, lattice.snap_fraction * t.pitch_mm));
-                if (computed > near && anchor_line(l))
-                    far_fields[std::size_t(l)].emplace(t, probe::line_array(t, l, t.pitch_mm));
-            });
             // What determines a row: the line's sub-element offset and its active element
             // ranges relative to its centre element (phased lines: the line itself). What
             // does not change with depth is found once per line (and lattice).
@@ -438,9 +432,13 @@ struct PsfTableBuilder {
             };
             for (auto& keys : line_keys) keys.resize(std::size_t(L));
             tbb::parallel_for(0, L, [&](int l) {
-                line_keys[0][std::size_t(l)] = make_line_key(*fields[std::size_t(l)], l);
-                if (far_fields[std::size_t(l)])
-                    line_keys[1][std::size_t(l)] = make_line_key(*far_fields[std::size_t(l)], l);
+                const auto n = std::size_t(l);
+                fields[n].emplace(t, probe::line_array(t, l, lattice.snap_fraction * t.pitch_mm));
+                line_keys[0][n] = make_line_key(*fields[n], l);
+                if (computed > near && anchor_line(l)) {
+                    far_fields[n].emplace(t, probe::line_array(t, l, t.pitch_mm));
+                    line_keys[1][n] = make_line_key(*far_fields[n], l);
+                }
             });
             auto key_of = [&](int l, int i, bool far, const std::pair<int, int>& receive) {
                 const LineKey& k = line_keys[far][std::size_t(l)];
@@ -630,6 +628,17 @@ struct PsfTableBuilder {
         towards_blends();
         computing.wait();
         mirror_rows(false);
+        // The lines' fields, where they are the ones plane echoes take (fields_of_line),
+        // are kept for them: made once, and not freed here one by one.
+        if (lattice.snap_fraction == kSnapFraction && !fields.empty()) {
+            const std::lock_guard<std::mutex> lock(store->fields_mutex);
+            for (int l = 0; l < L; ++l) {
+                auto& slot = store->fields[l];
+                if (!slot)
+                    slot = std::make_shared<const probe::LineFields>(
+                        std::move(*fields[std::size_t(l)]));
+            }
+        }
         table->computed_rows_ = int(jobs.size());
         table->focal_power_ = table->power(t.lines / 2, t.focus_mm);
         return table;
