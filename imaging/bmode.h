@@ -279,13 +279,21 @@ class ScattererField {
     double inverse_cell_;
 };
 
+class PsfTable;
+
 namespace detail {
 // One line's speckle sums over the samples [begin, end) between two PSF table rows: for
 // each sub-line j in [j_first, j_last] (first_sub_line + j N), sum += (h0_j + f (h1_j -
-// h0_j)) v_j, in-phase into sum_i and quadrature into sum_q, in the order of j (bmode.cpp).
+// h0_j)) v_j, in-phase into sum_i and quadrature into sum_q, in the order of j (speckle_lines.cpp).
 void add_weighted_sub_lines(const std::complex<float>* w0, const std::complex<float>* w1,
                             int j_first, int j_last, const float* first_sub_line, int N,
                             const float* f, int begin, int end, float* sum_i, float* sum_q);
+// The speckle term of every line into speckle_i, speckle_q (rf's lines x samples):
+// synthesize_rf's first stage (imaging/speckle_lines.cpp).
+void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
+                   const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,
+                   const ImagingSettings& settings, const LineData& rf,
+                   const tissue::AcousticMap<2>* map, float* speckle_i, float* speckle_q);
 }  // namespace detail
 
 }  // namespace sonotrace::imaging

@@ -1,4 +1,5 @@
 #include "imaging/bmode.h"
+#include "imaging/box_filter.h"
 
 #include <tbb/parallel_for.h>
 
