@@ -69,7 +69,7 @@ class PsfTable {
     // The table of `t` computed afresh, sharing no rows, and not kept (benchmarks, tests).
     static std::shared_ptr<const PsfTable> build(const probe::Transducer& t,
                                                  RowLattice lattice = RowLattice{});
-    struct RowStore;  // rows shared between tables (psf.cpp)
+    struct RowStore;  // rows shared between tables (psf_row_store.h)
 
     // Every row holds +-6 lobes at a quarter lobe per sample: J = 24. Fixed arrays: a
     // table is some ten thousand rows, and allocating each was a tenth of its build.
