@@ -102,8 +102,14 @@ struct PsfTableBuilder {
         int rep, depth;
         double depth_mm;
         bool far;
-        // (job, the rep's element numbering minus the job line's)
-        std::vector<std::pair<int, int>> members;
+        struct Member {
+            int job;
+            // The rep's element of the job line's element e: e + index, or for a mirrored
+            // member (its line sees the rep's array mirrored, x -> -x) index - e.
+            int index;
+            bool mirrored;
+        };
+        std::vector<Member> members;
     };
     struct Blend {
         int id, depth;
@@ -127,19 +133,22 @@ struct PsfTableBuilder {
             const probe::LineFields* terms;  // whose array's terms
             std::vector<double> tx, rx;      // weights in that array's numbering
             double tx_norm, rx_norm;
+            int side;  // -1: the row at x is the terms' sums at -x (a mirrored member)
         };
         std::vector<Member> members;
-        for (const auto& [n, shift] : group.members) {
-            const probe::LineFields& f = fields_of(jobs[std::size_t(n)].line);
+        for (const Group::Member& g : group.members) {
+            const probe::LineFields& f = fields_of(jobs[std::size_t(g.job)].line);
             const auto receive = f.receive_weights(z);
-            Member m{n,
+            Member m{g.job,
                      &rep,
-                     shifted(f, rep, f.transmit_weights(), shift),
-                     shifted(f, rep, receive.weights, shift),
+                     in_numbering_of(f, rep, f.transmit_weights(), g.index, g.mirrored),
+                     in_numbering_of(f, rep, receive.weights, g.index, g.mirrored),
                      f.transmit_norm(),
-                     receive.norm};
+                     receive.norm,
+                     g.mirrored ? -1 : 1};
             if (m.tx.empty() || m.rx.empty())
-                m = {n, &f, f.transmit_weights(), receive.weights, f.transmit_norm(), receive.norm};
+                m = {g.job,        &f, f.transmit_weights(), receive.weights, f.transmit_norm(),
+                     receive.norm, 1};
             members.push_back(std::move(m));
         }
         for (std::size_t a = 0; a < members.size(); ++a) {
@@ -166,6 +175,7 @@ struct PsfTableBuilder {
             struct Apertures {
                 int tx, rx, mirrored_tx, mirrored_rx;
                 PsfTable::Row* row;
+                int side;
             };
             std::vector<Apertures> apertures;
             for (const Member& m : members)
@@ -174,7 +184,11 @@ struct PsfTableBuilder {
                         PsfTable::RowStore::Rows::start(jobs[std::size_t(m.job)].row);
                     row.dx = dx;
                     Apertures entry{terms.add_transmit(m.tx, m.tx_norm),
-                                    terms.add_receive(m.rx, m.rx_norm), -1, -1, &row};
+                                    terms.add_receive(m.rx, m.rx_norm),
+                                    -1,
+                                    -1,
+                                    &row,
+                                    m.side};
                     if (S >= 0) {
                         entry.mirrored_tx = terms.add_transmit(mirrored(m.tx, S), m.tx_norm);
                         entry.mirrored_rx = terms.add_receive(mirrored(m.rx, S), m.rx_norm);
@@ -183,9 +197,9 @@ struct PsfTableBuilder {
                 }
             auto sample = [&](int j, const Apertures& each, int tx, int rx) {
                 const probe::LineFields::Speckle s = terms.speckle(tx, rx);
-                each.row->h[std::size_t(j + PsfTable::kHalfRow)] = std::complex<float>(s.weight);
-                each.row->receive_power[std::size_t(j + PsfTable::kHalfRow)] =
-                    float(s.receive_power);
+                const auto at = std::size_t(each.side * j + PsfTable::kHalfRow);
+                each.row->h[at] = std::complex<float>(s.weight);
+                each.row->receive_power[at] = float(s.receive_power);
                 each.row->power += s.power * dx;
             };
             for (int j = S >= 0 ? 0 : -PsfTable::kHalfRow; j <= PsfTable::kHalfRow; ++j) {
@@ -251,19 +265,23 @@ struct PsfTableBuilder {
         }
         return true;
     }
-    // Weights w of line array `from` in the numbering of `to` (element e at e + shift);
-    // empty if an element with a weight is not at the same place and facing the same way.
-    static std::vector<double> shifted(const probe::LineFields& from, const probe::LineFields& to,
-                                       const std::vector<double>& w, int shift) {
+    // Weights w of line array `from` in the numbering of `to` (element e at e + index, or
+    // mirrored at index - e: `from`'s element e where `to`'s is, x -> -x); empty if an
+    // element with a weight is not at that place and facing that way.
+    static std::vector<double> in_numbering_of(const probe::LineFields& from,
+                                               const probe::LineFields& to,
+                                               const std::vector<double>& w, int index,
+                                               bool mirrored) {
         const probe::LineArray &a = from.array(), &b = to.array();
+        const glm::dvec2 flip(mirrored ? -1.0 : 1.0, 1.0);
         std::vector<double> out(b.position.size(), 0.0);
         for (int e = 0; e < int(w.size()); ++e) {
             if (w[std::size_t(e)] == 0.0) continue;
-            const int k = e + shift;
+            const int k = mirrored ? index - e : e + index;
             if (k < 0 || k >= int(out.size())) return {};
             const auto i = std::size_t(e), j = std::size_t(k);
-            const glm::dvec2 moved = a.position[i] - b.position[j],
-                             turned = a.normal[i] - b.normal[j];
+            const glm::dvec2 moved = a.position[i] - flip * b.position[j],
+                             turned = a.normal[i] - flip * b.normal[j];
             if (glm::dot(moved, moved) > 1e-12 || glm::dot(turned, turned) > 1e-12) return {};
             out[j] = w[i];
         }
@@ -503,18 +521,26 @@ struct PsfTableBuilder {
                     if (far && !far_fields[std::size_t(l)]) continue;
                     rep_of_offset.try_emplace({line_keys[far][std::size_t(l)].offset, far}, l);
                 }
+            // Lines at the opposite offset (x -> -x) take the terms of that offset's rep at
+            // -x, through their apertures mirrored: one set of terms for both offsets
+            // (compute_group checks the elements, and falls back on the line's own).
             std::map<std::tuple<bool, int, int>, int> group_of;
             for (std::size_t n = 0; n < jobs.size(); ++n) {
                 const Job& job = jobs[n];
                 if (job.mirror_of >= 0) continue;
+                const LineKey& key = line_keys[job.far][std::size_t(job.line)];
+                const auto opposite = rep_of_offset.find({-key.offset, job.far});
+                const bool mirrored =
+                    key.offset > 0 && key.offset < 1000000L && opposite != rep_of_offset.end();
                 const int rep =
-                    rep_of_offset.at({line_keys[job.far][std::size_t(job.line)].offset, job.far});
+                    mirrored ? opposite->second : rep_of_offset.at({key.offset, job.far});
                 const auto [it, fresh] =
                     group_of.try_emplace({job.far, rep, job.depth}, int(groups.size()));
                 if (fresh) groups.push_back({rep, job.depth, depth_of(job.depth), job.far, {}});
-                const int shift = line_keys[job.far][std::size_t(rep)].centre -
-                                  line_keys[job.far][std::size_t(job.line)].centre;
-                groups[std::size_t(it->second)].members.emplace_back(int(n), shift);
+                const int rep_centre = line_keys[job.far][std::size_t(rep)].centre;
+                groups[std::size_t(it->second)].members.push_back(
+                    {int(n), mirrored ? rep_centre + key.centre : rep_centre - key.centre,
+                     mirrored});
             }
             // A task per group, the far ones (a whole depth's anchor lines, four times a
             // near group's work) first: halving the range put them all on one thread. The
