@@ -14,6 +14,7 @@
 
 #include <opencv2/videoio.hpp>
 
+#include "imaging/scene/scene.h"
 #include "test_util.h"
 #include "tissue/image_io.h"
 
@@ -239,8 +240,10 @@ TEST(CliSimulate, CatalogueHeadScenesRun) {
         const auto sidecar = nlohmann::json::parse(slurp(dir / "o/bmode.json"));
         const bool craniotomy = std::string(name) == "colin27_craniotomy";
         EXPECT_EQ(sidecar.at("view"), craniotomy ? "craniotomy" : "temporal");
-        // Without --gain, the view's: through the skull a sonographer starts 24 dB higher.
-        EXPECT_EQ(sidecar.at("image").at("gain_db"), craniotomy ? 36.0 : 60.0) << name;
+        // Without --gain, the view's (a sonographer turns it up through the skull).
+        EXPECT_EQ(sidecar.at("image").at("gain_db"),
+                  craniotomy ? imaging::kDefaultGainDb : imaging::kTemporalGainDb)
+            << name;
     }
 }
 

@@ -57,7 +57,7 @@ std::shared_ptr<Scene> volume_scene(std::shared_ptr<const VolumeSource> source,
         scene->title = temporal ? "Colin27 head: transtemporal (phased probe)"
                                 : "Colin27 head: intraoperative (convex probe)";
         scene->probe_preset = temporal ? "phased" : "convex";
-        if (temporal) scene->gain_db = 60.0;
+        if (temporal) scene->gain_db = kTemporalGainDb;
     } else {
         scene->name = options.volume;
         scene->title = std::filesystem::path(options.volume).filename().string();

@@ -276,9 +276,9 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     }
     cmd->add_option(kGainDoc.flag, o.gain_db,
                     std::string(kGainDoc.description) +
-                        " (default: the scene's: 36, the temporal view 60, where the skull "
-                        "costs about 27 dB two-way) [" +
-                        kGainDoc.unit + "]");
+                        " (default: the scene's: " + std::to_string(int(imaging::kDefaultGainDb)) +
+                        ", the temporal view " + std::to_string(int(imaging::kTemporalGainDb)) +
+                        ", where the skull costs about 27 dB two-way) [" + kGainDoc.unit + "]");
     add_parameter(*cmd, kRangeDoc, o.dynamic_range_db);
     add_parameter(*cmd, kTgcDoc, o.tgc);
     add_parameter(*cmd, kPixelDoc, o.pixel_mm);
