@@ -144,6 +144,13 @@ inline float reflected_fraction(float z1, float z2, float cos_i, float cos_t) {
 // a share of the energy at their interfaces; soft tissues and liquids lie at 1400-1700 m/s
 // and carry no shear wave at ultrasound frequencies.
 inline constexpr double kSolidSpeedMin = 2000.0;  // m/s
+// Media slower than this are gases (air outside the skin, in sinuses and bowel; 343 m/s).
+// Their surfaces against tissue reflect as mirrors, whatever the tissue's roughness: the
+// skin's relief (tens of micrometres) lies below the Rayleigh criterion lambda / (8 cos
+// theta), 70 um at 2.7 MHz, and a gas takes the shape of the surface it meets. (Rough
+// lobes at the skin sent the transtemporal view's scalp-guided paths back from the skin
+// beside the probe: the lone spots at the fan's edges, docs/guide/simulate.md.)
+inline constexpr double kGasSpeedMax = 1000.0;  // m/s
 // A solid's shear speed over its longitudinal speed: 1500 / 2820 m/s measured through ex
 // vivo human skull (White, Clement & Hynynen 2006, Ultrasound Med. Biol. 32:1085); steel
 // and aluminium lie at 0.54 and 0.49.

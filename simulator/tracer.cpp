@@ -737,9 +737,12 @@ class LineTracer {
         sides.patch_normal = sides.normal;
         sides.normal = map_.zone_normal(sides.middle, sides.normal);
         // The lobe's roughness: the rougher of the plateaus (a map of its own, sampled
-        // here only).
+        // here only); none against a gas (kGasSpeedMax).
+        const bool against_gas =
+            std::max(low.refractive_index, high.refractive_index) > gas_index_min_;
         sides.roughness =
-            settings_.diffuse_reflection && settings_.lobe_exponent == LobeExponent::roughness
+            settings_.diffuse_reflection && settings_.lobe_exponent == LobeExponent::roughness &&
+                    !against_gas
                 ? std::max(map_.sample_roughness(low_end), map_.sample_roughness(high_end))
                 : 0.0f;
     }
@@ -1358,6 +1361,8 @@ class LineTracer {
     float threshold2_ = 0.0f, inverse_texel2_ = 1.0f, follow_reflections_above_ = 0.0f;
     int plateau_steps_ = 16;
     double roulette_loss_per_s_ = 0.0;  // TraceSettings::roulette_loss_db_per_mm, per second
+    // The refractive index above which a medium is a gas (kGasSpeedMax).
+    float gas_index_min_ = float(tissue::kReferenceSpeed / kGasSpeedMax);
     double inverse_profile_bin_ = 0.0;
     bool profile_scattered_ = true;  // EchoProfileSettings::scattered
     float profile_scale_ = 0.0f;

@@ -298,6 +298,51 @@ TEST(Tracer, AnEchoThroughARoughReflectionReturnsTheLobesShare) {
     }
 }
 
+// A gas takes the shape of the surface it meets, and the skin's relief lies below the
+// Rayleigh criterion: a rough tissue (roughness 0.5, lobe cos^3) over air (343 m/s,
+// 1.2 kg/m^3) reflects as a mirror (every reflection echo specular, the particles back
+// up along the normal to float rounding), over bone (3000 m/s) into its lobe (diffuse,
+// exponent 3). Air's R^2 at normal incidence is 0.9989: the reflections are nearly all
+// the particles.
+TEST(Tracer, ASurfaceAgainstAGasIsAMirrorWhateverItsRoughness) {
+    for (const bool gas : {true, false}) {
+        tissue::PropertyMaps maps = over_half_space(80, 161, lossless_medium(1540, 1000), 80,
+                                                    gas ? 343.0f : 3000.0f, gas ? 1.2f : 1900.0f);
+        for (float& r : maps[Property::roughness].voxels()) r = 0.5f;
+        const auto map = tissue::AcousticMap<2>::build(maps);
+        TraceSettings s;
+        s.absorption = false;
+        s.scattering = false;
+        s.roulette_energy = 0.0;
+        s.record_paths = 400;
+        const Sources<2> src = parallel_beam({10.0f, 0.5f}, {0.0f, 1.0f}, 4.0f, 400);
+        const auto r = trace(map, src, s);
+        int specular = 0, diffuse = 0;
+        for (const auto& e : r.echoes) {
+            if (e.bounces != 0) continue;
+            if (e.kind == EchoKind::specular) ++specular;
+            if (e.kind == EchoKind::diffuse) {
+                ++diffuse;
+                EXPECT_NEAR(e.lobe_exponent, 3.0f, 1e-4f);
+            }
+        }
+        EXPECT_EQ(gas ? diffuse : specular, 0) << (gas ? "air" : "bone");
+        EXPECT_GT(gas ? specular : diffuse, 300) << (gas ? "air" : "bone");
+        if (!gas) continue;
+        int mirrored = 0;  // paths whose last leg runs straight back up
+        for (const auto& path : r.paths) {
+            if (path.vertices.size() < 3) continue;
+            const glm::vec2 a = path.vertices[path.vertices.size() - 2].position,
+                            b = path.vertices.back().position;
+            if (!(b.y < a.y)) continue;
+            const glm::vec2 d = glm::normalize(b - a);
+            EXPECT_NEAR(d.x, 0.0f, 1e-3f);
+            ++mirrored;
+        }
+        EXPECT_GT(mirrored, 300);
+    }
+}
+
 // Soft tissue (1540 m/s, 1060 kg/m^3) over bone (3500 m/s, 1900 kg/m^3; shear
 // kShearToLongitudinalSpeed x 3500 m/s), particles meeting the flat interface at 40
 // degrees: past the longitudinal critical angle (26.1), short of the shear one (56.1).
