@@ -9,6 +9,7 @@
 #include "probe/transducer.h"
 #include "tissue/acoustic_map.h"
 #include "tissue/base/fast_math.h"
+#include "tissue/base/half_maximum.h"
 
 namespace sonotrace::probe {
 
@@ -81,15 +82,7 @@ PulseEcho::PulseEcho(double frequency_hz, double bandwidth, double band_shape, d
         quadrature_[std::size_t(k + half)] = q[std::size_t(i)] / top;
     }
     half_length_ = half * dt_;
-    // FWHM by linear interpolation of the envelope's half-maximum crossings.
-    auto crossing = [&](int step) {
-        int i = peak;
-        while (i + step >= 0 && i + step < n && env[std::size_t(i + step)] > 0.5 * top) i += step;
-        if (i + step < 0 || i + step >= n) return double(i);
-        const double a = env[std::size_t(i)], b = env[std::size_t(i + step)];
-        return i + step * (a - 0.5 * top) / (a - b);
-    };
-    fwhm_ = (crossing(1) - crossing(-1)) * dt_;
+    fwhm_ = base::half_maximum(n, peak, [&](int i) { return env[std::size_t(i)]; }).width() * dt_;
 }
 
 double PulseEcho::sample(const std::vector<double>& table, double t) const {

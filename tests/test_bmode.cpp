@@ -16,6 +16,7 @@
 #include "probe/transducer.h"
 #include "simulator/trace_setups.h"
 #include "tissue/acoustic_map.h"
+#include "tissue/base/half_maximum.h"
 
 namespace sonotrace {
 namespace {
@@ -157,15 +158,9 @@ double axial_fwhm_mm(const LineData& env, int l, double* peak_depth) {
     int peak = 0;
     for (int i = 0; i < env.samples; ++i)
         if (env.at(l, i) > env.at(l, peak)) peak = i;
-    const float half = 0.5f * env.at(l, peak);
-    auto crossing = [&](int step) {
-        int i = peak;
-        while (env.at(l, i + step) > half) i += step;
-        const float a = env.at(l, i), b = env.at(l, i + step);
-        return i + step * double(a - half) / double(a - b);
-    };
     *peak_depth = env.depth_mm(peak);
-    return (crossing(1) - crossing(-1)) * (env.depth_mm(1) - env.depth_mm(0));
+    return base::half_maximum(env.samples, peak, [&](int i) { return env.at(l, i); }).width() *
+           (env.depth_mm(1) - env.depth_mm(0));
 }
 
 // The envelope of a Gaussian-modulated cosine A exp(-t^2 / 2 s^2) cos(w t + phi) is its

@@ -18,6 +18,7 @@
 #include "probe/aperture.h"
 #include "probe/pulse.h"
 #include "probe/transducer.h"
+#include "tissue/base/half_maximum.h"
 
 namespace sonotrace {
 namespace {
@@ -146,16 +147,9 @@ class Reference {
 // FWHM of a profile sampled dx apart (linear interpolation of the half-maximum crossings).
 double fwhm_mm(const std::vector<double>& v, double dx) {
     const int peak = int(std::max_element(v.begin(), v.end()) - v.begin());
-    const double half = 0.5 * v[std::size_t(peak)];
-    double width = 0.0;
-    for (int step : {-1, 1}) {
-        int i = peak;
-        while (i + step >= 0 && i + step < int(v.size()) && v[std::size_t(i + step)] > half)
-            i += step;
-        const double a = v[std::size_t(i)], b = v[std::size_t(i + step)];
-        width += std::abs(i + step * (a - half) / (a - b) - peak);
-    }
-    return width * dx;
+    return base::half_maximum(int(v.size()), peak, [&](int i) { return v[std::size_t(i)]; })
+               .width() *
+           dx;
 }
 
 // The lateral profile of a point target (what its image shows line by line) through the

@@ -26,6 +26,7 @@
 #include "probe/pulse.h"
 #include "probe/transducer.h"
 #include "tests/elevation_reference.h"
+#include "tissue/base/half_maximum.h"
 
 namespace sonotrace {
 namespace {
@@ -36,15 +37,8 @@ constexpr double kPi = std::numbers::pi;
 // FWHM (in units of the sample spacing) of a sampled unimodal peak, by linear
 // interpolation of the half-maximum crossings around `peak`.
 double fwhm_samples(const std::vector<double>& v, int peak) {
-    const double half = 0.5 * v[std::size_t(peak)];
-    auto crossing = [&](int step) {
-        int i = peak;
-        while (i + step >= 0 && i + step < int(v.size()) && v[std::size_t(i + step)] > half)
-            i += step;
-        const double a = v[std::size_t(i)], b = v[std::size_t(i + step)];
-        return i + step * (a - half) / (a - b);
-    };
-    return crossing(1) - crossing(-1);
+    return base::half_maximum(int(v.size()), peak, [&](int i) { return v[std::size_t(i)]; })
+        .width();
 }
 
 int argmax(const std::vector<double>& v) {

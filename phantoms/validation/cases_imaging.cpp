@@ -17,6 +17,7 @@
 #include "phantoms/validation/validation.h"
 #include "probe/aperture.h"
 #include "probe/pulse.h"
+#include "tissue/base/half_maximum.h"
 #include "tissue/tissue_table.h"
 
 namespace sonotrace::validation {
@@ -150,17 +151,10 @@ LateralProfile analyse_lateral(const std::vector<double>& x, const std::vector<d
     if (peak.size() < 3) return out;
     const auto top = std::size_t(std::max_element(peak.begin(), peak.end()) - peak.begin());
     const double half = 0.5 * peak[top];
-    auto crossing = [&](int direction) {
-        for (std::ptrdiff_t l = std::ptrdiff_t(top);; l += direction) {
-            const std::ptrdiff_t m = l + direction;
-            if (m < 0 || m >= std::ptrdiff_t(peak.size())) return std::nan("");
-            const auto a = std::size_t(l), b = std::size_t(m);
-            if (peak[b] < half)
-                return x[a] + (x[b] - x[a]) * (peak[a] - half) / (peak[a] - peak[b]);
-        }
-    };
-    const double left = crossing(-1), right = crossing(1);
-    out.fwhm = right - left;
+    out.fwhm = base::half_maximum_at(
+                   int(peak.size()), int(top), [&](int i) { return peak[std::size_t(i)]; },
+                   [&](int i) { return x[std::size_t(i)]; })
+                   .width();
     // Centre: the centroid of the lines at half the maximum or more (a 3-point parabola
     // at the top follows the Monte Carlo noise of the few particles that hit a target).
     double w = 0.0, m = 0.0;
@@ -833,15 +827,9 @@ CaseResult resolution(const CaseContext& ctx) {
         int peak = 0;
         for (int i = 0; i < env.samples; ++i)
             if (env.at(l, i) > env.at(l, peak)) peak = i;
-        const float half = 0.5f * env.at(l, peak);
-        auto crossing = [&](int step) {
-            int i = peak;
-            while (i + step > 0 && i + step < env.samples - 1 && env.at(l, i + step) > half)
-                i += step;
-            const float a = env.at(l, i), b = env.at(l, i + step);
-            return i + step * double(a - half) / double(a - b);
-        };
-        const double fwhm = (crossing(1) - crossing(-1)) * (env.depth_mm(1) - env.depth_mm(0));
+        const double fwhm =
+            base::half_maximum(env.samples, peak, [&](int i) { return env.at(l, i); }).width() *
+            (env.depth_mm(1) - env.depth_mm(0));
         const probe::Transducer& t = f.transducer;
         const double expected = probe::PulseEcho(t).axial_fwhm_mm();
         r.measurements.push_back({"axial FWHM (linear 7.6 MHz, B 0.79, one cycle)", fwhm, expected,
