@@ -39,9 +39,9 @@ struct DepositCell {
 };
 
 // 2 MiB blocks on huge pages for deposit tiles, kept for the next trace: the kernel
-// clears a new huge page at its first touch, which was 9 % of a 3D trace when every
-// trace allocated its own. At most kKept blocks (256 MiB) wait between traces; they are
-// freed at exit.
+// clears a new huge page at its first touch, a large share of a 3D trace when every
+// trace allocated its own (docs/log). At most kKept blocks (256 MiB) wait between
+// traces; they are freed at exit.
 class DepositChunks {
   public:
     static constexpr std::size_t kBytes = std::size_t(2) << 20;
@@ -306,9 +306,9 @@ class LineTracer {
         // alpha [dB/(cm MHz)] * f [MHz] / 10 [mm/cm] -> dB/mm; * ln(10)/10 -> Np/mm (intensity).
         attenuation_per_mm_ = float(tissue::attenuation_per_mm(1.0, settings.frequency_mhz));
         seconds_per_mm_ = float(1e-3 / tissue::kReferenceSpeed);  // times n gives 1/c
-        // A map with few uniform blocks (the head: 2-3 %, mostly air the particles never
-        // reach) is not searched for them: the lookup for every particle and step cost
-        // 4 % of a 2D trace there, for 0.4 % of steps run in blocks. The general step
+        // A map with few uniform blocks (the head's are mostly air the particles never
+        // reach) is not searched for them: the lookup at every particle and step costs
+        // more than the few steps run in blocks save. The general step
         // gives the uniform run's results to float rounding.
         look_up_blocks_ = settings.uniform_runs && look_up_blocks;
         uniform_runs_ = look_up_blocks_ && probe_face() == nullptr && !(Dim == 2 && settings.ring);
@@ -372,7 +372,7 @@ class LineTracer {
                 ++next;
             }
             // Lockstep over the batch. (Running each particle to its end instead measured
-            // the same within noise: 36 vs 43 M steps/s synthetic, 19 vs 17 M Colin27.)
+            // the same within noise; docs/log/2026-11-24-one-step.md.)
             if (vector_steps_) {
                 lockstep_vector(*batch);
                 continue;
@@ -448,7 +448,7 @@ class LineTracer {
             const auto i = std::size_t(std::countr_zero(flushed));
             deposit(results_.flush_texel[i], results_.flush_fluence[i], results_.flush_absorbed[i]);
             // The new texel's cell is written when the particle leaves it, 2-3 steps on:
-            // its cache miss was 6 % of a 3D trace.
+            // fetched now, its cache miss is over by then.
             if (deposit_maps_) deposits_->prefetch(b.pending_texel[i]);
         }
         if (profile_enabled_ && scatter_enabled_) {
@@ -684,8 +684,8 @@ class LineTracer {
         const V across = far_end + unit * texel_mm_ - first;
         const int steps = std::max(2, int(glm::length(across) / texel_mm_) + 1);
         // The points in order, sampled 64 at a time by the vector stage (the same bits as
-        // sample_impedance one by one, at 2/3 of the time: a 3D trace's interface searches
-        // were 21 % of it, now 14 %), summed in order.
+        // sample_impedance one by one, in less time: the interface searches are a large
+        // share of a 3D trace), summed in order.
         V sum = guess * 0.0f;
         ImpedancePoints<Dim>& points = points_;
         int count = 0;
@@ -1166,7 +1166,7 @@ class LineTracer {
         if (E < threshold) {
             // A survivor restarts at twice the threshold, so the next roulette comes once
             // its energy has halved. (Restarting at the threshold itself drew a random
-            // number at every later step: 23 % of the head's steps.)
+            // number at nearly every later step.)
             const float restart = kRouletteRestart * threshold;
             const float survive = E / restart;
             if (b.random[k].next() < survive) {
@@ -1382,7 +1382,7 @@ class LineTracer {
 
 // A line's echoes ordered by particle (its index within the line, < `particles`), each
 // particle's in the order recorded (time order): a counting sort, what std::stable_sort
-// gives in two passes instead of a merge sort's log2(n) (2 % of a 3D trace).
+// gives, in two passes instead of a merge sort's log2(n).
 template <int Dim>
 void sort_by_particle(std::vector<EchoEvent<Dim>>& echoes, std::size_t particles) {
     std::vector<uint32_t> first(particles + 1, 0);
@@ -1438,8 +1438,7 @@ TraceResult<Dim> trace(const tissue::AcousticMap<Dim>& map, const Sources<Dim>& 
     std::atomic<std::size_t> done{0};
     const bool look_up_blocks = map.uniform_block_fraction() >= kFewUniformBlocks;  // once
     // The result maps are zeroed beside the tracing, by whichever thread is free first:
-    // clearing them afterwards on one thread was 4 % of a 3D trace (Colin27, 8192
-    // particles), the second thread idle meanwhile.
+    // clearing them afterwards on one thread left the others idle meanwhile.
     TraceResult<Dim> result;
     tbb::task_group clearing;
     if (settings.deposition_maps) {
