@@ -68,8 +68,7 @@ probe::Pose top_centre_pose(const tissue::VolumeGeometry& g);
 inline constexpr double kDefaultGainDb = 36.0;
 // The default head's transtemporal view: the skull costs about 27 dB two-way, and the
 // phased probe's frame reaches deeper; this gain puts the parenchyma's median grey level
-// where the craniotomy view has it (120 against 119 of 255 at the default range, seed 1),
-// so that little of it falls on the black floor (8.6 % of its pixels; 17 % at 60 dB).
+// where the craniotomy view has it, off the black floor (docs/guide/simulate.md).
 inline constexpr double kTemporalGainDb = 74.0;
 
 struct Scene {
