@@ -270,6 +270,13 @@ std::string tissue_label_name(int label) {
     return std::string(table[std::size_t(label - 1)].key);
 }
 
+json label_legend() {
+    json legend = {{"0", "outside the scanned region"}};
+    for (std::size_t i = 0; i < tissue_table().size(); ++i)
+        legend[std::to_string(i + 1)] = tissue_label_name(int(i) + 1);
+    return legend;
+}
+
 json LabelTransferFunction::describe() const {
     json labels = json::array();
     for (const Entry& e : entries_) {

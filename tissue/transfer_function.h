@@ -101,6 +101,9 @@ AcousticProperties read_properties(const nlohmann::json& object, const std::stri
 int tissue_label_of(const std::string& tissue);
 // The tissue_table() key of a label from tissue_label(), "custom" for 0.
 std::string tissue_label_name(int label);
+// The legend of a label map, as every sidecar and manifest writes it: "0" outside the
+// scanned region, then each label's tissue_table() key.
+nlohmann::json label_legend();
 
 // Names of the presets compiled into the binary (from tissue/presets/*.json).
 std::vector<std::string> transfer_function_presets();

@@ -11,7 +11,7 @@
 #include "tissue/base/file_status.h"
 #include "tissue/base/json_util.h"
 #include "tissue/base/memory.h"
-#include "tissue/tissue_table.h"
+#include "tissue/transfer_function.h"
 
 namespace sonotrace::imaging::dataset {
 
@@ -40,9 +40,6 @@ nlohmann::json manifest(const Spec& spec, const std::string& dir) {
         checksums[name] = hex16(read_shard_header(shard_path(dir, k)).content_checksum);
     }
     for (const SourceSpec& s : spec.sources) sources.push_back(s.label);
-    nlohmann::json legend = {{"0", "outside the scanned region"}};
-    for (std::size_t i = 0; i < tissue::tissue_table().size(); ++i)
-        legend[std::to_string(i + 1)] = tissue::tissue_label_name(int(i) + 1);
     return {{"version", SONOTRACE_VERSION},
             {"spec", nlohmann::json::parse(spec.canonical)},
             {"spec_digest", hex16(spec.digest())},
@@ -52,7 +49,7 @@ nlohmann::json manifest(const Spec& spec, const std::string& dir) {
             {"shards", shards},
             {"content_checksums", checksums},
             {"sources", sources},
-            {"labels", legend},
+            {"labels", tissue::label_legend()},
             {"layout",
              "each shard: bmode and labels uint8 [n, height, width]; frames: a table of n rows "
              "(index, seed, source = index into sources, probe, frequency_mhz, depth_mm, "

@@ -29,7 +29,6 @@
 #include "tissue/base/json_util.h"
 #include "tissue/image_io.h"
 #include "tissue/property_maps.h"
-#include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
 
 namespace sonotrace::ui {
@@ -693,12 +692,9 @@ int run_simulate_command(const SimulateOptions& o) {
             imaging::write_png(imaging::label_picture(label_image), frame_files.stage(preview));
             written.push_back(path);
             written.push_back(preview);
-            json legend = {{"0", "outside the scanned region"}};
-            for (std::size_t i = 0; i < tissue::tissue_table().size(); ++i)
-                legend[std::to_string(i + 1)] = tissue::tissue_label_name(int(i) + 1);
             label_record = {
                 {"files", (out / (o.name + (sweeping ? "_NNNN" : "") + "_labels.png")).string()},
-                {"legend", legend},
+                {"legend", tissue::label_legend()},
                 {"geometry", "same pixels as the frame; true (not echo-delayed) positions"}};
         }
         if (o.write_energy) {
