@@ -91,8 +91,7 @@ std::vector<uint64_t> missing_shards(const Spec& spec, const std::string& dir, u
 bool write_one_shard(const FrameMaker& maker, uint64_t k, const std::string& dir,
                      const std::function<bool()>& stop, const std::function<void()>& frame_done) {
     const Spec& spec = maker.spec();
-    const uint64_t first = k * spec.frames_per_shard;
-    const uint64_t end = std::min(spec.frames, first + spec.frames_per_shard);
+    const uint64_t first = spec.first_frame(k), end = first + spec.frames_in_shard(k);
     std::vector<DatasetFrame> frames;
     for (uint64_t i = first; i < end; ++i) {
         if (stop && stop()) return false;
@@ -185,8 +184,7 @@ RunReport make_dataset(const Spec& spec, const RunOptions& options) {
     const std::vector<uint64_t> missing =
         missing_shards(spec, options.out_dir, &report.shards_kept, &report.damaged);
     uint64_t total = 0, done = 0;
-    for (uint64_t k : missing)
-        total += std::min(spec.frames, (k + 1) * spec.frames_per_shard) - k * spec.frames_per_shard;
+    for (uint64_t k : missing) total += spec.frames_in_shard(k);
     if (!missing.empty()) {
         const FrameMaker maker(spec);
         for (uint64_t k : missing) {

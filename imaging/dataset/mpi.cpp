@@ -52,10 +52,6 @@ bool all(bool ok) {
     return everyone == 1;
 }
 
-uint64_t shard_frames(const Spec& spec, uint64_t k) {
-    return std::min(spec.frames, (k + 1) * spec.frames_per_shard) - k * spec.frames_per_shard;
-}
-
 // What went wrong on one rank: an InputError's parts, or (`input` false) a bug's message.
 struct RankError {
     std::string source, field, detail;
@@ -137,7 +133,7 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
     // -- rank 0: a dispatcher thread answers the other ranks from the queue that rank 0's
     // own loop also takes from.
     uint64_t total = 0;
-    for (uint64_t k : missing) total += shard_frames(spec, k);
+    for (uint64_t k : missing) total += spec.frames_in_shard(k);
     std::mutex mutex;
     std::deque<uint64_t> queue(missing.begin(), missing.end());
     uint64_t done = 0;
@@ -216,7 +212,7 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
             // Failed: say so, and take the answer (no more work). Stopped: the shard is
             // abandoned; say so by asking once more.
             message[0] = error ? kFailed : complete ? k : kNone;
-            message[1] = complete ? shard_frames(spec, k) : 0;
+            message[1] = complete ? spec.frames_in_shard(k) : 0;
         }
     }
     if (const auto job_error = agree_on_error(error, mpi.rank(), mpi.size()))

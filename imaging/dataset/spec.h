@@ -32,6 +32,7 @@
 //                                    (simulate --trace)
 //   "write": ["bmode", "labels"]     also "envelope", "rf", "energy"
 // }
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -80,6 +81,11 @@ struct Spec {
     uint64_t inputs = 0;
 
     uint64_t shards() const { return (frames + frames_per_shard - 1) / frames_per_shard; }
+    // Shard k's frames: [first_frame(k), first_frame(k) + frames_in_shard(k)).
+    uint64_t first_frame(uint64_t k) const { return k * frames_per_shard; }
+    uint64_t frames_in_shard(uint64_t k) const {
+        return std::min(frames, first_frame(k) + frames_per_shard) - first_frame(k);
+    }
     // A 64-bit digest of `canonical` and `inputs`: shards of another spec, or of the same
     // spec over files that changed since, are refused, not mixed in.
     uint64_t digest() const;
