@@ -372,7 +372,7 @@ class LineTracer {
                 ++next;
             }
             // Lockstep over the batch. (Running each particle to its end instead measured
-            // the same within noise; docs/log/2026-11-24-one-step.md.)
+            // the same within noise.)
             if (vector_steps_) {
                 lockstep_vector(*batch);
                 continue;
