@@ -64,9 +64,9 @@ def large_components(mask, min_pixels):
     return keep
 
 
-def measure(frame, dynamic_range_db, pixel_mm):
+def measure(frame, dynamic_range_db, pixel_mm, at_echo):
     grey = np.asarray(frame.bmode, dtype=np.float64)
-    labels = np.asarray(frame.labels)
+    labels = np.asarray(frame.echo_labels if at_echo else frame.labels)
     intensity = 10.0 ** (grey * dynamic_range_db / 255.0 / 10.0)
     mm = int(round(1.0 / pixel_mm))
     parenchyma = erode(labels == BRAIN, mm)
@@ -103,6 +103,9 @@ def main():
     parser.add_argument("--seeds", type=int, default=16)
     parser.add_argument("--first-seed", type=int, default=1)
     parser.add_argument("--group", type=int, default=4, help="seeds per contrast group")
+    parser.add_argument("--labels", choices=("true", "echo"), default="true",
+                        help="the label map measured against: the anatomy where it lies, or "
+                             "where the echoes show it (frame.echo_labels)")
     parser.add_argument("--option", action="append", default=[],
                         help="another simulate option, key=value (repeatable)")
     args = parser.parse_args()
@@ -118,7 +121,8 @@ def main():
         seed = args.first_seed + k
         frame = sonotrace.simulate(view=args.view, labels=True, seed=seed, quiet=True, **options)
         image = frame.sidecar["image"]
-        m = measure(frame, image["dynamic_range_db"], image["pixel_spacing_mm"][0])
+        m = measure(frame, image["dynamic_range_db"], image["pixel_spacing_mm"][0],
+                    args.labels == "echo")
         spots += len(m["spots"])
         pixel = image["pixel_spacing_mm"][0]
         for y, x, _ in m["spots"]:

@@ -56,17 +56,26 @@ struct PhysicsSwitches {
     bool speckle = true;           // the image's sub-resolution scatterer field
     bool operator==(const PhysicsSwitches&) const = default;
 };
-// Each switch by its command-line name, with what switching it off removes.
+// Each switch by its one name (simulate's and trace's --disable, the dataset spec's
+// "disable", the sidecar), with its one description (--help, the GUI's tooltips).
 struct PhysicsSwitchName {
     std::string_view name;
     bool PhysicsSwitches::*member;
-    std::string_view removes;
+    std::string_view description;  // what it is, and what switching it off leaves
 };
 const std::vector<PhysicsSwitchName>& physics_switch_names();
+// "name: description; ..." for every switch, for --help.
+std::string physics_switch_help();
+// The switch of that name (a programming error if there is none).
+const PhysicsSwitchName& physics_switch(std::string_view name);
 // "refraction,specular,..." (names above; empty = none) switched off; throws
 // base::InputError naming `source` and `field` for an unknown name.
 PhysicsSwitches disabled_physics(const std::string& list, const std::string& source,
                                  const std::string& field);
+
+// Switches off in a trace's settings what `physics` has off and leaves the rest (a trace
+// configuration's own choices stand); `speckle` is the image's alone.
+void switch_off(const PhysicsSwitches& physics, simulator::TraceSettings& trace);
 
 struct SimulationSettings;
 // Sets the tracer's and the image's settings from the switches (the transducer's face
@@ -215,7 +224,8 @@ using PlaneMapper =
 struct ScenePlacement;
 struct SimulatedFrame {
     Frame frame;
-    std::optional<cv::Mat> labels;  // scan-converted ground truth, on request
+    std::optional<cv::Mat> labels;       // scan-converted ground truth, on request
+    std::optional<cv::Mat> echo_labels;  // the same where the echoes show it
 };
 
 // A frame with what lies in its plane: the plane's grid, property maps (their backscatter
@@ -263,9 +273,19 @@ std::size_t prepare_plane(tissue::PropertyMaps& maps, const PlaneGrid& grid,
 // The ground truth in the frame's geometry: the label of the grid texel under each
 // pixel centre (nearest: labels are not interpolated), 0 outside the scanned region.
 // True positions: the frame shows echoes where their delays put them, so speed-of-sound
-// displacement and refraction show up as differences between the two.
+// displacement and refraction show up as differences between the two
+// (scan_convert_labels_at_echo undoes the first).
 cv::Mat scan_convert_labels(const tissue::Volume& labels, const PlaneGrid& grid,
                             const ScanConverted& frame);
+
+// The labels where the image shows them: each pixel's displayed depth (c0 t / 2, c0 =
+// tissue::kReferenceSpeed) taken back to the true depth along its line through the speed
+// of sound on the way (straight ray, no refraction): behind a skull's millimetres at 3,500
+// m/s the anatomy shows a few millimetres closer than it lies. 0 where what a pixel shows
+// lies past the grid (the frame's bottom millimetres behind a skull).
+cv::Mat scan_convert_labels_at_echo(const tissue::Volume& labels, const tissue::PropertyMaps& maps,
+                                    const PlaneGrid& grid, const probe::Transducer& t,
+                                    const ScanConverted& frame);
 
 // Colour picture of a label image (one fixed colour per tissue of tissue_table()).
 cv::Mat label_picture(const cv::Mat& labels);

@@ -19,7 +19,10 @@
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
 #include "probe/array_geometry.h"
+#include "probe/pose.h"
 #include "probe/transducer.h"
+#include "tissue/acoustic_map.h"
+#include "tissue/property_maps.h"
 
 namespace sonotrace {
 namespace {
@@ -330,6 +333,60 @@ TEST(FrameArtefacts, HomogeneousSpeckleShowsNoStripesAtDatasetSizes) {
                 << preset << " at " << pixel << " mm, period " << column.period;
         }
     }
+}
+
+// The echo-registered labels (scan_convert_labels_at_echo) against the time of flight
+// worked out by hand: under a linear array, a layer 10 mm thick at twice the reference
+// speed (3,080 m/s) from 10 to 20 mm delays nothing after it by its 10 mm but by 5 mm of
+// display depth, so a label boundary at a true depth of 30 mm shows at 10 + 5 + 10 = 25
+// mm on every line, and the true-position map keeps it at 30 mm. Tolerance: a texel (0.1
+// mm) of the map, a pixel (0.2 mm) of the frame and the walk's half texel, 0.5 mm in all. Where the
+// anatomy shown lies past the map the label is 0 (unknown).
+TEST(EchoLabels, ShowABoundaryBehindAFastLayerWhereItsEchoArrives) {
+    probe::Transducer t = probe::find_transducer("linear", "test");
+    t.depth_mm = 40.0;
+    const imaging::PlaneGrid grid = imaging::plane_grid(t, probe::Pose{}, 0.1);
+    tissue::PropertyMaps maps;
+    for (tissue::Volume& field : maps.fields) field = tissue::Volume(grid.geometry, 1.0f);
+    tissue::Volume labels(grid.geometry, 0.0f);
+    const glm::ivec3 dims = grid.geometry.dims;
+    for (int j = 0; j < dims.y; ++j) {
+        for (int i = 0; i < dims.x; ++i) {
+            const double depth = j * grid.geometry.spacing.y - grid.to_map.y;  // texel centre
+            maps[tissue::Property::speed_of_sound].at(i, j, 0) =
+                depth >= 10.0 && depth < 20.0 ? float(2.0 * tissue::kReferenceSpeed)
+                                              : float(tissue::kReferenceSpeed);
+            labels.at(i, j, 0) = depth < 30.0 ? 1.0f : 2.0f;
+        }
+    }
+    imaging::LineData lines;
+    lines.lines = t.lines;
+    lines.samples = 400;
+    lines.fs_hz = tissue::kReferenceSpeed * 1e3 / (2.0 * 0.1);  // 0.1 mm of depth a sample
+    lines.values.assign(std::size_t(lines.lines) * std::size_t(lines.samples), 0.0f);
+    const imaging::ScanConverted frame = imaging::scan_convert(lines, t, 0.2);
+    const cv::Mat at_echo = imaging::scan_convert_labels_at_echo(labels, maps, grid, t, frame);
+    const cv::Mat at_truth = imaging::scan_convert_labels(labels, grid, frame);
+    int checked = 0;
+    for (int r = 0; r < frame.image.rows; ++r) {
+        for (int c = 0; c < frame.image.cols; ++c) {
+            if (!frame.inside.at<uint8_t>(r, c)) continue;
+            const double depth = frame.origin.y + r * frame.pixel_mm;
+            // Below 35 mm of display the anatomy shown lies past the map (40 mm + 2 mm of
+            // margin): unknown, 0.
+            if (std::abs(depth - 25.0) > 0.5 && depth < 36.5) {
+                ASSERT_EQ(at_echo.at<uint8_t>(r, c), depth < 25.0 ? 1 : 2) << depth;
+            }
+            if (depth > 37.5) {
+                ASSERT_EQ(at_echo.at<uint8_t>(r, c), 0) << depth;
+            }
+            if (std::abs(depth - 30.0) > 0.5) {
+                ASSERT_EQ(at_truth.at<uint8_t>(r, c), depth < 30.0 ? 1 : 2) << depth;
+            }
+            ++checked;
+        }
+    }
+    EXPECT_GT(checked, 10000);
 }
 
 }  // namespace

@@ -74,6 +74,7 @@ def test_a_frame_is_the_clis_frame_byte_for_byte(tmp_path):
     assert frame.bmode.dtype == np.uint8 and frame.bmode.ndim == 2
     assert np.array_equal(frame.bmode, read_grey_png(out / "bmode.png"))
     assert np.array_equal(frame.labels, read_grey_png(out / "bmode_labels.png"))
+    assert np.array_equal(frame.echo_labels, read_grey_png(out / "bmode_labels_echo.png"))
     cli = json.loads((out / "bmode.json").read_text())
     for key in ("probe", "pose", "quality", "image", "rf", "stats", "source", "seed"):
         assert frame.sidecar[key] == cli[key], key

@@ -264,15 +264,10 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     add_parameter(*cmd, kQualityDoc, o.quality);
     add_parameter(*cmd, kReceiveDoc, o.receive);
     add_parameter(*cmd, kTraceDoc, o.trace);
-    {
-        std::string help =
-            "comma list of physics to switch off, to take an artifact apart (as the GUI's "
-            "toggles):";
-        for (const auto& n : imaging::physics_switch_names())
-            help += " " + std::string(n.name) + ": " + std::string(n.removes) + ";";
-        help.back() = '.';
-        cmd->add_option("--disable", o.disable, help);
-    }
+    cmd->add_option("--disable", o.disable,
+                    "comma list of physics to switch off, to take an artifact apart (as the "
+                    "GUI's toggles): " +
+                        imaging::physics_switch_help() + ".");
     cmd->add_option(kGainDoc.flag, o.gain_db,
                     std::string(kGainDoc.description) +
                         " (default: the scene's: " + std::to_string(int(imaging::kDefaultGainDb)) +
@@ -291,7 +286,9 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     cmd->add_flag(
         "--labels", o.write_labels,
         "also write the ground-truth tissue labels in the frame's pixels (NAME_labels.png, "
-        "values = tissue index listed in the sidecar) and a colour preview");
+        "values = tissue index listed in the sidecar), the same where the echoes show the "
+        "anatomy (NAME_labels_echo.png: behind fast bone it shows closer than it lies), and "
+        "a colour preview of each");
     cmd->add_flag("--energy", o.write_energy,
                   "also write the energy deposition map (NAME_energy.png)");
     add_parameter(*cmd, kOutDoc, o.out_dir);
@@ -312,6 +309,21 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
 }
 
 namespace {
+
+// The label maps --labels writes (a PNG of tissue indices and its colour preview each).
+struct LabelOutput {
+    const char* suffix;  // NAME<suffix>.png
+    const char* record;  // its entry in the sidecar's "labels"
+    std::optional<cv::Mat> imaging::SimulatedFrame::*map;
+    const char* geometry;
+};
+constexpr LabelOutput kLabelOutputs[] = {
+    {"_labels", "true_position", &imaging::SimulatedFrame::labels,
+     "same pixels as the frame; the anatomy where it lies"},
+    {"_labels_echo", "echo_position", &imaging::SimulatedFrame::echo_labels,
+     "same pixels as the frame; the anatomy where its echoes show it (display depth c0 t / 2 "
+     "at 1540 m/s taken back along each line through the speed of sound; no refraction)"},
+};
 
 // Values of a --scene file become the results of the options not given on the command
 // line (the command line wins). Keys are option names without dashes; '_' = '-'.
@@ -634,8 +646,10 @@ int run_simulate_command(const SimulateOptions& o) {
         if (o.write_rf) frame_paths.push_back((out / (stem + "_rf.exr")).string());
         if (o.write_envelope) frame_paths.push_back((out / (stem + "_envelope.exr")).string());
         if (o.write_labels) {
-            frame_paths.push_back((out / (stem + "_labels.png")).string());
-            frame_paths.push_back((out / (stem + "_labels_preview.png")).string());
+            for (const LabelOutput& l : kLabelOutputs) {
+                frame_paths.push_back((out / (stem + l.suffix + ".png")).string());
+                frame_paths.push_back((out / (stem + l.suffix + "_preview.png")).string());
+            }
         }
         if (o.write_energy) frame_paths.push_back((out / (stem + "_energy.png")).string());
         if (o.resume && f + 1 < placements.size() &&
@@ -682,20 +696,23 @@ int run_simulate_command(const SimulateOptions& o) {
         if (o.write_rf) write_lines(frame.rf, "_rf.exr");
         if (o.write_envelope) write_lines(frame.envelope, "_envelope.exr");
         if (simulated.labels) {
-            const cv::Mat& label_image = *simulated.labels;
-            const std::string path = (out / (stem + "_labels.png")).string();
-            const std::vector<float> values(label_image.begin<uint8_t>(),
-                                            label_image.end<uint8_t>());
-            tissue::write_gray_image(frame_files.stage(path), label_image.cols, label_image.rows,
-                                     values, 8);
-            const std::string preview = (out / (stem + "_labels_preview.png")).string();
-            imaging::write_png(imaging::label_picture(label_image), frame_files.stage(preview));
-            written.push_back(path);
-            written.push_back(preview);
-            label_record = {
-                {"files", (out / (o.name + (sweeping ? "_NNNN" : "") + "_labels.png")).string()},
-                {"legend", tissue::label_legend()},
-                {"geometry", "same pixels as the frame; true (not echo-delayed) positions"}};
+            label_record = {{"legend", tissue::label_legend()}};
+            for (const LabelOutput& l : kLabelOutputs) {
+                const cv::Mat& label_image = *(simulated.*(l.map));
+                const std::string path = (out / (stem + l.suffix + ".png")).string();
+                const std::vector<float> values(label_image.begin<uint8_t>(),
+                                                label_image.end<uint8_t>());
+                tissue::write_gray_image(frame_files.stage(path), label_image.cols,
+                                         label_image.rows, values, 8);
+                const std::string preview = (out / (stem + l.suffix + "_preview.png")).string();
+                imaging::write_png(imaging::label_picture(label_image), frame_files.stage(preview));
+                written.push_back(path);
+                written.push_back(preview);
+                label_record[l.record] = {
+                    {"files",
+                     (out / (o.name + (sweeping ? "_NNNN" : "") + l.suffix + ".png")).string()},
+                    {"geometry", l.geometry}};
+            }
         }
         if (o.write_energy) {
             imaging::FieldStyle style{"absorbed energy (sedimentation)",

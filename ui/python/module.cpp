@@ -123,6 +123,11 @@ class Frame {
         const cv::Mat& m = *data_->simulated.labels;
         return view<uint8_t>(data_, m.ptr<uint8_t>(), {m.rows, m.cols});
     }
+    py::object echo_labels() const {
+        if (!data_->simulated.echo_labels) return py::none();
+        const cv::Mat& m = *data_->simulated.echo_labels;
+        return view<uint8_t>(data_, m.ptr<uint8_t>(), {m.rows, m.cols});
+    }
     py::array_t<float> envelope() const { return lines(data_->simulated.frame.envelope); }
     py::array_t<float> rf() const { return lines(data_->simulated.frame.rf); }
     py::object sidecar() const { return to_python(data_->sidecar); }
@@ -213,6 +218,9 @@ PYBIND11_MODULE(sonotrace, m) {
         .def_property_readonly(
             "labels", &Frame::labels,
             "uint8 [rows, cols]: tissue index per pixel (labels=True), else None")
+        .def_property_readonly(
+            "echo_labels", &Frame::echo_labels,
+            "uint8 [rows, cols]: the labels where the echoes show them (labels=True), else None")
         .def_property_readonly("envelope", &Frame::envelope, "float32 [lines, samples]")
         .def_property_readonly("rf", &Frame::rf, "float32 [lines, samples]")
         .def_property_readonly("sidecar", &Frame::sidecar,
