@@ -2,7 +2,9 @@
 // (declared in imaging/simulation.h).
 #include "imaging/simulation.h"
 
+#include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "tissue/base/error.h"
@@ -47,21 +49,45 @@ QualityLevel quality_level(Quality quality) {
 
 const std::vector<PhysicsSwitchName>& physics_switch_names() {
     static const std::vector<PhysicsSwitchName> names = {
-        {"refraction", &PhysicsSwitches::refraction, "bending at speed changes (Snell)"},
+        {"refraction", &PhysicsSwitches::refraction,
+         "bending where the speed of sound changes (Snell's law); off: beams go straight"},
         {"specular", &PhysicsSwitches::specular_reflection,
-         "mirror reflection at interfaces (total reflection stays)"},
-        {"diffuse", &PhysicsSwitches::diffuse_reflection, "the rough interfaces' reflection lobes"},
-        {"scattering", &PhysicsSwitches::scattering, "sub-resolution scattering events"},
-        {"attenuation", &PhysicsSwitches::attenuation, "absorption along the paths"},
+         "mirror reflection at interfaces with the impedance reflection coefficient (off: "
+         "total reflection stays)"},
+        {"diffuse", &PhysicsSwitches::diffuse_reflection,
+         "rough interfaces reflect into a cos^c lobe (c from the tissue's roughness); off: "
+         "mirrors"},
+        {"scattering", &PhysicsSwitches::scattering,
+         "sub-resolution scattering events (the tissue's speckle and its backscatter); off: "
+         "tissue turns black"},
+        {"attenuation", &PhysicsSwitches::attenuation,
+         "absorption alpha f along the paths (dB/(cm MHz) of each tissue)"},
         {"shear", &PhysicsSwitches::shear_conversion,
-         "the shear wave a solid (bone) takes at its interfaces (off: total reflection past "
-         "the critical angle)"},
+         "the shear wave a solid (bone) takes at its interfaces, absorbed within millimetres "
+         "(off: total reflection past the critical angle)"},
         {"bounces", &PhysicsSwitches::multiple_bounces,
-         "paths after the first reflection (reverberation, mirror images)"},
-        {"face", &PhysicsSwitches::face_reflection, "the probe face's reflection (capture model)"},
+         "paths after the first reflection (reverberation, mirror images); off: a particle "
+         "ends at its first reflection, whose echo still counts"},
+        {"face", &PhysicsSwitches::face_reflection,
+         "the probe face reflects part of the returning energy back into the tissue (capture "
+         "receive model): reverberation between the face and reflectors"},
         {"speckle", &PhysicsSwitches::speckle, "the scattered echoes' speckle in the image"},
     };
     return names;
+}
+
+const PhysicsSwitchName& physics_switch(std::string_view name) {
+    for (const auto& n : physics_switch_names())
+        if (n.name == name) return n;
+    throw std::logic_error("no physics switch " + std::string(name));
+}
+
+std::string physics_switch_help() {
+    std::string help;
+    for (const auto& n : physics_switch_names())
+        help +=
+            (help.empty() ? "" : "; ") + std::string(n.name) + ": " + std::string(n.description);
+    return help;
 }
 
 PhysicsSwitches disabled_physics(const std::string& list, const std::string& source,
@@ -86,13 +112,27 @@ PhysicsSwitches disabled_physics(const std::string& list, const std::string& sou
     return out;
 }
 
+void switch_off(const PhysicsSwitches& physics, simulator::TraceSettings& t) {
+    if (!physics.refraction) t.refraction = false;
+    if (!physics.specular_reflection) t.specular_reflection = false;
+    if (!physics.diffuse_reflection) t.diffuse_reflection = false;
+    if (!physics.scattering) t.scattering = false;
+    if (!physics.attenuation) t.attenuation = false;
+    if (!physics.shear_conversion) t.shear_conversion = false;
+    if (!physics.multiple_bounces) t.max_bounces = 0;  // retired at the first reflection
+    if (!physics.face_reflection) {
+        if (t.probe_face_2d) t.probe_face_2d->reflectivity = 0.0f;
+        if (t.probe_face_3d) t.probe_face_3d->reflectivity = 0.0f;
+    }
+}
+
 void apply(const PhysicsSwitches& physics, SimulationSettings& s) {
     simulator::TraceSettings& t = s.trace;
     t.refraction = physics.refraction;
     t.specular_reflection = physics.specular_reflection;
     t.diffuse_reflection = physics.diffuse_reflection;
     t.scattering = physics.scattering;
-    t.absorption = physics.attenuation;
+    t.attenuation = physics.attenuation;
     t.shear_conversion = physics.shear_conversion;
     t.max_bounces = physics.multiple_bounces ? 64 : 0;  // 0: retired at the first reflection
     if (!physics.face_reflection) s.transducer.face_reflectivity = 0.0;

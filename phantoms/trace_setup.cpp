@@ -17,7 +17,7 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
     simulator::TraceSettings s;
     if (ph.paper_mode) {
         s.mode = simulator::PhysicsMode::paper;
-        s.absorption = s.scattering = s.diffuse_reflection = false;
+        s.attenuation = s.scattering = s.diffuse_reflection = false;
         s.lobe_exponent = simulator::LobeExponent::reflecting_density;
         s.roulette_energy = 0.0;
     }
@@ -25,7 +25,7 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
     const json& t = ph.trace;
     jsonio::require_known_keys(
         t,
-        {"refraction", "specular_reflection", "diffuse_reflection", "scattering", "absorption",
+        {"refraction", "specular_reflection", "diffuse_reflection", "scattering", "attenuation",
          "lobe_exponent", "lobe_weight", "lobe_scale", "roulette_energy", "step", "frequency",
          "ring", "comment"},
         src, "trace");
@@ -39,7 +39,7 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
     flag("specular_reflection", s.specular_reflection);
     flag("diffuse_reflection", s.diffuse_reflection);
     flag("scattering", s.scattering);
-    flag("absorption", s.absorption);
+    flag("attenuation", s.attenuation);
     if (t.contains("lobe_exponent")) {
         const std::string v = jsonio::get_string(t, "lobe_exponent", src, "trace");
         if (v == "roughness")

@@ -205,7 +205,7 @@ struct StepConstants {
     double step_time_per_index = 0.0;                // s per step per unit refractive index
     double max_path_mm = 0.0, max_time_s = 0.0;
     std::array<float, Dim> extent{};  // the domain [0, extent] per axis
-    bool deposition_maps = true, absorption = true, scattering = true, refraction = true;
+    bool deposition_maps = true, attenuation = true, scattering = true, refraction = true;
     bool profile = false;
     float profile_scale = 0.0f;               // rate * step * echo fraction per backscatter^2
     const ReceiveWeights* receive = nullptr;  // TraceSettings::receive_weights

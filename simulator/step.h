@@ -163,7 +163,7 @@ SONOTRACE_LANE_INLINE void take_step(StepState<Lane, Dim>& p, const StepFields<L
     using I = typename Lane::I;
     const float s = c.step_mm;
     if (c.deposition_maps) enter_deposit_texel(p, f.texel, events);
-    if (c.absorption) absorb(p, absorbed_fraction<Lane>(f.attenuation, c, events));
+    if (c.attenuation) absorb(p, absorbed_fraction<Lane>(f.attenuation, c, events));
     add_fluence(p, s);
 
     // -- sub-resolution scattering: an event when the optical depth reaches the draw

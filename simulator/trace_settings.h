@@ -120,7 +120,7 @@ struct TraceSettings {
     bool specular_reflection = true;
     bool diffuse_reflection = true;
     bool scattering = true;
-    bool absorption = true;
+    bool attenuation = true;
     // At a solid's interface (faster than kSolidSpeedMin: bone, wires) part of the energy
     // converts into the solid's shear wave (fluid_solid_fractions), which its attenuation
     // absorbs within millimetres at imaging frequencies: absorbed where it converts. Off:

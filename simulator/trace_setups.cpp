@@ -30,7 +30,7 @@ double ramp(double signed_distance, double width) {
 TraceSettings paper_settings() {
     TraceSettings s;
     s.mode = PhysicsMode::paper;
-    s.absorption = false;
+    s.attenuation = false;
     s.scattering = false;
     s.diffuse_reflection = false;
     s.lobe_exponent = LobeExponent::reflecting_density;
@@ -150,7 +150,7 @@ tissue::AcousticProperties lossless_medium(double speed, double density) {
 
 TraceSettings interfaces_only_settings() {
     TraceSettings s;
-    s.absorption = false;
+    s.attenuation = false;
     s.scattering = false;
     s.diffuse_reflection = false;
     s.roulette_energy = 0.0;

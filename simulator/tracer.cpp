@@ -328,7 +328,7 @@ class LineTracer {
         c.max_time_s = max_time_s_;
         for (int a = 0; a < Dim; ++a) c.extent[std::size_t(a)] = map.extent_mm()[a];
         c.deposition_maps = deposit_maps_;
-        c.absorption = settings.absorption;
+        c.attenuation = settings.attenuation;
         c.scattering = scatter_enabled_;
         c.refraction = settings.refraction;
         c.profile = profile_enabled_;
@@ -1246,7 +1246,7 @@ class LineTracer {
             if (u != record) {  // per-record constants, from take_step()'s stages
                 record = u;
                 absorbed =
-                    c.absorption ? absorbed_fraction<ScalarLane>(u->attenuation, c, events) : 0.0f;
+                    c.attenuation ? absorbed_fraction<ScalarLane>(u->attenuation, c, events) : 0.0f;
                 scatter_depth =
                     c.scattering ? scatter_increment<ScalarLane>(u->backscatter, c) : 0.0f;
                 time = step_time<ScalarLane>(u->refractive_index, c);

@@ -245,7 +245,7 @@ TEST(Anechoic, DisabledPhysicsParsesNamesAndRefusesUnknownOnes) {
     imaging::SimulationSettings s;
     imaging::apply(imaging::disabled_physics("scattering,bounces,face,attenuation", "-", ""), s);
     EXPECT_FALSE(s.trace.scattering);
-    EXPECT_FALSE(s.trace.absorption);
+    EXPECT_FALSE(s.trace.attenuation);
     EXPECT_EQ(s.trace.max_bounces, 0);
     EXPECT_EQ(s.transducer.face_reflectivity, 0.0);
     EXPECT_TRUE(s.imaging.speckle);

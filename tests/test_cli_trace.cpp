@@ -52,13 +52,41 @@ TEST(CliTrace, VolumeSliceByteIdenticalOnOneAndTwoThreads) {
     EXPECT_GT(record["ledger"]["absorbed"].get<double>(), 0.0);
 }
 
+// `trace --disable` takes simulate's switch names and does what simulate's do to the
+// tracer (imaging::switch_off): on the default head slice (acoustic mode), with
+// attenuation, the shear waves and the lossy rough lobes off nothing is absorbed (the
+// ledger's absorbed energy is exactly 0) where it absorbs otherwise, and bounces off
+// retires a particle at its first reflection.
+TEST(CliTrace, DisableTakesSimulatesSwitchNames) {
+    ScratchDir dir;
+    auto trace = [&](const std::string& disable) {
+        const auto r = run(dir, "trace -q --particles 400 --disable " + disable +
+                                    " --out " + (dir / "out"));
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        return nlohmann::json::parse(slurp(dir / "out/trace.json"));
+    };
+    const auto off = trace("attenuation,shear,diffuse,bounces");
+    EXPECT_FALSE(off["settings"]["attenuation"].get<bool>());
+    EXPECT_FALSE(off["settings"]["diffuse_reflection"].get<bool>());
+    EXPECT_EQ(off["settings"]["max_bounces"].get<int>(), 0);
+    EXPECT_EQ(off["ledger"]["absorbed"].get<double>(), 0.0);
+    const auto on = trace("refraction");
+    EXPECT_FALSE(on["settings"]["refraction"].get<bool>());
+    EXPECT_EQ(on["settings"]["max_bounces"].get<int>(), 64);
+    EXPECT_GT(on["ledger"]["absorbed"].get<double>(), 0.0);
+}
+
 TEST(CliTrace, BadInputFailsWithoutPartialOutput) {
     ScratchDir dir;
     const struct {
         const char* args;
         const char* mention;
     } cases[] = {{"--config fig9", "unknown configuration 'fig9'"},
-                 {"--disable gravity", "--disable: field 'gravity'"},
+                 {"--disable gravity", "--disable: unknown physics 'gravity'"},
+                 // simulate's switch names: the old name of attenuation is unknown, and
+                 // the image's speckle is no trace's
+                 {"--disable absorption", "unknown physics 'absorption'"},
+                 {"--disable speckle", "a trace makes no image"},
                  {"--mode wave", "--mode"},
                  {"--step 0", "field 'step'"},
                  {"--injection spiral", "--injection"},

@@ -39,7 +39,7 @@ TEST(Tracer, HomogeneousAttenuationIsExponential) {
     const auto map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
     TraceSettings s = interfaces_only_settings();
     s.frequency_mhz = 5.0;
-    s.absorption = true;
+    s.attenuation = true;
     const auto result = trace(map, parallel_beam({5.0f, 0.0f}, {0.0f, 1.0f}, 4.0f, 50), s);
     // Each particle crosses the 60 mm domain (rows 0..240); it is still inside at exactly
     // 60 mm, so it leaves after floor(60 / s) + 1 steps.
@@ -128,7 +128,7 @@ AbsorbingColumn absorbing_column(float attenuation_db_per_cm_mhz) {
     p[Property::attenuation] = attenuation_db_per_cm_mhz;
     c.map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
     c.settings = interfaces_only_settings();
-    c.settings.absorption = true;
+    c.settings.attenuation = true;
     c.settings.record_paths = 0;
     for (int line = 0; line < 40; ++line) {
         auto beam = parallel_beam({5.0f, 0.0f}, {0.0f, 1.0f}, 4.0f, 500, uint32_t(line));
@@ -211,7 +211,7 @@ TEST(Tracer, RouletteKeepsTheTwoWayEchoUnbiased) {
     const auto map = tissue::AcousticMap<2>::build(homogeneous(40, 241, kH, p));
     TraceSettings s = interfaces_only_settings();
     s.mode = PhysicsMode::acoustic;
-    s.absorption = true;
+    s.attenuation = true;
     s.scattering = true;
     s.scatter_echo_fraction = 1e-6;  // scattering events take next to nothing
     s.record_paths = 0;
@@ -268,7 +268,7 @@ TEST(Tracer, AnEchoThroughARoughReflectionReturnsTheLobesShare) {
     for (float& b : maps[Property::backscatter].voxels()) b = 0.5f;
     const auto map = tissue::AcousticMap<2>::build(maps);
     TraceSettings s;
-    s.absorption = false;
+    s.attenuation = false;
     s.roulette_energy = 0.0;
     s.record_paths = 0;
     constexpr double kDelta = 0.2;
@@ -311,7 +311,7 @@ TEST(Tracer, ASurfaceAgainstAGasIsAMirrorWhateverItsRoughness) {
         for (float& r : maps[Property::roughness].voxels()) r = 0.5f;
         const auto map = tissue::AcousticMap<2>::build(maps);
         TraceSettings s;
-        s.absorption = false;
+        s.attenuation = false;
         s.scattering = false;
         s.roulette_energy = 0.0;
         s.record_paths = 400;
@@ -357,7 +357,7 @@ TEST(Tracer, BoneMetPastItsCriticalAngleTakesTheShearShare) {
     const auto map = tissue::AcousticMap<2>::build(
         over_half_space(240, 161, lossless_medium(1540, 1060), 80, 3500.0f, 1900.0f));
     TraceSettings s;
-    s.absorption = false;
+    s.attenuation = false;
     s.scattering = false;
     s.roulette_energy = 0.0;
     s.record_paths = 0;
@@ -805,7 +805,7 @@ void expect_convex_face_captures_by_its_geometry() {
     face.half_height_mm = float(half_height);
     face.radius_mm = float(radius);
     TraceSettings s = interfaces_only_settings();
-    s.absorption = false;
+    s.attenuation = false;
     s.probe_face_3d.reset();
     if constexpr (Dim == 2)
         s.probe_face_2d = face;

@@ -356,7 +356,7 @@ CaseResult reverberation(const CaseContext&) {
         }
         const auto map = tissue::AcousticMap<2>::build(maps);
         TraceSettings s = simulator::interfaces_only_settings();
-        s.absorption = true;
+        s.attenuation = true;
         s.frequency_mhz = f_mhz;
         simulator::ProbeFace<2> face;
         face.centre = {10.0f, float(y0)};

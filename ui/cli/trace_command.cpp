@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "imaging/picture.h"
+#include "imaging/simulation.h"
 #include "imaging/trace_pictures.h"
 #include "phantoms/trace_setup.h"
 #include "simulator/trace_setups.h"
@@ -57,11 +58,6 @@ constexpr ParameterDoc kContrastDoc = {
 constexpr ParameterDoc kFaceDoc = {
     "--face-reflectivity", "0..1",
     "intensity fraction the probe face reflects back into the tissue (volume slices)"};
-constexpr ParameterDoc kDisableDoc = {
-    "--disable", "",
-    "comma-separated physics to switch off: refraction, specular, diffuse, "
-    "scattering, absorption, shear (solids' shear waves: total reflection past the critical "
-    "angle), bounces (= single reflection)"};
 constexpr ParameterDoc kLobeExponentDoc = {"--lobe-exponent", "", simulator::doc::kLobeExponent};
 constexpr ParameterDoc kLobeWeightDoc = {"--lobe-weight", "", simulator::doc::kLobeWeight};
 constexpr ParameterDoc kLobeScaleDoc = {
@@ -76,31 +72,15 @@ constexpr ParameterDoc kEchoesDoc = {"--echoes", "",
                                      "also write every echo event as CSV to this file"};
 constexpr ParameterDoc kOutDoc = {"--out", "", "output directory"};
 
-// The --disable switches.
+// The --disable switches: simulate's names (imaging::physics_switch_names), but for the
+// image's speckle, which a trace does not make.
 void apply_disable(const std::string& disable, simulator::TraceSettings& s) {
-    std::istringstream list(disable);
-    for (std::string item; std::getline(list, item, ',');) {
-        if (item == "refraction")
-            s.refraction = false;
-        else if (item == "specular")
-            s.specular_reflection = false;
-        else if (item == "diffuse")
-            s.diffuse_reflection = false;
-        else if (item == "scattering")
-            s.scattering = false;
-        else if (item == "absorption")
-            s.absorption = false;
-        else if (item == "shear")
-            s.shear_conversion = false;
-        else if (item == "bounces")
-            s.max_bounces = 1;
-        else if (!item.empty()) {
-            throw base::InputError(
-                "--disable", item,
-                "unknown switch (refraction, specular, diffuse, scattering, absorption, shear, "
-                "bounces)");
-        }
-    }
+    const imaging::PhysicsSwitches off = imaging::disabled_physics(disable, "--disable", "");
+    if (!off.speckle)
+        throw base::InputError(
+            "--disable", "speckle",
+            "is the B-mode image's; a trace makes no image (sonotrace simulate)");
+    imaging::switch_off(off, s);
 }
 
 // Options that apply to built-in configurations and volume slices alike.
@@ -119,7 +99,6 @@ void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
         s.mode = simulator::PhysicsMode::acoustic;
     else
         throw base::InputError("--mode", "", "must be 'acoustic' or 'paper', got '" + o.mode + "'");
-    apply_disable(o.disable, s);
     if (o.lobe_exponent == "roughness")
         s.lobe_exponent = simulator::LobeExponent::roughness;
     else if (o.lobe_exponent == "reflecting-density")
@@ -137,7 +116,8 @@ void apply_physics_options(const TraceOptions& o, simulator::TraceSettings& s) {
     else if (!o.lobe_weight.empty())
         throw base::InputError("--lobe-weight", "", "must be probability or energy");
     apply_integration_options(o, s);
-    if (s.max_bounces != 1) s.max_bounces = o.max_bounces;
+    s.max_bounces = o.max_bounces;
+    apply_disable(o.disable, s);  // after --max-bounces: `bounces` off wins
 }
 
 // A volume slice as a trace set-up: the probe at the top centre, fan or parallel injection.
@@ -235,7 +215,10 @@ CLI::App* add_trace_command(CLI::App& app, TraceOptions& options) {
     add_parameter(*cmd, kBeamWidthDoc, options.beam_width_mm)->check(CLI::Range(0.01, 1000.0));
     add_parameter(*cmd, kContrastDoc, options.contrast);
     add_parameter(*cmd, kFaceDoc, options.face_reflectivity);
-    add_parameter(*cmd, kDisableDoc, options.disable);
+    cmd->add_option("--disable", options.disable,
+                    "comma list of physics to switch off (simulate's names; speckle is the "
+                    "image's): " +
+                        imaging::physics_switch_help() + ".");
     add_parameter(*cmd, kLobeExponentDoc, options.lobe_exponent);
     add_parameter(*cmd, kLobeWeightDoc, options.lobe_weight);
     add_parameter(*cmd, kLobeScaleDoc, options.lobe_scale);
@@ -255,6 +238,10 @@ int run_trace_command(const TraceOptions& options) {
     const auto thread_limit = limit_threads(options.threads);
 
     // ---- the set-up (everything validated before tracing) ----
+    {
+        simulator::TraceSettings checked;  // the switch names, before any volume loads
+        apply_disable(options.disable, checked);
+    }
     TraceSetup setup;
     json source_record;
     if (!options.config.empty() || !options.phantom.empty()) {
@@ -402,7 +389,7 @@ int run_trace_command(const TraceOptions& options) {
           {"specular_reflection", s.specular_reflection},
           {"diffuse_reflection", s.diffuse_reflection},
           {"scattering", s.scattering},
-          {"absorption", s.absorption},
+          {"attenuation", s.attenuation},
           {"max_bounces", s.max_bounces},
           {"lobe_exponent", simulator::to_string(s.lobe_exponent)},
           {"lobe_weight", simulator::to_string(s.lobe_weight)},

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "imaging/simulation.h"
 #include "probe/array_geometry.h"
-#include "simulator/trace_settings.h"
 #include "tissue/base/error.h"
 #include "ui/cli/simulate_command.h"
 
@@ -93,26 +93,26 @@ double slider_max(Control control, const probe::Transducer& t) {
 }
 
 std::string switch_help(Control control) {
+    auto physics = [](std::string_view name) {
+        return std::string(imaging::physics_switch(name).description);
+    };
     switch (control) {
         case Control::refraction:
-            return "Snell's law at speed-of-sound gradients; off: beams go straight";
+            return physics("refraction");
         case Control::specular_reflection:
-            return "mirror reflection at interfaces with the impedance reflection coefficient";
+            return physics("specular");
         case Control::diffuse_reflection:
-            return "rough interfaces reflect into a cos^c lobe (c from the tissue's roughness)";
+            return physics("diffuse");
         case Control::scattering:
-            return simulator::doc::kScatteringRate;
+            return physics("scattering");
         case Control::attenuation:
-            return "absorption alpha f along the path (dB/(cm MHz) of each tissue)";
+            return physics("attenuation");
         case Control::shear_conversion:
-            return "bone takes part of the energy as its shear wave at its interfaces, absorbed "
-                   "within millimetres; off: total reflection past the critical angle";
+            return physics("shear");
         case Control::multiple_bounces:
-            return "off: a particle ends at its first reflection (whose echo still counts): "
-                   "no mirror images, no reverberation, only direct echoes";
+            return physics("bounces");
         case Control::face_reflection:
-            return "the probe face reflects part of the returning energy back into the tissue "
-                   "(capture receive model): reverberation between face and reflectors";
+            return physics("face");
         case Control::receive:
             return ui::kReceiveDoc.description;
         case Control::trace:
