@@ -33,7 +33,15 @@ std::string to_string(ReceiveModel model);
 
 // Speed/quality trade-off: map resolution and particles per line.
 enum class Quality { interactive, standard, high };
+struct QualityName {
+    std::string_view name;  // --quality, the dataset spec's "quality", the sidecar
+    Quality quality;
+};
+// Every quality by its one name, fastest first.
+const std::vector<QualityName>& quality_names();
 std::string to_string(Quality quality);
+// The quality of that name; throws base::InputError(source, field) listing the names.
+Quality parse_quality(const std::string& name, const std::string& source, const std::string& field);
 struct QualityLevel {
     double map_pixel_mm;     // resolution of the acoustic map
     int particles_per_line;  // particles each scan line emits

@@ -15,16 +15,27 @@ std::string to_string(ReceiveModel model) {
     return model == ReceiveModel::monostatic ? "monostatic" : "capture";
 }
 
+const std::vector<QualityName>& quality_names() {
+    static const std::vector<QualityName> names = {{"interactive", Quality::interactive},
+                                                   {"standard", Quality::standard},
+                                                   {"high", Quality::high}};
+    return names;
+}
+
 std::string to_string(Quality quality) {
-    switch (quality) {
-        case Quality::interactive:
-            return "interactive";
-        case Quality::standard:
-            return "standard";
-        case Quality::high:
-            return "high";
-    }
+    for (const QualityName& q : quality_names())
+        if (q.quality == quality) return std::string(q.name);
     return "?";
+}
+
+Quality parse_quality(const std::string& name, const std::string& source,
+                      const std::string& field) {
+    std::string known;
+    for (const QualityName& q : quality_names()) {
+        if (q.name == name) return q.quality;
+        known += (known.empty() ? "" : ", ") + std::string(q.name);
+    }
+    throw base::InputError(source, field, "unknown quality '" + name + "' (known: " + known + ")");
 }
 
 QualityLevel quality_level(Quality quality) {

@@ -73,7 +73,8 @@ TEST(DatasetSpec, BadSpecsNameTheFileAndField) {
           "exactly one");
     check([](auto& j) { j["sources"][0] = {{"scene", "head-side"}}; }, "sources[0].scene", "");
     check([](auto& j) { j["disable"] = {"gravity"}; }, "disable", "");
-    check([](auto& j) { j["quality"] = "best"; }, "quality", "");
+    check([](auto& j) { j["quality"] = "best"; }, "quality",
+          "unknown quality 'best' (known: interactive, standard, high)");
     check([](auto& j) { j["trace"] = "4d"; }, "trace", "2d or 3d");
     check([](auto& j) { j["pose"]["tilt_deg"] = 90; }, "pose.tilt_deg", "");
     // 100,000 frames of 1024 x 1024 a shard: 400 GB held before it is written (RSS grew

@@ -245,15 +245,8 @@ Spec parse_spec(const json& j, const std::string& source) {
         spec.trace_dimensions = trace == "3d" ? 3 : 2;
     }
     if (j.contains("quality")) {
-        const std::string q = jsonio::get_string(j, "quality", source, "");
-        if (q == "interactive")
-            spec.quality = Quality::interactive;
-        else if (q == "standard")
-            spec.quality = Quality::standard;
-        else if (q == "high")
-            spec.quality = Quality::high;
-        else
-            throw InputError(source, "quality", "must be interactive, standard or high");
+        spec.quality =
+            parse_quality(jsonio::get_string(j, "quality", source, ""), source, "quality");
     }
     if (j.contains("write")) {
         const json& w = j["write"];

@@ -515,10 +515,7 @@ SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
                                : scene          ? scene->probe_preset
                                                 : scene_options.volume_probe_preset();
     settings.transducer = make_transducer(o, preset);
-    settings.quality = parse_enum<imaging::Quality>(o.quality, "--quality",
-                                                    {{"interactive", imaging::Quality::interactive},
-                                                     {"standard", imaging::Quality::standard},
-                                                     {"high", imaging::Quality::high}});
+    settings.quality = imaging::parse_quality(o.quality, "--quality", "");
     settings.receive =
         parse_enum<imaging::ReceiveModel>(o.receive, "--receive",
                                           {{"monostatic", imaging::ReceiveModel::monostatic},

@@ -193,15 +193,7 @@ Fit show_image(const Texture& texture, Rect* rect) {
 
 App::App(const AppOptions& options)
     : options_(options), catalogue_(scene_catalogue(base::phantom_catalogue_dir())) {
-    if (options.quality == "interactive")
-        parameters_.quality = imaging::Quality::interactive;
-    else if (options.quality == "standard")
-        parameters_.quality = imaging::Quality::standard;
-    else if (options.quality == "high")
-        parameters_.quality = imaging::Quality::high;
-    else
-        throw base::InputError("--quality", options.quality,
-                               "must be interactive, standard or high");
+    parameters_.quality = imaging::parse_quality(options.quality, "--quality", "");
     if (!options.probe.empty()) probe::find_transducer(options.probe, "--probe");  // validates
     view_.enabled = options.context;
     if (options.context_renderer != "auto" && options.context_renderer != "gpu" &&

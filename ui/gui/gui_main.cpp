@@ -20,6 +20,7 @@
 #include <CLI/CLI.hpp>
 
 #include "imaging/picture.h"
+#include "imaging/simulation.h"
 #include "probe/transducer.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/data_dir.h"
@@ -75,8 +76,9 @@ int run(const Options& o) {
     // A still probe refines from its quality up to high, then waits for a move: more
     // frames than that never come (an --open scene refines once more).
     if (!o.app.animate && !o.screenshot.empty()) {
-        const std::vector<std::string> stages = {"interactive", "standard", "high"};
-        const auto at = std::find(stages.begin(), stages.end(), o.app.quality);
+        const auto& stages = imaging::quality_names();
+        const auto at = std::find_if(stages.begin(), stages.end(),
+                                     [&](const auto& q) { return q.name == o.app.quality; });
         const int still = int(stages.end() - at) * (o.app.open_later.empty() ? 1 : 2);
         if (at != stages.end() && o.frames > still)
             throw base::InputError("--frames", std::to_string(o.frames),
