@@ -1,8 +1,11 @@
 #include "probe/transducer.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <numbers>
+#include <system_error>
+#include <type_traits>
 
 #include "probe/array_geometry.h"
 #include "tissue/acoustic_map.h"
@@ -105,6 +108,51 @@ double Transducer::receive_aperture_mm(double range_mm) const {
                     array_type(type).largest_aperture_mm(*this));
 }
 
+namespace {
+
+using Value = TransducerParameterDoc::Value;
+
+template <typename T>
+T parse_number(const std::string& text, const std::string& source) {
+    T value{};
+    const char* end = text.data() + text.size();
+    const auto [ptr, error] = std::from_chars(text.data(), end, value);
+    if (error != std::errc() || ptr != end || text.empty()) {
+        throw base::InputError(
+            source, "",
+            std::string(std::is_integral_v<T> ? "must be a whole number" : "must be a number") +
+                ", got '" + text + "'");
+    }
+    if constexpr (std::is_floating_point_v<T>) {
+        if (!std::isfinite(value))
+            throw base::InputError(source, "", "must be finite, got '" + text + "'");
+    }
+    return value;
+}
+
+template <auto Member>
+Value member_value(const Transducer& t) {
+    return t.*Member;
+}
+
+template <auto Member>
+void set_member(Transducer& t, const std::string& text, const std::string& source) {
+    using T = std::remove_reference_t<decltype(t.*Member)>;
+    t.*Member = parse_number<T>(text, source);
+}
+
+template <auto Member>
+Value apodization_value(const Transducer& t) {
+    return to_string(t.*Member);
+}
+
+template <auto Member>
+void set_apodization(Transducer& t, const std::string& text, const std::string& source) {
+    t.*Member = parse_apodization(text, source, "");
+}
+
+}  // namespace
+
 const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
     // The types' own descriptions, from their registration.
     static const std::string types = [] {
@@ -114,35 +162,62 @@ const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
                     a.description + ")";
         return text;
     }();
+    using T = Transducer;
     static const std::vector<TransducerParameterDoc> docs = {
-        {"type", "", types.c_str()},
-        {"elements", "", "number of array elements"},
-        {"pitch", "mm", "centre-to-centre element distance"},
+        {"type", "", types.c_str(), "type", [](const T& t) -> Value { return to_string(t.type); },
+         [](T& t, const std::string& text, const std::string& source) {
+             t.type = parse_transducer_type(text, source, "");
+         }},
+        {"elements", "", "number of array elements", "elements", member_value<&T::elements>,
+         set_member<&T::elements>},
+        {"pitch", "mm", "centre-to-centre element distance", "pitch_mm", member_value<&T::pitch_mm>,
+         set_member<&T::pitch_mm>},
         {"radius", "mm",
-         "radius of a curved array: a convex arc, or a radial ring (elements x pitch / 2 pi)"},
-        {"fov", "degrees", "angle spanned by the scan lines (convex, phased; radial: 360)"},
-        {"frequency", "MHz", "centre frequency of the pulse"},
-        {"element-width", "mm", "width of one element (the pitch minus the kerf)"},
-        {"bandwidth", "", "fractional -6 dB bandwidth of the pulse-echo spectrum"},
+         "radius of a curved array: a convex arc, or a radial ring (elements x pitch / 2 pi)",
+         "radius_mm", member_value<&T::radius_mm>, set_member<&T::radius_mm>},
+        {"fov", "degrees", "angle spanned by the scan lines (convex, phased; radial: 360)",
+         "fov_deg", member_value<&T::fov_deg>, set_member<&T::fov_deg>},
+        {"frequency", "MHz", "centre frequency of the pulse", "frequency_mhz",
+         member_value<&T::frequency_mhz>, set_member<&T::frequency_mhz>},
+        {"element-width", "mm", "width of one element (the pitch minus the kerf)",
+         "element_width_mm", member_value<&T::element_width_mm>, set_member<&T::element_width_mm>},
+        {"bandwidth", "", "fractional -6 dB bandwidth of the pulse-echo spectrum", "bandwidth",
+         member_value<&T::bandwidth>, set_member<&T::bandwidth>},
         {"band-shape", "",
          "shape of the pulse-echo spectrum: its -20 dB width over its -6 dB width, 1.1-2.5 "
-         "(1.82: a Gaussian band; smaller: flatter-topped, as measured probe spectra)"},
-        {"focus", "mm", "transmit focus depth"},
-        {"f-number", "", "transmit F-number: focus depth / active transmit aperture width"},
+         "(1.82: a Gaussian band; smaller: flatter-topped, as measured probe spectra)",
+         "band_shape", member_value<&T::band_shape>, set_member<&T::band_shape>},
+        {"focus", "mm", "transmit focus depth", "focus_mm", member_value<&T::focus_mm>,
+         set_member<&T::focus_mm>},
+        {"f-number", "", "transmit F-number: focus depth / active transmit aperture width",
+         "f_number", member_value<&T::f_number>, set_member<&T::f_number>},
         {"tx-apodization", "",
          "weighting of the transmit aperture: rectangular, hann or tukey (cosine tapers over "
-         "the outer quarters)"},
+         "the outer quarters)",
+         "tx_apodization", apodization_value<&T::tx_apodization>,
+         set_apodization<&T::tx_apodization>},
         {"rx-f-number", "",
          "receive F-number: the receive aperture expands as depth / F-number (dynamic focus "
-         "at every depth, at most the array); 0.1 = the whole array"},
-        {"rx-apodization", "", "weighting of the receive aperture: rectangular, hann or tukey"},
-        {"cycles", "", "excitation length in cycles of a sine at the centre frequency"},
-        {"elevation-focus", "mm", "depth of the fixed elevation (lens) focus"},
-        {"slice-thickness", "mm", "elevation beam width (-6 dB) at the elevation focus"},
-        {"depth", "mm", "imaging depth from the face along each scan line"},
-        {"lines", "", "number of scan lines"},
+         "at every depth, at most the array); 0.1 = the whole array",
+         "rx_f_number", member_value<&T::rx_f_number>, set_member<&T::rx_f_number>},
+        {"rx-apodization", "", "weighting of the receive aperture: rectangular, hann or tukey",
+         "rx_apodization", apodization_value<&T::rx_apodization>,
+         set_apodization<&T::rx_apodization>},
+        {"cycles", "", "excitation length in cycles of a sine at the centre frequency", "cycles",
+         member_value<&T::cycles>, set_member<&T::cycles>},
+        {"elevation-focus", "mm", "depth of the fixed elevation (lens) focus", "elevation_focus_mm",
+         member_value<&T::elevation_focus_mm>, set_member<&T::elevation_focus_mm>},
+        {"slice-thickness", "mm", "elevation beam width (-6 dB) at the elevation focus",
+         "slice_thickness_mm", member_value<&T::slice_thickness_mm>,
+         set_member<&T::slice_thickness_mm>},
+        {"depth", "mm", "imaging depth from the face along each scan line", "depth_mm",
+         member_value<&T::depth_mm>, set_member<&T::depth_mm>},
+        {"lines", "", "number of scan lines", "lines", member_value<&T::lines>,
+         set_member<&T::lines>},
         {"face-reflectivity", "",
-         "intensity fraction the transducer face reflects back into the tissue"},
+         "intensity fraction the transducer face reflects back into the tissue",
+         "face_reflectivity", member_value<&T::face_reflectivity>,
+         set_member<&T::face_reflectivity>},
     };
     return docs;
 }

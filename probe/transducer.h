@@ -8,6 +8,7 @@
 // at the centre of the transducer face (for a curved array: the apex of its arc).
 #include <memory>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -77,11 +78,19 @@ struct Transducer {
     double elevation_aperture_mm() const;
 };
 
-// Parameter texts, reused by CLI help, the GUI and the sidecar.
+// The transducer's parameters, one row each: the CLI's flag and --help, the GUI's
+// tooltips, the sidecar's key and value, and how a text sets it (make_transducer-style
+// overrides of a preset) all read the row.
 struct TransducerParameterDoc {
-    const char* key;   // JSON key and CLI flag stem
+    using Value = std::variant<double, int, std::string>;
+    const char* key;   // CLI flag stem
     const char* unit;  // "" if none
     const char* description;
+    const char* record_key;  // the sidecar's key
+    Value (*get)(const Transducer& t);
+    // From text (a number, or a name); throws base::InputError(source, "") if it is not
+    // one. Ranges are Transducer::validate's.
+    void (*set)(Transducer& t, const std::string& text, const std::string& source);
 };
 const std::vector<TransducerParameterDoc>& transducer_parameter_docs();
 

@@ -3,9 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <set>
+#include <string>
+#include <variant>
 
 #include "probe/aperture.h"
 #include "probe/array_geometry.h"
@@ -14,6 +18,7 @@
 #include "probe/transducer.h"
 #include "tests/elevation_reference.h"
 #include "tests/test_util.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace {
 namespace {
@@ -33,6 +38,45 @@ TEST(Transducer, PresetsAreValid) {
     EXPECT_DOUBLE_EQ(probe::find_transducer("phased", "x").frequency_mhz, 2.7);
     test::expect_input_error([] { probe::find_transducer("sector", "--probe"); }, "--probe",
                              "probe", "linear, convex, phased");
+}
+
+// The parameter table is the one way the CLI sets a transducer and the sidecar reads
+// it: each row's value, written as text and read back through its own row into a default
+// transducer, is the preset's (every preset differs from the default somewhere, so a
+// row that read or wrote another member would show); keys and flags are unique.
+TEST(Transducer, EveryParameterRowReadsAndWritesItsOwnMember) {
+    using Value = probe::TransducerParameterDoc::Value;
+    auto text = [](const Value& v) {
+        return std::visit(
+            [](const auto& x) -> std::string {
+                if constexpr (std::is_same_v<std::decay_t<decltype(x)>, std::string>) {
+                    return x;
+                } else {
+                    char buffer[64];
+                    const auto end = std::to_chars(buffer, buffer + sizeof buffer, x).ptr;
+                    return std::string(buffer, end);  // shortest text that reads back exactly
+                }
+            },
+            v);
+    };
+    const auto& docs = probe::transducer_parameter_docs();
+    std::set<std::string> keys, records;
+    for (const auto& doc : docs) {
+        EXPECT_TRUE(keys.insert(doc.key).second) << doc.key;
+        EXPECT_TRUE(records.insert(doc.record_key).second) << doc.record_key;
+    }
+    for (const probe::Transducer& preset : probe::transducer_presets()) {
+        probe::Transducer t;
+        for (const auto& doc : docs) doc.set(t, text(doc.get(preset)), "test");
+        for (const auto& doc : docs)
+            EXPECT_EQ(doc.get(t), doc.get(preset)) << preset.name << ": " << doc.key;
+    }
+    probe::Transducer t;
+    for (const auto& doc : docs) {
+        if (std::holds_alternative<std::string>(doc.get(t))) continue;
+        EXPECT_THROW(doc.set(t, "12x", "test"), base::InputError) << doc.key;
+        EXPECT_THROW(doc.set(t, "", "test"), base::InputError) << doc.key;
+    }
 }
 
 TEST(Transducer, ImpossibleGeometryIsRejected) {

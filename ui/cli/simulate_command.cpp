@@ -124,28 +124,11 @@ std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::T
 
 probe::Transducer make_transducer(const SimulateOptions& o, const std::string& preset) {
     probe::Transducer t = probe::find_transducer(preset, "--probe");
-    if (o.type) t.type = probe::parse_transducer_type(*o.type, "--type", "");
-    if (o.elements) t.elements = *o.elements;
-    if (o.lines) t.lines = *o.lines;
-    if (o.pitch) t.pitch_mm = *o.pitch;
-    if (o.element_width) t.element_width_mm = *o.element_width;
-    if (o.radius) t.radius_mm = *o.radius;
-    if (o.fov) t.fov_deg = *o.fov;
-    if (o.frequency) t.frequency_mhz = *o.frequency;
-    if (o.bandwidth) t.bandwidth = *o.bandwidth;
-    if (o.band_shape) t.band_shape = *o.band_shape;
-    if (o.focus) t.focus_mm = *o.focus;
-    if (o.f_number) t.f_number = *o.f_number;
-    if (o.rx_f_number) t.rx_f_number = *o.rx_f_number;
-    if (o.cycles) t.cycles = *o.cycles;
-    if (o.tx_apodization)
-        t.tx_apodization = probe::parse_apodization(*o.tx_apodization, "--tx-apodization", "");
-    if (o.rx_apodization)
-        t.rx_apodization = probe::parse_apodization(*o.rx_apodization, "--rx-apodization", "");
-    if (o.elevation_focus) t.elevation_focus_mm = *o.elevation_focus;
-    if (o.slice_thickness) t.slice_thickness_mm = *o.slice_thickness;
-    if (o.depth) t.depth_mm = *o.depth;
-    if (o.face_reflectivity) t.face_reflectivity = *o.face_reflectivity;
+    for (const auto& doc : probe::transducer_parameter_docs()) {
+        const auto given = o.transducer.find(doc.key);
+        if (given != o.transducer.end() && given->second)
+            doc.set(t, *given->second, std::string("--") + doc.key);
+    }
     return t;
 }
 
@@ -180,28 +163,10 @@ extern "C" void on_sweep_signal(int) {
 }  // namespace
 
 nlohmann::json transducer_json(const probe::Transducer& t) {
-    return {{"name", t.name},
-            {"description", t.description},
-            {"type", probe::to_string(t.type)},
-            {"elements", t.elements},
-            {"pitch_mm", t.pitch_mm},
-            {"element_width_mm", t.element_width_mm},
-            {"radius_mm", t.radius_mm},
-            {"fov_deg", t.fov_deg},
-            {"frequency_mhz", t.frequency_mhz},
-            {"bandwidth", t.bandwidth},
-            {"band_shape", t.band_shape},
-            {"focus_mm", t.focus_mm},
-            {"f_number", t.f_number},
-            {"tx_apodization", probe::to_string(t.tx_apodization)},
-            {"rx_f_number", t.rx_f_number},
-            {"rx_apodization", probe::to_string(t.rx_apodization)},
-            {"cycles", t.cycles},
-            {"elevation_focus_mm", t.elevation_focus_mm},
-            {"slice_thickness_mm", t.slice_thickness_mm},
-            {"depth_mm", t.depth_mm},
-            {"lines", t.lines},
-            {"face_reflectivity", t.face_reflectivity}};
+    json out = {{"name", t.name}, {"description", t.description}};
+    for (const auto& doc : probe::transducer_parameter_docs())
+        std::visit([&](const auto& value) { out[doc.record_key] = value; }, doc.get(t));
+    return out;
 }
 
 CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
@@ -219,47 +184,15 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
         const std::string flag = std::string("--") + doc.key;
         std::string help = std::string(doc.description) + " (default: the preset's)";
         if (doc.unit[0] != '\0') help += std::string(" [") + doc.unit + "]";
-        const std::string key = doc.key;
-        if (key == "type")
-            cmd->add_option(flag, o.type, help);
-        else if (key == "elements")
-            cmd->add_option(flag, o.elements, help);
-        else if (key == "lines")
-            cmd->add_option(flag, o.lines, help);
-        else if (key == "pitch")
-            cmd->add_option(flag, o.pitch, help);
-        else if (key == "radius")
-            cmd->add_option(flag, o.radius, help);
-        else if (key == "fov")
-            cmd->add_option(flag, o.fov, help);
-        else if (key == "frequency")
-            cmd->add_option(flag, o.frequency, help);
-        else if (key == "bandwidth")
-            cmd->add_option(flag, o.bandwidth, help);
-        else if (key == "band-shape")
-            cmd->add_option(flag, o.band_shape, help);
-        else if (key == "element-width")
-            cmd->add_option(flag, o.element_width, help);
-        else if (key == "focus")
-            cmd->add_option(flag, o.focus, help);
-        else if (key == "f-number")
-            cmd->add_option(flag, o.f_number, help);
-        else if (key == "rx-f-number")
-            cmd->add_option(flag, o.rx_f_number, help);
-        else if (key == "cycles")
-            cmd->add_option(flag, o.cycles, help);
-        else if (key == "tx-apodization")
-            cmd->add_option(flag, o.tx_apodization, help);
-        else if (key == "rx-apodization")
-            cmd->add_option(flag, o.rx_apodization, help);
-        else if (key == "elevation-focus")
-            cmd->add_option(flag, o.elevation_focus, help);
-        else if (key == "slice-thickness")
-            cmd->add_option(flag, o.slice_thickness, help);
-        else if (key == "depth")
-            cmd->add_option(flag, o.depth, help);
-        else if (key == "face-reflectivity")
-            cmd->add_option(flag, o.face_reflectivity, help);
+        const char* type_name = std::visit(
+            [](const auto& value) {
+                using V = std::decay_t<decltype(value)>;
+                return std::is_same_v<V, double> ? "FLOAT"
+                       : std::is_same_v<V, int>  ? "INT"
+                                                 : "TEXT";
+            },
+            doc.get(probe::Transducer{}));
+        cmd->add_option(flag, o.transducer[doc.key], help)->type_name(type_name);
     }
     add_parameter(*cmd, kQualityDoc, o.quality);
     add_parameter(*cmd, kReceiveDoc, o.receive);

@@ -1,5 +1,6 @@
 #pragma once
 // `sonotrace simulate`: B-mode frames from a volume and a transducer.
+#include <map>
 #include <optional>
 #include <string>
 
@@ -44,12 +45,9 @@ struct SimulateOptions {
     SliceOptions volume;
     std::string phantom;  // JSON phantom file instead of a volume
     std::string probe;    // preset; empty = the view's probe
-    // Transducer overrides (unset = the preset's value).
-    std::optional<std::string> type, tx_apodization, rx_apodization;
-    std::optional<int> elements, lines;
-    std::optional<double> pitch, element_width, radius, fov, frequency, bandwidth, band_shape,
-        focus, f_number, rx_f_number, cycles, elevation_focus, slice_thickness, depth,
-        face_reflectivity;
+    // Transducer overrides by probe::transducer_parameter_docs() key, as given (unset =
+    // the preset's value).
+    std::map<std::string, std::optional<std::string>> transducer;
     std::string quality = "standard";
     std::string receive = "monostatic";
     std::string trace = "2d";
