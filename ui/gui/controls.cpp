@@ -13,10 +13,13 @@ namespace sonotrace::gui {
 
 namespace {
 
-std::string transducer_help(const char* key) {
+// A slider over a transducer parameter: its unit and help from the parameter's row.
+SliderSpec transducer_slider(Control control, const char* label, const char* key, double min,
+                             double max) {
     for (const auto& doc : probe::transducer_parameter_docs())
-        if (std::string(doc.key) == key) return doc.description;
-    return {};
+        if (std::string(doc.key) == key)
+            return {control, label, doc.unit, min, max, doc.description};
+    throw std::logic_error(std::string("no transducer parameter ") + key);
 }
 
 // What the materials of a scene can do to a beam, and the materials that do it (quoted
@@ -64,13 +67,14 @@ std::string speed_of(const imaging::Scene::Material& m) {
 
 const std::vector<SliderSpec>& slider_specs() {
     static const std::vector<SliderSpec> specs = {
-        {Control::depth, "depth", "mm", 20.0, 160.0, transducer_help("depth")},
-        {Control::focus, "focus", "mm", 5.0, 160.0, transducer_help("focus")},
-        {Control::lines, "scan lines", "", 16.0, 256.0, transducer_help("lines")},
-        {Control::fov, "field of view", "degrees", 10.0, 120.0, transducer_help("fov")},
-        {Control::frequency, "frequency", "MHz", 1.0, 12.0, transducer_help("frequency")},
-        {Control::gain, "gain", "dB", -20.0, 80.0, ui::kGainDoc.description},
-        {Control::dynamic_range, "dynamic range", "dB", 20.0, 100.0, ui::kRangeDoc.description},
+        transducer_slider(Control::depth, "depth", "depth", 20.0, 160.0),
+        transducer_slider(Control::focus, "focus", "focus", 5.0, 160.0),
+        transducer_slider(Control::lines, "scan lines", "lines", 16.0, 256.0),
+        transducer_slider(Control::fov, "field of view", "fov", 10.0, 120.0),
+        transducer_slider(Control::frequency, "frequency", "frequency", 1.0, 12.0),
+        {Control::gain, "gain", ui::kGainDoc.unit, -20.0, 80.0, ui::kGainDoc.description},
+        {Control::dynamic_range, "dynamic range", ui::kRangeDoc.unit, 20.0, 100.0,
+         ui::kRangeDoc.description},
         {Control::tgc, "TGC", "dB", -30.0, 30.0,
          "time-gain compensation at this depth, added to the automatic curve (2 x 0.6 "
          "dB/(cm MHz) x f x depth, brain attenuation)"},
