@@ -27,27 +27,16 @@
 // shared element terms, their mirror images, and the rows interpolated between them.
 namespace sonotrace::imaging {
 
-// What a row depends on, of a transducer: everything but its imaging depth, which only
-// says how many rows a table takes (and, by powers of two, their spacing).
-using RowStoreKey = std::array<double, 17>;
+// What a row depends on, of a transducer: the parameters that shape the PSF's rows
+// (TransducerParameterDoc::shapes_psf_rows: everything but the imaging depth, which only
+// says how many rows a table takes, and what the lateral rows do not see), and the rows'
+// spacing.
+using RowStoreKey = std::pair<std::vector<probe::TransducerParameterDoc::Value>, double>;
 RowStoreKey row_store_key(const probe::Transducer& t, double dz) {
-    return {double(int(t.type)),
-            double(t.elements),
-            t.pitch_mm,
-            t.radius_mm,
-            t.fov_deg,
-            t.frequency_mhz,
-            t.bandwidth,
-            t.band_shape,
-            t.cycles,
-            t.focus_mm,
-            t.f_number,
-            double(int(t.tx_apodization)),
-            t.rx_f_number,
-            double(int(t.rx_apodization)),
-            double(t.lines),
-            t.element_width_mm,
-            dz};
+    RowStoreKey key{{}, dz};
+    for (const auto& doc : probe::transducer_parameter_docs())
+        if (doc.shapes_psf_rows) key.first.push_back(doc.get(t));
+    return key;
 }
 
 namespace {

@@ -206,18 +206,18 @@ const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
         {"cycles", "", "excitation length in cycles of a sine at the centre frequency", "cycles",
          member_value<&T::cycles>, set_member<&T::cycles>},
         {"elevation-focus", "mm", "depth of the fixed elevation (lens) focus", "elevation_focus_mm",
-         member_value<&T::elevation_focus_mm>, set_member<&T::elevation_focus_mm>},
+         member_value<&T::elevation_focus_mm>, set_member<&T::elevation_focus_mm>, false},
         {"slice-thickness", "mm", "elevation beam width (-6 dB) at the elevation focus",
          "slice_thickness_mm", member_value<&T::slice_thickness_mm>,
-         set_member<&T::slice_thickness_mm>},
+         set_member<&T::slice_thickness_mm>, false},
         {"depth", "mm", "imaging depth from the face along each scan line", "depth_mm",
-         member_value<&T::depth_mm>, set_member<&T::depth_mm>},
+         member_value<&T::depth_mm>, set_member<&T::depth_mm>, false},
         {"lines", "", "number of scan lines", "lines", member_value<&T::lines>,
          set_member<&T::lines>},
         {"face-reflectivity", "",
          "intensity fraction the transducer face reflects back into the tissue",
          "face_reflectivity", member_value<&T::face_reflectivity>,
-         set_member<&T::face_reflectivity>},
+         set_member<&T::face_reflectivity>, false},
     };
     return docs;
 }

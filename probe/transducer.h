@@ -91,6 +91,9 @@ struct TransducerParameterDoc {
     // From text (a number, or a name); throws base::InputError(source, "") if it is not
     // one. Ranges are Transducer::validate's.
     void (*set)(Transducer& t, const std::string& text, const std::string& source);
+    // Whether the lateral PSF's rows depend on it (imaging/psf_build.cpp keys the rows it
+    // shares between tables by these; the depth only says how many rows a table takes).
+    bool shapes_psf_rows = true;
 };
 const std::vector<TransducerParameterDoc>& transducer_parameter_docs();
 
