@@ -2,9 +2,11 @@
 // (declared in imaging/simulation.h).
 #include "imaging/simulation.h"
 
+#include <iostream>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "tissue/base/error.h"
@@ -107,7 +109,17 @@ PhysicsSwitches disabled_physics(const std::string& list, const std::string& sou
     std::size_t start = 0;
     while (start <= list.size() && !list.empty()) {
         const std::size_t comma = std::min(list.find(',', start), list.size());
-        const std::string name = list.substr(start, comma - start);
+        std::string name = list.substr(start, comma - start);
+        // Names a switch had before the names were one (accepted for one release).
+        static const std::pair<std::string_view, std::string_view> kOldNames[] = {
+            {"absorption", "attenuation"}};
+        for (const auto& [old_name, now] : kOldNames) {
+            if (name != old_name) continue;
+            std::cerr << "sonotrace: warning: " << source << (field.empty() ? "" : ": " + field)
+                      << ": physics '" << old_name << "' is now called '" << now
+                      << "' (the old name goes in the next release)\n";
+            name = std::string(now);
+        }
         const auto& names = physics_switch_names();
         const auto found = std::find_if(names.begin(), names.end(),
                                         [&](const PhysicsSwitchName& n) { return n.name == name; });

@@ -1,5 +1,7 @@
 #include "phantoms/trace_setup.h"
 
+#include <iostream>
+
 #include "simulator/sources.h"
 #include "tissue/base/error.h"
 #include "tissue/base/json_util.h"
@@ -26,8 +28,8 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
     jsonio::require_known_keys(
         t,
         {"refraction", "specular_reflection", "diffuse_reflection", "scattering", "attenuation",
-         "lobe_exponent", "lobe_weight", "lobe_scale", "roulette_energy", "step", "frequency",
-         "ring", "comment"},
+         "absorption", "lobe_exponent", "lobe_weight", "lobe_scale", "roulette_energy", "step",
+         "frequency", "ring", "comment"},
         src, "trace");
     auto flag = [&](const char* key, bool& value) {
         if (!t.contains(key)) return;
@@ -40,6 +42,12 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
     flag("diffuse_reflection", s.diffuse_reflection);
     flag("scattering", s.scattering);
     flag("attenuation", s.attenuation);
+    if (t.contains("absorption")) {  // its name before the switches' names were one
+        std::cerr << "sonotrace: warning: " << src
+                  << ": trace.absorption is now called trace.attenuation (the old name goes in "
+                     "the next release)\n";
+        flag("absorption", s.attenuation);
+    }
     if (t.contains("lobe_exponent")) {
         const std::string v = jsonio::get_string(t, "lobe_exponent", src, "trace");
         if (v == "roughness")

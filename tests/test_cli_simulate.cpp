@@ -88,7 +88,7 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
         {"--tgc 10:0,x", "--tgc"},
         {"--formats gif", "--formats"},
         {"--receive echo", "--receive"},
-        {"--disable absorption", "unknown physics 'absorption'"},
+        {"--disable gravity", "unknown physics 'gravity'"},
         {"--pose 'at=1,2'", "--pose"},
         {"--pose 'at=500,0,0 beam=0,0,-1'", "outside the volume"},
         {"--sweep elevation:10", "AXIS:LENGTH:STEP"},

@@ -60,8 +60,8 @@ TEST(CliTrace, VolumeSliceByteIdenticalOnOneAndTwoThreads) {
 TEST(CliTrace, DisableTakesSimulatesSwitchNames) {
     ScratchDir dir;
     auto trace = [&](const std::string& disable) {
-        const auto r = run(dir, "trace -q --particles 400 --disable " + disable +
-                                    " --out " + (dir / "out"));
+        const auto r =
+            run(dir, "trace -q --particles 400 --disable " + disable + " --out " + (dir / "out"));
         EXPECT_EQ(r.exit_code, 0) << r.err;
         return nlohmann::json::parse(slurp(dir / "out/trace.json"));
     };
@@ -70,6 +70,13 @@ TEST(CliTrace, DisableTakesSimulatesSwitchNames) {
     EXPECT_FALSE(off["settings"]["diffuse_reflection"].get<bool>());
     EXPECT_EQ(off["settings"]["max_bounces"].get<int>(), 0);
     EXPECT_EQ(off["ledger"]["absorbed"].get<double>(), 0.0);
+    // The old name, accepted for a release with a warning that names the new one.
+    const auto r = run(dir, "trace -q --particles 400 --disable absorption --out " + (dir / "old"));
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("physics 'absorption' is now called 'attenuation'"), std::string::npos)
+        << r.err;
+    EXPECT_FALSE(nlohmann::json::parse(slurp(dir / "old/trace.json"))["settings"]["attenuation"]
+                     .get<bool>());
     const auto on = trace("refraction");
     EXPECT_FALSE(on["settings"]["refraction"].get<bool>());
     EXPECT_EQ(on["settings"]["max_bounces"].get<int>(), 64);
@@ -83,9 +90,7 @@ TEST(CliTrace, BadInputFailsWithoutPartialOutput) {
         const char* mention;
     } cases[] = {{"--config fig9", "unknown configuration 'fig9'"},
                  {"--disable gravity", "--disable: unknown physics 'gravity'"},
-                 // simulate's switch names: the old name of attenuation is unknown, and
                  // the image's speckle is no trace's
-                 {"--disable absorption", "unknown physics 'absorption'"},
                  {"--disable speckle", "a trace makes no image"},
                  {"--mode wave", "--mode"},
                  {"--step 0", "field 'step'"},
