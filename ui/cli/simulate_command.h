@@ -81,6 +81,11 @@ struct SweepPlacement {
     imaging::ScenePlacement scene;
     double offset_mm = 0.0;  // along the sweep
 };
+// --sweep: AXIS:LENGTH:STEP moves the scene's probe from -LENGTH/2 to +LENGTH/2 along
+// AXIS (elevation, lateral, axial: the probe's own axes; or X,Y,Z in world mm); or a
+// text file with one --pose per line (ui/cli/simulate_sweep.cpp). Empty: `base` alone.
+std::vector<SweepPlacement> sweep_placements(const std::string& sweep,
+                                             const imaging::ScenePlacement& base);
 
 // What a simulate run is made of, every option validated and the scene loaded: the
 // settings, the scene, and the probe's placements (one without --sweep).
