@@ -114,7 +114,7 @@ CaseResult resolution(const CaseContext& ctx) {
     // one reflection, no back wall) is the pulse-echo waveform's envelope: its FWHM in
     // depth is c0/2 times the envelope's in time. The waveform (an n-cycle sine (*) the
     // two-way impulse response, probe/pulse.h) is checked against a first-principles
-    // construction in tests/test_psf.cpp; here the image must keep its width, within 10 %.
+    // construction in tests/imaging/test_psf.cpp; here the image must keep its width, within 10 %.
     const tissue::AcousticProperties water = [] {
         tissue::AcousticProperties p;
         p[tissue::Property::speed_of_sound] = float(kC0);

@@ -1,7 +1,7 @@
 // DICOM series of several files (a directory, as `--volume DIR` reads it): up to eight
 // files cut from the input at fuzz::kFileSeparator, so positions, orientations, spacings,
 // series UIDs and frame counts disagree between files. Seeds: series written by
-// tests/test_dicom_io.cpp (DicomIo.SeriesSeedOfTheFuzzerIsASoundSeries reads them back).
+// tests/tissue/test_dicom_io.cpp (DicomIo.SeriesSeedOfTheFuzzerIsASoundSeries reads them back).
 #include "fuzz_util.h"
 #include "tissue/dicom_io.h"
 

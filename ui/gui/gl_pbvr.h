@@ -4,7 +4,7 @@
 // drawn as discs with a depth test into a sub-pixel framebuffer, each repetition's
 // sub-pixels averaged into a float accumulation. The CPU renderer stays the reference
 // (and the CLI's): for the same particles both images agree within the PSNR the test
-// states (tests/test_gl_pbvr.cpp).
+// states (tests/gui/test_gl_pbvr.cpp).
 //
 // Coverage and depth follow the CPU's Z-buffer: a disc covers the sub-pixels whose centres
 // lie within its radius; the nearest particle wins (the depth buffer holds camera depth

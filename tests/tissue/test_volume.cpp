@@ -11,7 +11,7 @@
 #include <fstream>
 #include <random>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/memory.h"
 #include "tissue/volume.h"

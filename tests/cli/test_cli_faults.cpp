@@ -18,7 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/videoio.hpp>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 
 namespace sonotrace {
 namespace {

@@ -3,7 +3,7 @@
 
 #include <fstream>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/raw_io.h"
 #include "tissue/volume_io.h"
 

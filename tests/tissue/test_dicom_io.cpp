@@ -25,7 +25,7 @@
 #include <optional>
 #include <vector>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 #if defined(__SANITIZE_ADDRESS__)
 #define SONOTRACE_TEST_ASAN 1
 #elif defined(__has_feature)

@@ -8,7 +8,7 @@
 #include <set>
 
 #include "probe/pose.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/resample.h"
 
 namespace sonotrace::tissue {

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/image_io.h"
 #include "tissue/volume_io.h"

@@ -10,7 +10,7 @@
 
 #include "simulator/interactions.h"
 #include "simulator/rng.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 
 namespace sonotrace::simulator {
 namespace {

@@ -12,7 +12,7 @@
 #include <limits>
 #include <vector>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/nifti_io.h"
 #include "tissue/volume_io.h"
 

@@ -12,7 +12,7 @@
 #include "imaging/dataset/dataset.h"
 #include "imaging/dataset/frames.h"
 #include "imaging/dataset/shard.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 
 namespace sonotrace::imaging::dataset {
 namespace {

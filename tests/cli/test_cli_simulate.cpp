@@ -15,7 +15,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "imaging/scene/scene.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/image_io.h"
 
 namespace sonotrace {

@@ -6,7 +6,7 @@
 
 #include "phantoms/phantom.h"
 #include "phantoms/trace_setup.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/base/error.h"
 #include "tissue/base/json_util.h"
 #include "tissue/tissue_table.h"

@@ -20,7 +20,7 @@
 #include "simulator/interactions.h"
 #include "simulator/trace_setups.h"
 #include "simulator/tracer.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/tissue_table.h"
 
 namespace sonotrace::simulator {

@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/image_io.h"
 #include "tissue/nifti_io.h"
 

@@ -8,7 +8,7 @@
 #include <fstream>
 #include <string>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/base/error.h"
 #include "tissue/base/json_util.h"
 

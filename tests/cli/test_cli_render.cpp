@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "probe/transducer.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/raw_io.h"
 
 namespace sonotrace {

@@ -12,7 +12,7 @@
 
 #include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/base/error.h"
 
 namespace sonotrace::imaging::pbvr {

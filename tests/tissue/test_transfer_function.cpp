@@ -4,7 +4,7 @@
 
 #include <fstream>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
 #include "tissue/volume_io.h"

@@ -13,7 +13,7 @@
 
 #include "imaging/pbvr/pbvr.h"
 #include "imaging/pbvr/tetra.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 
 namespace sonotrace::imaging::pbvr {
 namespace {

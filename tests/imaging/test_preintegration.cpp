@@ -7,7 +7,7 @@
 #include <random>
 
 #include "imaging/pbvr/preintegration.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 
 namespace sonotrace::imaging::pbvr {
 namespace {
