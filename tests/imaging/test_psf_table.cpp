@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <cstring>
 #include <random>
+#include <string>
+#include <variant>
 #include <vector>
 
 #include "imaging/psf.h"
@@ -54,6 +56,50 @@ TEST(Psf, TablesSharingRowsAcrossDepthsEqualFreshOnes) {
                 EXPECT_EQ(shared->plane_echo(l, z, 0.05), fresh->plane_echo(l, z, 0.05))
                     << preset << " line " << l << " z " << z;
     }
+}
+
+// The row store's key is the parameter rows that shape the PSF
+// (TransducerParameterDoc::shapes_psf_rows). Each parameter changed by 10 % (or 2, or to
+// another apodization): one that shapes the rows gets a table of its own, equal to one
+// built afresh, even right after its neighbour's table was made (a key without it would
+// hand back the neighbour's); one that does not leaves a fresh table's row at the focus
+// as it was (a parameter marked so wrongly changes it).
+TEST(Psf, TheRowStoresKeyHoldsEveryParameterThatShapesTheRows) {
+    probe::Transducer base = probe::find_transducer("linear", "test");
+    base.lines = 16;
+    const auto reference = imaging::PsfTable::build(base);
+    auto focal_row = [](const probe::Transducer& t, const imaging::PsfTable& table) {
+        const int focus = std::min(int(std::lround(t.focus_mm / table.dz())), table.depths() - 1);
+        return table.row(t.lines / 2, focus).power;
+    };
+    int shaping = 0, not_shaping = 0;
+    for (const auto& doc : probe::transducer_parameter_docs()) {
+        probe::Transducer t = base;
+        const auto value = doc.get(base);
+        if (const double* x = std::get_if<double>(&value))
+            doc.set(t, std::to_string(*x * 1.1), "test");
+        else if (const int* n = std::get_if<int>(&value))
+            doc.set(t, std::to_string(*n + 2), "test");
+        else if (std::string(doc.key).find("apodization") != std::string::npos)
+            doc.set(t, std::get<std::string>(value) == "hann" ? "tukey" : "hann", "test");
+        else
+            continue;  // the array type: another geometry altogether
+        t.validate("test");
+        const auto fresh = imaging::PsfTable::build(t);
+        if (doc.shapes_psf_rows) {
+            imaging::PsfTable::of(base);  // the neighbour's table and rows, just made
+            const auto shared = imaging::PsfTable::of(t);
+            EXPECT_EQ(shared->focal_power(), fresh->focal_power()) << doc.key;
+            EXPECT_EQ(focal_row(t, *shared), focal_row(t, *fresh)) << doc.key;
+            ++shaping;
+        } else {
+            EXPECT_EQ(fresh->dz(), reference->dz()) << doc.key;
+            EXPECT_EQ(focal_row(t, *fresh), focal_row(base, *reference)) << doc.key;
+            ++not_shaping;
+        }
+    }
+    EXPECT_GE(shaping, 14);
+    EXPECT_GE(not_shaping, 4);
 }
 
 // The computed rows share element terms between the lines of one depth at one
