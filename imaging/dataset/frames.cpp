@@ -90,7 +90,8 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
         (1.0 + 1e-9);
     scene.apply_to(s);
     s.validate(spec_.path + " (" + where + ")");
-    SimulatedFrame simulated = simulate_plane(scene.mapper, placement, s, spec_.write_labels);
+    SimulatedFrame simulated =
+        simulate_plane(scene.mapper, placement, s, spec_.write_labels || spec_.write_echo_labels);
     Frame& frame = simulated.frame;
     // -- onto the W x H grid
     const ScanConverted& image = frame.image;
@@ -103,6 +104,8 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     grey_levels(image.image)(valid).copyTo(out.bmode(valid));
     out.labels = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
     if (simulated.labels) (*simulated.labels)(valid).copyTo(out.labels(valid));
+    out.echo_labels = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
+    if (simulated.echo_labels) (*simulated.echo_labels)(valid).copyTo(out.echo_labels(valid));
     out.envelope = std::move(frame.envelope);
     out.rf = std::move(frame.rf);
     out.energy = std::move(frame.absorbed);

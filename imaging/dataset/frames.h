@@ -20,8 +20,9 @@ struct DatasetFrame {
     double pixel_mm = 0.0;
     glm::dvec2 origin_mm{0.0};
     int valid_width = 0, valid_height = 0;
-    cv::Mat bmode;   // CV_8U, H x W (display grey levels, as simulate's png8)
-    cv::Mat labels;  // CV_8U, H x W: tissue index (1-based, the tissue table), 0 outside
+    cv::Mat bmode;        // CV_8U, H x W (display grey levels, as simulate's png8)
+    cv::Mat labels;       // CV_8U, H x W: tissue index (1-based, the tissue table), 0 outside
+    cv::Mat echo_labels;  // the same where the echoes show them (scan_convert_labels_at_echo)
     LineData envelope, rf;
     tissue::Volume energy;  // absorbed energy on the map grid
 };

@@ -189,6 +189,7 @@ void write_shard(const std::string& path, const std::string& output_name, const 
     };
     if (spec.write_bmode) stack("bmode", &DatasetFrame::bmode);
     if (spec.write_labels) stack("labels", &DatasetFrame::labels);
+    if (spec.write_echo_labels) stack("labels_echo", &DatasetFrame::echo_labels);
 
     std::vector<FrameRow> rows(frames.size());
     for (std::size_t f = 0; f < frames.size(); ++f) {

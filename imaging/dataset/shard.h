@@ -3,6 +3,7 @@
 //
 //   /bmode     uint8 [n, H, W]   the frames' grey levels (as simulate's png8)
 //   /labels    uint8 [n, H, W]   tissue index per pixel (1-based, the manifest's legend)
+//   /labels_echo  uint8 [n, H, W]  the same where the echoes show it (on request)
 //   /frames    [n] table         per frame: index, seed, source, probe, frequency_mhz,
 //                                depth_mm, focus_mm, gain_db, dynamic_range_db, position,
 //                                lateral, axial, elevation (world mm / unit), pixel_mm,

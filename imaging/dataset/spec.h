@@ -30,7 +30,9 @@
 //   "quality": "interactive",        interactive, standard or high (default standard)
 //   "trace": "3d",                   2d (default) or 3d: the slab of the elevation beam
 //                                    (simulate --trace)
-//   "write": ["bmode", "labels"]     also "envelope", "rf", "energy"
+//   "write": ["bmode", "labels"]     also "labels_echo" (the labels where the echoes show
+//                                    them, simulate's NAME_labels_echo.png), "envelope",
+//                                    "rf", "energy"
 // }
 #include <algorithm>
 #include <cstdint>
@@ -71,8 +73,8 @@ struct Spec {
     std::string disable;  // comma list
     Quality quality = Quality::standard;
     int trace_dimensions = 2;
-    bool write_bmode = true, write_labels = true, write_envelope = false, write_rf = false,
-         write_energy = false;
+    bool write_bmode = true, write_labels = true, write_echo_labels = false, write_envelope = false,
+         write_rf = false, write_energy = false;
     // The spec as read, canonical (sorted keys, no whitespace), and a digest of what it
     // names and what makes the frames: each source file's content (a phantom, a volume
     // file, a DICOM directory's files, an image stack's files, a transfer-function file)
