@@ -54,9 +54,22 @@ def violations(includes):
     return out
 
 
+def source_files(root):
+    """The repository's C++ files: git's list, or the tree's outside build folders."""
+    listed = subprocess.run(["git", "-C", root, "ls-files", "*.h", "*.cpp"],
+                            capture_output=True, text=True)
+    if listed.returncode == 0 and listed.stdout.strip():
+        return listed.stdout.split()
+    files = []
+    for folder in sorted({prefix.split("/")[0] for prefix, _, _ in LAYERS}):
+        for here, _, names in os.walk(os.path.join(root, folder)):
+            files += [os.path.relpath(os.path.join(here, n), root) for n in names
+                      if n.endswith((".h", ".cpp"))]
+    return files
+
+
 def repository_includes(root):
-    files = subprocess.run(["git", "-C", root, "ls-files", "*.h", "*.cpp"], check=True,
-                           capture_output=True, text=True).stdout.split()
+    files = source_files(root)
     pairs = []
     for f in files:
         if library(f) is None:
