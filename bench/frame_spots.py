@@ -3,7 +3,7 @@
 dB), over seeds: lone bright spots in the parenchyma and the ventricles' contrast.
 
     bench/frame_spots.py [--view temporal] [--seeds 16] [--first-seed 1] [--group 4]
-                         [--option key=value ...]
+                         [--labels true|echo] [--option key=value ...]
 
 Spots: the frame is cut into 1 mm patches; a patch of parenchyma (every pixel brain, 1 mm
 clear of any other label: interfaces are not spots) whose level (10 log10 of its mean
@@ -13,7 +13,9 @@ components of at least 20 mm^2 (not the thin sulci), eroded by 1 mm, against the
 parenchyma eroded by 1 mm, per group of seeds (their frames pooled): as the mean grey
 level in dB (what the eye compares) and, in brackets, as mean intensities. Sulci: the
 same of the pia-arachnoid's samples (imaging/sulcal_membranes.h: the 0.5 mm band of the
-sulcal CSF along the cortex) against the parenchyma. Runs the Python module (SONOTRACE_PYTHON_DIR, default build/python).
+sulcal CSF along the cortex) against the parenchyma. --labels echo measures against the
+labels where the echoes show the anatomy (frame.echo_labels) instead of where it lies.
+Runs the Python module (SONOTRACE_PYTHON_DIR, default build/python).
 """
 import argparse
 import os
