@@ -13,20 +13,28 @@
 
 namespace sonotrace::imaging {
 
+namespace {
+// The texel (i, j) of the plane grid under a probe-plane point (centres at (i + 1/2) h in
+// the map frame); false off the grid.
+bool texel_under(const glm::dvec2& plane, const PlaneGrid& grid, int& i, int& j) {
+    const glm::dvec3 spacing = grid.geometry.spacing;
+    const glm::ivec3 dims = grid.geometry.dims;
+    const glm::dvec2 map = plane + grid.to_map;
+    i = int(std::floor(map.x / spacing.x + 0.5));
+    j = int(std::floor(map.y / spacing.y + 0.5));
+    return i >= 0 && j >= 0 && i < dims.x && j < dims.y;
+}
+}  // namespace
+
 cv::Mat scan_convert_labels(const tissue::Volume& labels, const PlaneGrid& grid,
                             const ScanConverted& frame) {
     cv::Mat out(frame.image.rows, frame.image.cols, CV_8U, cv::Scalar(0));
-    const glm::dvec3 spacing = labels.geometry().spacing;
-    const glm::ivec3 dims = labels.geometry().dims;
     for (int r = 0; r < out.rows; ++r) {
         for (int c = 0; c < out.cols; ++c) {
             if (!frame.inside.at<uint8_t>(r, c)) continue;
-            // Probe plane -> map frame -> texel (centres at (i + 1/2) h in the map frame).
-            const glm::dvec2 plane = frame.origin + glm::dvec2(c, r) * frame.pixel_mm;
-            const glm::dvec2 map = plane + grid.to_map;
-            const int i = int(std::floor(map.x / spacing.x + 0.5));
-            const int j = int(std::floor(map.y / spacing.y + 0.5));
-            if (i < 0 || j < 0 || i >= dims.x || j >= dims.y) continue;
+            int i = 0, j = 0;
+            if (!texel_under(frame.origin + glm::dvec2(c, r) * frame.pixel_mm, grid, i, j))
+                continue;
             out.at<uint8_t>(r, c) = uint8_t(std::clamp(labels.at(i, j, 0), 0.0f, 255.0f));
         }
     }
@@ -37,14 +45,10 @@ cv::Mat scan_convert_labels_at_echo(const tissue::Volume& labels, const tissue::
                                     const PlaneGrid& grid, const probe::Transducer& t,
                                     const ScanConverted& frame) {
     const probe::ScanGeometry geometry(t);
-    const glm::dvec3 spacing = labels.geometry().spacing;
-    const glm::ivec3 dims = labels.geometry().dims;
+    const glm::dvec3 spacing = grid.geometry.spacing;
     const tissue::Volume& speed = maps[tissue::Property::speed_of_sound];
     auto texel = [&](const glm::dvec2& plane, int& i, int& j) {
-        const glm::dvec2 map = plane + grid.to_map;
-        i = int(std::floor(map.x / spacing.x + 0.5));
-        j = int(std::floor(map.y / spacing.y + 0.5));
-        return i >= 0 && j >= 0 && i < dims.x && j < dims.y;
+        return texel_under(plane, grid, i, j);
     };
     // Per line, the true depth at each displayed depth: the display puts an echo at
     // c0 t / 2, so true depth d shows at the integral of c0 / c over [0, d] along the line.

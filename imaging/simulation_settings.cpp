@@ -150,14 +150,17 @@ void switch_off(const PhysicsSwitches& physics, simulator::TraceSettings& t) {
 }
 
 void apply(const PhysicsSwitches& physics, SimulationSettings& s) {
+    // Every switch on (the tracer's defaults), then off what `physics` has off.
     simulator::TraceSettings& t = s.trace;
-    t.refraction = physics.refraction;
-    t.specular_reflection = physics.specular_reflection;
-    t.diffuse_reflection = physics.diffuse_reflection;
-    t.scattering = physics.scattering;
-    t.attenuation = physics.attenuation;
-    t.shear_conversion = physics.shear_conversion;
-    t.max_bounces = physics.multiple_bounces ? 64 : 0;  // 0: retired at the first reflection
+    const simulator::TraceSettings on;
+    t.refraction = on.refraction;
+    t.specular_reflection = on.specular_reflection;
+    t.diffuse_reflection = on.diffuse_reflection;
+    t.scattering = on.scattering;
+    t.attenuation = on.attenuation;
+    t.shear_conversion = on.shear_conversion;
+    t.max_bounces = on.max_bounces;
+    switch_off(physics, t);
     if (!physics.face_reflection) s.transducer.face_reflectivity = 0.0;
     s.imaging.speckle = physics.speckle;
 }
