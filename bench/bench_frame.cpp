@@ -15,23 +15,23 @@
 #include <string>
 
 #include "imaging/psf.h"
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
+#include "phantoms/scene/scene.h"
 #include "tissue/property_maps.h"
 
 namespace {
 
 using namespace sonotrace;
 
-const imaging::Scene& scene() {
-    static const auto s = imaging::load_scene({});  // the default: Colin27, craniotomy view
+const scene::Scene& scene() {
+    static const auto s = scene::load_scene({});  // the default: Colin27, craniotomy view
     return *s;
 }
 
 // new_seeds: each frame with its own seed, as a dataset makes them: the receive weights
 // (kept between frames of one seed) are made again every frame.
 void frame(benchmark::State& state, imaging::Quality quality, bool new_seeds = false) {
-    const imaging::Scene& s = scene();
+    const scene::Scene& s = scene();
     imaging::SimulationSettings settings;
     settings.transducer = probe::find_transducer("convex", "bench");
     settings.quality = quality;
@@ -92,7 +92,7 @@ BENCHMARK_CAPTURE(frame, high, imaging::Quality::high)
 // at the standard quality: their ratio is the cost of --trace 3d. peak_rss_mb: the
 // process's peak so far (the 3D runs come last).
 void whole_frame(benchmark::State& state, int dimensions) {
-    const imaging::Scene& s = scene();
+    const scene::Scene& s = scene();
     imaging::SimulationSettings settings;
     settings.transducer = probe::find_transducer("convex", "bench");
     settings.quality = imaging::Quality::standard;

@@ -62,9 +62,9 @@
 #include "imaging/picture.h"
 #include "imaging/psf.h"
 #include "imaging/receive_weights.h"
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "imaging/trace_pictures.h"
+#include "phantoms/scene/scene.h"
 #include "probe/aperture.h"
 #include "tissue/image_io.h"
 #include "tissue/tissue_table.h"
@@ -116,8 +116,8 @@ float path_energy(const std::vector<simulator::Path<2>>& paths) {
     return e;
 }
 
-double measure(const imaging::Scene& head, const char* what,
-               const imaging::PhysicsSwitches& physics, const Options& o) {
+double measure(const scene::Scene& head, const char* what, const imaging::PhysicsSwitches& physics,
+               const Options& o) {
     const imaging::ScenePlacement& scene = head.start;
     imaging::SimulationSettings s;
     s.transducer = probe::find_transducer(o.temporal ? "phased" : "convex", "ventricle_contrast");
@@ -498,9 +498,9 @@ int main(int argc, char** argv) {
             return 1;
         }
     }
-    imaging::SceneOptions options;
+    scene::SceneOptions options;
     options.view = o.temporal ? "temporal" : "craniotomy";
-    const auto head = imaging::load_scene(options);
+    const auto head = scene::load_scene(options);
     struct Variant {
         const char* name;
         std::vector<bool imaging::PhysicsSwitches::*> off;

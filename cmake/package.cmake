@@ -12,7 +12,7 @@ set(sonotrace_exported_modules
   options:sonotrace_options base:sonotrace_base tissue:sonotrace_tissue probe:sonotrace_probe
   simulator:sonotrace_simulator imaging:sonotrace_imaging phantoms:sonotrace_phantoms
   validation:sonotrace_validation scene:sonotrace_scene dataset:sonotrace_dataset
-  cli:sonotrace_ui)
+  dataset_mpi:sonotrace_dataset_mpi cli:sonotrace_ui)
 set(sonotrace_exported_targets "")
 foreach(entry IN LISTS sonotrace_exported_modules)
   string(REPLACE ":" ";" pair "${entry}")
@@ -24,7 +24,7 @@ endforeach()
 
 install(TARGETS ${sonotrace_exported_targets} EXPORT sonotraceTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
-foreach(module tissue probe simulator imaging phantoms ui/cli)
+foreach(module tissue probe simulator imaging phantoms ui/dataset ui/cli)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${module}/ DESTINATION include/sonotrace/${module}
           FILES_MATCHING PATTERN "*.h" PATTERN "presets" EXCLUDE)
 endforeach()

@@ -5,8 +5,9 @@
 
 Every #include "..." of a library's sources (tests and benchmarks aside) must name a
 header of the same library or of one lower in LAYERS; a header of a library on the same
-level (siblings: imaging and phantoms) or above fails, listed with its file. --self-test
-checks the checker on made-up includes, one allowed and two that must fail.
+level (siblings: imaging and phantoms) or above fails, listed with its file, and so does
+an include from a folder of the design card into one after it (FOLDERS). --self-test
+checks the checker on made-up includes, one allowed and three that must fail.
 """
 import os
 import re
@@ -20,16 +21,19 @@ LAYERS = [
     ("tissue/", "sonotrace_tissue", 1),
     ("probe/", "sonotrace_probe", 2),
     ("simulator/", "sonotrace_simulator", 3),
-    ("phantoms/", "sonotrace_phantoms", 4),
     ("imaging/", "sonotrace_imaging", 4),
-    ("imaging/scene/", "sonotrace_scene", 5),
-    ("imaging/dataset/", "sonotrace_dataset", 6),
+    ("phantoms/", "sonotrace_phantoms", 4),
+    ("phantoms/scene/", "sonotrace_scene", 5),
     ("phantoms/validation/", "sonotrace_validation", 6),
+    ("ui/dataset/", "sonotrace_dataset", 6),
     ("ui/cli/", "sonotrace_ui", 7),
     # The GUI and the Python module still build on the command line's library.
     ("ui/gui/", "sonotrace_gui_core", 8),
     ("ui/python/", "sonotrace_python", 8),
 ]
+# The design card's folders in the same order: a folder's code includes nothing from a
+# folder after it (so no library under imaging/ reaches into phantoms/ or ui/).
+FOLDERS = ["tissue", "probe", "simulator", "imaging", "phantoms", "ui"]
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
 
 
@@ -47,6 +51,11 @@ def violations(includes):
     for source, header in includes:
         a, b = library(source), library(header)
         if a is None or b is None or a[1] == b[1]:
+            continue
+        folder_a, folder_b = source.split("/")[0], header.split("/")[0]
+        if FOLDERS.index(folder_b) > FOLDERS.index(folder_a):
+            out.append(f"{source}: includes {header} from the folder {folder_b}/, which "
+                       f"comes after {folder_a}/")
             continue
         if b[2] >= a[2]:
             out.append(f"{source}: includes {header} ({b[1]}, level {b[2]}) from {a[1]} "
@@ -86,9 +95,14 @@ def self_test():
     allowed = [("imaging/bmode.cpp", "simulator/step.h")]
     up = [("probe/beam.cpp", "imaging/psf.h")]
     sideways = [("imaging/bmode.cpp", "phantoms/phantom.h")]
+    # Allowed by the levels alone (7 over 5), refused by the folders' order.
+    LAYERS.append(("imaging/made_up/", "made_up", 7))
+    up_the_folders = [("imaging/made_up/x.cpp", "phantoms/scene/scene.h")]
+    assert len(violations(up_the_folders)) == 1, violations(up_the_folders)
+    LAYERS.pop()
     assert violations(allowed) == [], violations(allowed)
     assert len(violations(up)) == 1 and len(violations(sideways)) == 1
-    assert library("imaging/scene/scene.cpp")[1] == "sonotrace_scene"
+    assert library("phantoms/scene/scene.cpp")[1] == "sonotrace_scene"
 
 
 def main():

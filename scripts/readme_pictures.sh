@@ -12,7 +12,7 @@ trap 'rm -rf "$tmp"' EXIT
 oiiotool "$tmp/default/bmode.png" --ch 0,0,0 "$tmp/default/bmode_labels_preview.png" \
     --mosaic:pad=8 2x1 -o docs/images/bmode-default.png
 # The temporal view: the phased probe on the right temple, imaging through the skull
-# (the view's gain, imaging::kTemporalGainDb); and to 175 mm, the far
+# (the view's gain, scene::kTemporalGainDb); and to 175 mm, the far
 # side of the skull.
 "$build/sonotrace" simulate -q --labels --view temporal --out "$tmp/temporal"
 oiiotool "$tmp/temporal/bmode.png" --ch 0,0,0 "$tmp/temporal/bmode_labels_preview.png" \

@@ -8,9 +8,9 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
+#include "phantoms/scene/scene.h"
 #include "phantoms/validation/broadband_reference.h"
 #include "phantoms/validation/cases_imaging.h"
 #include "phantoms/validation/phantom_frames.h"

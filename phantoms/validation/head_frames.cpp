@@ -15,11 +15,11 @@ imaging::ClearSamples TruthFrame::samples(int inside, int outside,
                                   labels, inside, outside, clear_mm, from_mm, to_mm);
 }
 
-std::shared_ptr<const imaging::Scene> head_view(const std::string& view,
-                                                imaging::SimulationSettings* s, double depth_mm) {
-    imaging::SceneOptions options;
+std::shared_ptr<const scene::Scene> head_view(const std::string& view,
+                                              imaging::SimulationSettings* s, double depth_mm) {
+    scene::SceneOptions options;
     options.view = view;
-    auto head = imaging::load_scene(options);
+    auto head = scene::load_scene(options);
     s->transducer = probe::find_transducer(head->probe_preset, "head_view");
     if (depth_mm > 0.0) s->transducer.depth_mm = depth_mm;
     head->apply_to(*s);
@@ -31,7 +31,7 @@ std::shared_ptr<const imaging::Scene> head_view(const std::string& view,
     return head;
 }
 
-TruthFrame truth_frame(const imaging::Scene& head, imaging::SimulationSettings s, uint64_t seed) {
+TruthFrame truth_frame(const scene::Scene& head, imaging::SimulationSettings s, uint64_t seed) {
     s.seed = seed;
     TruthFrame t;
     if (s.trace_dimensions == 3) {  // traced in the elevation beam's slab, as `--trace 3d`

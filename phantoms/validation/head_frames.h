@@ -7,8 +7,8 @@
 #include <string>
 
 #include "imaging/anatomy_truth.h"
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
+#include "phantoms/scene/scene.h"
 #include "tissue/volume.h"
 
 namespace sonotrace::validation {
@@ -29,13 +29,13 @@ struct TruthFrame {
 // gets the view's probe, imaging to `depth_mm` (0: the preset's depth), what the scene
 // sets (Scene::apply_to), and the display `simulate` makes: the scene's gain and the
 // automatic TGC.
-std::shared_ptr<const imaging::Scene> head_view(const std::string& view,
-                                                imaging::SimulationSettings* s,
-                                                double depth_mm = 0.0);
+std::shared_ptr<const scene::Scene> head_view(const std::string& view,
+                                              imaging::SimulationSettings* s,
+                                              double depth_mm = 0.0);
 
 // The frame of `head` with settings `s` and seed `seed`: traced in the plane, or in the
 // elevation beam's slab when s.trace_dimensions is 3 (as `--trace 3d`).
-TruthFrame truth_frame(const imaging::Scene& head, imaging::SimulationSettings s, uint64_t seed);
+TruthFrame truth_frame(const scene::Scene& head, imaging::SimulationSettings s, uint64_t seed);
 
 // How scan line `line` meets the near skull, from the map alone (Snell's law, independent
 // of the trace): the angle between the line and the skull's normal where the line enters

@@ -7,7 +7,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "imaging/scene/scene.h"
+#include "phantoms/scene/scene.h"
 #include "probe/array_geometry.h"
 #include "tissue/base/half_maximum.h"
 
@@ -15,7 +15,7 @@ namespace sonotrace::validation {
 
 PhantomFrame image_phantom(phantoms::Phantom phantom, const FrameOptions& o, uint64_t seed) {
     PhantomFrame out;
-    const auto scene = imaging::phantom_scene(std::move(phantom));
+    const auto scene = scene::phantom_scene(std::move(phantom));
     const phantoms::Phantom& ph = *scene->phantom;
     out.transducer = probe::find_transducer(scene->probe_preset, ph.source);
     if (o.depth_mm > 0.0) out.transducer.depth_mm = o.depth_mm;

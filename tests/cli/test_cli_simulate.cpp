@@ -14,7 +14,7 @@
 
 #include <opencv2/videoio.hpp>
 
-#include "imaging/scene/scene.h"
+#include "phantoms/scene/scene.h"
 #include "tests/test_util.h"
 #include "tissue/image_io.h"
 
@@ -243,7 +243,7 @@ TEST(CliSimulate, CatalogueHeadScenesRun) {
         EXPECT_EQ(sidecar.at("view"), craniotomy ? "craniotomy" : "temporal");
         // Without --gain, the view's (a sonographer turns it up through the skull).
         EXPECT_EQ(sidecar.at("image").at("gain_db"),
-                  craniotomy ? imaging::kDefaultGainDb : imaging::kTemporalGainDb)
+                  craniotomy ? scene::kDefaultGainDb : scene::kTemporalGainDb)
             << name;
     }
 }

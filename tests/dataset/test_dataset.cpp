@@ -9,12 +9,12 @@
 #include <fstream>
 #include <sstream>
 
-#include "imaging/dataset/dataset.h"
-#include "imaging/dataset/frames.h"
-#include "imaging/dataset/shard.h"
 #include "tests/test_util.h"
+#include "ui/dataset/dataset.h"
+#include "ui/dataset/frames.h"
+#include "ui/dataset/shard.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 namespace {
 
 using test::chi_square;
@@ -353,4 +353,4 @@ TEST(Dataset, ShardsOfAnEditedPhantomAreRefusedNotMixed) {
 }
 
 }  // namespace
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

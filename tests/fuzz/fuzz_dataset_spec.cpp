@@ -3,8 +3,8 @@
 // links to the repository's phantoms, so "../cyst_and_stone.json" (as in
 // phantoms/datasets/example.json, a seed) names a real file.
 #include "fuzz_util.h"
-#include "imaging/dataset/dataset.h"
-#include "imaging/dataset/spec.h"
+#include "ui/dataset/dataset.h"
+#include "ui/dataset/spec.h"
 
 namespace {
 
@@ -28,10 +28,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     link_phantoms();
     const std::string path = fuzz::as_file(data, size, "spec/spec.json");
     return fuzz::only_input_errors([&] {
-        const imaging::dataset::Spec spec = imaging::dataset::read_spec(path);
-        imaging::dataset::check_shard_fits_memory(spec);
+        const dataset::Spec spec = dataset::read_spec(path);
+        dataset::check_shard_fits_memory(spec);
         (void)spec.digest();
         for (uint64_t i = 0; i < std::min<uint64_t>(spec.frames, 8); ++i)
-            (void)imaging::dataset::draw_frame(spec, i);
+            (void)dataset::draw_frame(spec, i);
     });
 }

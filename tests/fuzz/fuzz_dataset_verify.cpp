@@ -4,12 +4,12 @@
 // (spec digest 1, its number, the checksum of the rest), so mutations reach the checks past
 // the checksum as well as the header's.
 #include "fuzz_util.h"
-#include "imaging/dataset/dataset.h"
-#include "imaging/dataset/shard.h"
+#include "ui/dataset/dataset.h"
+#include "ui/dataset/shard.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     using namespace sonotrace;
-    using namespace sonotrace::imaging::dataset;
+    using namespace sonotrace::dataset;
     const std::vector<std::string> files = fuzz::split_files(data, size, 4);
     const std::filesystem::path dir = fuzz::fresh_dir("dataset");
     fuzz::write_bytes(dir / "manifest.json", files[0]);

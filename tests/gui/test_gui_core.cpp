@@ -186,7 +186,7 @@ double mean_below(const ScanFrame& f, double a, double b, double from_mm, double
 }
 
 TEST(GuiScanner, FramesAreSimulatesFramesOfTheSameScene) {
-    // The GUI and `sonotrace simulate` take their scene from one place (imaging::Scene),
+    // The GUI and `sonotrace simulate` take their scene from one place (scene::Scene),
     // so the same settings and seed make the same frame, point targets included. Before
     // the scene was one type, the GUI dropped a phantom's targets.
     const auto scene = load_scene("phantom:point_grid", kPhantoms);

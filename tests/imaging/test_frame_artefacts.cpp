@@ -15,9 +15,9 @@
 
 #include "imaging/bmode.h"
 #include "imaging/scan_conversion.h"
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
+#include "phantoms/scene/scene.h"
 #include "probe/array_geometry.h"
 #include "probe/pose.h"
 #include "probe/transducer.h"
@@ -205,7 +205,7 @@ imaging::Frame homogeneous_frame(const char* preset, double pixel_mm) {
     s.transducer = probe::find_transducer(preset, "test");
     s.quality = imaging::Quality::interactive;
     s.imaging.pixel_mm = pixel_mm;
-    s.imaging.gain_db = imaging::kDefaultGainDb;  // as `sonotrace simulate` images it
+    s.imaging.gain_db = scene::kDefaultGainDb;  // as `sonotrace simulate` images it
     s.imaging.tgc = {{0.0, 0.0},
                      {s.transducer.depth_mm, imaging::automatic_tgc_db(s.transducer.frequency_mhz,
                                                                        s.transducer.depth_mm)}};

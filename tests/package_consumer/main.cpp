@@ -4,17 +4,17 @@
 #include <cstdio>
 #include <set>
 
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
+#include "phantoms/scene/scene.h"
 #include "probe/transducer.h"
 #include "tissue/base/error.h"
 
 int main() {
     using namespace sonotrace;
     try {
-        imaging::SceneOptions options;
+        scene::SceneOptions options;
         options.phantom = SONOTRACE_PHANTOMS "/cyst_and_stone.json";
-        const auto scene = imaging::load_scene(options);
+        const auto scene = scene::load_scene(options);
         imaging::SimulationSettings settings;
         settings.transducer = probe::find_transducer(scene->probe_preset, "consumer");
         settings.quality = imaging::Quality::interactive;

@@ -1,9 +1,9 @@
-"""A dataset shard's header computed from its description alone (imaging/dataset/shard.h),
+"""A dataset shard's header computed from its description alone (ui/dataset/shard.h),
 for tests and the Python fuzzer that need shards with sound headers over chosen bytes."""
 
 
 def sealed(body, shard=0, spec_digest=0):
-    """A shard's 512-byte header over `body` (the bytes after it), as imaging/dataset/shard.h
+    """A shard's 512-byte header over `body` (the bytes after it), as ui/dataset/shard.h
     describes it, computed here from that description: splitmix64's finaliser over the
     little-endian 8-byte words of the file after the header, its tail byte by byte, then
     its length."""

@@ -8,9 +8,9 @@
 #include <cstdio>
 #include <vector>
 
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "phantoms/phantom.h"
+#include "phantoms/scene/scene.h"
 #include "probe/transducer.h"
 #include "tests/elevation_reference.h"
 #include "tissue/tissue_table.h"
@@ -43,7 +43,7 @@ struct Envelope {
 
 Envelope frame_of(const nlohmann::json& phantom, const probe::Transducer& t, int dimensions,
                   uint64_t seed) {
-    const auto scene = imaging::phantom_scene(phantoms::parse_phantom(phantom, "test"));
+    const auto scene = scene::phantom_scene(phantoms::parse_phantom(phantom, "test"));
     imaging::SimulationSettings settings;
     settings.transducer = t;
     settings.quality = imaging::Quality::standard;
@@ -195,7 +195,7 @@ TEST(Frames3d, TheProbeFaceReverberatesInThreeDimensions) {
     probe::Transducer t = probe::find_transducer("linear", "test");
     t.depth_mm = 25.0;
     const double f = t.face_reflectivity;
-    const auto scene = imaging::phantom_scene(phantoms::parse_phantom(phantom, "test"));
+    const auto scene = scene::phantom_scene(phantoms::parse_phantom(phantom, "test"));
     imaging::SimulationSettings settings;
     settings.transducer = t;
     settings.receive = imaging::ReceiveModel::capture;

@@ -10,8 +10,8 @@
 #include <string>
 
 #include "imaging/anatomy_truth.h"
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
+#include "phantoms/scene/scene.h"
 #include "phantoms/validation/head_frames.h"
 #include "tissue/tissue_table.h"
 
@@ -65,8 +65,8 @@ TEST(HeadContrast, TheSkullsReflectionsDoNotFollowTheStep) {
 // 3-4 at one step differ by 0.07-0.55 dB; four texels against two miss by 0.55 dB.
 class StandardStep : public ::testing::TestWithParam<int> {};
 TEST_P(StandardStep, IsShortEnough) {
-    SceneOptions options;
-    const auto head = load_scene(options);
+    scene::SceneOptions options;
+    const auto head = scene::load_scene(options);
     SimulationSettings s;
     s.transducer = probe::find_transducer("convex", "test");
     head->apply_to(s);

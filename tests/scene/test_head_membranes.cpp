@@ -8,9 +8,9 @@
 #include <string>
 
 #include "imaging/colin27.h"
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
 #include "imaging/sulcal_membranes.h"
+#include "phantoms/scene/scene.h"
 #include "probe/transducer.h"
 #include "tissue/nifti_io.h"
 #include "tissue/property_maps.h"
@@ -20,8 +20,8 @@
 namespace sonotrace {
 namespace {
 
-const imaging::VolumeSource& head() {
-    static const imaging::VolumeSource source = imaging::load_volume_source({});
+const scene::VolumeSource& head() {
+    static const scene::VolumeSource source = scene::load_volume_source({});
     return source;
 }
 
@@ -174,9 +174,9 @@ TEST(HeadMembranes, TheScalpIsMuscleAndTheBrainIsNot) {
 // a probe placed anywhere else on the head, meet the scalp as muscle.
 TEST(HeadMembranes, OnlyTheCraniotomyTurnsTheScalpBack) {
     for (const char* view : {"craniotomy", "temporal"}) {
-        imaging::SceneOptions options;
+        scene::SceneOptions options;
         options.view = view;
-        const auto scene = imaging::load_scene(options);
+        const auto scene = scene::load_scene(options);
         const probe::Transducer t = probe::find_transducer(scene->probe_preset, "test");
         const imaging::PlaneGrid grid = imaging::plane_grid(t, scene->start.pose, 0.5);
         tissue::Volume labels;

@@ -1,12 +1,13 @@
-// The one scene type (imaging/scene/scene.h): what it takes from a phantom or a volume,
+// The one scene type (phantoms/scene/scene.h): what it takes from a phantom or a volume,
 // what it sets in the simulation settings, and the options it refuses before loading.
 #include <gtest/gtest.h>
 
-#include "imaging/scene/scene.h"
+#include "phantoms/scene/scene.h"
 #include "tissue/base/error.h"
 #include "tissue/nifti_io.h"
 
-namespace sonotrace::imaging {
+namespace sonotrace::scene {
+using namespace imaging;  // the frames the scenes make
 namespace {
 
 const std::string kPhantoms = SONOTRACE_SOURCE_DIR "/phantoms";
@@ -124,4 +125,4 @@ TEST(Scene, AnAnatomicalVolumeIsScannedFromTheTopLookingDown) {
 }
 
 }  // namespace
-}  // namespace sonotrace::imaging
+}  // namespace sonotrace::scene

@@ -8,8 +8,8 @@
 #include <csignal>
 #include <iostream>
 
-#include "imaging/dataset/mpi.h"
 #include "tissue/base/error.h"
+#include "ui/dataset/mpi.h"
 
 namespace sonotrace::ui {
 
@@ -21,7 +21,7 @@ constexpr ParameterDoc kSpecDoc = {
     "sources [{scene | phantom | volume, weight}], probes, frequency_mhz, depth_mm, focus_mm, "
     "gain_db, dynamic_range_db (a number or [low, high]), pose {lateral_mm, elevation_mm, "
     "rotation_deg, tilt_deg} (half-ranges about the source's start), disable, quality, write "
-    "[bmode, labels, envelope, rf, energy]; see imaging/dataset/spec.h"};
+    "[bmode, labels, envelope, rf, energy]; see ui/dataset/spec.h"};
 constexpr ParameterDoc kDatasetOutDoc = {
     "--out", "",
     "directory of the shards (shard_NNNNN.h5) and manifest.json; a run into a directory that "
@@ -70,7 +70,7 @@ namespace {
 
 int run_verify(const DatasetOptions& o) {
     ProgressBar bar("verifying " + o.verify, o.quiet);
-    const imaging::dataset::VerifyReport report = imaging::dataset::verify_dataset(
+    const dataset::VerifyReport report = dataset::verify_dataset(
         o.verify, [&](uint64_t done, uint64_t total) { bar.update(done, total, ""); });
     bar.finish();
     for (const std::string& problem : report.problems)
@@ -95,11 +95,11 @@ int run_dataset_command(const DatasetOptions& o) {
                                "missing: give a dataset spec (a JSON file), or "
                                "--verify DIR to check a finished dataset");
     const auto thread_limit = limit_threads(o.threads);
-    const imaging::dataset::Spec spec = imaging::dataset::read_spec(o.spec);
+    const dataset::Spec spec = dataset::read_spec(o.spec);
     // Under MPI only rank 0 draws the progress (make_dataset_mpi calls it there alone).
     ProgressBar bar("dataset of " + std::to_string(spec.frames) + " frames", o.quiet);
     const auto start = std::chrono::steady_clock::now();
-    imaging::dataset::RunOptions run;
+    dataset::RunOptions run;
     run.out_dir = o.out_dir;
     run.progress = [&](uint64_t done, uint64_t total) {
         const double seconds =
@@ -115,9 +115,9 @@ int run_dataset_command(const DatasetOptions& o) {
     const auto previous_int = std::signal(SIGINT, on_signal);
     const auto previous_term = std::signal(SIGTERM, on_signal);
     int rank = 0;
-    const imaging::dataset::RunReport report =
-        imaging::dataset::launched_by_mpi() ? imaging::dataset::make_dataset_mpi(spec, run, &rank)
-                                            : imaging::dataset::make_dataset(spec, run);
+    const dataset::RunReport report = dataset::launched_by_mpi()
+                                          ? dataset::make_dataset_mpi(spec, run, &rank)
+                                          : dataset::make_dataset(spec, run);
     std::signal(SIGINT, previous_int);
     std::signal(SIGTERM, previous_term);
     bar.finish();

@@ -203,8 +203,8 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
                         imaging::physics_switch_help() + ".");
     cmd->add_option(kGainDoc.flag, o.gain_db,
                     std::string(kGainDoc.description) +
-                        " (default: the scene's: " + std::to_string(int(imaging::kDefaultGainDb)) +
-                        ", the temporal view " + std::to_string(int(imaging::kTemporalGainDb)) +
+                        " (default: the scene's: " + std::to_string(int(scene::kDefaultGainDb)) +
+                        ", the temporal view " + std::to_string(int(scene::kTemporalGainDb)) +
                         ", where the skull costs about 27 dB two-way) [" + kGainDoc.unit + "]");
     add_parameter(*cmd, kRangeDoc, o.dynamic_range_db);
     add_parameter(*cmd, kTgcDoc, o.tgc);
@@ -305,7 +305,7 @@ void apply_scene_file(CLI::App& command, const std::string& path) {
 json frame_sidecar(const SimulateOptions& o, const SimulateSetup& setup,
                    const imaging::Frame& frame) {
     const imaging::SimulationSettings& settings = setup.settings;
-    const imaging::Scene* scene = setup.scene.get();
+    const scene::Scene* scene = setup.scene.get();
     const imaging::PhysicsSwitches& physics = setup.physics;
     const imaging::QualityLevel level = imaging::quality_level(settings.quality);
     return {
@@ -365,16 +365,16 @@ json frame_sidecar(const SimulateOptions& o, const SimulateSetup& setup,
 SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
     SimulateSetup setup;
     imaging::SimulationSettings& settings = setup.settings;
-    std::shared_ptr<const imaging::Scene>& scene = setup.scene;
+    std::shared_ptr<const scene::Scene>& scene = setup.scene;
     // ---- validate everything before loading ----
-    imaging::SceneOptions scene_options;
-    static_cast<imaging::VolumeOptions&>(scene_options) = o.volume;
+    scene::SceneOptions scene_options;
+    static_cast<scene::VolumeOptions&>(scene_options) = o.volume;
     scene_options.phantom = o.phantom;
     scene_options.view = o.view;
     if (o.volume.pose != "default") scene_options.pose = probe::parse_pose(o.volume.pose, "--pose");
     scene_options.validate();
     // A phantom is read first: it is small, and it names the default probe.
-    if (!o.phantom.empty()) scene = imaging::load_scene(scene_options, &timer);
+    if (!o.phantom.empty()) scene = scene::load_scene(scene_options, &timer);
     const std::string preset = !o.probe.empty() ? o.probe
                                : scene          ? scene->probe_preset
                                                 : scene_options.volume_probe_preset();
@@ -392,13 +392,13 @@ SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
     settings.step_texels = o.step_texels;
     if (o.refraction_smoothing_mm != -1.0)
         settings.refraction_smoothing_mm = o.refraction_smoothing_mm;
-    settings.imaging.gain_db = o.gain_db.value_or(imaging::kDefaultGainDb);
+    settings.imaging.gain_db = o.gain_db.value_or(scene::kDefaultGainDb);
     settings.imaging.dynamic_range_db = o.dynamic_range_db;
     settings.imaging.pixel_mm = o.pixel_mm;
     settings.imaging.tgc = parse_tgc(o.tgc, settings.transducer);
     settings.validate("simulate options");
     // ---- load and place the probe ----
-    if (!scene) scene = imaging::load_scene(scene_options, &timer);
+    if (!scene) scene = scene::load_scene(scene_options, &timer);
     scene->apply_to(settings);
     if (!o.gain_db) settings.imaging.gain_db = scene->gain_db;
     setup.placements = sweep_placements(o.sweep, scene->start);
@@ -454,7 +454,7 @@ int run_simulate_command(const SimulateOptions& o) {
 
     const SimulateSetup setup = prepare_simulate(o, timer);
     const imaging::SimulationSettings& settings = setup.settings;
-    const std::shared_ptr<const imaging::Scene>& scene = setup.scene;
+    const std::shared_ptr<const scene::Scene>& scene = setup.scene;
     const std::vector<SweepPlacement>& placements = setup.placements;
 
     // ---- trace and form the frames; outputs staged and committed together ----

@@ -4,8 +4,8 @@
 #include <optional>
 #include <string>
 
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
+#include "phantoms/scene/scene.h"
 #include "probe/transducer.h"
 #include "ui/cli/command_common.h"
 #include "ui/cli/volume_slice.h"
@@ -52,7 +52,7 @@ struct SimulateOptions {
     std::string receive = "monostatic";
     std::string trace = "2d";
     std::string disable;            // physics switched off (imaging::physics_switch_names)
-    std::optional<double> gain_db;  // unset: the scene's (imaging::Scene::gain_db)
+    std::optional<double> gain_db;  // unset: the scene's (scene::Scene::gain_db)
     double dynamic_range_db = 60.0;
     std::string tgc = "auto";
     double pixel_mm = 0.2;
@@ -91,7 +91,7 @@ std::vector<SweepPlacement> sweep_placements(const std::string& sweep,
 // settings, the scene, and the probe's placements (one without --sweep).
 struct SimulateSetup {
     imaging::SimulationSettings settings;
-    std::shared_ptr<const imaging::Scene> scene;
+    std::shared_ptr<const scene::Scene> scene;
     std::vector<SweepPlacement> placements;
     imaging::PhysicsSwitches physics;
 };

@@ -99,13 +99,13 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     std::optional<probe::Pose> pose;
     if (options.pose != "default") pose = probe::parse_pose(options.pose, "--pose");
 
-    imaging::VolumeSource source = imaging::load_volume_source(options, &timer);
+    scene::VolumeSource source = scene::load_volume_source(options, &timer);
     const tissue::Volume& volume = source.loaded.volume;
 
     // ---- grid under the probe ----
     if (!pose)
-        pose = source.is_default ? probe::colin27_temporal_pose()
-                                 : imaging::default_volume_pose(source);
+        pose =
+            source.is_default ? probe::colin27_temporal_pose() : scene::default_volume_pose(source);
     tissue::GridExtent extent;
     const glm::dvec3 size_mm = glm::dvec3(volume.dims()) * volume.geometry().spacing;
     extent.width_mm =
@@ -143,8 +143,7 @@ json pose_json(const probe::Pose& pose) {
             {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}};
 }
 
-json volume_source_json(const imaging::VolumeSource& source,
-                        const imaging::VolumeOptions& options) {
+json volume_source_json(const scene::VolumeSource& source, const scene::VolumeOptions& options) {
     return {{"volume",
              {{"spec", options.volume},
               {"path", source.loaded.path},

@@ -7,7 +7,7 @@
 #include <optional>
 #include <string>
 
-#include "imaging/scene/scene.h"
+#include "phantoms/scene/scene.h"
 #include "probe/pose.h"
 #include "tissue/property_maps.h"
 #include "tissue/resample.h"
@@ -17,8 +17,8 @@
 
 namespace sonotrace::ui {
 
-// The volume options (imaging::VolumeOptions) and the slice under the probe.
-struct SliceOptions : imaging::VolumeOptions {
+// The volume options (scene::VolumeOptions) and the slice under the probe.
+struct SliceOptions : scene::VolumeOptions {
     std::string pose = "default";
     double width_mm = 0.0;
     double depth_mm = 0.0;
@@ -34,11 +34,11 @@ void add_volume_options(CLI::App& cmd, SliceOptions& options);
 nlohmann::json pose_json(const probe::Pose& pose);
 
 // The volume-related part of a sidecar.
-nlohmann::json volume_source_json(const imaging::VolumeSource& source,
-                                  const imaging::VolumeOptions& options);
+nlohmann::json volume_source_json(const scene::VolumeSource& source,
+                                  const scene::VolumeOptions& options);
 
 struct Slice {
-    imaging::VolumeSource source;
+    scene::VolumeSource source;
     probe::Pose pose;
     tissue::GridExtent extent;
     tissue::VolumeGeometry grid;

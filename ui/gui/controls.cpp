@@ -30,14 +30,14 @@ struct Features {
     bool air = false;        // total reflection
     bool speed_contrast = false;
     bool rough_reflector = false;
-    imaging::Scene::Material slowest, fastest, most_attenuating;
+    scene::Scene::Material slowest, fastest, most_attenuating;
 };
 
 Features features_of(const Scene& scene) {
     using tissue::Property;
     Features f;
     double slowest = 1e9, fastest = 0.0, attenuation = -1.0;
-    for (const imaging::Scene::Material& material : scene.materials()) {
+    for (const scene::Scene::Material& material : scene.materials()) {
         const tissue::AcousticProperties& m = material.properties;
         const double z = m.impedance_mrayl();
         if (z < 0.1) {
@@ -57,7 +57,7 @@ Features features_of(const Scene& scene) {
     return f;
 }
 
-std::string speed_of(const imaging::Scene::Material& m) {
+std::string speed_of(const scene::Scene::Material& m) {
     return m.name + " " +
            std::to_string(int(std::lround(m.properties[tissue::Property::speed_of_sound]))) +
            " m/s";

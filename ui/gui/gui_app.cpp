@@ -295,7 +295,7 @@ void App::draw_volume_controls() {
     }
     ImGui::SameLine();
     if (ImGui::Button("default pose")) {
-        pose_ = imaging::default_volume_pose(*source);
+        pose_ = scene::default_volume_pose(*source);
         pose_text_.clear();
         dirty_ = true;
     }

@@ -15,9 +15,9 @@ bool ends_with(const std::string& s, const std::string& tail) {
 }
 
 // The scene with its 3D context; `name` is what the catalogue calls it.
-std::shared_ptr<const Scene> with_context(const imaging::Scene& loaded, const std::string& name) {
+std::shared_ptr<const Scene> with_context(const scene::Scene& loaded, const std::string& name) {
     auto scene = std::make_shared<Scene>();
-    static_cast<imaging::Scene&>(*scene) = loaded;
+    static_cast<scene::Scene&>(*scene) = loaded;
     scene->name = name;
     const bool head = loaded.volume && loaded.volume->is_default;
     scene->context_tf = imaging::pbvr::load_colour_tf(head ? "head" : "ramp");
@@ -27,8 +27,8 @@ std::shared_ptr<const Scene> with_context(const imaging::Scene& loaded, const st
     return scene;
 }
 
-std::shared_ptr<const Scene> load(imaging::SceneOptions options, const std::string& name) {
-    return with_context(*imaging::load_scene(options), name);
+std::shared_ptr<const Scene> load(scene::SceneOptions options, const std::string& name) {
+    return with_context(*scene::load_scene(options), name);
 }
 
 }  // namespace
@@ -50,7 +50,7 @@ std::vector<SceneEntry> scene_catalogue(const std::string& phantom_dir) {
 
 std::shared_ptr<const Scene> load_scene(const std::string& spec, const std::string& phantom_dir,
                                         const std::string& tf) {
-    imaging::SceneOptions options;
+    scene::SceneOptions options;
     options.tf = tf;
     if (spec == "head-craniotomy" || spec == "head" || spec == "default")
         return load(options, "head-craniotomy");

@@ -18,13 +18,13 @@
 
 #include <CLI/CLI.hpp>
 
-#include "imaging/dataset/shard.h"
 #include "imaging/picture.h"
 #include "sonotrace_version.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
 #include "tissue/base/memory.h"
 #include "ui/cli/simulate_command.h"
+#include "ui/dataset/shard.h"
 
 namespace py = pybind11;
 using namespace sonotrace;
@@ -237,16 +237,15 @@ PYBIND11_MODULE(sonotrace, m) {
         [](const std::string& path) {
             // Our reader takes the bytes (a regular file only, never blocking on a FIFO, its
             // size checked); h5py reads the HDF5 (a shard is plain HDF5, shard.h) from memory.
-            const std::string bytes =
-                base::read_regular_file(path, imaging::dataset::kMaxShardBytes);
+            const std::string bytes = base::read_regular_file(path, dataset::kMaxShardBytes);
             // Only a shard whose header and content checksum agree reaches h5py.
-            const imaging::dataset::ShardCheck check =
-                imaging::dataset::check_shard_bytes(bytes, std::nullopt, std::nullopt);
-            if (check.verdict != imaging::dataset::ShardCheck::ok)
+            const dataset::ShardCheck check =
+                dataset::check_shard_bytes(bytes, std::nullopt, std::nullopt);
+            if (check.verdict != dataset::ShardCheck::ok)
                 throw base::InputError(path, "", "not a sound shard: " + check.why);
             // HDF5 reads all of it in a child process first: a malformed shard (its checksum
             // resealed) made h5py's read crash the interpreter.
-            if (const std::optional<std::string> why = imaging::dataset::unreadable_shard(bytes))
+            if (const std::optional<std::string> why = dataset::unreadable_shard(bytes))
                 throw base::InputError(path, "", "not a readable shard: " + *why);
             try {
                 py::object image = py::module_::import("io").attr("BytesIO")(py::bytes(bytes));

@@ -20,9 +20,12 @@
 #include "tissue/volume.h"
 #include "tissue/volume_io.h"
 
-namespace sonotrace::imaging {
+namespace sonotrace::scene {
 
 using base::StageObserver;
+using imaging::PlaneMapper;
+using imaging::ScenePlacement;
+using imaging::SimulationSettings;
 
 // The volume options (--volume, --spacing, --tf, --outside): documented once in
 // ui/cli/volume_slice.cpp, named by these flags in error messages.
@@ -141,4 +144,4 @@ std::shared_ptr<const Scene> load_scene(const SceneOptions& options,
 std::shared_ptr<const Scene> phantom_scene(phantoms::Phantom phantom,
                                            std::optional<probe::Pose> pose = std::nullopt);
 
-}  // namespace sonotrace::imaging
+}  // namespace sonotrace::scene

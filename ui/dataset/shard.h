@@ -21,9 +21,9 @@
 #include <string_view>
 #include <vector>
 
-#include "imaging/dataset/frames.h"
+#include "ui/dataset/frames.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 // Writes `frames` (shard `shard` of `spec`, in frame order) to `path`. Throws
 // base::InputError naming `output_name` on any write failure.
@@ -75,4 +75,4 @@ std::optional<std::string> unreadable_shard(const std::string& bytes);
 // this run has checked or written). Throws base::InputError naming `path` if it has none.
 ShardHeader read_shard_header(const std::string& path);
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

@@ -1,4 +1,4 @@
-#include "imaging/dataset/shard.h"
+#include "ui/dataset/shard.h"
 
 #include <hdf5.h>
 
@@ -16,7 +16,7 @@
 #include "tissue/base/hash.h"
 #include "tissue/base/isolated.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 namespace {
 
@@ -416,4 +416,4 @@ ShardHeader read_shard_header(const std::string& path) {
     return *header;
 }
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

@@ -1,4 +1,4 @@
-#include "imaging/scene/scene.h"
+#include "phantoms/scene/scene.h"
 
 #include <algorithm>
 #include <cmath>
@@ -17,7 +17,7 @@
 #include "tissue/resample.h"
 #include "tissue/tissue_table.h"
 
-namespace sonotrace::imaging {
+namespace sonotrace::scene {
 
 namespace {
 
@@ -69,8 +69,8 @@ std::shared_ptr<Scene> volume_scene(std::shared_ptr<const VolumeSource> source,
             scene->start.pose = *options.pose;
             scene->start.description = "probe at --pose";
         } else if (source->is_default) {
-            scene->start = temporal ? temporal_scene(volume, *source->tf)
-                                    : craniotomy_scene(volume, *source->tf);
+            scene->start = temporal ? imaging::temporal_scene(volume, *source->tf)
+                                    : imaging::craniotomy_scene(volume, *source->tf);
         } else {
             scene->start.pose = default_volume_pose(*source);
             scene->start.description =
@@ -170,8 +170,9 @@ tissue::PropertyMaps VolumeSource::plane_properties(const tissue::VolumeGeometry
     if (labels) *labels = tissue::tissue_labels(values, *tf);
     tissue::PropertyMaps maps = tissue::classify(values, *tf);
     if (is_default)
-        add_colin27_anatomy(loaded.volume, *tf, outside, grid, maps, labels, !scalp_turned_back);
-    add_sulcal_membranes(maps, labels);
+        imaging::add_colin27_anatomy(loaded.volume, *tf, outside, grid, maps, labels,
+                                     !scalp_turned_back);
+    imaging::add_sulcal_membranes(maps, labels);
     return maps;
 }
 
@@ -346,4 +347,4 @@ std::shared_ptr<const Scene> load_scene(const SceneOptions& options, StageObserv
     return volume_scene(std::move(source), options, stages);
 }
 
-}  // namespace sonotrace::imaging
+}  // namespace sonotrace::scene

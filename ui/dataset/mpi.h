@@ -6,9 +6,9 @@
 // of (spec, index), so the shards are the same bytes whichever rank makes them, and the
 // same as a run on one machine. A rank that dies loses only its shard in flight (never
 // renamed into place), which the next run makes.
-#include "imaging/dataset/dataset.h"
+#include "ui/dataset/dataset.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 // True when this process was started by an MPI launcher (Open MPI, PMI or PMIx
 // environment variables), so that a plain `sonotrace dataset` never initialises MPI.
@@ -23,4 +23,4 @@ bool launched_by_mpi();
 // process's rank.
 RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* rank);
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

@@ -1,4 +1,4 @@
-#include "imaging/dataset/frames.h"
+#include "ui/dataset/frames.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include "imaging/picture.h"
 #include "tissue/base/error.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 namespace {
 
@@ -25,7 +25,7 @@ probe::Transducer transducer_of(const std::string& preset, double frequency_mhz,
 FrameMaker::FrameMaker(const Spec& spec) : spec_(spec) {
     for (std::size_t n = 0; n < spec_.sources.size(); ++n) {
         try {
-            scenes_.push_back(load_scene(spec_.sources[n].scene));
+            scenes_.push_back(scene::load_scene(spec_.sources[n].scene));
         } catch (const base::InputError& e) {
             throw base::InputError(spec_.path, "sources[" + std::to_string(n) + "]", e.what());
         }
@@ -57,7 +57,7 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     DatasetFrame out;
     out.draw = draw_frame(spec_, index);
     const FrameDraw& d = out.draw;
-    const Scene& scene = *scenes_[std::size_t(d.source)];
+    const scene::Scene& scene = *scenes_[std::size_t(d.source)];
     const std::string where = "frame " + std::to_string(index);
     // -- the probe: the drawn preset and parameters, checked as every transducer is
     const probe::Transducer t = transducer_of(d.probe.empty() ? scene.probe_preset : d.probe,
@@ -70,19 +70,20 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     pose = scene.settle(pose.rotated(d.rotation_deg).tilted(d.tilt_deg));
     scene.require_inside(pose, spec_.path + " (" + where + ", pose)");
     out.pose = pose;
-    ScenePlacement placement = scene.start;
+    imaging::ScenePlacement placement = scene.start;
     placement.pose = pose;
     // -- settings as `sonotrace simulate` makes them
-    SimulationSettings s;
+    imaging::SimulationSettings s;
     s.transducer = t;
     s.quality = spec_.quality;
     s.trace_dimensions = spec_.trace_dimensions;
     s.seed = d.seed;
-    apply(disabled_physics(spec_.disable, spec_.path, "disable"), s);
+    imaging::apply(imaging::disabled_physics(spec_.disable, spec_.path, "disable"), s);
     s.trace.deposition_maps = spec_.write_energy;
     s.imaging.gain_db = d.gain_db;
     s.imaging.dynamic_range_db = d.dynamic_range_db;
-    s.imaging.tgc = {{0.0, 0.0}, {t.depth_mm, automatic_tgc_db(t.frequency_mhz, t.depth_mm)}};
+    s.imaging.tgc = {{0.0, 0.0},
+                     {t.depth_mm, imaging::automatic_tgc_db(t.frequency_mhz, t.depth_mm)}};
     // Pixels that fit the scanned region into W x H.
     const auto [lo, hi] = probe::ScanGeometry(t).bounds();
     s.imaging.pixel_mm =
@@ -90,18 +91,18 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
         (1.0 + 1e-9);
     scene.apply_to(s);
     s.validate(spec_.path + " (" + where + ")");
-    SimulatedFrame simulated =
-        simulate_plane(scene.mapper, placement, s, spec_.write_labels || spec_.write_echo_labels);
-    Frame& frame = simulated.frame;
+    imaging::SimulatedFrame simulated = imaging::simulate_plane(
+        scene.mapper, placement, s, spec_.write_labels || spec_.write_echo_labels);
+    imaging::Frame& frame = simulated.frame;
     // -- onto the W x H grid
-    const ScanConverted& image = frame.image;
+    const imaging::ScanConverted& image = frame.image;
     out.pixel_mm = image.pixel_mm;
     out.origin_mm = image.origin;
     out.valid_width = std::min(image.image.cols, spec_.width);
     out.valid_height = std::min(image.image.rows, spec_.height);
     const cv::Rect valid(0, 0, out.valid_width, out.valid_height);
     out.bmode = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
-    grey_levels(image.image)(valid).copyTo(out.bmode(valid));
+    imaging::grey_levels(image.image)(valid).copyTo(out.bmode(valid));
     out.labels = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
     if (simulated.labels) (*simulated.labels)(valid).copyTo(out.labels(valid));
     out.echo_labels = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
@@ -112,4 +113,4 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     return out;
 }
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

@@ -1,10 +1,8 @@
-#include "imaging/dataset/dataset.h"
+#include "ui/dataset/dataset.h"
 
 #include <cstdio>
 #include <filesystem>
 
-#include "imaging/dataset/frames.h"
-#include "imaging/dataset/shard.h"
 #include "sonotrace_version.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
@@ -12,8 +10,10 @@
 #include "tissue/base/json_util.h"
 #include "tissue/base/memory.h"
 #include "tissue/transfer_function.h"
+#include "ui/dataset/frames.h"
+#include "ui/dataset/shard.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 std::string shard_path(const std::string& dir, uint64_t shard) {
     char name[32];
@@ -205,4 +205,4 @@ RunReport make_dataset(const Spec& spec, const RunOptions& options) {
     return report;
 }
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

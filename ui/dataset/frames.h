@@ -6,9 +6,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "imaging/dataset/spec.h"
+#include "ui/dataset/spec.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 struct DatasetFrame {
     FrameDraw draw;
@@ -23,7 +23,7 @@ struct DatasetFrame {
     cv::Mat bmode;        // CV_8U, H x W (display grey levels, as simulate's png8)
     cv::Mat labels;       // CV_8U, H x W: tissue index (1-based, the tissue table), 0 outside
     cv::Mat echo_labels;  // the same where the echoes show them (scan_convert_labels_at_echo)
-    LineData envelope, rf;
+    imaging::LineData envelope, rf;
     tissue::Volume energy;  // absorbed energy on the map grid
 };
 
@@ -37,7 +37,7 @@ class FrameMaker {
 
   private:
     Spec spec_;
-    std::vector<std::shared_ptr<const Scene>> scenes_;
+    std::vector<std::shared_ptr<const scene::Scene>> scenes_;
 };
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

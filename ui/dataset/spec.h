@@ -1,6 +1,6 @@
 #pragma once
 // A dataset's specification (`sonotrace dataset SPEC.json`): which scenes, probes,
-// parameter ranges, poses and outputs, how many frames, and the seed. Frame i is a pure
+// parameter ranges, poses and outputs, how many frames, and the seed. imaging::Frame i is a pure
 // function of (spec, i): its draws come from a counter-based stream keyed by (seed, i),
 // so any frame can be made again alone and the result does not depend on how the work
 // was split among threads, shards or ranks.
@@ -41,12 +41,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "imaging/scene/scene.h"
 #include "imaging/simulation.h"
+#include "phantoms/scene/scene.h"
 #include "probe/pose.h"
 #include "probe/transducer.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 // A parameter drawn uniformly from [low, high] (low == high: fixed); unset: the default.
 struct Range {
@@ -55,8 +55,8 @@ struct Range {
 };
 
 struct SourceSpec {
-    SceneOptions scene;  // what load_scene takes
-    std::string label;   // how the manifest and the frame table name it
+    scene::SceneOptions scene;  // what scene::load_scene takes
+    std::string label;          // how the manifest and the frame table name it
     double weight = 1.0;
 };
 
@@ -71,7 +71,7 @@ struct Spec {
     Range frequency_mhz, depth_mm, focus_mm, gain_db, dynamic_range_db;
     double lateral_mm = 0.0, elevation_mm = 0.0, rotation_deg = 0.0, tilt_deg = 0.0;
     std::string disable;  // comma list
-    Quality quality = Quality::standard;
+    imaging::Quality quality = imaging::Quality::standard;
     int trace_dimensions = 2;
     bool write_bmode = true, write_labels = true, write_echo_labels = false, write_envelope = false,
          write_rf = false, write_energy = false;
@@ -110,4 +110,4 @@ struct FrameDraw {
 };
 FrameDraw draw_frame(const Spec& spec, uint64_t index);
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

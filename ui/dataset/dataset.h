@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "imaging/dataset/frames.h"
-#include "imaging/dataset/spec.h"
+#include "ui/dataset/frames.h"
+#include "ui/dataset/spec.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 // The file of shard k in `dir`.
 std::string shard_path(const std::string& dir, uint64_t shard);
@@ -53,7 +53,7 @@ VerifyReport verify_dataset(const std::string& dir,
 void check_shard_fits_memory(const Spec& spec);
 
 // The pieces make_dataset is made of, for runs that spread shards over processes
-// (imaging/dataset/mpi.h):
+// (ui/dataset/mpi.h):
 // the shards `dir` lacks or holds damaged (shard.h's checks); throws InputError for a
 // shard of another spec. `kept` counts the sound ones; `damaged` receives "path: why" of
 // each damaged one.
@@ -67,4 +67,4 @@ bool write_one_shard(const FrameMaker& maker, uint64_t k, const std::string& dir
 // The manifest, once every shard is there; returns its path.
 std::string write_manifest(const Spec& spec, const std::string& dir);
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

@@ -1,4 +1,4 @@
-#include "imaging/dataset/spec.h"
+#include "ui/dataset/spec.h"
 
 #include "sonotrace_version.h"
 
@@ -12,7 +12,7 @@
 #include "tissue/base/json_util.h"
 #include "tissue/image_io.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 namespace {
 
@@ -236,7 +236,7 @@ Spec parse_spec(const json& j, const std::string& source) {
                 throw InputError(source, "disable[" + std::to_string(n) + "]", "must be a name");
             spec.disable += (spec.disable.empty() ? "" : ",") + d[n].get<std::string>();
         }
-        disabled_physics(spec.disable, source, "disable");  // names checked here
+        imaging::disabled_physics(spec.disable, source, "disable");  // names checked here
     }
     if (j.contains("trace")) {
         const std::string trace = jsonio::get_string(j, "trace", source, "");
@@ -246,7 +246,7 @@ Spec parse_spec(const json& j, const std::string& source) {
     }
     if (j.contains("quality")) {
         spec.quality =
-            parse_quality(jsonio::get_string(j, "quality", source, ""), source, "quality");
+            imaging::parse_quality(jsonio::get_string(j, "quality", source, ""), source, "quality");
     }
     if (j.contains("write")) {
         const json& w = j["write"];
@@ -325,4 +325,4 @@ FrameDraw draw_frame(const Spec& spec, uint64_t index) {
     return d;
 }
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset

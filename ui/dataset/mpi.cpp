@@ -1,4 +1,4 @@
-#include "imaging/dataset/mpi.h"
+#include "ui/dataset/mpi.h"
 
 // The C interface only (Open MPI's and MPICH's deprecated C++ bindings need their own
 // library).
@@ -18,7 +18,7 @@
 
 #include "tissue/base/error.h"
 
-namespace sonotrace::imaging::dataset {
+namespace sonotrace::dataset {
 
 namespace {
 
@@ -229,4 +229,4 @@ RunReport make_dataset_mpi(const Spec& spec, const RunOptions& options, int* ran
     return report;
 }
 
-}  // namespace sonotrace::imaging::dataset
+}  // namespace sonotrace::dataset
