@@ -130,6 +130,17 @@ struct SimulationSettings {
     void validate(const std::string& source) const;
 };
 
+// The ranges SimulationSettings::validate holds these to (a frame request's --help quotes
+// them: phantoms/scene/request.h).
+struct ValueRange {
+    double low, high;
+};
+inline constexpr ValueRange kStepTexelsRange{0.0, 100.0};
+inline constexpr ValueRange kRefractionSmoothingRange{0.0, 20.0};  // mm
+inline constexpr ValueRange kGainRange{-200.0, 200.0};             // dB
+inline constexpr ValueRange kDynamicRangeRange{1.0, 200.0};        // dB
+inline constexpr ValueRange kPixelRange{0.01, 10.0};               // mm
+
 // The Fresnel scale of a probe's image: sigma = sqrt(lambda D) / 2, the Gaussian whose 1/e
 // radius (sqrt(2) sigma) is the first Fresnel zone's radius sqrt(lambda D / 2) at half the
 // image depth D. Convex preset: 3.0 mm; linear 1.4 mm; phased 4.1 mm.

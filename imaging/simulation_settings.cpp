@@ -171,11 +171,14 @@ void SimulationSettings::validate(const std::string& source) const {
     auto in_range = [&](double v, double lo, double hi, const char* field) {
         base::require_in_range(source, field, v, lo, hi);
     };
-    in_range(step_texels, 0.0, 100.0, "step");
+    auto within = [&](double v, ValueRange r, const char* field) {
+        in_range(v, r.low, r.high, field);
+    };
+    within(step_texels, kStepTexelsRange, "step");
     if (trace_dimensions != 2 && trace_dimensions != 3)
         throw base::InputError(source, "trace", "must be 2d or 3d");
     if (refraction_smoothing_mm)
-        in_range(*refraction_smoothing_mm, 0.0, 20.0, "refraction-smoothing");
+        within(*refraction_smoothing_mm, kRefractionSmoothingRange, "refraction-smoothing");
     in_range(imaging.sampling_mhz, 0.0, 1000.0, "sampling");
     if (imaging.sampling_mhz > 0.0 &&
         imaging.sampling_mhz <
@@ -188,9 +191,9 @@ void SimulationSettings::validate(const std::string& source) const {
     }
     in_range(imaging.speckle_cell_mm, 0.0, 10.0, "speckle-cell");
     in_range(imaging.profile_smoothing, 0.0, 10.0, "profile-smoothing");
-    in_range(imaging.gain_db, -200.0, 200.0, "gain");
-    in_range(imaging.dynamic_range_db, 1.0, 200.0, "dynamic-range");
-    in_range(imaging.pixel_mm, 0.01, 10.0, "pixel");
+    within(imaging.gain_db, kGainRange, "gain");
+    within(imaging.dynamic_range_db, kDynamicRangeRange, "dynamic-range");
+    within(imaging.pixel_mm, kPixelRange, "pixel");
     double previous = -1e300;
     for (const TgcPoint& p : imaging.tgc) {
         in_range(p.depth_mm, 0.0, 1000.0, "tgc.depth");

@@ -10,6 +10,7 @@
 #include "probe/array_geometry.h"
 #include "tissue/acoustic_map.h"
 #include "tissue/base/error.h"
+#include "tissue/base/number_list.h"
 
 namespace sonotrace::probe {
 
@@ -152,6 +153,20 @@ void set_apodization(Transducer& t, const std::string& text, const std::string& 
 }
 
 }  // namespace
+
+std::string parameter_text(const TransducerParameterDoc::Value& value) {
+    return std::visit(
+        [](const auto& v) {
+            using V = std::decay_t<decltype(v)>;
+            if constexpr (std::is_same_v<V, std::string>)
+                return v;
+            else if constexpr (std::is_same_v<V, int>)
+                return std::to_string(v);
+            else
+                return base::exact_number_text(v);
+        },
+        value);
+}
 
 const std::vector<TransducerParameterDoc>& transducer_parameter_docs() {
     // The types' own descriptions, from their registration.

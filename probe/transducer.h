@@ -96,6 +96,8 @@ struct TransducerParameterDoc {
     bool shapes_psf_rows = true;
 };
 const std::vector<TransducerParameterDoc>& transducer_parameter_docs();
+// A value as the text `set` reads back to exactly that value (numbers to the bit).
+std::string parameter_text(const TransducerParameterDoc::Value& value);
 
 // Presets modelled on real probes (values from the public datasheets; see the .cpp).
 const std::vector<Transducer>& transducer_presets();

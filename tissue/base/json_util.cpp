@@ -3,9 +3,11 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <iostream>
 #include <set>
 #include <sstream>
 
+#include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
 
@@ -165,6 +167,15 @@ glm::dvec3 get_vec3(const json& object, const std::string& key, const std::strin
         if (!std::isfinite(v[a])) throw InputError(source, field, "is not finite");
     }
     return v;
+}
+
+void write_json(const json& record, const std::string& path) {
+    if (path == "-") {
+        std::cout << record.dump(2) << std::endl;
+        return;
+    }
+    const std::string text = record.dump(2) + "\n";
+    write_file(path, text.data(), text.size());
 }
 
 }  // namespace sonotrace::base::jsonio

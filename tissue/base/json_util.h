@@ -48,6 +48,10 @@ std::string get_string(const json& object, const std::string& key, const std::st
 glm::dvec3 get_vec3(const json& object, const std::string& key, const std::string& source,
                     const std::string& where);
 
+// Writes `record` (two-space indented, a final newline) to `path` whole or not at all
+// (callers stage it through base::OutputTransaction), or to stdout when path is "-".
+void write_json(const json& record, const std::string& path);
+
 // "where.key" or "key" when `where` is empty.
 std::string join(const std::string& where, const std::string& key);
 

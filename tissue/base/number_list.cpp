@@ -1,12 +1,39 @@
 #include "tissue/base/number_list.h"
 
+#include <charconv>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
 #include "tissue/base/error.h"
 
 namespace sonotrace::base {
+
+std::string exact_number_text(double v) {
+    char text[32];
+    const auto end = std::to_chars(text, text + sizeof text, v).ptr;
+    return std::string(text, end);
+}
+
+std::optional<std::string> not_a_finite_number(const std::string& text) {
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v))
+        return "value " + text + " is not a finite number";
+    return std::nullopt;
+}
+
+std::optional<std::string> not_a_whole_number(const std::string& text) {
+    uint64_t parsed = 0;
+    const char* end = text.data() + text.size();
+    const auto [stop, error] = std::from_chars(text.data(), end, parsed);
+    if (text.empty() || error != std::errc() || stop != end)
+        return "value " + text + " is not a whole number from 0 to " +
+               std::to_string(std::numeric_limits<uint64_t>::max());
+    return std::nullopt;
+}
 
 std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out) {
     out->clear();

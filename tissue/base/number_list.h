@@ -1,11 +1,23 @@
 #pragma once
-// Comma-separated numbers in option values ("0.5,0.5", "1,1,2").
+// Numbers in option values: one ("0.5", "18446744073709551615") or comma-separated
+// ("0.5,0.5", "1,1,2").
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace sonotrace::base {
+
+// Why `text` is not a finite number (all of it, NaN and infinities refused), or nothing
+// if it is one: the message every option and keyword gives.
+std::optional<std::string> not_a_finite_number(const std::string& text);
+// The same for a whole number that a uint64_t holds (-1, 2^64 and 1e23 are not).
+std::optional<std::string> not_a_whole_number(const std::string& text);
+
+// The shortest text that reads back (strtod, from_chars) as exactly `v`: how a number a
+// program computed is handed on as an option's text without changing a bit.
+std::string exact_number_text(double v);
 
 // Comma-separated finite numbers; the error text if one is not.
 std::optional<std::string> parse_number_list(const std::string& text, std::vector<double>* out);

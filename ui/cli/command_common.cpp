@@ -80,34 +80,20 @@ std::unique_ptr<tbb::global_control> limit_threads(int threads) {
                                                  std::size_t(threads));
 }
 
-void write_json(const nlohmann::json& record, const std::string& path) {
-    if (path == "-") {
-        std::cout << record.dump(2) << std::endl;
-        return;
-    }
-    const std::string text = record.dump(2) + "\n";
-    base::write_file(path, text.data(), text.size());
-}
-
 void refuse_bad_numbers(CLI::App& app) {
+    // CLI11 reports what does not parse as a number at all; these catch what does but is
+    // not one (NaN, infinities), and unsigned values out of range.
     const CLI::Validator finite(
         [](std::string& value) -> std::string {
             char* end = nullptr;
-            const double v = std::strtod(value.c_str(), &end);
-            if (end != value.c_str() && !std::isfinite(v))
-                return "value " + value + " is not a finite number";
-            return {};
+            std::strtod(value.c_str(), &end);
+            if (end == value.c_str()) return {};
+            return base::not_a_finite_number(value).value_or("");
         },
         "");
     const CLI::Validator whole(
         [](std::string& value) -> std::string {
-            uint64_t parsed = 0;
-            const char* end = value.data() + value.size();
-            const auto [stop, error] = std::from_chars(value.data(), end, parsed);
-            if (value.empty() || error != std::errc() || stop != end)
-                return "value " + value + " is not a whole number from 0 to " +
-                       std::to_string(std::numeric_limits<uint64_t>::max());
-            return {};
+            return base::not_a_whole_number(value).value_or("");
         },
         "");
     for (CLI::Option* option : app.get_options()) {

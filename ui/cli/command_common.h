@@ -13,6 +13,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "tissue/base/json_util.h"
 #include "tissue/base/number_list.h"
 #include "tissue/base/stages.h"
 
@@ -85,9 +86,7 @@ class ProgressBar {
 // Limits TBB to `threads` workers for the lifetime of the returned object (0 = all cores).
 std::unique_ptr<tbb::global_control> limit_threads(int threads);
 
-// Writes `record` to `path` (callers stage it through base::OutputTransaction), or to
-// stdout when path is "-".
-void write_json(const nlohmann::json& record, const std::string& path);
+using base::jsonio::write_json;
 
 using base::parse_number_list;
 using base::parse_numbers;

@@ -20,6 +20,7 @@
 #include "imaging/simulation.h"
 #include "imaging/video.h"
 #include "phantoms/phantom.h"
+#include "phantoms/scene/records.h"
 #include "probe/array_geometry.h"
 #include "probe/placement.h"
 #include "sonotrace_version.h"
@@ -37,44 +38,7 @@ namespace {
 
 using nlohmann::json;
 
-// ---- parameters, documented once ----
-constexpr ParameterDoc kPhantomDoc = {
-    "--phantom", "",
-    "JSON phantom (phantoms/*.json: background tissue and analytic shapes, mm) to image "
-    "instead of a volume; its 'probe' entry places the probe (default: top centre, looking "
-    "down +y), the probe preset defaults to the phantom's or 'linear'"};
-constexpr ParameterDoc kViewDoc = {
-    "--view", "",
-    "scene of the default head: 'craniotomy' (convex probe on the right parietal cortex "
-    "through a virtual craniotomy, coronal plane through the lateral ventricles) or "
-    "'temporal' (phased probe on the right temple, imaging through the skull). Other "
-    "volumes, or --pose, place the probe without a craniotomy"};
-// --probe's text names every preset (the sidecar and the README describe each fully).
-const ParameterDoc& probe_doc() {
-    static const std::string text = [] {
-        std::string t = "transducer preset: ";
-        for (const probe::Transducer& p : probe::transducer_presets()) {
-            t += (&p == &probe::transducer_presets().front() ? "" : ", ") + p.name + " (" +
-                 base::number_text(p.frequency_mhz) + " MHz, " + std::to_string(p.elements) +
-                 " elements)";
-        }
-        return t + "; empty = the view's probe (the phantom's, or linear)";
-    }();
-    static const ParameterDoc doc = {"--probe", "", text.c_str()};
-    return doc;
-}
-constexpr ParameterDoc kPixelDoc = {"--pixel", "mm", "pixel size of the scan-converted image"};
-constexpr ParameterDoc kStepDoc = {"--step", "texels",
-                                   "integration step s, in texels of the map; 0 = the quality's "
-                                   "(interactive and standard 1, high 0.5)"};
-constexpr ParameterDoc kRefractionSmoothingDoc = {
-    "--refraction-smoothing", "mm",
-    "Gaussian sigma of the soft-tissue speed of sound the rays bend in: a beam's wavefront "
-    "spans its Fresnel zone, so structures thinner than that (sulci, partial-volume fringes) "
-    "aberrate it instead of deflecting it; bone and air stay sharp. -1 = the probe's Fresnel "
-    "scale sqrt(wavelength x depth) / 2 (convex 3.0, linear 1.4, phased 4.1 mm), 0 = none"};
-constexpr ParameterDoc kSeedDoc = {"--seed", "",
-                                   "random seed of the beams, tracing and scatterer field"};
+// ---- the command line's own parameters, documented once ----
 constexpr ParameterDoc kFormatsDoc = {
     "--formats", "",
     "comma list of frame formats: png8 (NAME.png), png16 (NAME_16.png), exr (NAME.exr, float "
@@ -83,11 +47,6 @@ constexpr ParameterDoc kOutDoc = {"--out", "", "output directory"};
 constexpr ParameterDoc kNameDoc = {"--name", "", "file stem of the frame and its sidecar"};
 constexpr ParameterDoc kJsonDoc = {
     "--json", "", "also write the run record (description and timings); '-' = stdout"};
-constexpr ParameterDoc kSweepDoc = {
-    "--sweep", "mm",
-    "move the probe and write a numbered frame sequence (NAME_0000.png, ...): "
-    "'AXIS:LENGTH:STEP' from -LENGTH/2 to +LENGTH/2 about the pose, AXIS = elevation, lateral, "
-    "axial (the probe's axes) or X,Y,Z (world); or a text file with one --pose per line"};
 constexpr ParameterDoc kVideoDoc = {
     "--video", "",
     "container of the sweep's video: mp4 (H.264, plays in browsers) or avi "
@@ -99,48 +58,30 @@ constexpr ParameterDoc kSceneDoc = {
     "\"gain\": 40, \"formats\": [\"png8\", \"exr\"]); options given on the command line win; "
     "unknown keys are errors"};
 
-std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::Transducer& t) {
-    if (text == "none") return {};
-    if (text == "auto") {
-        return {{0.0, 0.0}, {t.depth_mm, imaging::automatic_tgc_db(t.frequency_mhz, t.depth_mm)}};
-    }
-    std::vector<imaging::TgcPoint> curve;
-    std::istringstream list(text);
-    for (std::string item; std::getline(list, item, ',');) {
-        const auto colon = item.find(':');
-        imaging::TgcPoint p;
-        try {
-            if (colon == std::string::npos) throw std::invalid_argument("no colon");
-            std::size_t used = 0;
-            p.depth_mm = std::stod(item.substr(0, colon), &used);
-            p.gain_db = std::stod(item.substr(colon + 1));
-        } catch (const std::exception&) {
-            throw base::InputError("--tgc", item, "expected DEPTH:GAIN (mm:dB), 'auto' or 'none'");
-        }
-        curve.push_back(p);
-    }
-    return curve;
-}
+// The files a request's parameter makes the command write (the table says what they hold).
+const std::map<std::string, std::string> kFilesWritten = {
+    {"labels",
+     "Written as NAME_labels.png and NAME_labels_echo.png, with a colour preview of each"},
+    {"energy", "Written as NAME_energy.png"},
+    {"sweep", "Written as NAME_0000.png, ... and a video"},
+};
 
-probe::Transducer make_transducer(const SimulateOptions& o, const std::string& preset) {
-    probe::Transducer t = probe::find_transducer(preset, "--probe");
+// --frequency, --depth, ...: the transducer's parameters, each overriding the preset's.
+void add_transducer_options(CLI::App& cmd, scene::FrameRequest& request) {
     for (const auto& doc : probe::transducer_parameter_docs()) {
-        const auto given = o.transducer.find(doc.key);
-        if (given != o.transducer.end() && given->second)
-            doc.set(t, *given->second, std::string("--") + doc.key);
+        const std::string flag = std::string("--") + doc.key;
+        std::string help = std::string(doc.description) + " (default: the preset's)";
+        if (doc.unit[0] != '\0') help += std::string(" [") + doc.unit + "]";
+        const char* type_name = std::visit(
+            [](const auto& value) {
+                using V = std::decay_t<decltype(value)>;
+                return std::is_same_v<V, double> ? "FLOAT"
+                       : std::is_same_v<V, int>  ? "INT"
+                                                 : "TEXT";
+            },
+            doc.get(probe::Transducer{}));
+        cmd.add_option(flag, request.transducer[doc.key], help)->type_name(type_name);
     }
-    return t;
-}
-
-template <typename E>
-E parse_enum(const std::string& text, const char* flag,
-             const std::vector<std::pair<std::string, E>>& choices) {
-    std::string names;
-    for (const auto& [name, value] : choices) {
-        if (name == text) return value;
-        names += (names.empty() ? "" : ", ") + name;
-    }
-    throw base::InputError(flag, "", "must be one of " + names + ", got '" + text + "'");
 }
 
 // Frame (0..1, scan converted) as an image file of the requested format (png8: the
@@ -162,13 +103,6 @@ extern "C" void on_sweep_signal(int) {
 
 }  // namespace
 
-nlohmann::json transducer_json(const probe::Transducer& t) {
-    json out = {{"name", t.name}, {"description", t.description}};
-    for (const auto& doc : probe::transducer_parameter_docs())
-        std::visit([&](const auto& value) { out[doc.record_key] = value; }, doc.get(t));
-    return out;
-}
-
 CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
     CLI::App* cmd = app.add_subcommand(
         "simulate",
@@ -176,59 +110,34 @@ CLI::App* add_simulate_command(CLI::App& app, SimulateOptions& o) {
         "map, their echoes become RF lines (pulse, speckle), envelope, TGC, log compression and "
         "a scan-converted image with a JSON sidecar. Without arguments: the Colin27 head, convex "
         "probe on the cortex through a craniotomy, written to out/bmode.png.");
-    add_parameter(*cmd, kViewDoc, o.view);
-    add_volume_options(*cmd, o.volume);
-    add_parameter(*cmd, kPhantomDoc, o.phantom);
-    add_parameter(*cmd, probe_doc(), o.probe);
-    for (const auto& doc : probe::transducer_parameter_docs()) {
-        const std::string flag = std::string("--") + doc.key;
-        std::string help = std::string(doc.description) + " (default: the preset's)";
-        if (doc.unit[0] != '\0') help += std::string(" [") + doc.unit + "]";
-        const char* type_name = std::visit(
-            [](const auto& value) {
+    // The frame's parameters from the request's table, the transducer's after --probe.
+    for (const scene::RequestParameter& p : scene::request_parameters()) {
+        const std::string flag = "--" + p.key;
+        const auto files = kFilesWritten.find(p.key);
+        const std::string help =
+            p.help() + (files != kFilesWritten.end() ? ". " + files->second : "");
+        std::visit(
+            [&](auto member) {
+                auto& value = o.request.*member;
                 using V = std::decay_t<decltype(value)>;
-                return std::is_same_v<V, double> ? "FLOAT"
-                       : std::is_same_v<V, int>  ? "INT"
-                                                 : "TEXT";
+                if constexpr (std::is_same_v<V, bool>)
+                    cmd->add_flag(flag, value, help);
+                else if constexpr (std::is_same_v<V, std::optional<double>>)
+                    cmd->add_option(flag, value, help);
+                else
+                    cmd->add_option(flag, value, help)->capture_default_str();
             },
-            doc.get(probe::Transducer{}));
-        cmd->add_option(flag, o.transducer[doc.key], help)->type_name(type_name);
+            p.member);
+        if (p.key == "probe") add_transducer_options(*cmd, o.request);
     }
-    add_parameter(*cmd, kQualityDoc, o.quality);
-    add_parameter(*cmd, kReceiveDoc, o.receive);
-    add_parameter(*cmd, kTraceDoc, o.trace);
-    cmd->add_option("--disable", o.disable,
-                    "comma list of physics to switch off, to take an artifact apart (as the "
-                    "GUI's toggles): " +
-                        imaging::physics_switch_help() + ".");
-    cmd->add_option(kGainDoc.flag, o.gain_db,
-                    std::string(kGainDoc.description) +
-                        " (default: the scene's: " + std::to_string(int(scene::kDefaultGainDb)) +
-                        ", the temporal view " + std::to_string(int(scene::kTemporalGainDb)) +
-                        ", where the skull costs about 27 dB two-way) [" + kGainDoc.unit + "]");
-    add_parameter(*cmd, kRangeDoc, o.dynamic_range_db);
-    add_parameter(*cmd, kTgcDoc, o.tgc);
-    add_parameter(*cmd, kPixelDoc, o.pixel_mm);
-    add_parameter(*cmd, kStepDoc, o.step_texels);
-    add_parameter(*cmd, kRefractionSmoothingDoc, o.refraction_smoothing_mm);
-    add_parameter(*cmd, kSeedDoc, o.seed);
     add_parameter(*cmd, kFormatsDoc, o.formats);
     cmd->add_flag("--rf", o.write_rf, "also write the RF lines (NAME_rf.exr: lines x samples)");
     cmd->add_flag("--envelope", o.write_envelope,
                   "also write the envelope (NAME_envelope.exr: lines x samples)");
-    cmd->add_flag(
-        "--labels", o.write_labels,
-        "also write the ground-truth tissue labels in the frame's pixels (NAME_labels.png, "
-        "values = tissue index listed in the sidecar), the same where the echoes show the "
-        "anatomy (NAME_labels_echo.png: behind fast bone it shows closer than it lies), and "
-        "a colour preview of each");
-    cmd->add_flag("--energy", o.write_energy,
-                  "also write the energy deposition map (NAME_energy.png)");
     add_parameter(*cmd, kOutDoc, o.out_dir);
     add_parameter(*cmd, kNameDoc, o.name);
     add_parameter(*cmd, kJsonDoc, o.json_path);
     add_parameter(*cmd, kThreadsDoc, o.threads)->check(CLI::Range(0, 1024));
-    add_parameter(*cmd, kSweepDoc, o.sweep);
     cmd->add_flag("--resume", o.resume,
                   "continue a stopped sweep into the same --out: frames whose files are all "
                   "there are kept (not simulated again; the last frame always is), the video is "
@@ -302,114 +211,6 @@ void apply_scene_file(CLI::App& command, const std::string& path) {
 
 }  // namespace
 
-json frame_sidecar(const SimulateOptions& o, const SimulateSetup& setup,
-                   const imaging::Frame& frame) {
-    const imaging::SimulationSettings& settings = setup.settings;
-    const scene::Scene* scene = setup.scene.get();
-    const imaging::PhysicsSwitches& physics = setup.physics;
-    const imaging::QualityLevel level = imaging::quality_level(settings.quality);
-    return {
-        {"command", "simulate"},
-        {"version", SONOTRACE_VERSION},
-        {"seed", o.seed},
-        {"view", o.view},
-        {"scene", scene->start.description},
-        {"source", scene->phantom ? json{{"phantom", o.phantom},
-                                         {"name", scene->phantom->name},
-                                         {"description", scene->phantom->description}}
-                                  : volume_source_json(*scene->volume, o.volume)},
-        {"probe", transducer_json(settings.transducer)},
-        {"pose", pose_json(scene->start.pose)},
-        {"quality",
-         {{"name", imaging::to_string(settings.quality)},
-          {"map_pixel_mm", level.map_pixel_mm},
-          {"particles_per_line", level.particles_per_line},
-          {"step_texels", settings.step_texels > 0.0 ? settings.step_texels : level.step_texels},
-          {"refraction_smoothing_mm", imaging::refraction_smoothing_mm(settings)}}},
-        {"receive", imaging::to_string(settings.receive)},
-        {"trace", settings.trace_dimensions == 3 ? "3d" : "2d"},
-        {"disabled_physics",
-         [&] {
-             json off = json::array();
-             for (const auto& n : imaging::physics_switch_names())
-                 if (!(physics.*(n.member))) off.push_back(n.name);
-             return off;
-         }()},
-        {"craniotomy",
-         {{"radius_mm", scene->start.craniotomy_radius_mm},
-          {"depth_mm", scene->start.craniotomy_depth_mm}}},
-        {"image",
-         {{"width", frame.image.image.cols},
-          {"height", frame.image.image.rows},
-          {"pixel_spacing_mm", {o.pixel_mm, o.pixel_mm}},
-          {"origin_mm", {frame.image.origin.x, frame.image.origin.y}},
-          {"axes", "x = lateral, y = depth from the probe face apex (mm); row 0 at origin.y"},
-          {"gain_db", settings.imaging.gain_db},
-          {"dynamic_range_db", o.dynamic_range_db},
-          {"tgc", o.tgc}}},
-        {"rf",
-         {{"lines", frame.rf.lines},
-          {"samples", frame.rf.samples},
-          {"sampling_hz", frame.rf.fs_hz}}},
-        {"stats",
-         {{"particles", frame.stats.particles},
-          {"steps", frame.stats.steps},
-          {"reflections", frame.stats.reflections},
-          {"scatter_events", frame.stats.scatter_events},
-          {"captured", frame.stats.captured},
-          {"energy_balance_error", frame.ledger.relative_error()}}},
-        {"timings_s", frame.timings},
-    };
-}
-
-SimulateSetup prepare_simulate(const SimulateOptions& o, StageTimer& timer) {
-    SimulateSetup setup;
-    imaging::SimulationSettings& settings = setup.settings;
-    std::shared_ptr<const scene::Scene>& scene = setup.scene;
-    // ---- validate everything before loading ----
-    scene::SceneOptions scene_options;
-    static_cast<scene::VolumeOptions&>(scene_options) = o.volume;
-    scene_options.phantom = o.phantom;
-    scene_options.view = o.view;
-    if (o.volume.pose != "default") scene_options.pose = probe::parse_pose(o.volume.pose, "--pose");
-    scene_options.validate();
-    // A phantom is read first: it is small, and it names the default probe.
-    if (!o.phantom.empty()) scene = scene::load_scene(scene_options, &timer);
-    const std::string preset = !o.probe.empty() ? o.probe
-                               : scene          ? scene->probe_preset
-                                                : scene_options.volume_probe_preset();
-    settings.transducer = make_transducer(o, preset);
-    settings.quality = imaging::parse_quality(o.quality, "--quality", "");
-    settings.receive =
-        parse_enum<imaging::ReceiveModel>(o.receive, "--receive",
-                                          {{"monostatic", imaging::ReceiveModel::monostatic},
-                                           {"capture", imaging::ReceiveModel::capture}});
-    settings.trace_dimensions = parse_enum<int>(o.trace, "--trace", {{"2d", 2}, {"3d", 3}});
-    settings.seed = o.seed;
-    setup.physics = imaging::disabled_physics(o.disable, "--disable", "");
-    imaging::apply(setup.physics, settings);
-    settings.trace.deposition_maps = o.write_energy;  // the energy map is their only reader
-    settings.step_texels = o.step_texels;
-    if (o.refraction_smoothing_mm != -1.0)
-        settings.refraction_smoothing_mm = o.refraction_smoothing_mm;
-    settings.imaging.gain_db = o.gain_db.value_or(scene::kDefaultGainDb);
-    settings.imaging.dynamic_range_db = o.dynamic_range_db;
-    settings.imaging.pixel_mm = o.pixel_mm;
-    settings.imaging.tgc = parse_tgc(o.tgc, settings.transducer);
-    settings.validate("simulate options");
-    // ---- load and place the probe ----
-    if (!scene) scene = scene::load_scene(scene_options, &timer);
-    scene->apply_to(settings);
-    if (!o.gain_db) settings.imaging.gain_db = scene->gain_db;
-    setup.placements = sweep_placements(o.sweep, scene->start);
-    const std::string pose_source =
-        (scene->phantom ? o.phantom + " " : "") + (o.sweep.empty() ? "--pose" : "--sweep");
-    for (const SweepPlacement& p : setup.placements)
-        scene->require_inside(p.scene.pose, pose_source);
-
-    return setup;
-}
-
 int run_simulate_command(const SimulateOptions& o) {
     // The scene file writes into the options bound to the command, i.e. into `o`.
     if (!o.scene.empty() && o.command) apply_scene_file(*o.command, o.scene);
@@ -445,20 +246,21 @@ int run_simulate_command(const SimulateOptions& o) {
     const std::string video_suffix = o.video.empty() ? "" : "." + o.video;
     if (!o.video.empty() && o.video != "mp4" && o.video != "avi")
         throw base::InputError("--video", o.video, "must be mp4, avi or empty");
-    if (o.resume && o.sweep.empty()) throw base::InputError("--resume", "", "needs --sweep");
+    if (o.resume && o.request.sweep.empty())
+        throw base::InputError("--resume", "", "needs --sweep");
     if (o.resume && !o.video.empty() &&
         std::none_of(formats.begin(), formats.end(), [](const auto& f) { return f.second == 8; }))
         throw base::InputError("--resume", "",
                                "rebuilds the video from the png8 frames: add png8 to --formats "
                                "or give --video ''");
 
-    const SimulateSetup setup = prepare_simulate(o, timer);
+    const scene::FrameSetup setup = scene::prepare_frames(o.request, &timer);
     const imaging::SimulationSettings& settings = setup.settings;
     const std::shared_ptr<const scene::Scene>& scene = setup.scene;
-    const std::vector<SweepPlacement>& placements = setup.placements;
+    const std::vector<scene::SweepPlacement>& placements = setup.placements;
 
     // ---- trace and form the frames; outputs staged and committed together ----
-    const bool sweeping = !o.sweep.empty();
+    const bool sweeping = !o.request.sweep.empty();
     const imaging::QualityLevel level = imaging::quality_level(settings.quality);
     const std::size_t particles =
         std::size_t(settings.transducer.lines) * std::size_t(level.particles_per_line);
@@ -494,7 +296,7 @@ int run_simulate_command(const SimulateOptions& o) {
     const auto previous_term = sweeping ? std::signal(SIGTERM, on_sweep_signal) : SIG_DFL;
     std::size_t frames_done = 0;
     for (std::size_t f = 0; f < placements.size() && !g_stop_sweep; ++f) {
-        const SweepPlacement& placement = placements[f];
+        const scene::SweepPlacement& placement = placements[f];
         char numbered[32];
         std::snprintf(numbered, sizeof numbered, "_%04zu", f);
         const std::string stem = o.name + (sweeping ? numbered : "");
@@ -506,13 +308,13 @@ int run_simulate_command(const SimulateOptions& o) {
             frame_paths.push_back((out / (stem + suffix)).string());
         if (o.write_rf) frame_paths.push_back((out / (stem + "_rf.exr")).string());
         if (o.write_envelope) frame_paths.push_back((out / (stem + "_envelope.exr")).string());
-        if (o.write_labels) {
+        if (o.request.labels) {
             for (const LabelOutput& l : kLabelOutputs) {
                 frame_paths.push_back((out / (stem + l.suffix + ".png")).string());
                 frame_paths.push_back((out / (stem + l.suffix + "_preview.png")).string());
             }
         }
-        if (o.write_energy) frame_paths.push_back((out / (stem + "_energy.png")).string());
+        if (o.request.energy) frame_paths.push_back((out / (stem + "_energy.png")).string());
         if (o.resume && f + 1 < placements.size() &&
             std::all_of(frame_paths.begin(), frame_paths.end(),
                         [](const std::string& p) { return std::filesystem::exists(p); })) {
@@ -530,7 +332,7 @@ int run_simulate_command(const SimulateOptions& o) {
             written.insert(written.end(), frame_paths.begin(), frame_paths.end());
             frames_record.push_back({{"index", f},
                                      {"offset_mm", placement.offset_mm},
-                                     {"pose", pose_json(placement.scene.pose)},
+                                     {"pose", scene::pose_json(placement.scene.pose)},
                                      {"resumed", true}});
             ++frames_done;
             if (sweeping) sweep_bar.update(f + 1, placements.size());
@@ -539,7 +341,7 @@ int run_simulate_command(const SimulateOptions& o) {
         ProgressBar bar("simulating " + std::to_string(particles) + " particles",
                         o.quiet || sweeping);
         imaging::SimulatedFrame simulated = imaging::simulate_plane(
-            scene->mapper, placement.scene, settings, o.write_labels,
+            scene->mapper, placement.scene, settings, o.request.labels,
             [&bar](std::size_t done, std::size_t total) { bar.update(done, total); });
         bar.finish();
         const imaging::Frame& frame = simulated.frame;
@@ -575,7 +377,7 @@ int run_simulate_command(const SimulateOptions& o) {
                     {"geometry", l.geometry}};
             }
         }
-        if (o.write_energy) {
+        if (o.request.energy) {
             imaging::FieldStyle style{"absorbed energy (sedimentation)",
                                       "energy",
                                       imaging::Colormap::inferno,
@@ -591,7 +393,7 @@ int run_simulate_command(const SimulateOptions& o) {
             add_video_frame(imaging::grey_levels(frame.image.image));
         frames_record.push_back({{"index", f},
                                  {"offset_mm", placement.offset_mm},
-                                 {"pose", pose_json(placement.scene.pose)},
+                                 {"pose", scene::pose_json(placement.scene.pose)},
                                  {"timings_s", frame.timings}});
         if (sweeping) frame_transaction.commit();
         ++frames_done;
@@ -622,12 +424,12 @@ int run_simulate_command(const SimulateOptions& o) {
                                "interrupted before the first frame: nothing written");
 
     const imaging::Frame& frame = last;
-    json record = frame_sidecar(o, setup, frame);
+    json record = scene::frame_sidecar(o.request, setup, frame);
     record["labels"] = label_record;
     record["stage_timings_s"] = timer.timings();
     record["outputs"] = written;
     if (sweeping) {
-        record["sweep"] = {{"spec", o.sweep},
+        record["sweep"] = {{"spec", o.request.sweep},
                            {"frames", frames_record},
                            {"frames_planned", placements.size()},
                            {"interrupted", interrupted}};

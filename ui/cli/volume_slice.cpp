@@ -5,6 +5,7 @@
 
 #include "imaging/colin27.h"
 #include "imaging/simulation.h"
+#include "phantoms/scene/request.h"
 #include "tissue/base/error.h"
 #include "tissue/base/memory.h"
 
@@ -15,23 +16,6 @@ namespace {
 using nlohmann::json;
 
 // Parameters of the volume slice, documented once (shared by tissue and trace).
-constexpr ParameterDoc kVolumeDoc = {
-    "--volume", "",
-    "volume to load: 'default' (Colin27 T1 head MRI from mricron-data), a NIfTI file "
-    "(.nii/.nii.gz), a raw sidecar (.json), a DICOM file or a directory holding one DICOM "
-    "series (slices ordered by position; values rescaled, e.g. to Hounsfield units), an "
-    "image (PNG/TIFF/JPEG/EXR), a directory of numbered images or a printf pattern "
-    "(img_%03d.png)"};
-constexpr ParameterDoc kSpacingDoc = {
-    "--spacing", "mm",
-    "pixel spacing of image inputs as 'SX,SY' or 'SX,SY,SZ' (SZ = slice spacing of a stack); "
-    "required for images, ignored for NIfTI, DICOM and raw volumes"};
-constexpr ParameterDoc kTfDoc = {
-    "--tf", "",
-    "transfer function: a preset name (mri-t1-head, ct-hounsfield, generic-soft-tissue) or a "
-    "JSON file; empty = mri-t1-head for the default volume, ct-hounsfield for a CT DICOM "
-    "series, generic-soft-tissue otherwise"};
-constexpr ParameterDoc kPoseDoc = {"--pose", "mm, degrees", probe::kPoseHelp};
 constexpr ParameterDoc kWidthDoc = {"--width", "mm",
                                     "lateral extent of the slice, centred on the probe; 0 = "
                                     "automatic (140 mm for the default volume, else the volume's "
@@ -46,40 +30,33 @@ constexpr ParameterDoc kElevationDoc = {
     "--elevation", "mm",
     "thickness of a 3D sub-volume around the image plane (for 3D tracing); 0 = a single plane. "
     "Pictures show the central plane; --nifti writes the whole sub-volume"};
-constexpr ParameterDoc kOutsideDoc = {"--outside", "volume units",
-                                      "value assumed outside the volume; default: the volume's "
-                                      "minimum (air for MRI)"};
-
-json geometry_json(const tissue::VolumeGeometry& g) {
-    json direction = json::array();
-    for (int c = 0; c < 3; ++c)
-        direction.push_back({g.direction[c].x, g.direction[c].y, g.direction[c].z});
-    return {{"dims", {g.dims.x, g.dims.y, g.dims.z}},
-            {"spacing_mm", {g.spacing.x, g.spacing.y, g.spacing.z}},
-            {"origin_mm", {g.origin.x, g.origin.y, g.origin.z}},
-            {"direction", direction}};
+// The volume options are frame parameters: their rows of the request's table.
+template <typename T>
+void add_request_option(CLI::App& cmd, const char* key, T& variable) {
+    const scene::RequestParameter& row = scene::request_parameter(key);
+    cmd.add_option("--" + row.key, variable, row.help())->capture_default_str();
 }
 
 }  // namespace
 
 void add_volume_options(CLI::App& cmd, SliceOptions& options) {
-    add_parameter(cmd, kVolumeDoc, options.volume);
-    add_parameter(cmd, kSpacingDoc, options.spacing);
-    add_parameter(cmd, kTfDoc, options.tf);
-    add_parameter(cmd, kPoseDoc, options.pose);
-    add_parameter(cmd, kOutsideDoc, options.outside);
+    add_request_option(cmd, "volume", options.volume);
+    add_request_option(cmd, "spacing", options.spacing);
+    add_request_option(cmd, "tf", options.tf);
+    add_request_option(cmd, "pose", options.pose);
+    add_request_option(cmd, "outside", options.outside);
 }
 
 void add_slice_options(CLI::App& cmd, SliceOptions& options, bool with_elevation) {
-    add_parameter(cmd, kVolumeDoc, options.volume);
-    add_parameter(cmd, kSpacingDoc, options.spacing);
-    add_parameter(cmd, kTfDoc, options.tf);
-    add_parameter(cmd, kPoseDoc, options.pose);
+    add_request_option(cmd, "volume", options.volume);
+    add_request_option(cmd, "spacing", options.spacing);
+    add_request_option(cmd, "tf", options.tf);
+    add_request_option(cmd, "pose", options.pose);
     add_parameter(cmd, kWidthDoc, options.width_mm);
     add_parameter(cmd, kDepthDoc, options.depth_mm);
     add_parameter(cmd, kResolutionDoc, options.resolution_mm);
     if (with_elevation) add_parameter(cmd, kElevationDoc, options.elevation_mm);
-    add_parameter(cmd, kOutsideDoc, options.outside);
+    add_request_option(cmd, "outside", options.outside);
 }
 
 Slice make_slice(const SliceOptions& options, StageTimer& timer) {
@@ -133,26 +110,6 @@ Slice make_slice(const SliceOptions& options, StageTimer& timer) {
     slice.extent = extent;
     slice.grid = grid;
     return slice;
-}
-
-json pose_json(const probe::Pose& pose) {
-    return {{"text", pose.to_string()},
-            {"position_mm", {pose.position.x, pose.position.y, pose.position.z}},
-            {"lateral", {pose.lateral().x, pose.lateral().y, pose.lateral().z}},
-            {"axial", {pose.axial().x, pose.axial().y, pose.axial().z}},
-            {"elevation", {pose.elevation().x, pose.elevation().y, pose.elevation().z}}};
-}
-
-json volume_source_json(const scene::VolumeSource& source, const scene::VolumeOptions& options) {
-    return {{"volume",
-             {{"spec", options.volume},
-              {"path", source.loaded.path},
-              {"format", source.loaded.format},
-              {"geometry", geometry_json(source.loaded.volume.geometry())},
-              {"value_range", {source.value_min, source.value_max}},
-              {"outside_value", source.outside}}},
-            {"transfer_function", source.tf->describe()},
-            {"warnings", source.loaded.warnings}};
 }
 
 json slice_json(const Slice& slice, const SliceOptions& options) {

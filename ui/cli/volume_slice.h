@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "phantoms/scene/records.h"
 #include "phantoms/scene/scene.h"
 #include "probe/pose.h"
 #include "tissue/property_maps.h"
@@ -30,12 +31,9 @@ void add_slice_options(CLI::App& cmd, SliceOptions& options, bool with_elevation
 // Only the volume options: --volume, --spacing, --tf, --pose, --outside.
 void add_volume_options(CLI::App& cmd, SliceOptions& options);
 
-// A pose in a sidecar: its text form and its axes in world coordinates.
-nlohmann::json pose_json(const probe::Pose& pose);
-
-// The volume-related part of a sidecar.
-nlohmann::json volume_source_json(const scene::VolumeSource& source,
-                                  const scene::VolumeOptions& options);
+using scene::geometry_json;
+using scene::pose_json;
+using scene::volume_source_json;
 
 struct Slice {
     scene::VolumeSource source;

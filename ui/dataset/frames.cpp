@@ -4,7 +4,9 @@
 #include <cmath>
 
 #include "imaging/picture.h"
+#include "phantoms/scene/request.h"
 #include "tissue/base/error.h"
+#include "tissue/base/number_list.h"
 
 namespace sonotrace::dataset {
 
@@ -72,25 +74,28 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     out.pose = pose;
     imaging::ScenePlacement placement = scene.start;
     placement.pose = pose;
-    // -- settings as `sonotrace simulate` makes them
-    imaging::SimulationSettings s;
-    s.transducer = t;
-    s.quality = spec_.quality;
-    s.trace_dimensions = spec_.trace_dimensions;
-    s.seed = d.seed;
-    imaging::apply(imaging::disabled_physics(spec_.disable, spec_.path, "disable"), s);
-    s.trace.deposition_maps = spec_.write_energy;
-    s.imaging.gain_db = d.gain_db;
-    s.imaging.dynamic_range_db = d.dynamic_range_db;
-    s.imaging.tgc = {{0.0, 0.0},
-                     {t.depth_mm, imaging::automatic_tgc_db(t.frequency_mhz, t.depth_mm)}};
+    // -- the frame's request, as `sonotrace simulate` would be asked for it
+    scene::FrameRequest request;
+    request.probe = t.name;
+    const auto exact = base::exact_number_text;  // the drawn values, to the bit
+    if (d.frequency_mhz > 0.0) request.transducer["frequency"] = exact(d.frequency_mhz);
+    if (d.depth_mm > 0.0) request.transducer["depth"] = exact(d.depth_mm);
+    if (d.focus_mm > 0.0) request.transducer["focus"] = exact(d.focus_mm);
+    request.quality = imaging::to_string(spec_.quality);
+    request.trace = spec_.trace_dimensions == 3 ? "3d" : "2d";
+    request.seed = d.seed;
+    request.disable = spec_.disable;
+    request.energy = spec_.write_energy;
+    request.labels = spec_.write_labels || spec_.write_echo_labels;
+    request.gain_db = d.gain_db;
+    request.dynamic_range_db = d.dynamic_range_db;
     // Pixels that fit the scanned region into W x H.
     const auto [lo, hi] = probe::ScanGeometry(t).bounds();
-    s.imaging.pixel_mm =
+    request.pixel_mm =
         std::max((hi.x - lo.x) / (spec_.width - 1), (hi.y - lo.y) / (spec_.height - 1)) *
         (1.0 + 1e-9);
-    scene.apply_to(s);
-    s.validate(spec_.path + " (" + where + ")");
+    const imaging::SimulationSettings s =
+        scene::make_settings(request, scene, spec_.path + " (" + where + ")");
     imaging::SimulatedFrame simulated = imaging::simulate_plane(
         scene.mapper, placement, s, spec_.write_labels || spec_.write_echo_labels);
     imaging::Frame& frame = simulated.frame;

@@ -5,9 +5,9 @@
 #include <stdexcept>
 
 #include "imaging/simulation.h"
+#include "phantoms/scene/request.h"
 #include "probe/array_geometry.h"
 #include "tissue/base/error.h"
-#include "ui/cli/simulate_command.h"
 
 namespace sonotrace::gui {
 
@@ -20,6 +20,13 @@ SliderSpec transducer_slider(Control control, const char* label, const char* key
         if (std::string(doc.key) == key)
             return {control, label, doc.unit, min, max, doc.description};
     throw std::logic_error(std::string("no transducer parameter ") + key);
+}
+
+// A slider over a frame parameter (the request's table: its unit and description).
+SliderSpec request_slider(Control control, const char* label, const char* key, double min,
+                          double max) {
+    const scene::RequestParameter& row = scene::request_parameter(key);
+    return {control, label, row.unit.c_str(), min, max, row.description};
 }
 
 // What the materials of a scene can do to a beam, and the materials that do it (quoted
@@ -72,9 +79,8 @@ const std::vector<SliderSpec>& slider_specs() {
         transducer_slider(Control::lines, "scan lines", "lines", 16.0, 256.0),
         transducer_slider(Control::fov, "field of view", "fov", 10.0, 120.0),
         transducer_slider(Control::frequency, "frequency", "frequency", 1.0, 12.0),
-        {Control::gain, "gain", ui::kGainDoc.unit, -20.0, 80.0, ui::kGainDoc.description},
-        {Control::dynamic_range, "dynamic range", ui::kRangeDoc.unit, 20.0, 100.0,
-         ui::kRangeDoc.description},
+        request_slider(Control::gain, "gain", "gain", -20.0, 80.0),
+        request_slider(Control::dynamic_range, "dynamic range", "dynamic-range", 20.0, 100.0),
         {Control::tgc, "TGC", "dB", -30.0, 30.0,
          "time-gain compensation at this depth, added to the automatic curve (2 x 0.6 "
          "dB/(cm MHz) x f x depth, brain attenuation)"},
@@ -118,9 +124,9 @@ std::string switch_help(Control control) {
         case Control::face_reflection:
             return physics("face");
         case Control::receive:
-            return ui::kReceiveDoc.description;
+            return scene::request_parameter("receive").description;
         case Control::trace:
-            return ui::kTraceDoc.description;
+            return scene::request_parameter("trace").description;
         default:
             return {};
     }

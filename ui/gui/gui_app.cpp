@@ -12,15 +12,15 @@
 #include <opencv2/imgproc.hpp>
 
 #include "imaging/picture.h"
+#include "phantoms/scene/records.h"
 #include "probe/array_geometry.h"
 #include "probe/pose.h"
 #include "sonotrace_version.h"
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
-#include "ui/cli/simulate_command.h"
-#include "ui/cli/volume_slice.h"
 
 namespace sonotrace::gui {
 
@@ -964,8 +964,8 @@ void App::save_frame() {
             {"version", SONOTRACE_VERSION},
             {"seed", frame_->settings.seed},
             {"scene", scene_->name},
-            {"probe", ui::transducer_json(frame_->settings.transducer)},
-            {"pose", ui::pose_json(frame_->pose)},
+            {"probe", scene::transducer_json(frame_->settings.transducer)},
+            {"pose", scene::pose_json(frame_->pose)},
             {"quality", imaging::to_string(frame_->quality)},
             {"trace", frame_->settings.trace_dimensions == 3 ? "3d" : "2d"},
             {"transfer_function",
@@ -987,7 +987,7 @@ void App::save_frame() {
               {"multiple_bounces", parameters_.physics.multiple_bounces},
               {"receive", imaging::to_string(frame_->settings.receive)}}},
             {"timings_s", frame_->frame.timings}};
-        ui::write_json(record, transaction.stage(stem + ".json"));
+        base::jsonio::write_json(record, transaction.stage(stem + ".json"));
         transaction.commit();
         message_ = "saved " + stem + ".png and .json";
     } catch (const std::exception& e) {

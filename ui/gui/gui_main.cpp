@@ -25,9 +25,9 @@
 #include "tissue/base/atomic_output.h"
 #include "tissue/base/data_dir.h"
 #include "tissue/base/error.h"
+#include "tissue/base/json_util.h"
 #include "tissue/base/memory.h"
 #include "tissue/transfer_function.h"
-#include "ui/cli/command_common.h"
 #include "ui/gui/gui_app.h"
 
 namespace {
@@ -193,7 +193,7 @@ int run(const Options& o) {
                     {"error", app.last_error()}};
                 std::filesystem::path sidecar(o.screenshot);
                 sidecar.replace_extension(".json");
-                ui::write_json(layout, transaction.stage(sidecar.string()));
+                base::jsonio::write_json(layout, transaction.stage(sidecar.string()));
                 transaction.commit();
                 std::cerr << "sonotrace-gui: wrote " << o.screenshot << "\n";
             }
@@ -212,7 +212,7 @@ int run(const Options& o) {
                         {"bmode_frames_per_s",
                          span > 0 ? double(app.frames_shown() - frames_at_start) / span : 0.0},
                         {"last_simulation_ms", 1e3 * app.last_simulation_seconds()}};
-                    ui::write_json(record, o.json_path);
+                    base::jsonio::write_json(record, o.json_path);
                 }
                 break;
             }

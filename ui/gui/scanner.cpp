@@ -8,6 +8,7 @@
 #include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
 #include "tissue/base/error.h"
+#include "tissue/base/number_list.h"
 
 namespace sonotrace::gui {
 
@@ -59,26 +60,36 @@ std::vector<std::pair<int, double>> tissues_present(const tissue::Volume& labels
 
 }  // namespace
 
-imaging::SimulationSettings ScanParameters::settings(const Scene& scene) const {
-    imaging::SimulationSettings s;
-    s.transducer = transducer;
-    s.quality = quality;
-    s.receive = receive;
-    s.trace_dimensions = trace_dimensions;
-    s.seed = seed;
-    s.imaging.gain_db = gain_db;
-    s.imaging.dynamic_range_db = dynamic_range_db;
+scene::FrameRequest ScanParameters::request() const {
+    using base::exact_number_text;
+    scene::FrameRequest r;
+    r.probe = transducer.name;
+    for (const auto& doc : probe::transducer_parameter_docs())
+        r.transducer[doc.key] = probe::parameter_text(doc.get(transducer));
+    r.quality = imaging::to_string(quality);
+    r.receive = imaging::to_string(receive);
+    r.trace = trace_dimensions == 3 ? "3d" : "2d";
+    r.seed = seed;
+    r.gain_db = gain_db;
+    r.dynamic_range_db = dynamic_range_db;
     // TGC: the automatic curve for brain plus the sliders.
+    r.tgc.clear();
     for (int k = 0; k < kTgcSliders; ++k) {
         const double depth = transducer.depth_mm * (k + 0.5) / kTgcSliders;
-        s.imaging.tgc.push_back({depth, imaging::automatic_tgc_db(transducer.frequency_mhz, depth) +
-                                            tgc_db[std::size_t(k)]});
+        r.tgc += (k ? "," : "") + exact_number_text(depth) + ":" +
+                 exact_number_text(imaging::automatic_tgc_db(transducer.frequency_mhz, depth) +
+                                   tgc_db[std::size_t(k)]);
     }
-    s.imaging.pixel_mm = std::max(0.1, transducer.depth_mm / 400.0);
-    imaging::apply(physics, s);
-    scene.apply_to(s);
-    s.validate("gui settings");
-    return s;
+    r.pixel_mm = std::max(0.1, transducer.depth_mm / 400.0);
+    for (const auto& n : imaging::physics_switch_names())
+        if (!(physics.*(n.member)))
+            r.disable += (r.disable.empty() ? "" : ",") + std::string(n.name);
+    r.energy = true;  // the energy view
+    return r;
+}
+
+imaging::SimulationSettings ScanParameters::settings(const Scene& scene) const {
+    return scene::make_settings(request(), scene, "gui settings");
 }
 
 imaging::pbvr::OrbitCamera context_camera(const Scene& scene, const ContextView& view) {

@@ -22,6 +22,7 @@
 #include "imaging/pbvr/camera.h"
 #include "imaging/pbvr/pbvr.h"
 #include "imaging/simulation.h"
+#include "phantoms/scene/request.h"
 #include "ui/gui/scene.h"
 
 namespace sonotrace::gui {
@@ -44,7 +45,9 @@ struct ScanParameters {
     PhysicsSwitches physics;
     uint64_t seed = 1;
 
-    // Throws base::InputError naming the field when out of range.
+    // The frame request these controls make (what `simulate` would be given).
+    scene::FrameRequest request() const;
+    // Its settings on `scene`; throws base::InputError naming the field when out of range.
     imaging::SimulationSettings settings(const Scene& scene) const;
 };
 

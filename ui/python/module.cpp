@@ -16,14 +16,15 @@
 #include <memory>
 #include <sstream>
 
-#include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
 
 #include "imaging/picture.h"
+#include "phantoms/scene/records.h"
+#include "phantoms/scene/request.h"
 #include "sonotrace_version.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
 #include "tissue/base/memory.h"
-#include "ui/cli/simulate_command.h"
 #include "ui/dataset/shard.h"
 
 namespace py = pybind11;
@@ -39,28 +40,35 @@ py::array_t<T> view(std::shared_ptr<Owner> owner, const T* data, std::vector<py:
     return py::array_t<T>(shape, data, free);
 }
 
-// Keyword arguments as the command line of `sonotrace simulate`: key -> --key (with '_'
-// as '-'), True -> the flag, False -> nothing, a list -> comma-separated. Values go as
-// --key=value, so that no value is ever read as an option or an option as a value.
-std::vector<std::string> command_line(const py::kwargs& kwargs, CLI::App& command) {
-    std::vector<std::string> args;
+// Keyword arguments as a frame request (phantoms/scene/request.h): the keys of its table
+// ('_' for '-'; the CLI's --key), True for a flag, a list as comma-separated text; and
+// `threads` (0 = all cores), which changes no pixel.
+struct Request {
+    scene::FrameRequest frame;
+    int threads = 0;
+};
+Request parse(const py::kwargs& kwargs) {
+    constexpr const char* kSource = "sonotrace.simulate";
+    Request out;
     for (const auto& [key, value] : kwargs) {
         const std::string name = py::str(key).cast<std::string>();
-        std::string flag = "--" + name;
-        std::replace(flag.begin(), flag.end(), '_', '-');
-        if (py::isinstance<py::bool_>(value)) {
-            const CLI::Option* option = command.get_option_no_throw(flag);
-            // A switch of the command (a flag) takes True; an option with a value is given
-            // one (it swallowed the next keyword's name as its value).
-            if (option && option->get_expected_min() > 0)
-                throw base::InputError(
-                    "sonotrace.simulate", name,
-                    "takes a value, not " + std::string(value.cast<bool>() ? "True" : "False"));
-            if (value.cast<bool>()) args.push_back(flag);
+        if (name == "threads") {
+            if (py::isinstance<py::bool_>(value) || !py::isinstance<py::int_>(value) ||
+                value.cast<long long>() < 0 || value.cast<long long>() > 1024)
+                throw base::InputError(kSource, name, "must be a whole number from 0 to 1024");
+            out.threads = value.cast<int>();
             continue;
         }
+        const scene::ParameterKind kind = scene::request_parameter_kind(name);
         std::string text;
-        if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
+        if (py::isinstance<py::bool_>(value)) {
+            // A bare True for a parameter with a value is a mistake, not the text "True".
+            if (kind == scene::ParameterKind::value)
+                throw base::InputError(
+                    kSource, name,
+                    "takes a value, not " + std::string(value.cast<bool>() ? "True" : "False"));
+            text = value.cast<bool>() ? "true" : "false";
+        } else if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
             for (const auto& item : value) {
                 if (!text.empty()) text += ',';
                 text += py::str(item).cast<std::string>();
@@ -68,32 +76,9 @@ std::vector<std::string> command_line(const py::kwargs& kwargs, CLI::App& comman
         } else {
             text = py::str(value).cast<std::string>();
         }
-        args.push_back(flag + "=" + text);
+        scene::set_request_parameter(out.frame, name, text, kSource);
     }
-    return args;
-}
-
-// The options of `sonotrace simulate`, parsed from keyword arguments by the CLI's own
-// parser: an unknown keyword or a bad value is the CLI's error.
-struct ParsedOptions {
-    CLI::App app{"sonotrace"};
-    ui::SimulateOptions options;
-};
-std::unique_ptr<ParsedOptions> parse(const py::kwargs& kwargs) {
-    auto parsed = std::make_unique<ParsedOptions>();
-    CLI::App* command = ui::add_simulate_command(parsed->app, parsed->options);
-    ui::refuse_bad_numbers(parsed->app);
-    std::vector<std::string> args = command_line(kwargs, *command);
-    args.insert(args.begin(), "simulate");
-    std::reverse(args.begin(), args.end());  // CLI11 takes a reversed vector
-    try {
-        parsed->app.parse(args);
-    } catch (const CLI::ParseError& e) {
-        throw base::InputError("sonotrace.simulate", "", e.what());
-    }
-    parsed->options.quiet = true;
-    parsed->options.command = command;
-    return parsed;
+    return out;
 }
 
 // One frame and what describes it, owned by the arrays that view it.
@@ -143,27 +128,25 @@ class Frame {
 // at a time.
 class Run {
   public:
-    explicit Run(const py::kwargs& kwargs) : parsed_(parse(kwargs)) {
-        const ui::SimulateOptions& o = parsed_->options;
-        if (!o.scene.empty())
-            throw base::InputError("scene", "", "is a CLI option file; pass keywords");
+    explicit Run(const py::kwargs& kwargs) : request_(parse(kwargs)) {
         py::gil_scoped_release release;
-        ui::StageTimer quiet(true);
-        setup_ = ui::prepare_simulate(o, quiet);
+        setup_ = scene::prepare_frames(request_.frame);
     }
     std::size_t size() const { return setup_.placements.size(); }
     Frame frame(std::size_t index) const {
-        const ui::SimulateOptions& o = parsed_->options;
         auto data = std::make_shared<FrameData>();
         {
             py::gil_scoped_release release;
-            const auto thread_limit = ui::limit_threads(o.threads);
-            const ui::SweepPlacement& placement = setup_.placements.at(index);
+            std::optional<tbb::global_control> thread_limit;
+            if (request_.threads > 0)
+                thread_limit.emplace(tbb::global_control::max_allowed_parallelism,
+                                     std::size_t(request_.threads));
+            const scene::SweepPlacement& placement = setup_.placements.at(index);
             data->simulated = imaging::simulate_plane(setup_.scene->mapper, placement.scene,
-                                                      setup_.settings, o.write_labels);
+                                                      setup_.settings, request_.frame.labels);
             data->bmode = imaging::grey_levels(data->simulated.frame.image.image);
-            data->sidecar = ui::frame_sidecar(o, setup_, data->simulated.frame);
-            data->sidecar["pose"] = ui::pose_json(placement.scene.pose);
+            data->sidecar = scene::frame_sidecar(request_.frame, setup_, data->simulated.frame);
+            data->sidecar["pose"] = scene::pose_json(placement.scene.pose);
             if (setup_.placements.size() > 1)
                 data->sidecar["sweep_offset_mm"] = placement.offset_mm;
         }
@@ -171,8 +154,8 @@ class Run {
     }
 
   private:
-    std::unique_ptr<ParsedOptions> parsed_;
-    ui::SimulateSetup setup_;
+    Request request_;
+    scene::FrameSetup setup_;
 };
 
 class Sweep {
@@ -194,9 +177,10 @@ class Sweep {
 PYBIND11_MODULE(sonotrace, m) {
     m.doc() =
         "sonotrace: ultrasound frames by particle tracing through tissue maps. Keyword "
-        "arguments are the options of `sonotrace simulate` (see `sonotrace simulate --help` "
-        "for units and defaults), with '_' for '-'; errors are sonotrace.InputError naming "
-        "the option or file and field.";
+        "arguments are the frame's parameters, the options of `sonotrace simulate` that are "
+        "not about its files (see `sonotrace simulate --help` for units and defaults), with "
+        "'_' for '-', and threads; errors are sonotrace.InputError naming the option or file "
+        "and field.";
     m.attr("__version__") = SONOTRACE_VERSION;
     static py::exception<base::InputError> input_error(m, "InputError", PyExc_ValueError);
     py::register_exception_translator([](std::exception_ptr p) {

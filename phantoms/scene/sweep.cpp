@@ -1,5 +1,5 @@
-// `simulate --sweep`: the probe's placements along an axis or from a file of poses
-// (declared in ui/cli/simulate_command.h).
+#include "phantoms/scene/sweep.h"
+
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -9,9 +9,8 @@
 #include "probe/pose.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
-#include "ui/cli/simulate_command.h"
 
-namespace sonotrace::ui {
+namespace sonotrace::scene {
 
 namespace {
 // A file of poses: a million lines of them.
@@ -81,4 +80,4 @@ std::vector<SweepPlacement> sweep_placements(const std::string& sweep,
     return out;
 }
 
-}  // namespace sonotrace::ui
+}  // namespace sonotrace::scene
