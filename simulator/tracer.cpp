@@ -15,7 +15,10 @@
 #include <numeric>
 
 #include "simulator/batch.h"
+#include "simulator/deposit_tiles.h"
+#include "simulator/interface_search.h"
 #include "simulator/interactions.h"
+#include "simulator/probe_face_geometry.h"
 #include "simulator/rng.h"
 #include "simulator/step.h"
 #include "tissue/base/error.h"
@@ -26,216 +29,6 @@ namespace sonotrace::simulator {
 namespace {
 
 using namespace detail;
-
-// Deposit maps in 64-bit fixed point: sums are exact and order-independent.
-constexpr double kFixedScale = double(int64_t(1) << 36);
-inline int64_t to_fixed(double v) {
-    return int64_t(v * kFixedScale + 0.5);
-}
-
-// One cell per texel, both maps side by side: a step touches one cache line, not two.
-struct DepositCell {
-    int64_t fluence = 0, absorbed = 0;
-};
-
-// 2 MiB blocks on huge pages for deposit tiles, kept for the next trace: the kernel
-// clears a new huge page at its first touch, a large share of a 3D trace when every
-// trace allocated its own (docs/log). At most kKept blocks (256 MiB) wait between
-// traces; they are freed at exit.
-class DepositChunks {
-  public:
-    static constexpr std::size_t kBytes = std::size_t(2) << 20;
-    static void* take() {
-        Pool& pool = the_pool();
-        {
-            const std::lock_guard lock(pool.mutex);
-            if (!pool.kept.empty()) {
-                void* chunk = pool.kept.back();
-                pool.kept.pop_back();
-                return chunk;
-            }
-        }
-        return base::allocate_huge(kBytes);
-    }
-    static void give(void* chunk) {
-        Pool& pool = the_pool();
-        {
-            const std::lock_guard lock(pool.mutex);
-            if (pool.kept.size() < kKept) {
-                pool.kept.push_back(chunk);
-                return;
-            }
-        }
-        base::free_huge(chunk, kBytes);
-    }
-
-  private:
-    static constexpr std::size_t kKept = 128;
-    struct Pool {
-        std::mutex mutex;
-        std::vector<void*> kept;
-        ~Pool() {
-            for (void* chunk : kept) base::free_huge(chunk, kBytes);
-        }
-    };
-    static Pool& the_pool() {
-        static Pool pool;
-        return pool;
-    }
-};
-
-// A thread's deposit maps in tiles of 8^Dim texels, allocated when first written: a fan
-// lights part of a volume, and zeroing and merging whole maps per thread cost more than
-// the deposits themselves in 3D (page faults, clearing, a pass over every texel). Texels
-// are numbered tile by tile, so a particle's deposits stay within one tile for 8 rows.
-template <int Dim>
-class DepositTiles {
-  public:
-    static constexpr int kShift = kDepositTileShift, kSide = 1 << kShift;
-    static constexpr uint32_t kCells = 1u << (kShift * Dim);
-    using Tile = std::array<DepositCell, kCells>;
-
-    explicit DepositTiles(const glm::ivec3& dims) {
-        for (int a = 0; a < 3; ++a) tiles_per_axis_[a] = tiles_along(dims[a]);
-        tiles_.resize(std::size_t(tiles_per_axis_.x) * std::size_t(tiles_per_axis_.y) *
-                      std::size_t(tiles_per_axis_.z));
-    }
-    // Tiles along an axis of n texels.
-    static int tiles_along(int n) { return (n + kSide - 1) >> kShift; }
-    // The cell number of texel i (inside the map).
-    uint32_t index(const glm::vec<Dim, int>& i) const {
-        uint32_t tile = 0, offset = 0;
-        for (int a = Dim - 1; a >= 0; --a) {
-            tile = tile * uint32_t(tiles_per_axis_[a]) + uint32_t(i[a] >> kShift);
-            offset = (offset << kShift) | uint32_t(i[a] & (kSide - 1));
-        }
-        return tile << (kShift * Dim) | offset;
-    }
-    DepositCell& operator[](uint32_t cell) {
-        Tile*& tile = tiles_[cell >> (kShift * Dim)];
-        if (tile == nullptr) tile = new_tile();
-        return (*tile)[cell & (kCells - 1)];
-    }
-    // A hint that `cell` will be written soon (nothing if its tile is not there yet).
-    void prefetch(uint32_t cell) const {
-        if (const Tile* tile = tiles_[cell >> (kShift * Dim)])
-            __builtin_prefetch(&(*tile)[cell & (kCells - 1)], 1);
-    }
-    std::size_t tile_count() const { return tiles_.size(); }
-    const Tile* tile(std::size_t t) const { return tiles_[t]; }
-    // The texel of tile t's first cell (cells follow x fastest, then y, then z).
-    glm::ivec3 tile_origin(std::size_t t) const {
-        glm::ivec3 i(0);
-        for (int a = 0; a < Dim; ++a) {
-            i[a] = int(t % std::size_t(tiles_per_axis_[a])) * kSide;
-            t /= std::size_t(tiles_per_axis_[a]);
-        }
-        return i;
-    }
-
-  private:
-    // Tiles come from 2 MiB chunks on huge pages (DepositChunks): deposits land all over
-    // the lit part of the map, and 4 KiB pages missed the TLB.
-    static constexpr std::size_t kChunkTiles = DepositChunks::kBytes / sizeof(Tile);
-    Tile* new_tile() {
-        if (chunks_.empty() || chunk_used_ == kChunkTiles) {
-            chunks_.emplace_back(static_cast<Tile*>(DepositChunks::take()));
-            chunk_used_ = 0;
-        }
-        return new (chunks_.back().get() + chunk_used_++) Tile{};
-    }
-    struct FreeChunk {
-        void operator()(Tile* chunk) const { DepositChunks::give(chunk); }
-    };
-    glm::ivec3 tiles_per_axis_{1};
-    std::vector<Tile*, base::HugePageAllocator<Tile*>> tiles_;
-    std::vector<std::unique_ptr<Tile, FreeChunk>> chunks_;
-    std::size_t chunk_used_ = 0;
-};
-
-// A plateau's values that the reflection decision reads.
-struct Plateau {
-    float refractive_index = 1.0f, impedance = 1.0f;
-};
-
-// What an interface event needs to know of the transition around a point: whether it is
-// sharp (a plateau on each side within reach) or graded, and if sharp its patch normal,
-// its middle, the plateaus' values and roughness. A function of the point alone, so the
-// tracer finds it once per texel and trace (InterfaceCache): in the head, 22 (2D) and 5
-// (3D) interface events share each texel, and each search took 40-80 samples.
-template <int Dim>
-struct InterfaceSides {
-    // from_position: the texel's centre is not steep, so a point of it that is searches
-    // from itself (InterfaceCache keeps only what a texel's centre gives).
-    enum class Kind : uint8_t { graded, sharp, from_position };
-    Kind kind = Kind::graded;
-    float roughness = 0.0f;       // the rougher plateau's (sharp)
-    Plateau low, high;            // the plateaus at lower and higher Z (sharp)
-    Vec<Dim> normal{0.0f};        // the zone's normal, towards higher Z (sharp)
-    Vec<Dim> patch_normal{0.0f};  // the patch's own, before the zone's average
-    Vec<Dim> middle{0.0f};        // where Z is halfway between the plateaus
-};
-
-// InterfaceSides per texel, shared by the threads of one trace. An open-addressing table:
-// a slot's key is 0 (empty), texel + 1 with kBusy while its owner fills it, then texel + 1.
-// Whoever claims a slot fills it; a thread that finds it busy, or finds no free slot
-// within kProbes, computes the entry itself. Entries depend on the texel only, so what
-// the table holds never changes a result, whatever the threads' timing.
-template <int Dim>
-class InterfaceCache {
-  public:
-    // `particles`: sources of the trace; the table holds up to 4 entries per particle
-    // (2^12 to 2^18), on huge pages (slots are touched at random). Not `enabled`: it
-    // holds nothing and every get() computes.
-    InterfaceCache(std::size_t particles, bool enabled) {
-        if (!enabled) return;
-        int bits = 12;
-        while (bits < 18 && (std::size_t(1) << bits) < 4 * particles) ++bits;
-        shift_ = 32 - bits;
-        capacity_ = std::size_t(1) << bits;
-        keys_ = std::make_unique<std::atomic<uint32_t>[]>(capacity_);  // zero: empty
-        entries_ = static_cast<InterfaceSides<Dim>*>(
-            base::allocate_huge(capacity_ * sizeof(InterfaceSides<Dim>)));
-    }
-    ~InterfaceCache() {
-        if (entries_) base::free_huge(entries_, capacity_ * sizeof(InterfaceSides<Dim>));
-    }
-    InterfaceCache(const InterfaceCache&) = delete;
-    InterfaceCache& operator=(const InterfaceCache&) = delete;
-
-    // The entry of `texel`; `find(entry)` fills one when it is not in the table yet.
-    template <class Find>
-    const InterfaceSides<Dim>& get(uint32_t texel, InterfaceSides<Dim>& scratch, Find&& find) {
-        const uint32_t key = texel + 1;
-        if (capacity_ == 0 || key >= kBusy) return find(scratch), scratch;
-        std::size_t slot = std::size_t((key * 0x9E3779B1u) >> shift_);
-        for (int probe = 0; probe < kProbes; ++probe, slot = (slot + 1) & (capacity_ - 1)) {
-            uint32_t seen = keys_[slot].load(std::memory_order_acquire);
-            if (seen == 0) {
-                if (keys_[slot].compare_exchange_strong(seen, key | kBusy,
-                                                        std::memory_order_acquire)) {
-                    InterfaceSides<Dim>& entry = entries_[slot];
-                    find(entry);
-                    keys_[slot].store(key, std::memory_order_release);
-                    return entry;
-                }
-                // Claimed meanwhile: `seen` now holds the claimant's key.
-            }
-            if (seen == key) return entries_[slot];
-            if (seen == (key | kBusy)) break;  // being filled: do not wait
-        }
-        find(scratch);
-        return scratch;
-    }
-
-  private:
-    static constexpr uint32_t kBusy = 0x80000000u;
-    static constexpr int kProbes = 16;
-    std::size_t capacity_ = 0;
-    int shift_ = 0;
-    std::unique_ptr<std::atomic<uint32_t>[]> keys_;
-    InterfaceSides<Dim>* entries_ = nullptr;
-};
 
 // One bin of a line's echo profile: a sum and its first moment, in double (sums of
 // millions of small steps). The illumination's and the scattered intensity's bins lie in
@@ -276,9 +69,8 @@ class LineTracer {
     // `look_up_blocks`: uniform blocks are worth looking up (trace(): kFewUniformBlocks).
     LineTracer(const tissue::AcousticMap<Dim>& map, const TraceSettings& settings,
                bool look_up_blocks)
-        : map_(map), settings_(settings) {
-        texel_mm_ = map.spacing()[0];
-        for (int a = 1; a < Dim; ++a) texel_mm_ = std::min(texel_mm_, map.spacing()[a]);
+        : map_(map), settings_(settings), search_(map, map_view_, settings) {
+        texel_mm_ = search_.texel_mm();
         step_mm_ = float(settings.step_texels) * texel_mm_;
         scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
         profile_enabled_ = settings.echo_profile.has_value();
@@ -289,17 +81,7 @@ class LineTracer {
         }
         profile_scale_ = float(settings.scattering_rate_per_mm) * step_mm_ *
                          float(settings.scatter_echo_fraction);
-        threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
         follow_reflections_above_ = float(settings.follow_reflections_above);
-        // At least 4 texels: central differences and interpolation spread even a one-texel
-        // step over 3 texels of gradient, so from anywhere inside it the plateau can lie 3
-        // texels off. A shorter reach on a coarse map (interactive frames: 0.5 mm texels,
-        // phantoms' 1 mm reach) took sharp interfaces for graded ones: no reflections.
-        plateau_steps_ =
-            settings.interface_reach_mm > 0.0
-                ? std::max(8, int(std::ceil(settings.interface_reach_mm / (0.5 * texel_mm_))))
-                : 16;
-        inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
         // dB/mm of path -> Np (intensity) per second of the particle's time at c0.
         roulette_loss_per_s_ = settings.roulette_loss_db_per_mm * std::log(10.0) / 10.0 *
                                tissue::kReferenceSpeed * 1e3;
@@ -321,8 +103,8 @@ class LineTracer {
         c.step_mm = step_mm_;
         c.attenuation_per_mm = attenuation_per_mm_;
         c.scattering_rate_per_mm = float(settings.scattering_rate_per_mm);
-        c.threshold2 = threshold2_;
-        c.inverse_texel2 = inverse_texel2_;
+        c.threshold2 = search_.threshold2();
+        c.inverse_texel2 = search_.inverse_texel2();
         c.step_time_per_index = double(step_mm_) * seconds_per_mm_;
         c.max_path_mm = settings.max_path_mm;
         c.max_time_s = max_time_s_;
@@ -355,7 +137,7 @@ class LineTracer {
              std::size_t end, DepositTiles<Dim>& deposits, InterfaceCache<Dim>& interfaces,
              LineOutput<Dim>& out) {
         deposits_ = &deposits;
-        interfaces_ = &interfaces;
+        search_.use(interfaces);
         out_ = &out;
         if (settings_.ring) out.ring.assign(std::size_t(settings_.ring->bins), 0.0);
         if (settings_.echo_profile) {
@@ -592,199 +374,12 @@ class LineTracer {
         return deposits_->index(i);
     }
 
-    // |grad Z| h / Z above the interface threshold, squared: no root or division.
-    template <class Sample>  // Texel or tissue::ImpedanceSample
-    bool steep(const Sample& t) const {
-        float g2 = 0.0f;
-        for (int a = 0; a < Dim; ++a) g2 += t.grad_impedance[a] * t.grad_impedance[a];
-        const float z = std::max(t.impedance, 1e-12f);
-        return g2 > threshold2_ * z * z * inverse_texel2_;
-    }
-
-    // Walks from x along `dir` in half-texel steps until the impedance gradient falls
-    // below the interface threshold (at most the interface reach, TraceSettings): the
-    // plateau beyond the interface, at *end. Returns whether a plateau was reached: a
-    // sharp interface has one on each side within a few texels, a graded medium (the
-    // fibre of figure 4) does not.
-    // The walk's points are sampled 8 at a time by the vector stage (the same bits as
-    // one by one; the last few may be sampled for nothing).
-    bool plateau(V x, const V& dir, V* end) const {
-        const float h = 0.5f * texel_mm_;
-        ImpedancePoints<Dim>& points = points_;
-        tissue::ImpedanceSample<Dim> t;
-        for (int first = 0;;) {  // x: the walk's point number `first`
-            const int count = std::min(8, plateau_steps_ + 1 - first);
-            V p = x;
-            for (int i = 0; i < count; ++i) {
-                if (i > 0) p += h * dir;
-                for (int a = 0; a < Dim; ++a)
-                    points.position[std::size_t(a)][std::size_t(i)] = p[a];
-            }
-            sample_impedance_points(map_view_, points, count);
-            for (int i = 0; i < count; ++i) {
-                if (i > 0) x += h * dir;
-                const auto& v = points.sample[std::size_t(i)];
-                t.impedance = v[0];
-                for (int a = 0; a < Dim; ++a) t.grad_impedance[a] = v[std::size_t(1 + a)];
-                if (!steep(t)) return *end = x, true;
-            }
-            first += count;
-            if (first > plateau_steps_) return *end = x, false;  // no plateau within reach
-            x += h * dir;
-        }
-    }
-
-    // The first point from `from` towards `to` where the impedance crosses the geometric
-    // mean of two plateaus' (linear between samples a quarter texel apart); `to` if none.
-    V halfway_point(const V& from, const V& to, float near_impedance, float far_impedance) const {
-        const float half = std::sqrt(near_impedance * far_impedance);
-        const float sign = far_impedance >= near_impedance ? 1.0f : -1.0f;
-        const int steps = std::max(1, int(std::ceil(4.0f * glm::length(to - from) / texel_mm_)));
-        float previous = sign * (map_.sample_impedance(from).impedance - half);
-        if (previous >= 0.0f) return from;
-        ImpedancePoints<Dim>& points = points_;  // sampled 8 at a time, as in plateau()
-        for (int first = 1; first <= steps; first += 8) {
-            const int count = std::min(8, steps + 1 - first);
-            for (int c = 0; c < count; ++c) {
-                const V p = from + (to - from) * (float(first + c) / float(steps));
-                for (int a = 0; a < Dim; ++a)
-                    points.position[std::size_t(a)][std::size_t(c)] = p[a];
-            }
-            sample_impedance_points(map_view_, points, count);
-            for (int c = 0; c < count; ++c) {
-                const float now = sign * (points.sample[std::size_t(c)][0] - half);
-                if (now >= 0.0f) {
-                    const float f = previous / (previous - now);  // previous < 0 <= now
-                    return from + (to - from) * ((float(first + c - 1) + f) / float(steps));
-                }
-                previous = now;
-            }
-        }
-        return to;
-    }
-
-    // The interface normal: the sum of grad Z over a patch of the transition, lines from
-    // the near to the far plateau at lateral offsets of up to 2 texels, samples a texel
-    // apart (a cross of lines in 3D). On a transition a few texels wide, finite differences alias
-    // into direction errors of up to ~25 degrees at its fringe and ~1 degree along any single line;
-    // over the patch they cancel. Only evaluated at interface events.
-    static constexpr int kPatchLines = 2;
-    V interface_normal(const V& near_end, const V& far_end, const V& guess) const {
-        V tangents[2];
-        int tangent_count = 1;
-        if constexpr (Dim == 2) {
-            tangents[0] = V(-guess.y, guess.x);
-        } else {
-            orthonormal_basis(guess, &tangents[0], &tangents[1]);
-            tangent_count = 2;
-        }
-        // Lines run a texel past each plateau point so the gradient's tails are whole.
-        const V unit = glm::normalize(far_end - near_end + guess * 1e-6f);
-        const V first = near_end - unit * texel_mm_;
-        const V across = far_end + unit * texel_mm_ - first;
-        const int steps = std::max(2, int(glm::length(across) / texel_mm_) + 1);
-        // The points in order, sampled 64 at a time by the vector stage (the same bits as
-        // sample_impedance one by one, in less time: the interface searches are a large
-        // share of a 3D trace), summed in order.
-        V sum = guess * 0.0f;
-        ImpedancePoints<Dim>& points = points_;
-        int count = 0;
-        auto add_points = [&] {
-            sample_impedance_points(map_view_, points, count);
-            for (int p = 0; p < count; ++p)
-                for (int a = 0; a < Dim; ++a) sum[a] += points.sample[std::size_t(p)][1 + a];
-            count = 0;
-        };
-        for (int tn = 0; tn < tangent_count; ++tn) {
-            for (int o = -kPatchLines; o <= kPatchLines; ++o) {
-                if (tn == 1 && o == 0) continue;  // the centre line is already summed
-                const V start = first + tangents[tn] * (texel_mm_ * float(o));
-                for (int i = 0; i <= steps; ++i) {
-                    const V x = start + across * (float(i) / float(steps));
-                    for (int a = 0; a < Dim; ++a) points.position[std::size_t(a)][count] = x[a];
-                    if (++count == ImpedancePoints<Dim>::kSize) add_points();
-                }
-            }
-        }
-        add_points();
-        return glm::length(sum) > 0.0f ? glm::normalize(sum) : guess;
-    }
-
-    // The transition around `from` (whose sample is `at`): walks along grad Z to the
-    // plateau on the higher side, then the lower; both found: a sharp interface with its
-    // patch normal and middle; otherwise a graded medium.
-    template <class Sample>  // Texel or tissue::ImpedanceSample
-    void find_sides(const V& from, const Sample& at, InterfaceSides<Dim>& sides) const {
-        V g(0.0f);
-        for (int a = 0; a < Dim; ++a) g[a] = at.grad_impedance[a];
-        g = glm::normalize(g);
-        sides.kind = InterfaceSides<Dim>::Kind::graded;
-        V high_end, low_end;
-        if (!plateau(from, g, &high_end)) return;  // graded: the other side need not be searched
-        if (!plateau(from, -g, &low_end)) return;
-        const Texel high = map_.sample(high_end), low = map_.sample(low_end);
-        sides.kind = InterfaceSides<Dim>::Kind::sharp;
-        sides.low = {low.refractive_index, low.impedance};
-        sides.high = {high.refractive_index, high.impedance};
-        sides.normal = interface_normal(low_end, high_end, g);
-        if (glm::dot(sides.normal, g) < 0.0f) sides.normal = -sides.normal;
-        // The particle meets the transition at its fringe; the interface itself is about
-        // half the smoothing width further on, where ln Z is halfway between the plateaus
-        // (a transition thinner than the pulse reflects like a step at the centre of
-        // d(ln Z)/dx). Echoes and reflections are timed there, or every echo would come
-        // early by that much.
-        sides.middle = halfway_point(low_end, high_end, low.impedance, high.impedance);
-        sides.patch_normal = sides.normal;
-        sides.normal = map_.zone_normal(sides.middle, sides.normal);
-        // The lobe's roughness: the rougher of the plateaus (a map of its own, sampled
-        // here only); none against a gas (kGasSpeedMax).
-        const bool against_gas =
-            std::max(low.refractive_index, high.refractive_index) > gas_index_min_;
-        sides.roughness =
-            settings_.diffuse_reflection && settings_.lobe_exponent == LobeExponent::roughness &&
-                    !against_gas
-                ? std::max(map_.sample_roughness(low_end), map_.sample_roughness(high_end))
-                : 0.0f;
-    }
-
-    // The transition around x, found from the centre of x's nearest texel (once per texel
-    // and trace: InterfaceCache), or from x itself where that centre is not steep.
-    const InterfaceSides<Dim>& sides_at(const V& x, const Texel& t) {
-        glm::vec<Dim, int> i;
-        uint32_t texel = 0;
-        for (int a = Dim - 1; a >= 0; --a) {
-            i[a] = std::clamp(int(x[a] * map_.inverse_spacing()[a] + 0.5f), 0, map_.dims()[a] - 1);
-            texel = texel * uint32_t(map_.dims()[a]) + uint32_t(i[a]);
-        }
-        const InterfaceSides<Dim>& cached =
-            interfaces_->get(texel, scratch_sides_, [&](InterfaceSides<Dim>& sides) {
-                // From the centre, or where it is not steep (a texel on the transition's
-                // fringe), from the first steep point of four along grad Z beside it.
-                const V centre = V(i) * map_.spacing();
-                auto c = map_.sample_impedance(centre);
-                if (steep(c)) return find_sides(centre, c, sides);
-                V g(0.0f);
-                for (int a = 0; a < Dim; ++a) g[a] = c.grad_impedance[a];
-                sides.kind = InterfaceSides<Dim>::Kind::from_position;
-                if (!(glm::dot(g, g) > 0.0f)) return;
-                g = glm::normalize(g) * texel_mm_;
-                for (const float offset : {0.5f, -0.5f, 1.0f, -1.0f}) {
-                    const V start = centre + offset * g;
-                    c = map_.sample_impedance(start);
-                    if (steep(c)) return find_sides(start, c, sides);
-                }
-            });
-        if (cached.kind != InterfaceSides<Dim>::Kind::from_position) return cached;
-        find_sides(x, t, scratch_sides_);
-        return scratch_sides_;
-    }
-
     // A particle meets a steep impedance gradient: if the transition is sharp, it is
     // crossed as a whole (patch normal, one reflection decision); otherwise the medium is
     // graded. Rare: kept out of line. `t`: the fields at the particle's position, p.x.
     [[gnu::noinline]] void enter_interface(Batch<Dim>& b, int k, const Texel& t, ScalarState& p) {
         const V x = to_vec(p.x), r = to_vec(p.r);
-        const InterfaceSides<Dim>& sides = sides_at(x, t);
+        const InterfaceSides<Dim>& sides = search_.sides_at(x, t);
         if (sides.kind != InterfaceSides<Dim>::Kind::sharp) {
             p.state = int32_t(kGraded);  // no plateau within reach: refract step by step only
             p.graded_steps = 0;
@@ -803,7 +398,7 @@ class LineTracer {
         // across grad Z) by the zone's normal, which stands for the face further on. A path
         // that meets no crossing runs along the wall it is beside: it meets that wall, at
         // grazing incidence, with the patch's own normal, at the middle.
-        const float reach_mm = float(plateau_steps_) * texel_mm_;
+        const float reach_mm = float(search_.plateau_steps()) * texel_mm_;
         const V end = x + r * reach_mm;
         V towards(0.0f);
         for (int a = 0; a < Dim; ++a) towards[a] = t.grad_impedance[a];
@@ -818,7 +413,7 @@ class LineTracer {
         Plateau far_side = upwards ? sides.high : sides.low;
         V normal = sides.normal;
         V forward = upwards ? normal : -normal;
-        const V crossing = halfway_point(x, end, near_side.impedance, far_side.impedance);
+        const V crossing = search_.halfway_point(x, end, near_side.impedance, far_side.impedance);
         float to_middle_mm = glm::dot(crossing - x, r);
         if (crossing == end) {
             normal = sides.patch_normal;
@@ -1285,68 +880,6 @@ class LineTracer {
             return settings_.probe_face_3d ? &*settings_.probe_face_3d : nullptr;
     }
 
-    // The axis a convex face curves about: through the centre of its arc, along the
-    // elevation in 3D (a 2D face's arc lies in the plane).
-    static V arc_centre(const ProbeFace<Dim>& face) {
-        return face.centre - face.normal * face.radius_mm;
-    }
-    // The part of an offset from the arc's axis that lies across it (all of it in 2D).
-    static V across_axis(const ProbeFace<Dim>& face, const V& rel) {
-        if constexpr (Dim == 2) {
-            (void)face;
-            return rel;
-        } else {
-            return rel - face.elevation * glm::dot(rel, face.elevation);
-        }
-    }
-    static float elevation_offset(const ProbeFace<Dim>& face, const V& offset) {
-        if constexpr (Dim == 2) {
-            (void)face, (void)offset;
-            return 0.0f;
-        } else {
-            return glm::dot(offset, face.elevation);
-        }
-    }
-
-    // True if the step from -> to enters the face from the tissue side within its aperture.
-    static bool crosses_face(const ProbeFace<Dim>& face, const V& from, const V& to) {
-        if (face.radius_mm > 0.0f) {  // convex: from outside its cylinder (2D: circle) to inside
-            const V centre = arc_centre(face);
-            const float r2 = face.radius_mm * face.radius_mm;
-            const V rel = across_axis(face, to - centre), before = across_axis(face, from - centre);
-            if (!(glm::dot(before, before) >= r2 && glm::dot(rel, rel) < r2)) return false;
-            // Arc length from the face's centre: the angle between rel and the normal.
-            float aside;
-            if constexpr (Dim == 2)
-                aside = std::abs(face.normal.x * rel.y - face.normal.y * rel.x);
-            else
-                aside = glm::length(glm::cross(face.normal, rel));
-            const float angle = std::atan2(aside, glm::dot(face.normal, rel));
-            return angle * face.radius_mm <= face.half_width_mm &&
-                   std::abs(elevation_offset(face, to - face.centre)) <= face.half_height_mm;
-        }
-        const float before = glm::dot(from - face.centre, face.normal);
-        const float after = glm::dot(to - face.centre, face.normal);
-        return before >= 0.0f && after < 0.0f && within_aperture(face, to);
-    }
-
-    static V face_normal_at(const ProbeFace<Dim>& face, const V& x) {
-        if (face.radius_mm > 0.0f) return glm::normalize(across_axis(face, x - arc_centre(face)));
-        return face.normal;
-    }
-
-    static bool within_aperture(const ProbeFace<Dim>& face, const V& x) {
-        const V offset = x - face.centre;
-        if constexpr (Dim == 2) {
-            const V across(-face.normal.y, face.normal.x);
-            return std::abs(glm::dot(offset, across)) <= face.half_width_mm;
-        } else {
-            const V lateral = glm::cross(face.normal, face.elevation);
-            return std::abs(glm::dot(offset, lateral)) <= face.half_width_mm &&
-                   std::abs(glm::dot(offset, face.elevation)) <= face.half_height_mm;
-        }
-    }
-
   public:
     bool scatter_enabled_ = false, profile_enabled_ = false;
     // Off with the probe face or the ring detector: the tight loop does not test them.
@@ -1358,24 +891,19 @@ class LineTracer {
     const TraceSettings& settings_;
     float texel_mm_ = 1.0f, step_mm_ = 0.5f, attenuation_per_mm_ = 0.0f, seconds_per_mm_ = 0.0f;
     double max_time_s_ = 0.0;
-    float threshold2_ = 0.0f, inverse_texel2_ = 1.0f, follow_reflections_above_ = 0.0f;
-    int plateau_steps_ = 16;
+    float follow_reflections_above_ = 0.0f;
     double roulette_loss_per_s_ = 0.0;  // TraceSettings::roulette_loss_db_per_mm, per second
-    // The refractive index above which a medium is a gas (kGasSpeedMax).
-    float gas_index_min_ = float(tissue::kReferenceSpeed / kGasSpeedMax);
     double inverse_profile_bin_ = 0.0;
     bool profile_scattered_ = true;  // EchoProfileSettings::scattered
     float profile_scale_ = 0.0f;
     DepositTiles<Dim>* deposits_ = nullptr;
-    InterfaceCache<Dim>* interfaces_ = nullptr;
-    InterfaceSides<Dim> scratch_sides_;
     bool deposit_maps_ = true;
     LineOutput<Dim>* out_ = nullptr;
     uint32_t line_ = 0;
     bool vector_steps_ = true;
     StepConstants<Dim> step_constants_;
     MapView<Dim> map_view_;
-    mutable ImpedancePoints<Dim> points_;  // interface_normal's scratch
+    InterfaceSearch<Dim> search_;  // reads map_view_, filled in the constructor's body
     LaneFields<Dim> fields_;
     LaneResults<Dim> results_;
 };
