@@ -15,6 +15,9 @@
 #include "tissue/base/memory.h"
 
 namespace sonotrace::simulator::detail {
+// Internal linkage, as when this lived in tracer.cpp: the one file that includes it
+// inlines what it calls once.
+namespace {
 
 // Deposit maps in 64-bit fixed point: sums are exact and order-independent.
 constexpr double kFixedScale = double(int64_t(1) << 36);
@@ -142,4 +145,5 @@ class DepositTiles {
     std::size_t chunk_used_ = 0;
 };
 
+}  // namespace
 }  // namespace sonotrace::simulator::detail

@@ -11,6 +11,9 @@
 #include "tissue/base/memory.h"
 
 namespace sonotrace::simulator::detail {
+// Internal linkage, as when this lived in tracer.cpp: the one file that includes it
+// inlines what it calls once.
+namespace {
 
 // A plateau's values that the reflection decision reads.
 struct Plateau {
@@ -96,4 +99,5 @@ class InterfaceCache {
     InterfaceSides<Dim>* entries_ = nullptr;
 };
 
+}  // namespace
 }  // namespace sonotrace::simulator::detail

@@ -15,6 +15,9 @@
 #include "tissue/acoustic_map.h"
 
 namespace sonotrace::simulator::detail {
+// Internal linkage, as when this lived in tracer.cpp: the one file that includes it
+// inlines what it calls once.
+namespace {
 
 template <int Dim>
 class InterfaceSearch {
@@ -22,10 +25,8 @@ class InterfaceSearch {
     using V = Vec<Dim>;
     using Texel = tissue::AcousticTexel<Dim>;
 
-    // `view`: the tracer's view of `map`, filled after this is made and read only later.
-    InterfaceSearch(const tissue::AcousticMap<Dim>& map, const MapView<Dim>& view,
-                    const TraceSettings& settings)
-        : map_(map), map_view_(view), settings_(settings) {
+    InterfaceSearch(const tissue::AcousticMap<Dim>& map, const TraceSettings& settings)
+        : map_(map), settings_(settings) {
         texel_mm_ = map.spacing()[0];
         for (int a = 1; a < Dim; ++a) texel_mm_ = std::min(texel_mm_, map.spacing()[a]);
         threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
@@ -39,6 +40,8 @@ class InterfaceSearch {
                 : 16;
         inverse_texel2_ = 1.0f / (texel_mm_ * texel_mm_);
     }
+    // The tracer's view of the map (its own copy: searched points are sampled through it).
+    void set_view(const MapView<Dim>& view) { map_view_ = view; }
     // The table of one trace the sides are kept in.
     void use(InterfaceCache<Dim>& cache) { cache_ = &cache; }
 
@@ -236,8 +239,8 @@ class InterfaceSearch {
 
   private:
     const tissue::AcousticMap<Dim>& map_;
-    const MapView<Dim>& map_view_;
     const TraceSettings& settings_;
+    MapView<Dim> map_view_;
     float texel_mm_ = 1.0f, threshold2_ = 0.0f, inverse_texel2_ = 1.0f;
     int plateau_steps_ = 16;
     // The refractive index above which a medium is a gas (kGasSpeedMax).
@@ -247,4 +250,5 @@ class InterfaceSearch {
     mutable ImpedancePoints<Dim> points_;  // the searches' sample points, eight at a time
 };
 
+}  // namespace
 }  // namespace sonotrace::simulator::detail

@@ -10,6 +10,9 @@
 #include "simulator/trace_settings.h"
 
 namespace sonotrace::simulator::detail {
+// Internal linkage, as when this lived in tracer.cpp: the one file that includes it
+// inlines what it calls once.
+namespace {
 
 // The axis a convex face curves about: through the centre of its arc, along the
 // elevation in 3D (a 2D face's arc lies in the plane).
@@ -57,7 +60,8 @@ bool crosses_face(const ProbeFace<Dim>& face, const Vec<Dim>& from, const Vec<Di
     if (face.radius_mm > 0.0f) {  // convex: from outside its cylinder (2D: circle) to inside
         const Vec<Dim> centre = arc_centre(face);
         const float r2 = face.radius_mm * face.radius_mm;
-        const Vec<Dim> rel = across_axis(face, to - centre), before = across_axis(face, from - centre);
+        const Vec<Dim> rel = across_axis(face, to - centre),
+                       before = across_axis(face, from - centre);
         if (!(glm::dot(before, before) >= r2 && glm::dot(rel, rel) < r2)) return false;
         // Arc length from the face's centre: the angle between rel and the normal.
         float aside;
@@ -80,5 +84,5 @@ Vec<Dim> face_normal_at(const ProbeFace<Dim>& face, const Vec<Dim>& x) {
     return face.normal;
 }
 
-
+}  // namespace
 }  // namespace sonotrace::simulator::detail

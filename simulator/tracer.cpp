@@ -16,8 +16,8 @@
 
 #include "simulator/batch.h"
 #include "simulator/deposit_tiles.h"
-#include "simulator/interface_search.h"
 #include "simulator/interactions.h"
+#include "simulator/interface_search.h"
 #include "simulator/probe_face_geometry.h"
 #include "simulator/rng.h"
 #include "simulator/step.h"
@@ -69,7 +69,7 @@ class LineTracer {
     // `look_up_blocks`: uniform blocks are worth looking up (trace(): kFewUniformBlocks).
     LineTracer(const tissue::AcousticMap<Dim>& map, const TraceSettings& settings,
                bool look_up_blocks)
-        : map_(map), settings_(settings), search_(map, map_view_, settings) {
+        : map_(map), settings_(settings), search_(map, settings) {
         texel_mm_ = search_.texel_mm();
         step_mm_ = float(settings.step_texels) * texel_mm_;
         scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
@@ -131,6 +131,7 @@ class LineTracer {
             for (int a = 0; a < Dim; ++a) m.block_dims[std::size_t(a)] = map.block_dims()[a];
             m.block_shift = tissue::AcousticMap<Dim>::kBlockShift;
         }
+        search_.set_view(map_view_);
     }
 
     void run(const Sources<Dim>& sources, const std::vector<uint32_t>& order, std::size_t begin,
@@ -903,7 +904,7 @@ class LineTracer {
     bool vector_steps_ = true;
     StepConstants<Dim> step_constants_;
     MapView<Dim> map_view_;
-    InterfaceSearch<Dim> search_;  // reads map_view_, filled in the constructor's body
+    InterfaceSearch<Dim> search_;
     LaneFields<Dim> fields_;
     LaneResults<Dim> results_;
 };
