@@ -501,32 +501,25 @@ int main(int argc, char** argv) {
     scene::SceneOptions options;
     options.view = o.temporal ? "temporal" : "craniotomy";
     const auto head = scene::load_scene(options);
-    struct Variant {
-        const char* name;
-        std::vector<bool imaging::PhysicsSwitches::*> off;
+    // Each variant is its --disable list, read as simulate reads it.
+    const char* variants[] = {
+        "",
+        "refraction",
+        "specular",
+        "diffuse",
+        "specular,diffuse",
+        "refraction,specular,diffuse",
+        "refraction,specular,diffuse,bounces",
+        "bounces",
     };
-    using P = imaging::PhysicsSwitches;
-    const Variant variants[] = {
-        {"every physics on", {}},
-        {"--disable refraction", {&P::refraction}},
-        {"--disable specular", {&P::specular_reflection}},
-        {"--disable diffuse", {&P::diffuse_reflection}},
-        {"--disable specular,diffuse (speckle only)",
-         {&P::specular_reflection, &P::diffuse_reflection}},
-        {"--disable refraction,specular,diffuse",
-         {&P::refraction, &P::specular_reflection, &P::diffuse_reflection}},
-        {"--disable refraction,specular,diffuse,bounces",
-         {&P::refraction, &P::specular_reflection, &P::diffuse_reflection, &P::multiple_bounces}},
-        {"--disable bounces", {&P::multiple_bounces}},
-    };
-    std::vector<std::pair<const char*, double>> totals;
-    for (const Variant& v : variants) {
+    std::vector<std::pair<std::string, double>> totals;
+    for (const char*& v : variants) {
         if (o.variant >= 0 && &v != &variants[o.variant]) continue;
-        P p;
-        for (auto member : v.off) p.*member = false;
-        totals.emplace_back(v.name, measure(*head, v.name, p, o));
+        const imaging::PhysicsSwitches p = imaging::disabled_physics(v, "variant", "");
+        const std::string name = v[0] ? std::string("--disable ") + v : "every physics on";
+        totals.emplace_back(name, measure(*head, name.c_str(), p, o));
     }
     std::printf("\nsummary (interior against parenchyma, %.0f mm deep and more)\n", o.from_mm);
-    for (const auto& [name, db] : totals) std::printf("  %6.1f dB  %s\n", db, name);
+    for (const auto& [name, db] : totals) std::printf("  %6.1f dB  %s\n", db, name.c_str());
     return 0;
 }

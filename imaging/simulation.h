@@ -52,37 +52,21 @@ QualityLevel quality_level(Quality quality);
 
 // The physics a user switches off to take an artifact apart: the GUI's toggles and
 // `simulate --disable`. Every switch on is the simulator's physics.
-struct PhysicsSwitches {
-    bool refraction = true;
-    bool specular_reflection = true;
-    bool diffuse_reflection = true;
-    bool scattering = true;
-    bool attenuation = true;
-    bool shear_conversion = true;  // solids' shear waves take their share at interfaces
-    bool multiple_bounces = true;  // off: a particle ends at its first reflection (echo kept)
-    bool face_reflection = true;   // capture receive model: the face reflects part back
-    bool speckle = true;           // the image's sub-resolution scatterer field
-    bool operator==(const PhysicsSwitches&) const = default;
-};
-// Each switch by its one name (simulate's and trace's --disable, the dataset spec's
-// "disable", the sidecar), with its one description (--help, the GUI's tooltips).
-struct PhysicsSwitchName {
-    std::string_view name;
-    bool PhysicsSwitches::*member;
-    std::string_view description;  // what it is, and what switching it off leaves
-};
-const std::vector<PhysicsSwitchName>& physics_switch_names();
-// "name: description; ..." for every switch, for --help.
+using PhysicsSwitches = simulator::PhysicsSet;
+using simulator::Physics;
+// "name: description; ..." for every switch (simulator/physics_switches.h), for --help.
 std::string physics_switch_help();
 // The switch of that name (a programming error if there is none).
-const PhysicsSwitchName& physics_switch(std::string_view name);
-// "refraction,specular,..." (names above; empty = none) switched off; throws
+const simulator::PhysicsSwitch& physics_switch(std::string_view name);
+// "refraction,specular,..." (the switches' names; empty = none) switched off; throws
 // base::InputError naming `source` and `field` for an unknown name.
 PhysicsSwitches disabled_physics(const std::string& list, const std::string& source,
                                  const std::string& field);
+// The names of the switches `physics` has off, in the table's order ("refraction,...").
+std::string disabled_names(const PhysicsSwitches& physics);
 
 // Switches off in a trace's settings what `physics` has off and leaves the rest (a trace
-// configuration's own choices stand); `speckle` is the image's alone.
+// configuration's own choices stand).
 void switch_off(const PhysicsSwitches& physics, simulator::TraceSettings& trace);
 
 struct SimulationSettings;

@@ -60,47 +60,28 @@ QualityLevel quality_level(Quality quality) {
     return {0.25, 32, 1.0, 1.0};
 }
 
-const std::vector<PhysicsSwitchName>& physics_switch_names() {
-    static const std::vector<PhysicsSwitchName> names = {
-        {"refraction", &PhysicsSwitches::refraction,
-         "bending where the speed of sound changes (Snell's law); off: beams go straight"},
-        {"specular", &PhysicsSwitches::specular_reflection,
-         "mirror reflection at interfaces with the impedance reflection coefficient (off: "
-         "total reflection stays)"},
-        {"diffuse", &PhysicsSwitches::diffuse_reflection,
-         "rough interfaces reflect into a cos^c lobe (c from the tissue's roughness); off: "
-         "mirrors"},
-        {"scattering", &PhysicsSwitches::scattering,
-         "sub-resolution scattering events (the tissue's speckle and its backscatter); off: "
-         "tissue turns black"},
-        {"attenuation", &PhysicsSwitches::attenuation,
-         "absorption alpha f along the paths (dB/(cm MHz) of each tissue)"},
-        {"shear", &PhysicsSwitches::shear_conversion,
-         "the shear wave a solid (bone) takes at its interfaces, absorbed within millimetres "
-         "(off: total reflection past the critical angle)"},
-        {"bounces", &PhysicsSwitches::multiple_bounces,
-         "paths after the first reflection (reverberation, mirror images); off: a particle "
-         "ends at its first reflection, whose echo still counts"},
-        {"face", &PhysicsSwitches::face_reflection,
-         "the probe face reflects part of the returning energy back into the tissue (capture "
-         "receive model): reverberation between the face and reflectors"},
-        {"speckle", &PhysicsSwitches::speckle, "the scattered echoes' speckle in the image"},
-    };
-    return names;
-}
-
-const PhysicsSwitchName& physics_switch(std::string_view name) {
-    for (const auto& n : physics_switch_names())
+const simulator::PhysicsSwitch& physics_switch(std::string_view name) {
+    for (const auto& n : simulator::kPhysicsSwitches)
         if (n.name == name) return n;
     throw std::logic_error("no physics switch " + std::string(name));
 }
 
 std::string physics_switch_help() {
     std::string help;
-    for (const auto& n : physics_switch_names())
+    for (const auto& n : simulator::kPhysicsSwitches)
         help +=
             (help.empty() ? "" : "; ") + std::string(n.name) + ": " + std::string(n.description);
     return help;
+}
+
+std::string disabled_names(const PhysicsSwitches& physics) {
+    std::string names;
+    for (const auto& n : simulator::kPhysicsSwitches)
+        if (!physics.on(n.id)) {
+            if (!names.empty()) names += ',';
+            names += n.name;
+        }
+    return names;
 }
 
 PhysicsSwitches disabled_physics(const std::string& list, const std::string& source,
@@ -120,49 +101,32 @@ PhysicsSwitches disabled_physics(const std::string& list, const std::string& sou
                       << "' (the old name goes in the next release)\n";
             name = std::string(now);
         }
-        const auto& names = physics_switch_names();
-        const auto found = std::find_if(names.begin(), names.end(),
-                                        [&](const PhysicsSwitchName& n) { return n.name == name; });
+        const auto& names = simulator::kPhysicsSwitches;
+        const auto found =
+            std::find_if(names.begin(), names.end(),
+                         [&](const simulator::PhysicsSwitch& n) { return n.name == name; });
         if (found == names.end()) {
             std::string known;
             for (const auto& n : names) known += (known.empty() ? "" : ", ") + std::string(n.name);
             throw base::InputError(source, field,
                                    "unknown physics '" + name + "' (known: " + known + ")");
         }
-        out.*(found->member) = false;
+        out.set(found->id, false);
         start = comma + 1;
     }
     return out;
 }
 
 void switch_off(const PhysicsSwitches& physics, simulator::TraceSettings& t) {
-    if (!physics.refraction) t.refraction = false;
-    if (!physics.specular_reflection) t.specular_reflection = false;
-    if (!physics.diffuse_reflection) t.diffuse_reflection = false;
-    if (!physics.scattering) t.scattering = false;
-    if (!physics.attenuation) t.attenuation = false;
-    if (!physics.shear_conversion) t.shear_conversion = false;
-    if (!physics.multiple_bounces) t.max_bounces = 0;  // retired at the first reflection
-    if (!physics.face_reflection) {
-        if (t.probe_face_2d) t.probe_face_2d->reflectivity = 0.0f;
-        if (t.probe_face_3d) t.probe_face_3d->reflectivity = 0.0f;
-    }
+    t.physics &= physics;
 }
 
 void apply(const PhysicsSwitches& physics, SimulationSettings& s) {
-    // Every switch on (the tracer's defaults), then off what `physics` has off.
-    simulator::TraceSettings& t = s.trace;
-    const simulator::TraceSettings on;
-    t.refraction = on.refraction;
-    t.specular_reflection = on.specular_reflection;
-    t.diffuse_reflection = on.diffuse_reflection;
-    t.scattering = on.scattering;
-    t.attenuation = on.attenuation;
-    t.shear_conversion = on.shear_conversion;
-    t.max_bounces = on.max_bounces;
-    switch_off(physics, t);
-    if (!physics.face_reflection) s.transducer.face_reflectivity = 0.0;
-    s.imaging.speckle = physics.speckle;
+    // The tracer's switches are these (its defaults are every one on); the transducer's
+    // face reflects nothing with face reflection off, as the sidecar then says.
+    s.trace.physics = physics;
+    if (!physics.on(Physics::face)) s.transducer.face_reflectivity = 0.0;
+    s.imaging.speckle = physics.on(Physics::speckle);
 }
 
 void SimulationSettings::validate(const std::string& source) const {

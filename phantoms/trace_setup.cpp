@@ -19,34 +19,35 @@ simulator::TraceSettings trace_settings(const Phantom& ph) {
     simulator::TraceSettings s;
     if (ph.paper_mode) {
         s.mode = simulator::PhysicsMode::paper;
-        s.attenuation = s.scattering = s.diffuse_reflection = false;
+        for (simulator::Physics p : {simulator::Physics::attenuation,
+                                     simulator::Physics::scattering, simulator::Physics::diffuse})
+            s.physics.set(p, false);
         s.lobe_exponent = simulator::LobeExponent::reflecting_density;
         s.roulette_energy = 0.0;
     }
     const std::string& src = ph.source;
     const json& t = ph.trace;
-    jsonio::require_known_keys(
-        t,
-        {"refraction", "specular_reflection", "diffuse_reflection", "scattering", "attenuation",
-         "absorption", "lobe_exponent", "lobe_weight", "lobe_scale", "roulette_energy", "step",
-         "frequency", "ring", "comment"},
-        src, "trace");
-    auto flag = [&](const char* key, bool& value) {
+    // The tracer's physics switches by their record keys (simulator/physics_switches.h),
+    // and the old name of attenuation.
+    std::vector<std::string_view> known = {
+        "absorption", "lobe_exponent", "lobe_weight", "lobe_scale", "roulette_energy",
+        "step",       "frequency",     "ring",        "comment"};
+    for (const simulator::PhysicsSwitch& sw : simulator::kPhysicsSwitches)
+        if (!sw.image_only) known.push_back(sw.record_key);
+    jsonio::require_known_keys(t, known, src, "trace");
+    auto flag = [&](std::string_view key, simulator::Physics p) {
         if (!t.contains(key)) return;
         if (!t.at(key).is_boolean())
-            throw base::InputError(src, std::string("trace.") + key, "must be true or false");
-        value = t.at(key).get<bool>();
+            throw base::InputError(src, "trace." + std::string(key), "must be true or false");
+        s.physics.set(p, t.at(key).get<bool>());
     };
-    flag("refraction", s.refraction);
-    flag("specular_reflection", s.specular_reflection);
-    flag("diffuse_reflection", s.diffuse_reflection);
-    flag("scattering", s.scattering);
-    flag("attenuation", s.attenuation);
+    for (const simulator::PhysicsSwitch& sw : simulator::kPhysicsSwitches)
+        if (!sw.image_only) flag(sw.record_key, sw.id);
     if (t.contains("absorption")) {  // its name before the switches' names were one
         std::cerr << "sonotrace: warning: " << src
                   << ": trace.absorption is now called trace.attenuation (the old name goes in "
                      "the next release)\n";
-        flag("absorption", s.attenuation);
+        flag("absorption", simulator::Physics::attenuation);
     }
     if (t.contains("lobe_exponent")) {
         const std::string v = jsonio::get_string(t, "lobe_exponent", src, "trace");

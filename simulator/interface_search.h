@@ -199,8 +199,8 @@ class InterfaceSearch {
         const bool against_gas =
             std::max(low.refractive_index, high.refractive_index) > gas_index_min_;
         sides.roughness =
-            settings_.diffuse_reflection && settings_.lobe_exponent == LobeExponent::roughness &&
-                    !against_gas
+            settings_.physics.on(Physics::diffuse) &&
+                    settings_.lobe_exponent == LobeExponent::roughness && !against_gas
                 ? std::max(map_.sample_roughness(low_end), map_.sample_roughness(high_end))
                 : 0.0f;
     }

@@ -11,6 +11,7 @@
 #include <glm/glm.hpp>
 
 #include "probe/transducer.h"
+#include "simulator/physics_switches.h"
 
 namespace sonotrace::simulator {
 
@@ -116,16 +117,12 @@ struct TraceSettings {
     double frequency_mhz = 5.0;  // attenuation alpha*f and scattering
     uint64_t seed = 1;
 
-    bool refraction = true;
-    bool specular_reflection = true;
-    bool diffuse_reflection = true;
-    bool scattering = true;
-    bool attenuation = true;
-    // At a solid's interface (faster than kSolidSpeedMin: bone, wires) part of the energy
+    // The physics switched on (simulator/physics_switches.h; all by default). Shear: at
+    // a solid's interface (faster than kSolidSpeedMin: bone, wires) part of the energy
     // converts into the solid's shear wave (fluid_solid_fractions), which its attenuation
-    // absorbs within millimetres at imaging frequencies: absorbed where it converts. Off:
-    // fluid interfaces everywhere (total reflection past the longitudinal critical angle).
-    bool shear_conversion = true;
+    // absorbs within millimetres at imaging frequencies: absorbed where it converts.
+    // Bounces off: max_bounces 0. Face off: the probe face reflects nothing.
+    PhysicsSet physics;
     int max_bounces = 64;  // reflections before a particle is retired
 
     LobeExponent lobe_exponent = LobeExponent::roughness;

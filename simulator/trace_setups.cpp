@@ -30,9 +30,9 @@ double ramp(double signed_distance, double width) {
 TraceSettings paper_settings() {
     TraceSettings s;
     s.mode = PhysicsMode::paper;
-    s.attenuation = false;
-    s.scattering = false;
-    s.diffuse_reflection = false;
+    s.physics.set(Physics::attenuation, false);
+    s.physics.set(Physics::scattering, false);
+    s.physics.set(Physics::diffuse, false);
     s.lobe_exponent = LobeExponent::reflecting_density;
     s.roulette_energy = 0.0;
     return s;
@@ -150,9 +150,9 @@ tissue::AcousticProperties lossless_medium(double speed, double density) {
 
 TraceSettings interfaces_only_settings() {
     TraceSettings s;
-    s.attenuation = false;
-    s.scattering = false;
-    s.diffuse_reflection = false;
+    s.physics.set(Physics::attenuation, false);
+    s.physics.set(Physics::scattering, false);
+    s.physics.set(Physics::diffuse, false);
     s.roulette_energy = 0.0;
     return s;
 }

@@ -72,7 +72,8 @@ class LineTracer {
         : map_(map), settings_(settings), search_(map, settings) {
         texel_mm_ = search_.texel_mm();
         step_mm_ = float(settings.step_texels) * texel_mm_;
-        scatter_enabled_ = settings.scattering && settings.mode == PhysicsMode::acoustic;
+        scatter_enabled_ =
+            settings.physics.on(Physics::scattering) && settings.mode == PhysicsMode::acoustic;
         profile_enabled_ = settings.echo_profile.has_value();
         deposit_maps_ = settings.deposition_maps;
         if (profile_enabled_) {
@@ -82,6 +83,9 @@ class LineTracer {
         profile_scale_ = float(settings.scattering_rate_per_mm) * step_mm_ *
                          float(settings.scatter_echo_fraction);
         follow_reflections_above_ = float(settings.follow_reflections_above);
+        max_bounces_ = settings.physics.on(Physics::bounces) ? settings.max_bounces : 0;
+        if (const ProbeFace<Dim>* face = probe_face())
+            face_reflectivity_ = settings.physics.on(Physics::face) ? face->reflectivity : 0.0f;
         // dB/mm of path -> Np (intensity) per second of the particle's time at c0.
         roulette_loss_per_s_ = settings.roulette_loss_db_per_mm * std::log(10.0) / 10.0 *
                                tissue::kReferenceSpeed * 1e3;
@@ -110,9 +114,9 @@ class LineTracer {
         c.max_time_s = max_time_s_;
         for (int a = 0; a < Dim; ++a) c.extent[std::size_t(a)] = map.extent_mm()[a];
         c.deposition_maps = deposit_maps_;
-        c.attenuation = settings.attenuation;
+        c.attenuation = settings.physics.on(Physics::attenuation);
         c.scattering = scatter_enabled_;
-        c.refraction = settings.refraction;
+        c.refraction = settings.physics.on(Physics::refraction);
         c.profile = profile_enabled_;
         c.profile_scale = profile_scale_;
         c.receive = settings.receive_weights.get();
@@ -429,7 +433,7 @@ class LineTracer {
         // Without specular reflection only total reflection, which is refraction's
         // (Snell's law between the plateaus has no solution), reflects.
         decide_reflection(b, k, p, t, near_side, far_side, sides.roughness, forward, to_middle_mm,
-                          settings_.specular_reflection);
+                          settings_.physics.on(Physics::specular));
     }
 
     // The reflection decision at a sharp interface (eq. 10 with the plateau values on
@@ -459,8 +463,9 @@ class LineTracer {
         if (!partial_reflection && cos_t > 0.0f) return;
         const auto [R2, converted] =
             reflected_and_converted(near_side, far_side, sin_i, sin_t, cos_i, cos_t);
-        const float c =
-            settings_.diffuse_reflection ? lobe_exponent(near_side, far_side, roughness) : 1e6f;
+        const float c = settings_.physics.on(Physics::diffuse)
+                            ? lobe_exponent(near_side, far_side, roughness)
+                            : 1e6f;
         const double to_middle_s =
             double(to_middle_mm) * seconds_per_mm_ * near_side.refractive_index;
         record_echo(b, k, x + r * to_middle_mm, incoming, E, R2,
@@ -520,7 +525,7 @@ class LineTracer {
                                       float sin_i, float sin_t, float cos_i, float cos_t) const {
         const float fluid_r2 =
             reflected_fraction(near_side.impedance, far_side.impedance, cos_i, cos_t);
-        if (!settings_.shear_conversion || settings_.mode != PhysicsMode::acoustic)
+        if (!settings_.physics.on(Physics::shear) || settings_.mode != PhysicsMode::acoustic)
             return {fluid_r2, 0.0f};
         auto speed = [](const Plateau& p) {
             return tissue::kReferenceSpeed / std::max(double(p.refractive_index), 1e-9);
@@ -703,8 +708,8 @@ class LineTracer {
         if (const auto* face = probe_face()) {
             if (crosses_face(*face, from, x)) {
                 stats.captured++;
-                const float kept = E * face->reflectivity;
-                record_echo(b, k, x, r, E, 1.0f - face->reflectivity, EchoKind::returned_to_probe);
+                const float kept = E * face_reflectivity_;
+                record_echo(b, k, x, r, E, 1.0f - face_reflectivity_, EchoKind::returned_to_probe);
                 ledger.recorded += double(E) - kept;
                 E = kept;
                 r = reflect<Dim>(r, face_normal_at(*face, x));
@@ -746,7 +751,7 @@ class LineTracer {
             ledger.escaped += E;
             return false;
         }
-        if (b.path_length[k] > settings_.max_path_mm || b.bounces[k] > settings_.max_bounces ||
+        if (b.path_length[k] > settings_.max_path_mm || b.bounces[k] > max_bounces_ ||
             b.time[k] > max_time_s_) {
             ledger.remaining += E;
             return false;
@@ -893,6 +898,8 @@ class LineTracer {
     float texel_mm_ = 1.0f, step_mm_ = 0.5f, attenuation_per_mm_ = 0.0f, seconds_per_mm_ = 0.0f;
     double max_time_s_ = 0.0;
     float follow_reflections_above_ = 0.0f;
+    int max_bounces_ = 64;              // TraceSettings::max_bounces, 0 with bounces off
+    float face_reflectivity_ = 0.0f;    // the probe face's, 0 with face reflection off
     double roulette_loss_per_s_ = 0.0;  // TraceSettings::roulette_loss_db_per_mm, per second
     double inverse_profile_bin_ = 0.0;
     bool profile_scattered_ = true;  // EchoProfileSettings::scattered

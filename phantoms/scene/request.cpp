@@ -344,8 +344,8 @@ json frame_sidecar(const FrameRequest& request, const FrameSetup& setup,
     const Scene& scene = *setup.scene;
     const imaging::QualityLevel level = imaging::quality_level(settings.quality);
     json off = json::array();
-    for (const auto& n : imaging::physics_switch_names())
-        if (!(setup.physics.*(n.member))) off.push_back(n.name);
+    for (const auto& n : simulator::kPhysicsSwitches)
+        if (!setup.physics.on(n.id)) off.push_back(n.name);
     return {
         {"command", "simulate"},
         {"version", SONOTRACE_VERSION},

@@ -34,7 +34,7 @@ struct FrameRequest : VolumeOptions {
     std::string quality = "standard";
     std::string receive = "monostatic";
     std::string trace = "2d";
-    std::string disable;            // physics switched off (imaging::physics_switch_names)
+    std::string disable;            // physics switched off (simulator::kPhysicsSwitches)
     std::optional<double> gain_db;  // unset: the scene's (Scene::gain_db)
     double dynamic_range_db = 60.0;
     std::string tgc = "auto";

@@ -71,7 +71,7 @@ CaseResult refraction_angle(const CaseContext& ctx) {
         interface_maps(simulator::lossless_medium(c1, 1000), simulator::lossless_medium(c2, 1000));
     const auto map = tissue::AcousticMap<2>::build(maps);
     TraceSettings s = simulator::interfaces_only_settings();
-    s.specular_reflection = false;  // isolate refraction
+    s.physics.set(simulator::Physics::specular, false);  // isolate refraction
     CaseResult r;
     Plot plot{"transmitted angle against Snell's law (c 1500 -> 1800 m/s)",
               "incidence (deg)",
@@ -128,7 +128,7 @@ CaseResult critical_angle(const CaseContext&) {
     const auto map = tissue::AcousticMap<2>::build(
         interface_maps(simulator::lossless_medium(c1, 1000), simulator::lossless_medium(c2, 1000)));
     TraceSettings s = simulator::interfaces_only_settings();
-    s.specular_reflection = false;
+    s.physics.set(simulator::Physics::specular, false);
     const double critical = glm::degrees(std::asin(c1 / c2));
     double last_transmitted = 0.0, first_reflected = 90.0;
     Plot plot{"transmitted (1) or totally reflected (0) around the critical angle",
@@ -356,7 +356,7 @@ CaseResult reverberation(const CaseContext&) {
         }
         const auto map = tissue::AcousticMap<2>::build(maps);
         TraceSettings s = simulator::interfaces_only_settings();
-        s.attenuation = true;
+        s.physics.set(simulator::Physics::attenuation, true);
         s.frequency_mhz = f_mhz;
         simulator::ProbeFace<2> face;
         face.centre = {10.0f, float(y0)};

@@ -66,20 +66,24 @@ TEST(CliTrace, DisableTakesSimulatesSwitchNames) {
         return nlohmann::json::parse(slurp(dir / "out/trace.json"));
     };
     const auto off = trace("attenuation,shear,diffuse,bounces");
-    EXPECT_FALSE(off["settings"]["attenuation"].get<bool>());
-    EXPECT_FALSE(off["settings"]["diffuse_reflection"].get<bool>());
-    EXPECT_EQ(off["settings"]["max_bounces"].get<int>(), 0);
+    const auto& physics_off = off["settings"]["physics"];
+    EXPECT_FALSE(physics_off["attenuation"].get<bool>());
+    EXPECT_FALSE(physics_off["diffuse_reflection"].get<bool>());
+    EXPECT_FALSE(physics_off["shear_conversion"].get<bool>());
+    EXPECT_FALSE(physics_off["multiple_bounces"].get<bool>());
+    EXPECT_TRUE(physics_off["refraction"].get<bool>());
     EXPECT_EQ(off["ledger"]["absorbed"].get<double>(), 0.0);
     // The old name, accepted for a release with a warning that names the new one.
     const auto r = run(dir, "trace -q --particles 400 --disable absorption --out " + (dir / "old"));
     EXPECT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find("physics 'absorption' is now called 'attenuation'"), std::string::npos)
         << r.err;
-    EXPECT_FALSE(nlohmann::json::parse(slurp(dir / "old/trace.json"))["settings"]["attenuation"]
-                     .get<bool>());
+    EXPECT_FALSE(
+        nlohmann::json::parse(slurp(dir / "old/trace.json"))["settings"]["physics"]["attenuation"]
+            .get<bool>());
     const auto on = trace("refraction");
-    EXPECT_FALSE(on["settings"]["refraction"].get<bool>());
-    EXPECT_EQ(on["settings"]["max_bounces"].get<int>(), 64);
+    EXPECT_FALSE(on["settings"]["physics"]["refraction"].get<bool>());
+    EXPECT_TRUE(on["settings"]["physics"]["multiple_bounces"].get<bool>());
     EXPECT_GT(on["ledger"]["absorbed"].get<double>(), 0.0);
 }
 

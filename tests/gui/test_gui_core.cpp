@@ -157,12 +157,12 @@ TEST(GuiScanner, PhysicsSwitchesChangeWhatTheyShould) {
     ScanRequest r = request_for(cyst_scene());
     const ScanFrame on = simulate(r);
     // Without scattering the liver has no speckle: only the interfaces echo.
-    r.parameters.physics.scattering = false;
+    r.parameters.physics.set(imaging::Physics::scattering, false);
     const ScanFrame no_scatter = simulate(r);
     EXPECT_LT(mean_inside(no_scatter), 0.3 * mean_inside(on));
     // Without attenuation the deep tissue gets brighter (the TGC still compensates).
-    r.parameters.physics.scattering = true;
-    r.parameters.physics.attenuation = false;
+    r.parameters.physics.set(imaging::Physics::scattering, true);
+    r.parameters.physics.set(imaging::Physics::attenuation, false);
     const ScanFrame lossless = simulate(r);
     EXPECT_GT(mean_inside(lossless, 30.0, 40.0), mean_inside(on, 30.0, 40.0) + 0.05);
 }
@@ -241,10 +241,10 @@ TEST(GuiScanner, MirrorImageNeedsAReflectedBeam) {
     ScanRequest r = request_for(scene);
     const double slope = std::tan(glm::radians(20.0));
     const double mirrored = mean_below(simulate(r), 32.0, slope, 3.0, 7.0);
-    r.parameters.physics.multiple_bounces = false;
+    r.parameters.physics.set(imaging::Physics::bounces, false);
     const double direct_only = mean_below(simulate(r), 32.0, slope, 3.0, 7.0);
-    r.parameters.physics.multiple_bounces = true;
-    r.parameters.physics.specular_reflection = false;
+    r.parameters.physics.set(imaging::Physics::bounces, true);
+    r.parameters.physics.set(imaging::Physics::specular, false);
     const double none = mean_below(simulate(r), 32.0, slope, 3.0, 7.0);
     // Visible: the display maps 60 dB onto 0..1, so 0.2 is 12 dB above black.
     EXPECT_GT(mirrored, 0.2);
@@ -264,7 +264,7 @@ TEST(GuiScanner, ReverberationNeedsMultipleBounces) {
         return mean_below(f, 19.6, 0.0, 0.0, 0.8) - mean_below(f, 21.5, 0.0, 0.0, 1.5);
     };
     const double reverberating = contrast(simulate(r));
-    r.parameters.physics.multiple_bounces = false;
+    r.parameters.physics.set(imaging::Physics::bounces, false);
     const double direct_only = contrast(simulate(r));
     EXPECT_GT(reverberating, 0.15);
     EXPECT_LT(direct_only, 0.3 * reverberating) << reverberating;
@@ -390,10 +390,11 @@ TEST(GuiControls, EveryCombinationOfPhysicsSwitchesGivesAFrame) {
     for (int mask = 0; mask < 128; ++mask) {
         ScanRequest r = request_for(scene);
         PhysicsSwitches& s = r.parameters.physics;
-        bool* switches[] = {&s.refraction,     &s.specular_reflection, &s.diffuse_reflection,
-                            &s.scattering,     &s.attenuation,         &s.multiple_bounces,
-                            &s.face_reflection};
-        for (int b = 0; b < 7; ++b) *switches[b] = (mask >> b) & 1;
+        const imaging::Physics switches[] = {
+            imaging::Physics::refraction, imaging::Physics::specular,    imaging::Physics::diffuse,
+            imaging::Physics::scattering, imaging::Physics::attenuation, imaging::Physics::bounces,
+            imaging::Physics::face};
+        for (int b = 0; b < 7; ++b) s.set(switches[b], (mask >> b) & 1);
         r.parameters.receive =
             mask % 3 == 0 ? imaging::ReceiveModel::capture : imaging::ReceiveModel::monostatic;
         r.parameters.transducer.lines = 32;
@@ -420,10 +421,16 @@ TEST(GuiExplain, ArtifactsFollowTheMaterialsAndSwitches) {
     const auto layer = names(explain(*load_scene("phantom:speed_layer", kPhantoms), p));
     EXPECT_TRUE(layer.count("speed-of-sound displacement"));
     EXPECT_FALSE(layer.count("posterior enhancement"));  // no fluid there
-    p.physics.scattering = false;
+    p.physics.set(imaging::Physics::scattering, false);
     EXPECT_FALSE(names(explain(*cyst_scene(), p)).count("speckle"));
     p.receive = imaging::ReceiveModel::capture;
     EXPECT_TRUE(names(explain(*cyst_scene(), p)).count("reverberation"));
+    // Every physics switch has its control, and its help is its row's description.
+    for (const simulator::PhysicsSwitch& sw : simulator::kPhysicsSwitches) {
+        EXPECT_EQ(physics_of(physics_control(sw.id)), sw.id);
+        EXPECT_EQ(switch_help(physics_control(sw.id)), sw.description);
+    }
+    EXPECT_FALSE(physics_of(Control::fov).has_value());
     // Every artifact names a control, with help text to show.
     for (const Artifact& a : explain(*cyst_scene(), p)) {
         if (a.control != Control::none && a.control != Control::tgc) {

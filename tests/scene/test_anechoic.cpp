@@ -103,7 +103,9 @@ TEST(Anechoic, SlitNarrowerThanTheBeamIsAsDarkAsThePsfAllows) {
     const nlohmann::json slit = {
         {{"type", "box"}, {"min", {48.5, 55, 0}}, {"max", {51.5, 80, 20}}, {"tissue", "csf"}}};
     imaging::PhysicsSwitches physics;
-    physics.refraction = physics.specular_reflection = physics.diffuse_reflection = false;
+    physics.set(imaging::Physics::refraction, false);
+    physics.set(imaging::Physics::specular, false);
+    physics.set(imaging::Physics::diffuse, false);
     const probe::Transducer t = probe::find_transducer("convex", "test");
     double in = 0.0, out = 0.0, predicted = 0.0;
     int n_in = 0, n_out = 0, n_predicted = 0;
@@ -230,9 +232,10 @@ TEST(Anechoic, AReflectorBesideTheLineEchoesAsTheApertureIntegralSays) {
 TEST(Anechoic, DisabledPhysicsParsesNamesAndRefusesUnknownOnes) {
     const imaging::PhysicsSwitches p =
         imaging::disabled_physics("refraction,speckle", "--disable", "");
-    EXPECT_FALSE(p.refraction);
-    EXPECT_FALSE(p.speckle);
-    EXPECT_TRUE(p.scattering && p.specular_reflection && p.diffuse_reflection && p.attenuation);
+    EXPECT_FALSE(p.on(imaging::Physics::refraction));
+    EXPECT_FALSE(p.on(imaging::Physics::speckle));
+    EXPECT_TRUE(p.on(imaging::Physics::scattering) && p.on(imaging::Physics::specular) &&
+                p.on(imaging::Physics::diffuse) && p.on(imaging::Physics::attenuation));
     EXPECT_EQ(imaging::disabled_physics("", "--disable", ""), imaging::PhysicsSwitches{});
     try {
         imaging::disabled_physics("refraction,gravity", "--disable", "");
@@ -244,9 +247,10 @@ TEST(Anechoic, DisabledPhysicsParsesNamesAndRefusesUnknownOnes) {
     // Applied: the tracer's and the image's settings follow.
     imaging::SimulationSettings s;
     imaging::apply(imaging::disabled_physics("scattering,bounces,face,attenuation", "-", ""), s);
-    EXPECT_FALSE(s.trace.scattering);
-    EXPECT_FALSE(s.trace.attenuation);
-    EXPECT_EQ(s.trace.max_bounces, 0);
+    EXPECT_FALSE(s.trace.physics.on(imaging::Physics::scattering));
+    EXPECT_FALSE(s.trace.physics.on(imaging::Physics::attenuation));
+    EXPECT_FALSE(s.trace.physics.on(
+        imaging::Physics::bounces));  // the tracer retires at the first reflection
     EXPECT_EQ(s.transducer.face_reflectivity, 0.0);
     EXPECT_TRUE(s.imaging.speckle);
 }
@@ -256,7 +260,7 @@ TEST(Anechoic, SpeckleOffSilencesHomogeneousBrain) {
     // switched off it holds only the wall echoes' pulse tails, at least 60 dB below its
     // speckle.
     imaging::PhysicsSwitches off;
-    off.speckle = false;
+    off.set(imaging::Physics::speckle, false);
     const double with = cylinder_contrast({}).beside_mean_square;
     const double without = cylinder_contrast(off).beside_mean_square;
     EXPECT_LT(without, 1e-6 * with) << with << " " << without;

@@ -125,7 +125,7 @@ TEST(FrameRequest, MakesThePresetsSettingsWithTheScenesGainUnlessItIsGiven) {
     const imaging::SimulationSettings s = make_settings(r, *setup.scene);
     EXPECT_EQ(s.imaging.gain_db, 20.0);
     EXPECT_EQ(s.transducer.depth_mm, 30.0);
-    EXPECT_FALSE(s.trace.refraction);
+    EXPECT_FALSE(s.trace.physics.on(simulator::Physics::refraction));
     EXPECT_FALSE(s.imaging.speckle);
     EXPECT_TRUE(s.imaging.tgc.empty());
 
@@ -139,6 +139,31 @@ TEST(FrameRequest, MakesThePresetsSettingsWithTheScenesGainUnlessItIsGiven) {
     r.quality = "ultra";
     EXPECT_NE(input_error([&] { make_settings(r, *setup.scene); }).find("quality"),
               std::string::npos);
+}
+
+// Each switch is one row: its name switches off that row alone, names and record keys are
+// each one switch's, and the names of what is off read back to the same set.
+TEST(PhysicsSwitches, EachNameSwitchesOffItsOwnRowAndReadsBack) {
+    std::set<std::string_view> names, keys;
+    for (const simulator::PhysicsSwitch& sw : simulator::kPhysicsSwitches) {
+        EXPECT_TRUE(names.insert(sw.name).second) << sw.name;
+        EXPECT_TRUE(keys.insert(sw.record_key).second) << sw.record_key;
+        EXPECT_FALSE(sw.description.empty() || sw.label.empty()) << sw.name;
+        const imaging::PhysicsSwitches off =
+            imaging::disabled_physics(std::string(sw.name), "test", "");
+        for (const simulator::PhysicsSwitch& other : simulator::kPhysicsSwitches)
+            EXPECT_EQ(off.on(other.id), &other != &sw) << sw.name << " / " << other.name;
+        EXPECT_EQ(imaging::disabled_names(off), sw.name);
+    }
+    const imaging::PhysicsSwitches two = imaging::disabled_physics("speckle,refraction", "t", "");
+    EXPECT_EQ(imaging::disabled_names(two), "refraction,speckle");  // the table's order
+    EXPECT_EQ(imaging::disabled_physics(imaging::disabled_names(two), "t", ""), two);
+    // Applied to a frame's settings: the tracer's set is the request's, the image's speckle
+    // follows its row.
+    imaging::SimulationSettings settings;
+    imaging::apply(two, settings);
+    EXPECT_EQ(settings.trace.physics, two);
+    EXPECT_FALSE(settings.imaging.speckle);
 }
 
 // The GUI and the dataset hand computed numbers on as text: the text must read back to

@@ -72,11 +72,11 @@ constexpr ParameterDoc kEchoesDoc = {"--echoes", "",
                                      "also write every echo event as CSV to this file"};
 constexpr ParameterDoc kOutDoc = {"--out", "", "output directory"};
 
-// The --disable switches: simulate's names (imaging::physics_switch_names), but for the
+// The --disable switches: simulate's names (simulator::kPhysicsSwitches), but for the
 // image's speckle, which a trace does not make.
 void apply_disable(const std::string& disable, simulator::TraceSettings& s) {
     const imaging::PhysicsSwitches off = imaging::disabled_physics(disable, "--disable", "");
-    if (!off.speckle)
+    if (!off.on(simulator::Physics::speckle))
         throw base::InputError(
             "--disable", "speckle",
             "is the B-mode image's; a trace makes no image (sonotrace simulate)");
@@ -385,11 +385,13 @@ int run_trace_command(const TraceOptions& options) {
           {"step_texels", s.step_texels},
           {"frequency_mhz", s.frequency_mhz},
           {"seed", s.seed},
-          {"refraction", s.refraction},
-          {"specular_reflection", s.specular_reflection},
-          {"diffuse_reflection", s.diffuse_reflection},
-          {"scattering", s.scattering},
-          {"attenuation", s.attenuation},
+          {"physics",
+           [&] {
+               json on = json::object();
+               for (const auto& sw : simulator::kPhysicsSwitches)
+                   if (!sw.image_only) on[std::string(sw.record_key)] = s.physics.on(sw.id);
+               return on;
+           }()},
           {"max_bounces", s.max_bounces},
           {"lobe_exponent", simulator::to_string(s.lobe_exponent)},
           {"lobe_weight", simulator::to_string(s.lobe_weight)},

@@ -11,6 +11,8 @@
 
 namespace sonotrace::gui {
 
+using imaging::Physics;
+
 namespace {
 
 // A slider over a transducer parameter: its unit and help from the parameter's row.
@@ -102,46 +104,31 @@ double slider_max(Control control, const probe::Transducer& t) {
     return max;
 }
 
+std::optional<imaging::Physics> physics_of(Control control) {
+    const int i = int(control) - int(Control::physics);
+    if (i < 0 || i >= int(simulator::kPhysicsCount)) return std::nullopt;
+    return imaging::Physics(i);
+}
+
 std::string switch_help(Control control) {
-    auto physics = [](std::string_view name) {
-        return std::string(imaging::physics_switch(name).description);
-    };
-    switch (control) {
-        case Control::refraction:
-            return physics("refraction");
-        case Control::specular_reflection:
-            return physics("specular");
-        case Control::diffuse_reflection:
-            return physics("diffuse");
-        case Control::scattering:
-            return physics("scattering");
-        case Control::attenuation:
-            return physics("attenuation");
-        case Control::shear_conversion:
-            return physics("shear");
-        case Control::multiple_bounces:
-            return physics("bounces");
-        case Control::face_reflection:
-            return physics("face");
-        case Control::receive:
-            return scene::request_parameter("receive").description;
-        case Control::trace:
-            return scene::request_parameter("trace").description;
-        default:
-            return {};
-    }
+    if (const auto p = physics_of(control))
+        return std::string(simulator::physics_switch(*p).description);
+    if (control == Control::receive) return scene::request_parameter("receive").description;
+    if (control == Control::trace) return scene::request_parameter("trace").description;
+    return {};
 }
 
 std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
     std::vector<Artifact> out;
     const PhysicsSwitches& s = p.physics;
     const Features f = features_of(scene);
-    if (s.scattering)
+    if (s.on(Physics::scattering))
         out.push_back({"speckle",
                        "Echoes of sub-resolution scatterers fixed in the tissue interfere: a "
                        "granular texture that moves with the tissue, not with the probe.",
-                       Control::scattering, "switch scattering off: tissue turns black"});
-    if (s.attenuation)
+                       physics_control(Physics::scattering),
+                       "switch scattering off: tissue turns black"});
+    if (s.on(Physics::attenuation))
         out.push_back({"depth attenuation and TGC",
                        "Intensity falls by alpha f per cm each way, so deep echoes are weaker; "
                        "the TGC adds gain with depth to even the image out.",
@@ -154,13 +141,14 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
                  f.most_attenuating.name + ": " +
                  base::number_text(f.most_attenuating.properties[tissue::Property::attenuation]) +
                  " dB/(cm MHz)): little reaches what lies behind them.",
-             Control::attenuation, "switch attenuation off: the shadow fills in"});
+             physics_control(Physics::attenuation), "switch attenuation off: the shadow fills in"});
     if (f.speed_contrast)
         out.push_back({"refraction displacement",
                        "Beams bend where the speed of sound changes obliquely (here " +
                            speed_of(f.fastest) + " against " + speed_of(f.slowest) +
                            "), but the image assumes straight lines: structures shift.",
-                       Control::refraction, "switch refraction off: they move back"});
+                       physics_control(Physics::refraction),
+                       "switch refraction off: they move back"});
     if (f.speed_contrast)
         out.push_back({"speed-of-sound displacement",
                        "Depth is time x 1540 m/s / 2: under slower tissue (" + speed_of(f.slowest) +
@@ -171,44 +159,47 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
         out.push_back({"dark fluid, bright walls",
                        "Fluid has no scatterers (anechoic); its walls reflect specularly where "
                        "the beam meets them near normal incidence.",
-                       Control::specular_reflection,
+                       physics_control(Physics::specular),
                        "switch specular reflection off: the walls fade"});
         out.push_back({"posterior enhancement",
                        "Fluid absorbs almost nothing, so tissue behind it receives more energy "
                        "than tissue at the same depth beside it (the TGC assumes tissue).",
-                       Control::attenuation, "switch attenuation off: the enhancement vanishes"});
+                       physics_control(Physics::attenuation),
+                       "switch attenuation off: the enhancement vanishes"});
     }
     if (f.air || f.shadowing) {
         out.push_back({"mirror images",
                        "A strong reflector (air R = 1, bone) sends the beam sideways; echoes "
                        "from what it meets return along the same path and are drawn behind "
                        "the reflector.",
-                       Control::specular_reflection,
+                       physics_control(Physics::specular),
                        "switch specular reflection off: the mirrored copy disappears"});
         out.push_back({"reverberation between reflectors",
                        "Between two strong reflectors part of the echo bounces back and forth: "
                        "copies repeat at multiples of their spacing, fading.",
-                       Control::multiple_bounces, "switch multiple bounces off: they go"});
+                       physics_control(Physics::bounces), "switch multiple bounces off: they go"});
     }
-    if (p.receive == imaging::ReceiveModel::capture && s.face_reflection)
+    if (p.receive == imaging::ReceiveModel::capture && s.on(Physics::face))
         out.push_back({"reverberation",
                        "The probe face reflects part of each strong echo back into the tissue: "
                        "copies of the reflector repeat at multiples of its depth.",
-                       Control::face_reflection, "switch face reflection off: the copies go"});
+                       physics_control(Physics::face),
+                       "switch face reflection off: the copies go"});
     else
         out.push_back({"reverberation (off)",
                        "Repeated echoes between the probe face and a strong reflector need the "
                        "capture receive model with face reflection.",
                        Control::receive, "set receive to capture"});
-    if (f.rough_reflector && s.diffuse_reflection)
+    if (f.rough_reflector && s.on(Physics::diffuse))
         out.push_back({"rough bone echoes from every angle",
                        "Rough interfaces reflect into a broad lobe, so bone echoes even where "
                        "the beam meets it obliquely.",
-                       Control::diffuse_reflection, "switch diffuse reflection off"});
+                       physics_control(Physics::diffuse), "switch diffuse reflection off"});
     out.push_back({"sedimentation",
                    "Energy deposits where the particles end: on the far side of strong "
                    "interfaces and at depth (the energy map).",
-                   Control::attenuation, "watch the energy map while toggling attenuation"});
+                   physics_control(Physics::attenuation),
+                   "watch the energy map while toggling attenuation"});
     return out;
 }
 

@@ -3,6 +3,7 @@
 // elsewhere (transducer_parameter_docs, the simulate command's docs, the tracer's docs)
 // and reused as its tooltip; and the explain panel's artifacts, each tied to the control
 // that makes it vanish and return.
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -13,14 +14,6 @@ namespace sonotrace::gui {
 // Which control an artifact depends on (highlighted in the control panel).
 enum class Control {
     none,
-    refraction,
-    specular_reflection,
-    diffuse_reflection,
-    scattering,
-    attenuation,
-    shear_conversion,
-    multiple_bounces,
-    face_reflection,
     receive,
     trace,
     tgc,
@@ -31,7 +24,15 @@ enum class Control {
     depth,
     lines,
     fov,
+    // The physics switches follow, one per row of simulator::kPhysicsSwitches, in its
+    // order (physics_control): a new switch needs no entry here.
+    physics,
 };
+constexpr Control physics_control(imaging::Physics p) {
+    return Control(int(Control::physics) + int(p));
+}
+// The switch a control toggles, if it is one.
+std::optional<imaging::Physics> physics_of(Control control);
 
 struct SliderSpec {
     Control control;
@@ -49,7 +50,8 @@ const SliderSpec& slider(Control control);
 // field of view at most its arc (elements x pitch / radius).
 double slider_max(Control control, const probe::Transducer& t);
 
-// Help text of a physics switch (the tracer's parameter documentation where there is one).
+// Help text of a physics switch (its row's description) or of the receive and trace
+// choices (the frame request's).
 std::string switch_help(Control control);
 
 struct Artifact {

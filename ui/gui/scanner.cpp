@@ -81,9 +81,7 @@ scene::FrameRequest ScanParameters::request() const {
                                    tgc_db[std::size_t(k)]);
     }
     r.pixel_mm = std::max(0.1, transducer.depth_mm / 400.0);
-    for (const auto& n : imaging::physics_switch_names())
-        if (!(physics.*(n.member)))
-            r.disable += (r.disable.empty() ? "" : ",") + std::string(n.name);
+    r.disable = imaging::disabled_names(physics);
     r.energy = true;  // the energy view
     return r;
 }
