@@ -1,4 +1,4 @@
-// `sonotrace dataset` (imaging/dataset): the spec and its errors, frame i as a pure
+// `sonotrace dataset` (ui/dataset): the spec and its errors, frame i as a pure
 // function of (spec, i) with chi-square checks of its draws, byte-identical shards on 1
 // and 2 threads, a stopped run resumed to the same bytes, and shards of another spec
 // refused.
