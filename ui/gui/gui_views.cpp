@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <opencv2/imgproc.hpp>
+
 #include "imaging/picture.h"
 #include "probe/array_geometry.h"
 #include "tissue/tissue_table.h"

@@ -7,6 +7,7 @@
 
 #include "imaging/picture.h"
 #include "probe/array_geometry.h"
+#include "tissue/base/error.h"
 #include "tissue/tissue_table.h"
 
 namespace sonotrace::gui {
