@@ -37,7 +37,8 @@
 // (smooth value noise of +-a on d); "source" injects particles for `sonotrace trace`
 // (2D, in the z = size/2 plane): {"type": "fan" | "parallel", "at": [x, y], "direction":
 // [dx, dy], "half_angle": deg (fan) | "width": mm (parallel), "particles": n}; "trace"
-// sets the tracer's physics (simulator/trace_settings.h names): {"specular_reflection":
+// sets the tracer's physics (switches by the record keys of simulator/physics_switches.h,
+// trace settings by simulator/trace_settings.h's names): {"specular_reflection":
 // false, "diffuse_reflection": true, "lobe_exponent": "reflecting_density", "lobe_scale":
 // 5, "lobe_weight": "energy", "roulette_energy": 1e-3, "ring": {"centre": [x, y],
 // "radius": mm, "bins": n}}.
