@@ -2,6 +2,7 @@
 // The tracer's deposit maps (fluence and absorbed energy), private to simulator/tracer.cpp:
 // per thread, in tiles allocated when first written, on huge pages kept between traces,
 // summed in fixed point so that the merged maps do not depend on the threads' order.
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -9,10 +10,12 @@
 #include <new>
 #include <vector>
 
+#include <tbb/parallel_for.h>
 #include <glm/glm.hpp>
 
 #include "simulator/batch.h"
 #include "tissue/base/memory.h"
+#include "tissue/volume.h"
 
 namespace sonotrace::simulator::detail {
 // Internal linkage, as when this lived in tracer.cpp: the one file that includes it
@@ -144,6 +147,52 @@ class DepositTiles {
     std::vector<std::unique_ptr<Tile, FreeChunk>> chunks_;
     std::size_t chunk_used_ = 0;
 };
+
+// The threads' tiles summed into the result maps, tile by tile in parallel; integer sums,
+// so the order of the threads does not matter. `per_texel`: fixed-point fluence to
+// intensity (energy mm per texel to per mm^Dim). Untouched tiles stay zero.
+template <int Dim>
+void merge_deposits(const std::vector<const DepositTiles<Dim>*>& maps, double per_texel,
+                    tissue::Volume& fluence, tissue::Volume& absorbed) {
+    if (maps.empty()) return;
+    const glm::ivec3 dims = fluence.geometry().dims;
+    const std::size_t tiles = maps[0]->tile_count();
+    tbb::parallel_for(std::size_t(0), tiles, [&](std::size_t t) {
+        if (std::none_of(maps.begin(), maps.end(), [t](auto* m) { return m->tile(t) != nullptr; }))
+            return;  // nothing deposited: the result is zero there already
+        // Row by row of the tile (cells x fastest), within the map's edge.
+        constexpr int side = DepositTiles<Dim>::kSide;
+        // The next tile's first half, prefetched: tiles lie anywhere in their chunks, and
+        // the hardware's stream prefetch restarts at each.
+        for (const DepositTiles<Dim>* m : maps) {
+            const auto* next = t + 1 < tiles ? m->tile(t + 1) : nullptr;
+            if (next == nullptr) continue;
+            for (std::size_t line = 0; line < sizeof(*next) / 128; ++line)
+                __builtin_prefetch(reinterpret_cast<const char*>(next->data()) + 64 * line);
+        }
+        const glm::ivec3 origin = maps[0]->tile_origin(t);
+        const int width = std::min(side, dims.x - origin.x);
+        const int height = std::min(side, dims.y - origin.y);
+        const int depth = Dim == 3 ? std::min(side, dims.z - origin.z) : 1;
+        for (int z = 0; z < depth; ++z) {
+            for (int y = 0; y < height; ++y) {
+                const auto first = uint32_t((z * side + y) * side);
+                const std::size_t to = fluence.linear_index(origin.x, origin.y + y, origin.z + z);
+                for (int x = 0; x < width; ++x) {
+                    const uint32_t c = first + uint32_t(x);
+                    int64_t fluence_sum = 0, absorbed_sum = 0;
+                    for (const DepositTiles<Dim>* m : maps) {
+                        if (const auto* tile = m->tile(t))
+                            fluence_sum += (*tile)[c].fluence, absorbed_sum += (*tile)[c].absorbed;
+                    }
+                    fluence.voxels()[to + std::size_t(x)] = float(double(fluence_sum) * per_texel);
+                    absorbed.voxels()[to + std::size_t(x)] =
+                        float(double(absorbed_sum) / kFixedScale);
+                }
+            }
+        }
+    });
+}
 
 }  // namespace
 }  // namespace sonotrace::simulator::detail

@@ -3,7 +3,7 @@
 // particle stands on a sharp transition (a plateau on each side within reach) or a graded
 // medium, and for a sharp one its patch normal, middle, plateaus and roughness
 // (InterfaceSides), found once per texel and trace (InterfaceCache). What an interface
-// event then does with the sides is the tracer's (LineTracer::enter_interface).
+// event then does with the sides is interface_events.h's (crossing_of, reflection_at).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -27,8 +27,7 @@ class InterfaceSearch {
 
     InterfaceSearch(const tissue::AcousticMap<Dim>& map, const TraceSettings& settings)
         : map_(map), settings_(settings) {
-        texel_mm_ = map.spacing()[0];
-        for (int a = 1; a < Dim; ++a) texel_mm_ = std::min(texel_mm_, map.spacing()[a]);
+        texel_mm_ = map.smallest_spacing();
         threshold2_ = float(settings.interface_threshold * settings.interface_threshold);
         // At least 4 texels: central differences and interpolation spread even a one-texel
         // step over 3 texels of gradient, so from anywhere inside it the plateau can lie 3

@@ -1,8 +1,10 @@
 #include "simulator/sources.h"
 
 #include <cmath>
+#include <string>
 
 #include "simulator/interactions.h"
+#include "tissue/base/error.h"
 
 namespace sonotrace::simulator {
 
@@ -67,5 +69,25 @@ Sources<3> fan_beam_3d(glm::vec3 origin, glm::vec3 direction, float half_angle_d
                 energy, line};
         });
 }
+
+template <int Dim>
+void validate_sources(const Sources<Dim>& sources) {
+    for (std::size_t n = 0; n < sources.size(); ++n) {
+        const auto& s = sources[n];
+        bool finite = std::isfinite(s.energy);
+        for (int a = 0; a < Dim; ++a)
+            finite = finite && std::isfinite(s.position[a]) && std::isfinite(s.direction[a]);
+        const std::string field = "sources[" + std::to_string(n) + "]";
+        if (!finite)
+            throw base::InputError("sources", field,
+                                   "position, direction and energy must be finite");
+        if (s.energy < 0.0f) throw base::InputError("sources", field + ".energy", "must be >= 0");
+        if (!(glm::length(s.direction) > 0.0f))
+            throw base::InputError("sources", field + ".direction", "is zero");
+    }
+}
+
+template void validate_sources<2>(const Sources<2>&);
+template void validate_sources<3>(const Sources<3>&);
 
 }  // namespace sonotrace::simulator

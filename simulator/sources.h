@@ -28,4 +28,9 @@ Sources<3> parallel_beam_3d(glm::vec3 centre, glm::vec3 direction, float width_m
 Sources<3> fan_beam_3d(glm::vec3 origin, glm::vec3 direction, float half_angle_deg, int count,
                        uint32_t line = 0, float energy = 1.0f);
 
+// Refuses (base::InputError, file "sources") a particle whose position, direction or
+// energy is not finite, whose energy is negative or whose direction is zero.
+template <int Dim>
+void validate_sources(const Sources<Dim>& sources);
+
 }  // namespace sonotrace::simulator

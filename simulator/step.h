@@ -234,4 +234,42 @@ SONOTRACE_LANE_INLINE void take_step(StepState<Lane, Dim>& p, const StepFields<L
     move(p, s, step_time<Lane>(n1, c));
 }
 
+// One particle's state from lane k of the batch, and back (the scalar step's).
+template <int Dim>
+StepState<ScalarLane, Dim> load_state(const Batch<Dim>& b, int k) {
+    const auto i = std::size_t(k);
+    StepState<ScalarLane, Dim> p;
+    for (std::size_t a = 0; a < Dim; ++a) {
+        p.x[a] = b.position.axis[a][i];
+        p.r[a] = b.direction.axis[a][i];
+        p.interface_normal[a] = b.interface_normal.axis[a][i];
+    }
+    p.E = b.energy[i];
+    p.fluence = b.pending_fluence[i], p.absorbed = b.pending_absorbed[i];
+    p.optical_depth = b.optical_depth[i], p.scatter_target = b.scatter_target[i];
+    p.previous_index = b.previous_index[i];
+    p.pending_texel = int32_t(b.pending_texel[i]);
+    p.state = int32_t(b.in_interface[i]);
+    p.graded_steps = b.graded_steps[i];
+    p.time = b.time[i], p.path_length = b.path_length[i];
+    return p;
+}
+template <int Dim>
+void store_state(Batch<Dim>& b, int k, const StepState<ScalarLane, Dim>& p) {
+    const auto i = std::size_t(k);
+    for (std::size_t a = 0; a < Dim; ++a) {
+        b.position.axis[a][i] = p.x[a];
+        b.direction.axis[a][i] = p.r[a];
+        b.interface_normal.axis[a][i] = p.interface_normal[a];
+    }
+    b.energy[i] = p.E;
+    b.pending_fluence[i] = p.fluence, b.pending_absorbed[i] = p.absorbed;
+    b.optical_depth[i] = p.optical_depth, b.scatter_target[i] = p.scatter_target;
+    b.previous_index[i] = p.previous_index;
+    b.pending_texel[i] = uint32_t(p.pending_texel);
+    b.in_interface[i] = InterfaceState(p.state);
+    b.graded_steps[i] = p.graded_steps;
+    b.time[i] = p.time, b.path_length[i] = p.path_length;
+}
+
 }  // namespace sonotrace::simulator::detail

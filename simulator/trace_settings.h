@@ -2,6 +2,7 @@
 // Parameters of the particle tracer, each documented once (name, unit, default) here;
 // the CLI help and the sidecars use these texts.
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -65,6 +66,18 @@ struct RingDetector {
     int bins = 90;
     glm::vec2 zero_direction{1.0f, 0.0f};  // unit, angle 0
     glm::vec2 up{0.0f, -1.0f};             // unit, angle 90 degrees (map rows run downwards)
+
+    // The bin a step from `from` to `to` leaves the circle through (polar angle 0-180
+    // degrees), or -1 if it does not leave it there.
+    int bin_crossed(glm::vec2 from, glm::vec2 to) const {
+        if (!(glm::length(from - centre) < radius_mm && glm::length(to - centre) >= radius_mm))
+            return -1;
+        const glm::vec2 rel = to - centre;
+        const float deg =
+            glm::degrees(std::atan2(glm::dot(rel, up), glm::dot(rel, zero_direction)));
+        if (!(deg >= 0.0f && deg <= 180.0f)) return -1;
+        return std::min(bins - 1, int(deg / 180.0f * float(bins)));
+    }
 };
 
 // The track-length estimate of the echo that sub-resolution scattering sends back, per

@@ -22,6 +22,7 @@
 #include <array>
 #include <cstddef>
 #include <cstring>
+#include <limits>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -110,6 +111,12 @@ class AcousticMap {
     const VolumeGeometry& geometry() const { return geometry_; }
     const IVec& dims() const { return dims_; }
     const Vec& spacing() const { return spacing_; }
+    // The finest spacing (mm): the tracer's step and interface reach are in its texels.
+    float smallest_spacing() const {
+        float h = spacing_[0];
+        for (int a = 1; a < Dim; ++a) h = std::min(h, spacing_[a]);
+        return h;
+    }
     // Size of the domain in mm (from the first to the last texel centre).
     Vec extent_mm() const { return Vec(dims_ - 1) * spacing_; }
 
@@ -146,6 +153,20 @@ class AcousticMap {
     const IVec& block_dims() const { return block_dims_; }
     const AcousticTexel<Dim>* uniform_record(int32_t index) const {
         return &uniform_records_[std::size_t(index)];
+    }
+    // How far (mm) from x along unit r to the edge of the block uniform_block(x) looks up
+    // (for runs of steps that need not look again).
+    float distance_to_block_exit(const Vec& x, const Vec& r) const {
+        constexpr float kBlockSide = float(kBlock);
+        float distance = std::numeric_limits<float>::max();
+        for (int a = 0; a < Dim; ++a) {
+            const float h = spacing_[a];
+            const int block = int(x[a] * inverse_spacing_[a]) >> kBlockShift;
+            const float lo = float(block) * kBlockSide * h;
+            if (r[a] > 0.0f) distance = std::min(distance, (lo + kBlockSide * h - x[a]) / r[a]);
+            if (r[a] < 0.0f) distance = std::min(distance, (x[a] - lo) / -r[a]);
+        }
+        return distance;
     }
     // Fraction of blocks that are uniform (for benchmarks and logs).
     double uniform_block_fraction() const;
