@@ -6,8 +6,10 @@
 Every #include "..." of a library's sources (tests and benchmarks aside) must name a
 header of the same library or of one lower in LAYERS; a header of a library on the same
 level (siblings: imaging and phantoms) or above fails, listed with its file, and so does
-an include from a folder of the design card into one after it (FOLDERS). --self-test
-checks the checker on made-up includes, one allowed and three that must fail.
+an include from a folder of the design card into one after it (FOLDERS). The tests of a
+module (tests/<folder>/, TEST_FOLDERS) link that module's library only and include nothing
+above it. --self-test checks the checker on made-up includes and tests, some allowed and
+some that must fail.
 """
 import os
 import re
@@ -36,6 +38,22 @@ LAYERS = [
 # folder after it (so no library under imaging/ reaches into phantoms/ or ui/).
 FOLDERS = ["tissue", "probe", "simulator", "imaging", "phantoms", "ui"]
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
+# Test folders and the one library the tests in each link (tests/CMakeLists.txt's
+# sonotrace_test): a module's tests show what the module itself needs. The command line's
+# run the binary and read its files.
+TEST_FOLDERS = {
+    "tissue": "sonotrace_tissue",
+    "probe": "sonotrace_probe",
+    "simulator": "sonotrace_simulator",
+    "imaging": "sonotrace_imaging",
+    "phantoms": "sonotrace_phantoms",
+    "scene": "sonotrace_scene",
+    "validation": "sonotrace_validation",
+    "dataset": "sonotrace_dataset",
+    "cli": "sonotrace_ui",
+    "gui": "sonotrace_gui_core",
+}
+TEST_RULE = re.compile(r"sonotrace_test\((\w+)\s+\w+\s+MODULES\s+([\w\s]+?)\s+SOURCES\s+([^)]+)\)")
 
 
 def library(path):
@@ -61,6 +79,32 @@ def violations(includes):
         if b[2] >= a[2]:
             out.append(f"{source}: includes {header} ({b[1]}, level {b[2]}) from {a[1]} "
                        f"(level {a[2]})")
+    return out
+
+
+def test_violations(cmake_text, includes_of):
+    """cmake_text: tests/CMakeLists.txt; includes_of(test source) -> its included headers.
+    Returns the tests that link another library than their folder's, or include a header
+    of a library on the same level or above it."""
+    levels = {name: level for _, name, level in LAYERS}
+    out = []
+    for name, modules, sources in TEST_RULE.findall(cmake_text):
+        modules, sources = modules.split(), sources.split()
+        folders = sorted({source.split("/")[0] for source in sources})
+        if len(folders) != 1 or folders[0] not in TEST_FOLDERS:
+            out.append(f"tests/CMakeLists.txt: {name}: its sources must lie in one of the "
+                       f"folders {', '.join(TEST_FOLDERS)}, not {', '.join(folders)}")
+            continue
+        own = TEST_FOLDERS[folders[0]]
+        if modules != [own]:
+            out.append(f"tests/CMakeLists.txt: {name} (tests/{folders[0]}/) links "
+                       f"{' '.join(modules)}; it must link {own} only")
+        for source in sources:
+            for header in includes_of(source):
+                b = library(header)
+                if b is not None and b[1] != own and b[2] >= levels[own]:
+                    out.append(f"tests/{source}: includes {header} ({b[1]}, level {b[2]}), "
+                               f"not below {own} (level {levels[own]})")
     return out
 
 
@@ -104,6 +148,17 @@ def self_test():
     assert violations(allowed) == [], violations(allowed)
     assert len(violations(up)) == 1 and len(violations(sideways)) == 1
     assert library("phantoms/scene/scene.cpp")[1] == "sonotrace_scene"
+    headers = {"simulator/a.cpp": ["simulator/tracer.h", "tissue/volume.h", "tests/test_util.h"],
+               "simulator/b.cpp": ["phantoms/phantom.h"],
+               "imaging/c.cpp": ["imaging/bmode.h"]}
+    fine = "sonotrace_test(a quick MODULES sonotrace_simulator SOURCES simulator/a.cpp)"
+    assert test_violations(fine, headers.get) == [], test_violations(fine, headers.get)
+    for bad in ["sonotrace_test(b quick MODULES sonotrace_simulator SOURCES simulator/b.cpp)",
+                "sonotrace_test(a quick MODULES sonotrace_phantoms SOURCES simulator/a.cpp)",
+                "sonotrace_test(a quick MODULES sonotrace_simulator sonotrace_tissue\n"
+                "               SOURCES simulator/a.cpp)",
+                "sonotrace_test(c quick MODULES sonotrace_imaging SOURCES imaging/c.cpp simulator/a.cpp)"]:
+        assert len(test_violations(bad, headers.get)) == 1, (bad, test_violations(bad, headers.get))
 
 
 def main():
@@ -114,12 +169,22 @@ def main():
         return 0
     pairs = repository_includes(root)
     bad = violations(pairs)
+
+    def includes_of(test_source):
+        with open(os.path.join(root, "tests", test_source), encoding="utf-8") as text:
+            return [m.group(1) for m in map(INCLUDE.match, text) if m]
+
+    with open(os.path.join(root, "tests", "CMakeLists.txt"), encoding="utf-8") as cmake:
+        cmake_text = cmake.read()
+    tests = len(TEST_RULE.findall(cmake_text))
+    bad += test_violations(cmake_text, includes_of)
     for line in bad:
         print(line, file=sys.stderr)
     if bad:
         print(f"check_layers: {len(bad)} includes point up or sideways", file=sys.stderr)
         return 1
-    print(f"check_layers: {len(pairs)} includes, all pointing down")
+    print(f"check_layers: {len(pairs)} includes, all pointing down; {tests} tests, each "
+          f"linking its folder's library only")
     return 0
 
 

@@ -1,9 +1,11 @@
 #pragma once
-// Helpers shared by the tests: scratch directories and checks on InputError messages.
+// Helpers shared by the tests: scratch directories, checks on InputError messages, peak
+// widths.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -13,8 +15,20 @@
 #include <vector>
 
 #include "tissue/base/error.h"
+#include "tissue/base/half_maximum.h"
 
 namespace sonotrace::test {
+
+// The index of v's largest value (the first, if several).
+inline int argmax(const std::vector<double>& v) {
+    return int(std::max_element(v.begin(), v.end()) - v.begin());
+}
+// The full width at half maximum, in samples, of the peak of v at its maximum: the
+// half-maximum crossings either side, linearly interpolated (base::half_maximum).
+inline double peak_width_samples(const std::vector<double>& v) {
+    return base::half_maximum(int(v.size()), argmax(v), [&](int i) { return v[std::size_t(i)]; })
+        .width();
+}
 
 // A fresh directory under the system temp dir, removed with the fixture.
 class ScratchDir {
@@ -34,6 +48,16 @@ class ScratchDir {
   private:
     std::filesystem::path path_;
 };
+
+// The message of the InputError `action` throws ("" if it throws none).
+inline std::string input_error_message(const std::function<void()>& action) {
+    try {
+        action();
+    } catch (const base::InputError& e) {
+        return e.what();
+    }
+    return "";
+}
 
 // Asserts that `action` throws InputError whose message names `source_part` and
 // `field_part` (substrings; empty = not checked).

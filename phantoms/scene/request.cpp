@@ -326,7 +326,6 @@ FrameSetup prepare_frames(const FrameRequest& request, base::StageObserver* stag
     settings_of(request,
                 setup.scene ? setup.scene->probe_preset : scene_options.volume_probe_preset(),
                 "simulate options");
-    setup.physics = imaging::disabled_physics(request.disable, "--disable", "");
     // ---- the scene, and the probe placed ----
     if (!setup.scene) setup.scene = load_scene(scene_options, stages);
     setup.settings = make_settings(request, *setup.scene);
@@ -345,7 +344,7 @@ json frame_sidecar(const FrameRequest& request, const FrameSetup& setup,
     const imaging::QualityLevel level = imaging::quality_level(settings.quality);
     json off = json::array();
     for (const auto& n : simulator::kPhysicsSwitches)
-        if (!setup.physics.on(n.id)) off.push_back(n.name);
+        if (!settings.trace.physics.on(n.id)) off.push_back(n.name);
     return {
         {"command", "simulate"},
         {"version", SONOTRACE_VERSION},

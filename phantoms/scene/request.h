@@ -93,7 +93,6 @@ struct FrameSetup {
     imaging::SimulationSettings settings;
     std::shared_ptr<const Scene> scene;
     std::vector<SweepPlacement> placements;
-    imaging::PhysicsSwitches physics;
 };
 FrameSetup prepare_frames(const FrameRequest& request, base::StageObserver* stages = nullptr);
 

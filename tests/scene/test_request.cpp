@@ -10,6 +10,7 @@
 
 #include "phantoms/scene/request.h"
 #include "probe/transducer.h"
+#include "tests/test_util.h"
 #include "tissue/base/error.h"
 #include "tissue/base/number_list.h"
 
@@ -17,16 +18,6 @@ namespace sonotrace::scene {
 namespace {
 
 const std::string kCyst = SONOTRACE_SOURCE_DIR "/phantoms/cyst_and_stone.json";
-
-template <typename F>
-std::string input_error(F f) {
-    try {
-        f();
-    } catch (const base::InputError& e) {
-        return e.what();
-    }
-    return "";
-}
 
 TEST(FrameRequest, EveryKeyIsOneParameterAndNoneIsATransducersToo) {
     std::set<std::string> keys;
@@ -77,27 +68,29 @@ TEST(FrameRequest, TextIsCheckedAsTheCommandLineChecksIt) {
     EXPECT_EQ(r.transducer.at("depth"), "30");
     set_request_parameter(r, "labels", "true", "py");
     EXPECT_TRUE(r.labels);
-    EXPECT_NE(input_error([&] {
+    EXPECT_NE(test::input_error_message([&] {
                   set_request_parameter(r, "colour", "3", "py");
               }).find("field 'colour': unknown parameter; known: view, volume"),
               std::string::npos);
-    EXPECT_NE(input_error([&] {
+    EXPECT_NE(test::input_error_message([&] {
                   set_request_parameter(r, "gain", "nan", "py");
               }).find("field 'gain': value nan is not a finite number"),
               std::string::npos);
-    EXPECT_NE(input_error([&] { set_request_parameter(r, "depth", "inf", "py"); }).find("depth"),
+    EXPECT_NE(test::input_error_message([&] {
+                  set_request_parameter(r, "depth", "inf", "py");
+              }).find("depth"),
               std::string::npos);
     for (const char* seed : {"-1", "18446744073709551616", "1e23", ""})
-        EXPECT_NE(input_error([&] {
+        EXPECT_NE(test::input_error_message([&] {
                       set_request_parameter(r, "seed", seed, "py");
                   }).find("not a whole number"),
                   std::string::npos)
             << seed;
-    EXPECT_NE(input_error([&] {
+    EXPECT_NE(test::input_error_message([&] {
                   set_request_parameter(r, "lines", "2.5", "py");
               }).find("not a whole number"),
               std::string::npos);
-    EXPECT_NE(input_error([&] {
+    EXPECT_NE(test::input_error_message([&] {
                   set_request_parameter(r, "labels", "yes", "py");
               }).find("field 'labels': is a flag"),
               std::string::npos);
@@ -131,13 +124,13 @@ TEST(FrameRequest, MakesThePresetsSettingsWithTheScenesGainUnlessItIsGiven) {
 
     // Ranges come from the settings' own (one place), and name the request's source.
     r.dynamic_range_db = 0.5;
-    EXPECT_NE(input_error([&] {
+    EXPECT_NE(test::input_error_message([&] {
                   make_settings(r, *setup.scene, "spec.json (frame 3)");
               }).find("spec.json (frame 3): field 'dynamic-range': must be in [1, 200]"),
               std::string::npos);
     r.dynamic_range_db = 60.0;
     r.quality = "ultra";
-    EXPECT_NE(input_error([&] { make_settings(r, *setup.scene); }).find("quality"),
+    EXPECT_NE(test::input_error_message([&] { make_settings(r, *setup.scene); }).find("quality"),
               std::string::npos);
 }
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "phantoms/scene/scene.h"
+#include "tests/test_util.h"
 #include "tissue/base/error.h"
 #include "tissue/nifti_io.h"
 
@@ -11,17 +12,6 @@ using namespace imaging;  // the frames the scenes make
 namespace {
 
 const std::string kPhantoms = SONOTRACE_SOURCE_DIR "/phantoms";
-
-// The message of the InputError `load` throws ("" if it throws none).
-template <typename F>
-std::string input_error(F load) {
-    try {
-        load();
-    } catch (const base::InputError& e) {
-        return e.what();
-    }
-    return "";
-}
 
 TEST(Scene, APhantomsTargetsReachTheSettingsWithItsMargin) {
     SceneOptions options;
@@ -48,7 +38,8 @@ TEST(Scene, APoseMoreThan10mmOutsideIsRefusedNamingItsSource) {
     pose.position.y = -9.0;  // 9 mm of coupling above the top face: allowed
     EXPECT_NO_THROW(scene->require_inside(pose, "--pose"));
     pose.position.y = -11.0;
-    const std::string message = input_error([&] { scene->require_inside(pose, "--pose"); });
+    const std::string message =
+        test::input_error_message([&] { scene->require_inside(pose, "--pose"); });
     EXPECT_NE(message.find("--pose"), std::string::npos) << message;
     EXPECT_NE(message.find("outside the phantom"), std::string::npos) << message;
     // Clamped, the face is back on the box.
@@ -58,14 +49,17 @@ TEST(Scene, APoseMoreThan10mmOutsideIsRefusedNamingItsSource) {
 TEST(Scene, OptionsAreCheckedBeforeAnythingLoads) {
     SceneOptions bad_view;
     bad_view.view = "sagittal";
-    EXPECT_NE(input_error([&] { load_scene(bad_view); }).find("--view"), std::string::npos);
+    EXPECT_NE(test::input_error_message([&] { load_scene(bad_view); }).find("--view"),
+              std::string::npos);
     SceneOptions both;
     both.phantom = kPhantoms + "/mirror.json";
     both.volume = "/nonexistent.nii";
-    EXPECT_NE(input_error([&] { load_scene(both); }).find("--phantom"), std::string::npos);
+    EXPECT_NE(test::input_error_message([&] { load_scene(both); }).find("--phantom"),
+              std::string::npos);
     SceneOptions missing;
     missing.phantom = kPhantoms + "/no_such_phantom.json";
-    EXPECT_NE(input_error([&] { load_scene(missing); }).find("no_such_phantom"), std::string::npos);
+    EXPECT_NE(test::input_error_message([&] { load_scene(missing); }).find("no_such_phantom"),
+              std::string::npos);
     // The probe a volume's scene is meant for is known before the volume loads.
     SceneOptions head;
     EXPECT_EQ(head.volume_probe_preset(), "convex");

@@ -15,7 +15,6 @@
 #include <numeric>
 #include <random>
 
-#include "phantoms/trace_setup.h"
 #include "simulator/batch.h"
 #include "simulator/interactions.h"
 #include "simulator/trace_setups.h"

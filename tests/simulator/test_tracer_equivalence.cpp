@@ -14,7 +14,6 @@
 #include <numeric>
 #include <random>
 
-#include "phantoms/trace_setup.h"
 #include "simulator/batch.h"
 #include "simulator/interactions.h"
 #include "simulator/trace_setups.h"
@@ -27,28 +26,6 @@ namespace {
 
 using tissue::AcousticProperties;
 using tissue::Property;
-
-TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
-    TraceSetup scene = phantoms::trace_setup(
-        phantoms::load_phantom(std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/paper_fig6.json"),
-        400);
-    scene.settings.mode = PhysicsMode::acoustic;  // exercise scattering and roulette too
-    scene.settings.physics.set(Physics::scattering, true);
-    scene.settings.roulette_energy = 0.2;
-    for (auto& src : scene.sources) src.line = uint32_t(&src - scene.sources.data()) % 13;
-    auto run = [&](int threads) {
-        tbb::global_control c(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
-        return trace(scene.map, scene.sources, scene.settings);
-    };
-    const auto a = run(1), b = run(2);
-    ASSERT_EQ(a.echoes.size(), b.echoes.size());
-    EXPECT_TRUE(a.echoes == b.echoes);
-    EXPECT_EQ(a.fluence.voxels(), b.fluence.voxels());
-    EXPECT_EQ(a.absorbed.voxels(), b.absorbed.voxels());
-    EXPECT_EQ(a.ring_profile, b.ring_profile);
-    EXPECT_EQ(std::memcmp(&a.ledger, &b.ledger, sizeof a.ledger), 0);
-    EXPECT_EQ(a.stats.steps, b.stats.steps);
-}
 
 // Soft tissue with a smoothed bone-like disc: most of the map is uniform blocks.
 tissue::AcousticMap<2> disc_in_soft_tissue() {
@@ -74,6 +51,36 @@ Sources<2> fan_of_lines(int lines, int per_line) {
         src.insert(src.end(), beam.begin(), beam.end());
     }
     return src;
+}
+
+// The disc in acoustic mode (scattering, roulette), 13 lines: first through the vector
+// stage and uniform runs, then with a ring detector through the scalar step.
+TEST(Tracer, ByteIdenticalOnOneAndTwoThreads) {
+    const auto map = disc_in_soft_tissue();
+    TraceSettings s;
+    s.mode = PhysicsMode::acoustic;
+    s.physics.set(Physics::scattering, true);
+    s.roulette_energy = 0.2;
+    const Sources<2> src = fan_of_lines(13, 31);
+    for (const bool ring : {false, true}) {
+        if (ring) s.ring = RingDetector{.centre = {25.0f, 30.0f}, .radius_mm = 15.0f};
+        auto run = [&](int threads) {
+            tbb::global_control c(tbb::global_control::max_allowed_parallelism,
+                                  std::size_t(threads));
+            return trace(map, src, s);
+        };
+        const auto a = run(1), b = run(2);
+        ASSERT_GT(a.stats.reflections, 0u) << ring;
+        ASSERT_GT(a.stats.scatter_events, 0u) << ring;
+        ASSERT_EQ(a.echoes.size(), b.echoes.size()) << ring;
+        EXPECT_TRUE(a.echoes == b.echoes) << ring;
+        EXPECT_EQ(a.fluence.voxels(), b.fluence.voxels()) << ring;
+        EXPECT_EQ(a.absorbed.voxels(), b.absorbed.voxels()) << ring;
+        EXPECT_EQ(a.ring_profile, b.ring_profile) << ring;
+        EXPECT_EQ(std::memcmp(&a.ledger, &b.ledger, sizeof a.ledger), 0) << ring;
+        EXPECT_EQ(a.stats.steps, b.stats.steps) << ring;
+        EXPECT_EQ(a.stats.vector_steps > 0, !ring) << ring;
+    }
 }
 
 TEST(Tracer, UniformRunsDoWhatInterpolatedStepsDo) {

@@ -17,17 +17,6 @@ namespace {
 
 using base::jsonio::kMaxJsonDepth;
 
-// The message of the InputError that `f` throws ("" if none).
-template <class F>
-std::string refusal(F&& f) {
-    try {
-        f();
-    } catch (const base::InputError& e) {
-        return e.what();
-    }
-    return "";
-}
-
 std::string nested(int levels) {
     return std::string(std::size_t(levels), '[') + std::string(std::size_t(levels), ']');
 }
@@ -38,7 +27,8 @@ TEST(JsonInput, NestingUpToTheLimitParsesOneMoreIsRefused) {
     EXPECT_NO_THROW(base::jsonio::parse("{\"k\": " + nested(kMaxJsonDepth - 1) + "}", "b.json"));
     for (const std::string& text :
          {nested(kMaxJsonDepth + 1), "{\"k\": " + nested(kMaxJsonDepth) + "}", nested(100000)}) {
-        const std::string m = refusal([&] { base::jsonio::parse(text, "deep.json"); });
+        const std::string m =
+            test::input_error_message([&] { base::jsonio::parse(text, "deep.json"); });
         EXPECT_NE(m.find("deep.json"), std::string::npos) << m;
         EXPECT_NE(m.find("levels deep"), std::string::npos) << m;
         EXPECT_LT(m.size(), 200u) << m;
@@ -46,34 +36,35 @@ TEST(JsonInput, NestingUpToTheLimitParsesOneMoreIsRefused) {
 }
 
 TEST(JsonInput, NumbersBeyondDoubleAndSyntaxErrorsNameTheFile) {
-    std::string m = refusal([] { base::jsonio::parse("{\"a\": -1e400}", "n.json"); });
+    std::string m =
+        test::input_error_message([] { base::jsonio::parse("{\"a\": -1e400}", "n.json"); });
     EXPECT_NE(m.find("n.json"), std::string::npos) << m;
     EXPECT_NE(m.find("number overflow"), std::string::npos) << m;
     // 1e-400 underflows to zero, which is a number: not an error.
     EXPECT_EQ(base::jsonio::parse("{\"a\": 1e-400}", "u.json")["a"].get<double>(), 0.0);
-    m = refusal([] { base::jsonio::parse("{\n  \"a\": 1,\n  b}", "s.json"); });
+    m = test::input_error_message([] { base::jsonio::parse("{\n  \"a\": 1,\n  b}", "s.json"); });
     EXPECT_NE(m.find("s.json: invalid JSON at line 3"), std::string::npos) << m;
-    m = refusal([] { base::jsonio::parse(R"({"a": 1, "a": 2})", "d.json"); });
+    m = test::input_error_message([] { base::jsonio::parse(R"({"a": 1, "a": 2})", "d.json"); });
     EXPECT_NE(m.find("field 'a'"), std::string::npos) << m;
 }
 
 TEST(JsonInput, OnlyRegularFilesWithinTheSizeLimitAreRead) {
     test::ScratchDir dir;
-    std::string m = refusal([] { base::jsonio::read_file("/dev/zero"); });
+    std::string m = test::input_error_message([] { base::jsonio::read_file("/dev/zero"); });
     EXPECT_NE(m.find("/dev/zero: is not a regular file"), std::string::npos) << m;
-    m = refusal([&] { base::jsonio::read_file(dir / "missing.json"); });
+    m = test::input_error_message([&] { base::jsonio::read_file(dir / "missing.json"); });
     EXPECT_NE(m.find("file not found"), std::string::npos) << m;
-    m = refusal([&] { base::jsonio::read_file(dir.path().string()); });
+    m = test::input_error_message([&] { base::jsonio::read_file(dir.path().string()); });
     EXPECT_NE(m.find("is not a regular file"), std::string::npos) << m;
     // A FIFO with no writer: opening it to read would wait for ever.
     ASSERT_EQ(::mkfifo((dir / "fifo.json").c_str(), 0600), 0);
-    m = refusal([&] { base::jsonio::read_file(dir / "fifo.json"); });
+    m = test::input_error_message([&] { base::jsonio::read_file(dir / "fifo.json"); });
     EXPECT_NE(m.find("fifo.json: is not a regular file"), std::string::npos) << m;
     // One byte over the limit (a sparse file: nothing is written, nothing is read).
     const std::filesystem::path big = dir / "big.json";
     std::ofstream(big) << "{}";
     std::filesystem::resize_file(big, base::jsonio::kMaxJsonBytes + 1);
-    m = refusal([&] { base::jsonio::read_file(big.string()); });
+    m = test::input_error_message([&] { base::jsonio::read_file(big.string()); });
     EXPECT_NE(m.find("limited to"), std::string::npos) << m;
     // At the limit the file is read: "{}" after white space up to exactly the limit.
     std::ofstream(big) << std::string(base::jsonio::kMaxJsonBytes - 2, ' ') << "{}";

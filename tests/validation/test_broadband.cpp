@@ -18,7 +18,7 @@
 #include "probe/aperture.h"
 #include "probe/pulse.h"
 #include "probe/transducer.h"
-#include "tissue/base/half_maximum.h"
+#include "tests/test_util.h"
 
 namespace sonotrace {
 namespace {
@@ -146,10 +146,7 @@ class Reference {
 
 // FWHM of a profile sampled dx apart (linear interpolation of the half-maximum crossings).
 double fwhm_mm(const std::vector<double>& v, double dx) {
-    const int peak = int(std::max_element(v.begin(), v.end()) - v.begin());
-    return base::half_maximum(int(v.size()), peak, [&](int i) { return v[std::size_t(i)]; })
-               .width() *
-           dx;
+    return test::peak_width_samples(v) * dx;
 }
 
 // The lateral profile of a point target (what its image shows line by line) through the
