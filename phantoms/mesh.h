@@ -28,7 +28,7 @@ inline constexpr std::uintmax_t kMaxMeshFileBytes = std::uintmax_t(2) << 30;  //
 inline constexpr std::size_t kMaxMeshTriangles = 20'000'000;
 
 struct TriangleMesh {
-    std::vector<glm::dvec3> vertices;               // mm
+    std::vector<glm::dvec3> vertices;                // mm
     std::vector<std::array<uint32_t, 3>> triangles;  // counter-clockwise seen from outside
 };
 
@@ -68,10 +68,10 @@ class MeshShape {
     uint32_t build(uint32_t first, uint32_t count, const std::vector<glm::dvec3>& centres);
 
     TriangleMesh mesh_;
-    std::vector<glm::dvec3> face_normal_;               // unit, per triangle
+    std::vector<glm::dvec3> face_normal_;                 // unit, per triangle
     std::vector<std::array<glm::dvec3, 3>> edge_normal_;  // per triangle, edge k: v[k] -> v[k+1]
-    std::vector<glm::dvec3> vertex_normal_;             // angle-weighted
-    std::vector<uint32_t> order_;                       // triangle indices, by leaf
+    std::vector<glm::dvec3> vertex_normal_;               // angle-weighted
+    std::vector<uint32_t> order_;                         // triangle indices, by leaf
     std::vector<Node> nodes_;
     glm::dvec3 lower_{0.0}, upper_{0.0};
     double volume_ = 0.0;

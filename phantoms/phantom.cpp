@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "tissue/base/error.h"
 #include "tissue/base/json_util.h"
@@ -33,6 +34,7 @@ const std::vector<ShapeKeys>& shape_keys() {
         {"half_space", ShapeType::half_space, {"point", "normal"}},
         {"layer", ShapeType::layer, {"point", "normal", "thickness"}},
         {"tube", ShapeType::tube, {"path", "radius"}},
+        {"mesh", ShapeType::mesh, {"file", "scale", "rotate", "translate"}},
     };
     return keys;
 }
@@ -132,6 +134,28 @@ Shape parse_shape(const json& j, const std::string& source, const std::string& w
                 s.path.push_back({q[0].get<double>(), q[1].get<double>(), q[2].get<double>()});
             }
             s.radius = length("radius");
+            break;
+        }
+        case ShapeType::mesh: {
+            const std::string file = jsonio::get_string(j, "file", source, where);
+            std::filesystem::path path(file);
+            if (path.is_relative()) path = std::filesystem::path(source).parent_path() / path;
+            MeshTransform place;
+            if (j.contains("scale")) {
+                const std::string at = jsonio::join(where, "scale");
+                place.scale =
+                    j.at("scale").is_number()
+                        ? glm::dvec3(jsonio::get_number(j, "scale", source, where, 1e-6, 1e6))
+                        : vec("scale");
+                if (!(glm::min(place.scale.x, glm::min(place.scale.y, place.scale.z)) > 0.0))
+                    throw base::InputError(source, at, "must be > 0");
+            }
+            if (j.contains("rotate")) place.rotate_deg = vec("rotate");
+            if (j.contains("translate")) place.translate_mm = vec("translate");
+            TriangleMesh mesh = read_mesh_file(path.string());
+            for (glm::dvec3& v : mesh.vertices) v = place.apply(v);
+            s.mesh = std::make_shared<const MeshShape>(std::move(mesh), path.string());
+            s.a = 0.5 * (s.mesh->lower() + s.mesh->upper());
             break;
         }
     }
@@ -288,6 +312,8 @@ double Shape::signed_distance(const glm::dvec3& p) const {
             return -glm::dot(p - a, b);
         case ShapeType::layer:
             return std::abs(glm::dot(p - a, b) - 0.5 * radius) - 0.5 * radius;
+        case ShapeType::mesh:
+            return mesh->signed_distance(p);
         case ShapeType::tube: {
             double nearest = 1e30;
             for (std::size_t i = 0; i + 1 < path.size(); ++i) {
@@ -303,6 +329,8 @@ double Shape::signed_distance(const glm::dvec3& p) const {
 }
 
 double Shape::weight(const glm::dvec3& p, double smoothing_mm) const {
+    // Beyond the ramp's reach of a mesh's bounding box: no surface search.
+    if (type == ShapeType::mesh && mesh->distance_to_bounds(p) > 0.5 * smoothing_mm) return 0.0;
     const double d = signed_distance(p);
     if (parabolic) {  // distance from the axis = d + radius
         const double rho = (d + radius) / radius;

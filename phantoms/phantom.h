@@ -18,6 +18,11 @@
 //   half_space  point, normal                     (everything beyond the plane along normal)
 //   layer       point, normal, thickness          (a slab from the plane along normal)
 //   tube        path [[x,y,z], ...], radius       (a bent tube along a polyline)
+//   mesh        file, and optionally scale, rotate, translate: a closed triangle mesh
+//               (STL, OBJ or PLY; phantoms/mesh.h: its checks and inside test), its path
+//               relative to the phantom's file; scale (a number or [sx, sy, sz]: the
+//               file's units to mm, default 1), then rotate ([rx, ry, rz] degrees about
+//               x, y, z in turn), then translate ([x, y, z] mm)
 //   "targets": [ {"type": "wire", "at": [x, y], "diameter": 0.1, "reflectivity": 0.3},
 //                {"type": "point", "at": [x, y, z], "diameter": 0.1, "reflectivity": 0.3} ]
 // A wire runs along z through [x, y, size_z / 2] unless "axis": [x, y, z] tilts it (a
@@ -42,6 +47,7 @@
 // false, "diffuse_reflection": true, "lobe_exponent": "reflecting_density", "lobe_scale":
 // 5, "lobe_weight": "energy", "roulette_energy": 1e-3, "ring": {"centre": [x, y],
 // "radius": mm, "bins": n}}.
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -49,6 +55,7 @@
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
 
+#include "phantoms/mesh.h"
 #include "probe/pose.h"
 #include "tissue/acoustic_properties.h"
 #include "tissue/point_target.h"
@@ -57,13 +64,14 @@
 
 namespace sonotrace::phantoms {
 
-enum class ShapeType { sphere, ellipsoid, box, cylinder, wire, half_space, layer, tube };
+enum class ShapeType { sphere, ellipsoid, box, cylinder, wire, half_space, layer, tube, mesh };
 
 struct Shape {
     ShapeType type = ShapeType::sphere;
     glm::dvec3 a{0.0}, b{0.0};     // centre / min / from / point; radii / max / to / normal
     double radius = 0.0;           // sphere, cylinder, wire; layer: thickness
     std::vector<glm::dvec3> path;  // tube: the centreline
+    std::shared_ptr<const MeshShape> mesh;  // mesh: the placed surface
     tissue::AcousticProperties properties;
     int label = 0;               // tissue label (tissue_label_of), 0 for explicit properties
     bool parabolic = false;      // "profile": "parabolic"
@@ -71,8 +79,8 @@ struct Shape {
     double texture_amplitude = 0.0, texture_cell_mm = 1.0;  // paper mode
 
     // Signed distance (mm): negative inside. Exact for sphere, box, cylinder, wire,
-    // half-space, layer and tube; for an ellipsoid the distance scaled by its smallest
-    // radius.
+    // half-space, layer, tube and mesh; for an ellipsoid the distance scaled by its
+    // smallest radius.
     double signed_distance(const glm::dvec3& p) const;
     // How much of the shape is at p (0..1): the linear ramp over `smoothing` across the
     // boundary, or the parabolic profile.

@@ -38,6 +38,8 @@ packages=(
   pybind11-dev python3-dev
   # DICOM series as input volumes
   libgdcm-dev
+  # surface meshes (STL, OBJ, PLY) as phantom shapes
+  libassimp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   # the teaching GUI (Dear ImGui ships its GLFW/OpenGL3 backends as sources), and Xvfb
   # with Mesa to run it headless in the tests

@@ -1,0 +1,377 @@
+#include "phantoms/mesh.h"
+
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <assimp/Importer.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <unordered_map>
+
+#include "tissue/base/error.h"
+
+namespace sonotrace::phantoms {
+
+namespace {
+
+using base::InputError;
+
+std::string lower_case(std::string s) {
+    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+}
+
+// The counts a file declares must fit its size before a reader is trusted with them: a
+// binary STL's facet count (84 + 50 n bytes exactly), a PLY header's element counts (each
+// element takes at least one byte).
+void check_declared_counts(const std::string& path, const std::string& extension,
+                           std::uintmax_t bytes) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(path, "", "cannot be opened");
+    if (extension == ".stl") {
+        char head[84] = {};
+        in.read(head, sizeof head);
+        const bool ascii = in.gcount() >= 5 && std::strncmp(head, "solid", 5) == 0;
+        if (in.gcount() < 84) {
+            if (!ascii) throw InputError(path, "", "is too short for an STL file");
+            return;
+        }
+        uint32_t facets = 0;
+        std::memcpy(&facets, head + 80, 4);
+        const std::uintmax_t needed = 84 + 50 * std::uintmax_t(facets);
+        // An ASCII file may begin like a binary one's header; only a binary one's size is
+        // fixed by its count.
+        if (needed != bytes && !ascii)
+            throw InputError(path, "facet count",
+                             "declares " + std::to_string(facets) + " triangles, which take " +
+                                 std::to_string(needed) + " bytes; the file has " +
+                                 std::to_string(bytes));
+        return;
+    }
+    if (extension == ".ply") {
+        std::string line;
+        std::uintmax_t elements = 0;
+        for (int n = 0; n < 10000 && std::getline(in, line); ++n) {
+            if (line.rfind("end_header", 0) == 0) break;
+            if (line.rfind("element ", 0) != 0) continue;
+            const auto space = line.rfind(' ');
+            const std::string count = line.substr(space + 1);
+            char* end = nullptr;
+            const unsigned long long value = std::strtoull(count.c_str(), &end, 10);
+            if (count.empty() || (*end != '\0' && *end != '\r'))
+                throw InputError(path, "element", "count '" + count + "' is not a whole number");
+            elements += value;
+            if (elements > bytes)
+                throw InputError(path, "element",
+                                 "the header declares " + std::to_string(elements) +
+                                     " elements or more; the file has " + std::to_string(bytes) +
+                                     " bytes");
+        }
+    }
+}
+
+// Coincident vertices (equal coordinates, as files repeat them per triangle or per part)
+// become one, so that the triangles around an edge share it.
+struct VertexKey {
+    double x, y, z;
+    bool operator==(const VertexKey&) const = default;
+};
+struct VertexHash {
+    std::size_t operator()(const VertexKey& k) const {
+        std::size_t h = 0;
+        for (double v : {k.x, k.y, k.z}) {
+            uint64_t bits = 0;
+            v = v == 0.0 ? 0.0 : v;  // -0 and +0 alike
+            std::memcpy(&bits, &v, 8);
+            h = (h ^ std::hash<uint64_t>()(bits)) * 0x9e3779b97f4a7c15ull;
+        }
+        return h;
+    }
+};
+
+}  // namespace
+
+TriangleMesh read_mesh_file(const std::string& path) {
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(path, error))
+        throw InputError(path, "", "does not exist or is not a file");
+    const std::uintmax_t bytes = std::filesystem::file_size(path, error);
+    if (error) throw InputError(path, "", "cannot be read: " + error.message());
+    if (bytes > kMaxMeshFileBytes)
+        throw InputError(path, "",
+                         "is " + std::to_string(bytes) + " bytes; at most " +
+                             std::to_string(kMaxMeshFileBytes) + " are read");
+    const std::string extension = lower_case(std::filesystem::path(path).extension().string());
+    if (extension != ".stl" && extension != ".obj" && extension != ".ply")
+        throw InputError(path, "", "is not a mesh this reads (STL, OBJ or PLY: .stl, .obj, .ply)");
+    check_declared_counts(path, extension, bytes);
+
+    Assimp::Importer importer;
+    // Points and lines are dropped; node transforms are applied to the vertices.
+    importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
+                                aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+    const aiScene* scene = importer.ReadFile(
+        path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_PreTransformVertices);
+    if (scene == nullptr)
+        throw InputError(path, "",
+                         std::string("cannot be read as a mesh: ") + importer.GetErrorString());
+    TriangleMesh mesh;
+    std::unordered_map<VertexKey, uint32_t, VertexHash> index;
+    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        const aiMesh& part = *scene->mMeshes[m];
+        std::vector<uint32_t> merged(part.mNumVertices);
+        for (unsigned v = 0; v < part.mNumVertices; ++v) {
+            const aiVector3D& p = part.mVertices[v];
+            const VertexKey key{double(p.x), double(p.y), double(p.z)};
+            const auto [at, added] = index.emplace(key, uint32_t(mesh.vertices.size()));
+            if (added) mesh.vertices.push_back({key.x, key.y, key.z});
+            merged[v] = at->second;
+        }
+        for (unsigned f = 0; f < part.mNumFaces; ++f) {
+            const aiFace& face = part.mFaces[f];
+            if (face.mNumIndices != 3) continue;
+            mesh.triangles.push_back(
+                {merged[face.mIndices[0]], merged[face.mIndices[1]], merged[face.mIndices[2]]});
+            if (mesh.triangles.size() > kMaxMeshTriangles)
+                throw InputError(
+                    path, "",
+                    "holds more than " + std::to_string(kMaxMeshTriangles) + " triangles");
+        }
+    }
+    if (mesh.triangles.empty()) throw InputError(path, "", "holds no triangle");
+    return mesh;
+}
+
+glm::dvec3 MeshTransform::apply(const glm::dvec3& p) const {
+    glm::dvec3 q = p * scale;
+    const glm::dvec3 r = glm::radians(rotate_deg);
+    auto turn = [](double& a, double& b, double angle) {
+        const double c = std::cos(angle), s = std::sin(angle);
+        const double u = c * a - s * b, v = s * a + c * b;
+        a = u, b = v;
+    };
+    turn(q.y, q.z, r.x);  // about x
+    turn(q.z, q.x, r.y);  // about y
+    turn(q.x, q.y, r.z);  // about z
+    return q + translate_mm;
+}
+
+namespace {
+
+// The point of triangle abc nearest to p (Ericson, Real-Time Collision Detection, 5.1.5)
+// and the feature it lies on: 0-2 vertex a, b, c; 3-5 edge ab, bc, ca; 6 the face.
+struct Nearest {
+    glm::dvec3 point;
+    int feature;
+};
+Nearest nearest_on_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                            const glm::dvec3& c) {
+    const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) return {a, 0};
+    const glm::dvec3 bp = p - b;
+    const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) return {b, 1};
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return {a + ab * (d1 / (d1 - d3)), 3};
+    const glm::dvec3 cp = p - c;
+    const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) return {c, 2};
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return {a + ac * (d2 / (d2 - d6)), 5};
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0)
+        return {b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))), 4};
+    const double denominator = 1.0 / (va + vb + vc);
+    return {a + ab * (vb * denominator) + ac * (vc * denominator), 6};
+}
+
+double box_distance2(const glm::dvec3& p, const glm::dvec3& lower, const glm::dvec3& upper) {
+    const glm::dvec3 d = glm::max(glm::max(lower - p, p - upper), glm::dvec3(0.0));
+    return glm::dot(d, d);
+}
+
+uint64_t edge_key(uint32_t from, uint32_t to) {
+    return uint64_t(from) << 32 | to;
+}
+
+constexpr uint32_t kLeafTriangles = 4;
+
+}  // namespace
+
+MeshShape::MeshShape(TriangleMesh mesh, const std::string& source) : mesh_(std::move(mesh)) {
+    const auto& v = mesh_.vertices;
+    auto& triangles = mesh_.triangles;
+    if (triangles.empty()) throw InputError(source, "", "holds no triangle");
+    if (triangles.size() > kMaxMeshTriangles)
+        throw InputError(source, "",
+                         "holds more than " + std::to_string(kMaxMeshTriangles) + " triangles");
+    lower_ = glm::dvec3(std::numeric_limits<double>::infinity());
+    upper_ = -lower_;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+        if (!(std::isfinite(v[i].x) && std::isfinite(v[i].y) && std::isfinite(v[i].z)))
+            throw InputError(source, "vertex " + std::to_string(i), "is not finite");
+        lower_ = glm::min(lower_, v[i]), upper_ = glm::max(upper_, v[i]);
+    }
+    const double size = glm::length(upper_ - lower_);
+    // Which triangle runs each directed edge: a closed, consistently oriented surface runs
+    // every edge once each way.
+    std::unordered_map<uint64_t, uint32_t> runs;
+    runs.reserve(triangles.size() * 3);
+    for (std::size_t t = 0; t < triangles.size(); ++t) {
+        const auto& tri = triangles[t];
+        const std::string name = "triangle " + std::to_string(t);
+        for (uint32_t k : tri)
+            if (k >= v.size()) throw InputError(source, name, "names a vertex that is not there");
+        const double area2 = glm::length(glm::cross(v[tri[1]] - v[tri[0]], v[tri[2]] - v[tri[0]]));
+        if (!(area2 > 1e-12 * size * size))
+            throw InputError(source, name, "has zero area (degenerate)");
+        for (int e = 0; e < 3; ++e) {
+            const uint32_t a = tri[std::size_t(e)], b = tri[std::size_t((e + 1) % 3)];
+            if (!runs.emplace(edge_key(a, b), uint32_t(t)).second)
+                throw InputError(source, name,
+                                 "runs the edge from vertex " + std::to_string(a) + " to " +
+                                     std::to_string(b) +
+                                     " the same way as another triangle: the surface is not "
+                                     "consistently oriented, or more than two triangles meet "
+                                     "at that edge");
+        }
+    }
+    for (const auto& [key, t] : runs)
+        if (!runs.contains(edge_key(uint32_t(key & 0xffffffffu), uint32_t(key >> 32))))
+            throw InputError(source, "triangle " + std::to_string(t),
+                             "has an edge (vertices " + std::to_string(key >> 32) + " and " +
+                                 std::to_string(key & 0xffffffffu) +
+                                 ") no other triangle shares: the surface is not closed");
+    // The enclosed volume (divergence theorem); wound inwards, it comes out negative.
+    double volume = 0.0;
+    for (const auto& tri : triangles)
+        volume += glm::dot(v[tri[0]], glm::cross(v[tri[1]], v[tri[2]])) / 6.0;
+    if (!(std::abs(volume) > 1e-9 * size * size * size))
+        throw InputError(source, "", "encloses no volume");
+    if (volume < 0.0) {
+        for (auto& tri : triangles) std::swap(tri[1], tri[2]);
+        volume = -volume;
+    }
+    volume_ = volume;
+
+    // Pseudo-normals: faces, vertices by angle, edges as the sum of their two faces.
+    face_normal_.resize(triangles.size());
+    vertex_normal_.assign(v.size(), glm::dvec3(0.0));
+    for (std::size_t t = 0; t < triangles.size(); ++t) {
+        const auto& tri = triangles[t];
+        const glm::dvec3 n =
+            glm::normalize(glm::cross(v[tri[1]] - v[tri[0]], v[tri[2]] - v[tri[0]]));
+        face_normal_[t] = n;
+        for (int k = 0; k < 3; ++k) {
+            const glm::dvec3& at = v[tri[std::size_t(k)]];
+            const glm::dvec3 u = glm::normalize(v[tri[std::size_t((k + 1) % 3)]] - at);
+            const glm::dvec3 w = glm::normalize(v[tri[std::size_t((k + 2) % 3)]] - at);
+            vertex_normal_[tri[std::size_t(k)]] +=
+                std::acos(std::clamp(glm::dot(u, w), -1.0, 1.0)) * n;
+        }
+    }
+    runs.clear();
+    for (std::size_t t = 0; t < triangles.size(); ++t)
+        for (int e = 0; e < 3; ++e)
+            runs.emplace(
+                edge_key(triangles[t][std::size_t(e)], triangles[t][std::size_t((e + 1) % 3)]),
+                uint32_t(t));
+    edge_normal_.resize(triangles.size());
+    for (std::size_t t = 0; t < triangles.size(); ++t)
+        for (int e = 0; e < 3; ++e) {
+            const uint32_t a = triangles[t][std::size_t(e)],
+                           b = triangles[t][std::size_t((e + 1) % 3)];
+            edge_normal_[t][std::size_t(e)] =
+                face_normal_[t] + face_normal_[runs.at(edge_key(b, a))];
+        }
+
+    // The hierarchy: median splits along the longest axis of the triangles' centres.
+    std::vector<glm::dvec3> centres(triangles.size());
+    for (std::size_t t = 0; t < triangles.size(); ++t)
+        centres[t] = (v[triangles[t][0]] + v[triangles[t][1]] + v[triangles[t][2]]) / 3.0;
+    order_.resize(triangles.size());
+    for (std::size_t t = 0; t < order_.size(); ++t) order_[t] = uint32_t(t);
+    nodes_.reserve(2 * triangles.size() / kLeafTriangles + 1);
+    build(0, uint32_t(triangles.size()), centres);
+}
+
+uint32_t MeshShape::build(uint32_t first, uint32_t count, const std::vector<glm::dvec3>& centres) {
+    const uint32_t at = uint32_t(nodes_.size());
+    nodes_.emplace_back();
+    glm::dvec3 lower(std::numeric_limits<double>::infinity()), upper = -lower;
+    glm::dvec3 centre_lower = lower, centre_upper = upper;
+    for (uint32_t i = first; i < first + count; ++i) {
+        const auto& tri = mesh_.triangles[order_[i]];
+        for (uint32_t k : tri)
+            lower = glm::min(lower, mesh_.vertices[k]), upper = glm::max(upper, mesh_.vertices[k]);
+        centre_lower = glm::min(centre_lower, centres[order_[i]]);
+        centre_upper = glm::max(centre_upper, centres[order_[i]]);
+    }
+    nodes_[at].lower = lower, nodes_[at].upper = upper;
+    if (count <= kLeafTriangles) {
+        nodes_[at].first = first, nodes_[at].count = count;
+        return at;
+    }
+    const glm::dvec3 extent = centre_upper - centre_lower;
+    const int axis =
+        extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+    const uint32_t half = count / 2;
+    std::nth_element(order_.begin() + first, order_.begin() + first + half,
+                     order_.begin() + first + count, [&](uint32_t a, uint32_t b) {
+                         return centres[a][axis] < centres[b][axis] ||
+                                (centres[a][axis] == centres[b][axis] && a < b);
+                     });
+    const uint32_t left = build(first, half, centres);
+    const uint32_t right = build(first + half, count - half, centres);
+    nodes_[at].left = left, nodes_[at].right = right;
+    return at;
+}
+
+double MeshShape::distance_to_bounds(const glm::dvec3& p) const {
+    return std::sqrt(box_distance2(p, lower_, upper_));
+}
+
+double MeshShape::signed_distance(const glm::dvec3& p) const {
+    double best = std::numeric_limits<double>::infinity();
+    glm::dvec3 best_point(0.0), best_normal(0.0);
+    uint32_t stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& node = nodes_[stack[--top]];
+        if (box_distance2(p, node.lower, node.upper) >= best) continue;
+        if (node.count > 0) {
+            for (uint32_t i = node.first; i < node.first + node.count; ++i) {
+                const uint32_t t = order_[i];
+                const auto& tri = mesh_.triangles[t];
+                const Nearest q = nearest_on_triangle(
+                    p, mesh_.vertices[tri[0]], mesh_.vertices[tri[1]], mesh_.vertices[tri[2]]);
+                const glm::dvec3 d = p - q.point;
+                const double d2 = glm::dot(d, d);
+                if (d2 >= best) continue;
+                best = d2, best_point = q.point;
+                best_normal = q.feature < 3   ? vertex_normal_[tri[std::size_t(q.feature)]]
+                              : q.feature < 6 ? edge_normal_[t][std::size_t(q.feature - 3)]
+                                              : face_normal_[t];
+            }
+            continue;
+        }
+        // The nearer child last, so that it is searched first.
+        const Node& l = nodes_[node.left];
+        const Node& r = nodes_[node.right];
+        const bool left_nearer =
+            box_distance2(p, l.lower, l.upper) <= box_distance2(p, r.lower, r.upper);
+        stack[top++] = left_nearer ? node.right : node.left;
+        stack[top++] = left_nearer ? node.left : node.right;
+    }
+    const double distance = std::sqrt(best);
+    return glm::dot(p - best_point, best_normal) >= 0.0 ? distance : -distance;
+}
+
+}  // namespace sonotrace::phantoms
