@@ -22,3 +22,5 @@ render refraction --quality high --depth 45 --gain 56 --tgc 0:0,45:37
 render qa_multipurpose --quality high --depth 60 --gain 56 --tgc 0:0,60:49
 # Convex 3.5 MHz abdomen.
 render abdominal --depth 150 --quality standard --gain 50 --tgc 0:0,150:55
+# Organs from surface meshes (phantoms/meshes/), convex 3.5 MHz.
+render abdomen_meshes

@@ -121,6 +121,10 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
         {"--seed 18446744073709551616", "not a whole number"},
         {"--seed 1e23", "not a whole number"},
         {"--phantom " + (dir / "far_target.json"), "targets[0].at"},
+        // Meshes: an open one, and a device that never ends where the mesh should be.
+        {"--phantom " + (dir / "open_mesh.json"), "open.obj: field 'triangle"},
+        {"--phantom " + (dir / "open_mesh.json"), "the surface is not closed"},
+        {"--phantom " + (dir / "endless_mesh.json"), "/dev/zero: does not exist or is not a file"},
         {"--name .", "--name"},
         // numbers in messages are short: not 301 digits
         {"--probe convex --fov 1e300", "field 'fov': must be in [0.001, 180] degrees, got 1e+300"},
@@ -129,6 +133,15 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
     ASSERT_EQ(::mkfifo((dir / "poses.fifo").c_str(), 0600), 0);
     std::ofstream(dir / "far_target.json") << R"({"name": "x", "size": [40, 40, 10],
         "background": {"tissue": "water"}, "targets": [{"type": "wire", "at": [20, 45]}]})";
+    // A tetrahedron with a face missing.
+    std::ofstream(dir / "open.obj") << "v 10 10 0\nv 20 10 0\nv 10 20 0\nv 10 10 5\n"
+                                       "f 1 3 2\nf 1 2 4\nf 2 3 4\n";
+    for (const auto& [name, file] :
+         {std::pair{"open_mesh.json", "open.obj"}, std::pair{"endless_mesh.json", "/dev/zero"}})
+        std::ofstream(dir / name) << R"({"name": "m", "size": [40, 40, 10],
+            "background": {"tissue": "water"},
+            "shapes": [{"type": "mesh", "file": ")"
+                                  << file << R"(", "tissue": "liver"}]})";
     for (const auto& c : cases) {
         const auto r =
             run(dir, "simulate -q --quality interactive " + c.args + " --out " + (dir / "out"));
