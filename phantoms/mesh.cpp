@@ -11,9 +11,11 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <unordered_map>
 
 #include "tissue/base/error.h"
+#include "tissue/vtk_legacy.h"
 
 namespace sonotrace::phantoms {
 
@@ -94,6 +96,96 @@ struct VertexHash {
     }
 };
 
+// The mesh with coincident vertices made one (unused ones dropped).
+TriangleMesh merge_coincident(TriangleMesh raw, const std::string& path) {
+    if (raw.triangles.empty()) throw InputError(path, "", "holds no triangle");
+    TriangleMesh mesh;
+    std::unordered_map<VertexKey, uint32_t, VertexHash> index;
+    std::vector<uint32_t> merged(raw.vertices.size(), UINT32_MAX);
+    for (auto& triangle : raw.triangles) {
+        for (uint32_t& k : triangle) {
+            if (k >= raw.vertices.size())
+                throw InputError(
+                    path, "",
+                    "a triangle names vertex " + std::to_string(k) + ", which is not there");
+            if (merged[k] == UINT32_MAX) {
+                const glm::dvec3& p = raw.vertices[k];
+                const auto [at, added] =
+                    index.emplace(VertexKey{p.x, p.y, p.z}, uint32_t(mesh.vertices.size()));
+                if (added) mesh.vertices.push_back(p);
+                merged[k] = at->second;
+            }
+            k = merged[k];
+        }
+        mesh.triangles.push_back(triangle);
+    }
+    return mesh;
+}
+
+// VTK legacy POLYDATA (tissue/vtk_legacy.h): POINTS, and POLYGONS (fans from each
+// polygon's first point) or TRIANGLE_STRIPS; VERTICES and LINES are skipped.
+TriangleMesh read_vtk_polydata(const std::string& path) {
+    tissue::VtkLegacyStream in(path);
+    TriangleMesh mesh;
+    auto add = [&](uint32_t a, uint32_t b, uint32_t c, const char* section) {
+        mesh.triangles.push_back({a, b, c});
+        if (mesh.triangles.size() > kMaxMeshTriangles)
+            throw InputError(path, section,
+                             "holds more than " + std::to_string(kMaxMeshTriangles) + " triangles");
+    };
+    // A section of cells: n, the total size, then per cell its point count and indices.
+    auto cells = [&](const char* section, auto&& take) {
+        const std::size_t n = in.count(section, 4.0, 8.0);
+        in.word(section);  // total size
+        std::vector<uint32_t> cell;
+        for (std::size_t c = 0; c < n; ++c) {
+            const auto k = in.number<int64_t>(section, "int");
+            if (k < 1 || k > 1000000)
+                throw InputError(
+                    path, section,
+                    "cell " + std::to_string(c) + " has " + std::to_string(k) + " points");
+            cell.resize(std::size_t(k));
+            for (uint32_t& i : cell) i = in.number<uint32_t>(section, "int");
+            take(cell);
+        }
+        in.section_done();
+    };
+    bool polydata = false;
+    while (const std::optional<std::string> keyword = in.next_keyword()) {
+        const std::string& w = *keyword;
+        if (w == "DATASET") {
+            if (in.word("DATASET") != "POLYDATA")
+                throw InputError(path, "DATASET", "a mesh must be POLYDATA");
+            polydata = true;
+        } else if (w == "POINTS") {
+            const std::size_t n = in.count("POINTS", 6.0, 12.0);  // 3 numbers a point
+            const std::string type = in.word("POINTS");
+            mesh.vertices.resize(n);
+            for (auto& p : mesh.vertices)
+                for (int a = 0; a < 3; ++a) p[a] = in.number<double>("POINTS", type);
+            in.section_done();
+        } else if (w == "POLYGONS") {
+            cells("POLYGONS", [&](const std::vector<uint32_t>& c) {
+                for (std::size_t i = 2; i < c.size(); ++i) add(c[0], c[i - 1], c[i], "POLYGONS");
+            });
+        } else if (w == "TRIANGLE_STRIPS") {
+            cells("TRIANGLE_STRIPS", [&](const std::vector<uint32_t>& c) {
+                for (std::size_t i = 2; i < c.size(); ++i)  // every other one turned back
+                    if (i % 2 == 0)
+                        add(c[i - 2], c[i - 1], c[i], "TRIANGLE_STRIPS");
+                    else
+                        add(c[i - 1], c[i - 2], c[i], "TRIANGLE_STRIPS");
+            });
+        } else if (w == "VERTICES" || w == "LINES") {
+            cells(w.c_str(), [](const std::vector<uint32_t>&) {});
+        } else if (w == "POINT_DATA" || w == "CELL_DATA") {
+            break;  // attributes: nothing a shape needs
+        }
+    }
+    if (!polydata) throw InputError(path, "DATASET", "is missing (a mesh must be POLYDATA)");
+    return mesh;
+}
+
 }  // namespace
 
 TriangleMesh read_mesh_file(const std::string& path) {
@@ -107,8 +199,11 @@ TriangleMesh read_mesh_file(const std::string& path) {
                          "is " + std::to_string(bytes) + " bytes; at most " +
                              std::to_string(kMaxMeshFileBytes) + " are read");
     const std::string extension = lower_case(std::filesystem::path(path).extension().string());
+    if (extension == ".vtk") return merge_coincident(read_vtk_polydata(path), path);
     if (extension != ".stl" && extension != ".obj" && extension != ".ply")
-        throw InputError(path, "", "is not a mesh this reads (STL, OBJ or PLY: .stl, .obj, .ply)");
+        throw InputError(path, "",
+                         "is not a mesh this reads (STL, OBJ, PLY or VTK polydata: .stl, .obj, "
+                         ".ply, .vtk)");
     check_declared_counts(path, extension, bytes);
 
     Assimp::Importer importer;
@@ -120,31 +215,25 @@ TriangleMesh read_mesh_file(const std::string& path) {
     if (scene == nullptr)
         throw InputError(path, "",
                          std::string("cannot be read as a mesh: ") + importer.GetErrorString());
-    TriangleMesh mesh;
-    std::unordered_map<VertexKey, uint32_t, VertexHash> index;
+    TriangleMesh raw;
     for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
         const aiMesh& part = *scene->mMeshes[m];
-        std::vector<uint32_t> merged(part.mNumVertices);
-        for (unsigned v = 0; v < part.mNumVertices; ++v) {
-            const aiVector3D& p = part.mVertices[v];
-            const VertexKey key{double(p.x), double(p.y), double(p.z)};
-            const auto [at, added] = index.emplace(key, uint32_t(mesh.vertices.size()));
-            if (added) mesh.vertices.push_back({key.x, key.y, key.z});
-            merged[v] = at->second;
-        }
+        const auto first = uint32_t(raw.vertices.size());
+        for (unsigned v = 0; v < part.mNumVertices; ++v)
+            raw.vertices.push_back({double(part.mVertices[v].x), double(part.mVertices[v].y),
+                                    double(part.mVertices[v].z)});
         for (unsigned f = 0; f < part.mNumFaces; ++f) {
             const aiFace& face = part.mFaces[f];
             if (face.mNumIndices != 3) continue;
-            mesh.triangles.push_back(
-                {merged[face.mIndices[0]], merged[face.mIndices[1]], merged[face.mIndices[2]]});
-            if (mesh.triangles.size() > kMaxMeshTriangles)
+            raw.triangles.push_back(
+                {first + face.mIndices[0], first + face.mIndices[1], first + face.mIndices[2]});
+            if (raw.triangles.size() > kMaxMeshTriangles)
                 throw InputError(
                     path, "",
                     "holds more than " + std::to_string(kMaxMeshTriangles) + " triangles");
         }
     }
-    if (mesh.triangles.empty()) throw InputError(path, "", "holds no triangle");
-    return mesh;
+    return merge_coincident(std::move(raw), path);
 }
 
 glm::dvec3 MeshTransform::apply(const glm::dvec3& p) const {

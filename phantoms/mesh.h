@@ -1,13 +1,14 @@
 #pragma once
 // Closed triangle meshes as phantom shapes (phantom.h's "mesh" type): read from STL, OBJ
-// or PLY (Assimp), checked, placed by a transform, and evaluated as a signed distance.
+// or PLY (Assimp) or VTK legacy polydata (tissue/vtk_legacy.h), checked, placed by a
+// transform, and evaluated as a signed distance.
 //
 // Checks (each failure names the file): the file exists and is at most kMaxMeshFileBytes;
-// the counts a file declares fit its size; at most kMaxMeshTriangles triangles; every
-// coordinate finite; no triangle of zero area; closed and consistently oriented (every
-// edge shared by exactly two triangles that run it in opposite directions, after
-// coincident vertices are merged); a positive enclosed volume. A mesh wound inwards is
-// turned outwards. Self-intersections are not looked for.
+// the counts a file declares fit its size (STL, PLY, VTK); at most kMaxMeshTriangles triangles;
+// every coordinate finite; no triangle of zero area; closed and consistently oriented (every edge
+// shared by exactly two triangles that run it in opposite directions, after coincident vertices are
+// merged); a positive enclosed volume. A mesh wound inwards is turned outwards. Self-intersections
+// are not looked for.
 //
 // Inside test: the sign of (p - q) . N, where q is the point of the mesh nearest to p and
 // N the angle-weighted pseudo-normal of the feature q lies on (the triangle, an edge: the

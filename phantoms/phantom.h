@@ -19,7 +19,8 @@
 //   layer       point, normal, thickness          (a slab from the plane along normal)
 //   tube        path [[x,y,z], ...], radius       (a bent tube along a polyline)
 //   mesh        file, and optionally scale, rotate, translate: a closed triangle mesh
-//               (STL, OBJ or PLY; phantoms/mesh.h: its checks and inside test), its path
+//               (STL, OBJ, PLY or VTK polydata; phantoms/mesh.h: its checks and inside
+//               test), its path
 //               relative to the phantom's file; scale (a number or [sx, sy, sz]: the
 //               file's units to mm, default 1), then rotate ([rx, ry, rz] degrees about
 //               x, y, z in turn), then translate ([x, y, z] mm)

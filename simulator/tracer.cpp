@@ -32,7 +32,8 @@ using namespace detail;
 // E / (kRouletteRestart * threshold) and then carries that energy (unbiased).
 constexpr float kRouletteRestart = 2.0f;
 
-// Below this fraction of uniform blocks the tracer does not look for them (LineTracer).
+// Below this fraction of uniform blocks the tracer does not look for them
+// (TracerConstants::look_up_blocks).
 constexpr double kFewUniformBlocks = 0.05;
 
 template <int Dim>

@@ -11,6 +11,7 @@
 #include <type_traits>
 
 #include "tissue/base/error.h"
+#include "tissue/vtk_legacy.h"
 
 namespace sonotrace::imaging::pbvr {
 
@@ -20,95 +21,6 @@ namespace {
 
 // VTK hexahedron point order -> corner c = x + 2y + 4z.
 constexpr std::array<int, 8> kVtkHexToCorner = {0, 1, 3, 2, 4, 5, 7, 6};
-
-// Reads whitespace-separated tokens, and raw big-endian values for BINARY files.
-class VtkStream {
-  public:
-    VtkStream(const std::string& path) : path_(path), in_(path, std::ios::binary) {
-        if (!in_) throw InputError(path, "", "cannot open the file");
-        std::error_code error;
-        file_bytes_ = double(std::filesystem::file_size(path, error));
-        if (error) throw InputError(path, "", "cannot read the file's size: " + error.message());
-    }
-    // A section's item count: a non-negative integer that the rest of the file can hold,
-    // each item taking at least `ascii_bytes` (digits and a space per number) or
-    // `binary_bytes`. A header declaring more is corrupt: refused before allocating.
-    std::size_t count(const std::string& section, double ascii_bytes, double binary_bytes) {
-        const std::string w = word(section);
-        std::size_t used = 0;
-        long long n = -1;
-        try {
-            n = std::stoll(w, &used);
-        } catch (const std::exception&) {
-            used = 0;
-        }
-        if (used != w.size() || n < 0)
-            throw InputError(path_, section, "count '" + w + "' is not a non-negative integer");
-        const double remaining = file_bytes_ - double(in_.tellg());
-        if (double(n) * (binary_ ? binary_bytes : ascii_bytes) > remaining) {
-            throw InputError(path_, section,
-                             "declares " + std::to_string(n) + " items, more than the " +
-                                 base::number_text(std::max(0.0, remaining)) +
-                                 " bytes left in the file hold: truncated or corrupt");
-        }
-        return std::size_t(n);
-    }
-    std::string line() {
-        std::string l;
-        if (!std::getline(in_, l)) throw InputError(path_, "", "ends early");
-        if (!l.empty() && l.back() == '\r') l.pop_back();
-        return l;
-    }
-    std::string word(const std::string& section) {
-        std::string w;
-        if (!(in_ >> w)) throw InputError(path_, section, "ends early");
-        return w;
-    }
-    template <typename T>
-    T number(const std::string& section, const std::string& type) {
-        if (!binary_) {
-            double v;
-            if (!(in_ >> v)) throw InputError(path_, section, "expected a number");
-            if constexpr (std::is_integral_v<T>) {  // converting beyond T's range is undefined
-                const double low = double(std::numeric_limits<T>::min());
-                const double past_high = 2.0 * (double(std::numeric_limits<T>::max() / 2) + 1.0);
-                if (!(v >= low && v < past_high))
-                    throw InputError(path_, section,
-                                     "integer " + base::number_text(v) + " is out of range");
-            }
-            return T(v);
-        }
-        if (!skipped_newline_) {  // binary data starts after the header line's newline
-            in_.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
-            skipped_newline_ = true;
-        }
-        auto read = [&](auto value) {
-            unsigned char bytes[sizeof value];
-            if (!in_.read(reinterpret_cast<char*>(bytes), sizeof value))
-                throw InputError(path_, section, "binary data ends early");
-            if constexpr (std::endian::native == std::endian::little)
-                std::reverse(bytes, bytes + sizeof value);
-            std::memcpy(&value, bytes, sizeof value);
-            return T(value);
-        };
-        if (type == "float") return read(float{});
-        if (type == "double") return read(double{});
-        if (type == "int" || type == "vtkIdType") return read(int32_t{});
-        if (type == "long" || type == "vtktypeint64") return read(int64_t{});
-        if (type == "unsigned_char") return read(uint8_t{});
-        if (type == "short") return read(int16_t{});
-        if (type == "unsigned_short") return read(uint16_t{});
-        throw InputError(path_, section, "unsupported binary type '" + type + "'");
-    }
-    void set_binary(bool binary) { binary_ = binary; }
-    void section_done() { skipped_newline_ = false; }
-
-  private:
-    std::string path_;
-    std::ifstream in_;
-    double file_bytes_ = 0.0;
-    bool binary_ = false, skipped_newline_ = false;
-};
 
 }  // namespace
 
@@ -136,27 +48,13 @@ tissue::Volume TetMesh::values_as_volume() const {
 }
 
 TetMesh read_vtk_unstructured(const std::string& path) {
-    VtkStream in(path);
-    if (in.line().rfind("# vtk DataFile", 0) != 0)
-        throw InputError(path, "header", "not a VTK legacy file ('# vtk DataFile ...')");
-    in.line();  // title
-    const std::string format = in.line();
-    if (format.rfind("BINARY", 0) == 0)
-        in.set_binary(true);
-    else if (format.rfind("ASCII", 0) != 0)
-        throw InputError(path, "format", "must be ASCII or BINARY");
+    tissue::VtkLegacyStream in(path);
     TetMesh mesh;
     std::vector<std::vector<int64_t>> cells;
     std::vector<int> types;
     bool have_scalars = false;
-    std::string keyword;
-    while (true) {
-        std::string w;
-        try {
-            w = in.word("");
-        } catch (const InputError&) {
-            break;  // end of file
-        }
+    while (const std::optional<std::string> keyword = in.next_keyword()) {
+        const std::string& w = *keyword;
         if (w == "DATASET") {
             if (in.word("DATASET") != "UNSTRUCTURED_GRID")
                 throw InputError(path, "DATASET", "only UNSTRUCTURED_GRID is supported");

@@ -1,6 +1,6 @@
 #pragma once
 // Meshes the tests write: an icosphere (an icosahedron subdivided and pushed out to a
-// sphere), its inradius, and writers for binary STL, OBJ and ASCII PLY.
+// sphere), its inradius, and writers for binary STL, OBJ, ASCII PLY and VTK polydata.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -96,6 +96,16 @@ inline void write_ply(const TriangleMesh& m, const std::string& path) {
         << "\nproperty double x\nproperty double y\nproperty double z\nelement face "
         << m.triangles.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
     for (const auto& p : m.vertices) out << p.x << ' ' << p.y << ' ' << p.z << '\n';
+    for (const auto& t : m.triangles) out << "3 " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
+}
+
+inline void write_vtk(const TriangleMesh& m, const std::string& path) {
+    std::ofstream out(path);
+    out.precision(17);
+    out << "# vtk DataFile Version 3.0\nwritten by a test\nASCII\nDATASET POLYDATA\nPOINTS "
+        << m.vertices.size() << " double\n";
+    for (const auto& p : m.vertices) out << p.x << ' ' << p.y << ' ' << p.z << '\n';
+    out << "POLYGONS " << m.triangles.size() << ' ' << 4 * m.triangles.size() << '\n';
     for (const auto& t : m.triangles) out << "3 " << t[0] << ' ' << t[1] << ' ' << t[2] << '\n';
 }
 

@@ -36,6 +36,7 @@ using test::inradius;
 using test::write_obj;
 using test::write_ply;
 using test::write_stl;
+using test::write_vtk;
 
 // The distance from p to the nearest triangle, by brute force over all of them and a
 // different construction from the shape's: the foot of the perpendicular on the plane if
@@ -126,10 +127,11 @@ TEST(Mesh, AnIcosphereLiesBetweenItsInnerAndOuterBallsInEveryFormat) {
     struct Format {
         const char* file;
         void (*write)(const TriangleMesh&, const std::string&);
-        double slack;  // Assimp reads coordinates in single precision
+        double slack;  // Assimp reads coordinates in single precision, VTK in double
     };
-    for (const Format& f : {Format{"ico.stl", write_stl, 1e-5}, Format{"ico.obj", write_obj, 1e-5},
-                            Format{"ico.ply", write_ply, 1e-5}}) {
+    for (const Format& f :
+         {Format{"ico.stl", write_stl, 1e-5}, Format{"ico.obj", write_obj, 1e-5},
+          Format{"ico.ply", write_ply, 1e-5}, Format{"ico.vtk", write_vtk, 1e-9}}) {
         SCOPED_TRACE(f.file);
         f.write(sphere, dir / f.file);
         TriangleMesh read = phantoms::read_mesh_file(dir / f.file);
@@ -246,8 +248,14 @@ TEST(Mesh, BadMeshesAreRefusedNamingTheFile) {
     write_obj(flat, dir / "flat.obj");
     refused("flat.obj", "zero area");
     refused("missing.stl", "does not exist");
-    std::ofstream(dir / "mesh.vtk") << "# vtk DataFile Version 3.0\n";
-    refused("mesh.vtk", "STL, OBJ or PLY");
+    std::ofstream(dir / "mesh.off") << "OFF\n";
+    refused("mesh.off", "STL, OBJ, PLY or VTK polydata");
+    std::ofstream(dir / "huge.vtk") << "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\n"
+                                       "POINTS 1000000000 float\n0 0 0\n";
+    refused("huge.vtk", "declares 1000000000 items");
+    std::ofstream(dir / "grid.vtk") << "# vtk DataFile Version 3.0\nx\nASCII\n"
+                                       "DATASET UNSTRUCTURED_GRID\n";
+    refused("grid.vtk", "a mesh must be POLYDATA");
     {  // a binary STL declaring four billion triangles in 134 bytes
         std::ofstream out(dir / "huge.stl", std::ios::binary);
         const std::string header(80, 'x');
