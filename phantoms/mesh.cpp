@@ -10,11 +10,13 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <new>
 #include <numbers>
 #include <optional>
 #include <unordered_map>
 
 #include "tissue/base/error.h"
+#include "tissue/base/isolated.h"
 #include "tissue/vtk_legacy.h"
 
 namespace sonotrace::phantoms {
@@ -22,6 +24,10 @@ namespace sonotrace::phantoms {
 namespace {
 
 using base::InputError;
+
+// The reading child's address space: a file of kMaxMeshFileBytes and the reader's working
+// copies fit; a file declaring far more fails its allocation there.
+constexpr std::size_t kReaderMemoryBytes = std::size_t(16) << 30;
 
 std::string lower_case(std::string s) {
     for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
@@ -95,6 +101,98 @@ struct VertexHash {
         return h;
     }
 };
+
+// The triangles of every mesh Assimp finds in the file, as written (not merged).
+TriangleMesh read_with_assimp(const std::string& path) {
+    Assimp::Importer importer;
+    // Points and lines are dropped; node transforms are applied to the vertices.
+    importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
+                                aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+    const aiScene* scene = importer.ReadFile(
+        path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_PreTransformVertices);
+    if (scene == nullptr)
+        throw InputError(path, "",
+                         std::string("cannot be read as a mesh: ") + importer.GetErrorString());
+    TriangleMesh raw;
+    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        const aiMesh& part = *scene->mMeshes[m];
+        const auto first = uint32_t(raw.vertices.size());
+        for (unsigned v = 0; v < part.mNumVertices; ++v)
+            raw.vertices.push_back({double(part.mVertices[v].x), double(part.mVertices[v].y),
+                                    double(part.mVertices[v].z)});
+        for (unsigned f = 0; f < part.mNumFaces; ++f) {
+            const aiFace& face = part.mFaces[f];
+            if (face.mNumIndices != 3) continue;
+            raw.triangles.push_back(
+                {first + face.mIndices[0], first + face.mIndices[1], first + face.mIndices[2]});
+            if (raw.triangles.size() > kMaxMeshTriangles)
+                throw InputError(
+                    path, "",
+                    "holds more than " + std::to_string(kMaxMeshTriangles) + " triangles");
+        }
+    }
+    if (raw.vertices.size() > 3 * kMaxMeshTriangles)
+        throw InputError(path, "",
+                         "holds more than " + std::to_string(3 * kMaxMeshTriangles) + " vertices");
+    return raw;
+}
+
+// read_with_assimp in a child process (base::run_forked): a reader that crashes or runs
+// away on a malformed file ends the child, and the caller gets a refusal naming the file.
+TriangleMesh read_isolated(const std::string& path) {
+    TriangleMesh raw;
+    uint8_t status = 255;
+    std::string source, field, detail;
+    bool complete = false;
+    const std::optional<std::string> ended = base::run_forked(
+        [&](int fd) {
+            base::PipeWriter out(fd);
+            auto refuse = [&](const std::string& s, const std::string& f, const std::string& d) {
+                out.value(uint8_t(1));
+                out.text(s), out.text(f), out.text(d);
+            };
+            try {
+                const TriangleMesh m = read_with_assimp(path);
+                out.value(uint8_t(0));
+                out.value(uint64_t(m.vertices.size()));
+                out.bytes(m.vertices.data(), m.vertices.size() * sizeof(glm::dvec3));
+                out.value(uint64_t(m.triangles.size()));
+                out.bytes(m.triangles.data(), m.triangles.size() * sizeof(m.triangles[0]));
+            } catch (const InputError& e) {
+                refuse(e.source(), e.field(), e.detail());
+            } catch (const std::bad_alloc&) {
+                refuse(path, "", "declares more data than memory holds: the file is malformed");
+            } catch (const std::exception& e) {
+                refuse(path, "", std::string("cannot be read as a mesh: ") + e.what());
+            }
+        },
+        [&](int fd) {
+            base::PipeReader in(fd);
+            complete = in.value(status);
+            if (complete && status == 0) {
+                uint64_t vertices = 0, triangles = 0;
+                complete = in.value(vertices) && vertices <= 3 * kMaxMeshTriangles;
+                if (complete) {
+                    raw.vertices.resize(vertices);
+                    complete = in.bytes(raw.vertices.data(), vertices * sizeof(glm::dvec3)) &&
+                               in.value(triangles) && triangles <= kMaxMeshTriangles;
+                }
+                if (complete) {
+                    raw.triangles.resize(triangles);
+                    complete = in.bytes(raw.triangles.data(), triangles * sizeof(raw.triangles[0]));
+                }
+            } else if (complete && status == 1) {
+                complete = in.text(source) && in.text(field) && in.text(detail);
+            }
+        },
+        kReaderMemoryBytes, /*quiet: the reader's own messages are not ours to print*/ true);
+    if (!complete || ended || status > 1)
+        throw InputError(path, "",
+                         "the mesh reader failed on it (" + ended.value_or("exit status 0") +
+                             "): the file is malformed");
+    if (status == 1) throw InputError(source, field, detail);
+    return raw;
+}
 
 // The mesh with coincident vertices made one (unused ones dropped).
 TriangleMesh merge_coincident(TriangleMesh raw, const std::string& path) {
@@ -205,35 +303,7 @@ TriangleMesh read_mesh_file(const std::string& path) {
                          "is not a mesh this reads (STL, OBJ, PLY or VTK polydata: .stl, .obj, "
                          ".ply, .vtk)");
     check_declared_counts(path, extension, bytes);
-
-    Assimp::Importer importer;
-    // Points and lines are dropped; node transforms are applied to the vertices.
-    importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
-                                aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-    const aiScene* scene = importer.ReadFile(
-        path, aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_PreTransformVertices);
-    if (scene == nullptr)
-        throw InputError(path, "",
-                         std::string("cannot be read as a mesh: ") + importer.GetErrorString());
-    TriangleMesh raw;
-    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
-        const aiMesh& part = *scene->mMeshes[m];
-        const auto first = uint32_t(raw.vertices.size());
-        for (unsigned v = 0; v < part.mNumVertices; ++v)
-            raw.vertices.push_back({double(part.mVertices[v].x), double(part.mVertices[v].y),
-                                    double(part.mVertices[v].z)});
-        for (unsigned f = 0; f < part.mNumFaces; ++f) {
-            const aiFace& face = part.mFaces[f];
-            if (face.mNumIndices != 3) continue;
-            raw.triangles.push_back(
-                {first + face.mIndices[0], first + face.mIndices[1], first + face.mIndices[2]});
-            if (raw.triangles.size() > kMaxMeshTriangles)
-                throw InputError(
-                    path, "",
-                    "holds more than " + std::to_string(kMaxMeshTriangles) + " triangles");
-        }
-    }
-    return merge_coincident(std::move(raw), path);
+    return merge_coincident(read_isolated(path), path);
 }
 
 glm::dvec3 MeshTransform::apply(const glm::dvec3& p) const {
