@@ -256,12 +256,7 @@ TriangleMesh read_vtk_polydata(const std::string& path) {
                 throw InputError(path, "DATASET", "a mesh must be POLYDATA");
             polydata = true;
         } else if (w == "POINTS") {
-            const std::size_t n = in.count("POINTS", 6.0, 12.0);  // 3 numbers a point
-            const std::string type = in.word("POINTS");
-            mesh.vertices.resize(n);
-            for (auto& p : mesh.vertices)
-                for (int a = 0; a < 3; ++a) p[a] = in.number<double>("POINTS", type);
-            in.section_done();
+            mesh.vertices = in.points();
         } else if (w == "POLYGONS") {
             cells("POLYGONS", [&](const std::vector<uint32_t>& c) {
                 for (std::size_t i = 2; i < c.size(); ++i) add(c[0], c[i - 1], c[i], "POLYGONS");

@@ -54,6 +54,16 @@ std::size_t VtkLegacyStream::count(const std::string& section, double ascii_byte
     return std::size_t(n);
 }
 
+std::vector<glm::dvec3> VtkLegacyStream::points() {
+    const std::size_t n = count("POINTS", 6.0, 12.0);  // 3 numbers a point
+    const std::string type = word("POINTS");
+    std::vector<glm::dvec3> out(n);
+    for (auto& p : out)
+        for (int a = 0; a < 3; ++a) p[a] = number<double>("POINTS", type);
+    section_done();
+    return out;
+}
+
 std::string VtkLegacyStream::line() {
     std::string l;
     if (!std::getline(in_, l)) throw InputError(path_, "", "ends early");

@@ -13,6 +13,9 @@
 #include <optional>
 #include <string>
 #include <type_traits>
+#include <vector>
+
+#include <glm/glm.hpp>
 
 #include "tissue/base/error.h"
 
@@ -33,6 +36,8 @@ class VtkLegacyStream {
     // unsigned_char, short, unsigned_short), converted to T (integers range-checked).
     template <typename T>
     T number(const std::string& section, const std::string& type);
+    // The POINTS section after its keyword: the count, the type, three numbers a point.
+    std::vector<glm::dvec3> points();
     // A section's data ends: the next BINARY section starts after its own header line.
     void section_done() { skipped_newline_ = false; }
     const std::string& path() const { return path_; }

@@ -59,12 +59,7 @@ TetMesh read_vtk_unstructured(const std::string& path) {
             if (in.word("DATASET") != "UNSTRUCTURED_GRID")
                 throw InputError(path, "DATASET", "only UNSTRUCTURED_GRID is supported");
         } else if (w == "POINTS") {
-            const std::size_t n = in.count("POINTS", 6.0, 12.0);  // 3 numbers a point
-            const std::string type = in.word("POINTS");
-            mesh.points.resize(n);
-            for (auto& p : mesh.points)
-                for (int a = 0; a < 3; ++a) p[a] = in.number<double>("POINTS", type);
-            in.section_done();
+            mesh.points = in.points();
         } else if (w == "CELLS") {
             const std::size_t n = in.count("CELLS", 4.0, 8.0);  // a count and an index at least
             in.word("CELLS");                                   // total size
