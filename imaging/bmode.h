@@ -33,6 +33,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -80,6 +81,8 @@ struct ImagingSettings {
     double dynamic_range_db = 60.0;
     double pixel_mm = 0.2;  // scan-converted pixel size
     uint64_t seed = 1;      // of the scatterer field
+    // Receiver noise at this SNR (dB, imaging/electronic_noise.h); unset: none.
+    std::optional<double> noise_snr_db;
 };
 
 // The depth (mm) of sample i at fs_hz: c0 t / 2.

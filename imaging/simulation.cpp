@@ -12,6 +12,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "imaging/electronic_noise.h"
 #include "imaging/mirror_ghosts.h"
 #include "imaging/psf.h"
 #include "imaging/receive_weights.h"
@@ -439,6 +440,9 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
         frame.rf = synthesize_rf(t, plane_sources, echoes, plane_profile, map_to_world(pose, grid),
                                  imaging, points, trace.receive_weights, &plane);
     });
+    if (imaging.noise_snr_db)
+        stage("noise",
+              [&] { add_electronic_noise(frame.rf, t, *imaging.noise_snr_db, imaging.seed); });
     if (settings.keep_echoes) frame.echoes = std::move(echoes);
     // The display takes what its pixels can show (PixelBand); the envelope stays the
     // pulse's, at the RF's resolution. Both from one analytic signal.

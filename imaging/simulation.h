@@ -124,6 +124,7 @@ inline constexpr ValueRange kRefractionSmoothingRange{0.0, 20.0};  // mm
 inline constexpr ValueRange kGainRange{-200.0, 200.0};             // dB
 inline constexpr ValueRange kDynamicRangeRange{1.0, 200.0};        // dB
 inline constexpr ValueRange kPixelRange{0.01, 10.0};               // mm
+inline constexpr ValueRange kNoiseSnrRange{-40.0, 120.0};          // dB
 
 // The Fresnel scale of a probe's image: sigma = sqrt(lambda D) / 2, the Gaussian whose 1/e
 // radius (sqrt(2) sigma) is the first Fresnel zone's radius sqrt(lambda D / 2) at half the

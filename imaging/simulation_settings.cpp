@@ -158,6 +158,7 @@ void SimulationSettings::validate(const std::string& source) const {
     within(imaging.gain_db, kGainRange, "gain");
     within(imaging.dynamic_range_db, kDynamicRangeRange, "dynamic-range");
     within(imaging.pixel_mm, kPixelRange, "pixel");
+    if (imaging.noise_snr_db) within(*imaging.noise_snr_db, kNoiseSnrRange, "noise-snr");
     double previous = -1e300;
     for (const TgcPoint& p : imaging.tgc) {
         in_range(p.depth_mm, 0.0, 1000.0, "tgc.depth");

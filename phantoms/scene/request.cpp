@@ -104,6 +104,11 @@ std::vector<RequestParameter> make_table() {
          "time-gain compensation: 'auto' (2 x 0.6 dB/(cm MHz) x f x depth, brain attenuation), "
          "'none', or a curve 'DEPTH:GAIN,DEPTH:GAIN,...' (linear in between)",
          &R::tgc},
+        {"noise-snr", "dB",
+         "receiver (electronic) noise: white Gaussian noise in the pulse's band added to the "
+         "RF lines, at this ratio of the frame's mean echo power to the noise power "
+         "(imaging/electronic_noise.h); TGC lifts it at depth as on a scanner; unset: none",
+         &R::noise_snr_db, imaging::kNoiseSnrRange},
         {"pixel", "mm", "pixel size of the scan-converted image", &R::pixel_mm,
          imaging::kPixelRange},
         {"step", "texels",
@@ -216,6 +221,7 @@ imaging::SimulationSettings settings_of(const FrameRequest& r, const std::string
     settings.imaging.dynamic_range_db = r.dynamic_range_db;
     settings.imaging.pixel_mm = r.pixel_mm;
     settings.imaging.tgc = parse_tgc(r.tgc, settings.transducer);
+    settings.imaging.noise_snr_db = r.noise_snr_db;
     settings.validate(source);
     return settings;
 }
@@ -377,7 +383,9 @@ json frame_sidecar(const FrameRequest& request, const FrameSetup& setup,
           {"axes", "x = lateral, y = depth from the probe face apex (mm); row 0 at origin.y"},
           {"gain_db", settings.imaging.gain_db},
           {"dynamic_range_db", request.dynamic_range_db},
-          {"tgc", request.tgc}}},
+          {"tgc", request.tgc},
+          {"noise_snr_db",
+           settings.imaging.noise_snr_db ? json(*settings.imaging.noise_snr_db) : json(nullptr)}}},
         {"rf",
          {{"lines", frame.rf.lines},
           {"samples", frame.rf.samples},

@@ -38,6 +38,7 @@ struct FrameRequest : VolumeOptions {
     std::optional<double> gain_db;  // unset: the scene's (Scene::gain_db)
     double dynamic_range_db = 60.0;
     std::string tgc = "auto";
+    std::optional<double> noise_snr_db;  // unset: no receiver noise
     double pixel_mm = 0.2;
     double step_texels = 0.0;               // 0 = the quality's
     double refraction_smoothing_mm = -1.0;  // -1 = the probe's Fresnel scale

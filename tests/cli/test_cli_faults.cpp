@@ -82,7 +82,7 @@ TEST(CliFaults, ADatasetOnAFullDiskOrBesideAFifoIsAnErrorNamingTheShard) {
     ScratchDir dir;
     const std::string spec = dir / "spec.json";
     std::ofstream(spec) << R"({"frames": 3, "frames_per_shard": 2, "seed": 5,
-        "image": {"width": 48, "height": 40}, "quality": "interactive", "focus_mm": 15,
+        "image": {"width": 48, "height": 40}, "quality": "interactive", "transducer": {"focus": 15},
         "sources": [{"phantom": ")"
                         << SONOTRACE_SOURCE_DIR << R"(/phantoms/cyst_and_stone.json"}]})";
     const std::string out = dir / "out";

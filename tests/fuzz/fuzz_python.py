@@ -115,7 +115,7 @@ def child(args):
     os.mkfifo(fifo)
     extra = [fifo, work]
     spec = {"frames": 3, "frames_per_shard": 2, "seed": 1, "image": {"width": 24, "height": 20},
-            "sources": [{"phantom": CYST}], "depth_mm": 25, "focus_mm": 20,
+            "sources": [{"phantom": CYST}], "transducer": {"depth": 25, "focus": 20},
             "quality": "interactive", "write": ["bmode", "labels", "envelope"]}
     with open(os.path.join(work, "spec.json"), "w") as f:
         json.dump(spec, f)

@@ -21,7 +21,7 @@ SPEC = {
     "image": {"width": 48, "height": 40},
     "sources": [{"phantom": SOURCE + "/phantoms/cyst_and_stone.json", "weight": 2},
                 {"phantom": SOURCE + "/phantoms/point_grid.json"}],
-    "depth_mm": [18, 24], "focus_mm": 15, "gain_db": [40, 56],
+    "transducer": {"depth": [18, 24], "focus": 15}, "gain_db": [40, 56],
     "pose": {"lateral_mm": 2, "rotation_deg": 4},
     "quality": "interactive", "write": ["bmode", "labels", "envelope"],
 }

@@ -28,7 +28,7 @@ def spec(**changes):
         "frames": 3, "frames_per_shard": 2, "seed": 11,
         "image": {"width": 40, "height": 32},
         "sources": [{"phantom": SOURCE + "/phantoms/cyst_and_stone.json"}],
-        "depth_mm": [18, 22], "focus_mm": 15, "quality": "interactive",
+        "transducer": {"depth": [18, 22], "focus": 15}, "quality": "interactive",
         "write": ["bmode", "labels", "rf"],
     }
     s.update(changes)
@@ -90,11 +90,34 @@ def test_shards_read_back_with_h5py(tmp_path):
     assert indices == [0, 1, 2]
 
 
+def test_the_frame_table_has_a_column_for_every_drawn_value(tmp_path):
+    """Domain randomisation as a user reads it back: one column per drawn value, each in
+    its range, the transducer's drawn depth the one the frame was made at."""
+    run, out = make(tmp_path, spec(
+        transducer={"depth": [18, 22], "focus": 15, "f-number": [1.5, 2.5]},
+        tgc={"slope": [0.3, 0.9], "sliders": 3, "slider_db": 2}, noise_snr_db=[10, 40],
+        tissues={"liver": {"speed_of_sound": [1550, 1600], "attenuation": {"spread": 0.2}}}))
+    assert run.returncode == 0, run.stderr
+    with h5py.File(out / "shard_00000.h5", "r") as f:
+        rows = f["frames"][:]
+    ranges = {"transducer.depth": (18, 22), "transducer.f-number": (1.5, 2.5),
+              "transducer.focus": (15, 15), "tgc.slope": (0.3, 0.9), "tgc.slider0": (-2, 2),
+              "tgc.slider1": (-2, 2), "tgc.slider2": (-2, 2), "noise_snr_db": (10, 40),
+              "tissues.liver.speed_of_sound": (1550, 1600),
+              "tissues.liver.attenuation": (0.4, 0.6)}  # liver 0.5 dB/(cm MHz) +-20 %
+    names = set(rows.dtype.names)
+    assert set(ranges) <= names, names
+    for name, (low, high) in ranges.items():
+        assert np.all((rows[name] >= low) & (rows[name] <= high)), (name, rows[name])
+    assert np.array_equal(rows["transducer.depth"], rows["depth_mm"])
+    assert len(set(rows["noise_snr_db"])) == len(rows)  # drawn per frame
+
+
 @pytest.mark.parametrize("change,field", [
     ({"frames": 0}, "frames"),
     ({"write": ["bmode", "video"]}, "write[1]"),
     ({"sources": [{"phantom": "missing.json"}]}, "sources[0].phantom"),
-    ({"depth_mm": [18, 22], "focus_mm": 30}, "focus"),
+    ({"transducer": {"depth": [18, 22], "focus": 30}}, "focus"),
     ({"extra": 1}, "extra"),
 ])
 def test_bad_specs_exit_1_naming_the_field_and_write_nothing(tmp_path, change, field):

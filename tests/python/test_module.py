@@ -145,7 +145,7 @@ def test_the_gil_is_released_while_cpp_works():
 
 def test_read_shard_gives_the_arrays_of_a_dataset(tmp_path):
     spec = {"frames": 2, "frames_per_shard": 2, "seed": 2, "image": {"width": 32, "height": 24},
-            "sources": [{"phantom": CYST}], "depth_mm": 25, "focus_mm": 20,
+            "sources": [{"phantom": CYST}], "transducer": {"depth": 25, "focus": 20},
             "quality": "interactive", "write": ["bmode", "labels", "envelope"]}
     (tmp_path / "spec.json").write_text(json.dumps(spec))
     subprocess.run([BINARY, "dataset", str(tmp_path / "spec.json"), "--out",
@@ -223,7 +223,7 @@ def test_read_shard_refuses_chunks_that_disagree_with_their_shape(tmp_path):
 def test_read_shard_refuses_a_shard_whose_bytes_changed(tmp_path):
     # A flipped byte used to reach h5py ("inflate() failed" or, worse, wrong pixels).
     spec = {"frames": 1, "frames_per_shard": 1, "seed": 2, "image": {"width": 32, "height": 24},
-            "sources": [{"phantom": CYST}], "depth_mm": 25, "focus_mm": 20,
+            "sources": [{"phantom": CYST}], "transducer": {"depth": 25, "focus": 20},
             "quality": "interactive", "write": ["bmode"]}
     (tmp_path / "spec.json").write_text(json.dumps(spec))
     subprocess.run([BINARY, "dataset", str(tmp_path / "spec.json"), "--out",

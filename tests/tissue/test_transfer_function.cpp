@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "tests/test_util.h"
+#include "tissue/property_maps.h"
 #include "tissue/tissue_table.h"
 #include "tissue/transfer_function.h"
 #include "tissue/volume_io.h"
@@ -84,6 +85,32 @@ TEST(TransferFunction, LabelTable) {
     expect_input_error([&] { tf->bind(v); }, "labels.json", "labels", "label 5");
     v.at(1, 0) = 3.5f;
     expect_input_error([&] { tf->bind(v); }, "labels.json", "labels", "not an integer");
+}
+
+// A dataset's drawn tissue properties: each labelled texel's property times its factor,
+// held to the property's range; other labels and other properties untouched.
+TEST(PropertyMaps, ScaleByLabelScalesOnlyThatTissuesPropertyWithinItsRange) {
+    VolumeGeometry g;
+    g.dims = {4, 1, 1};
+    PropertyMaps maps;
+    for (Volume& f : maps.fields) f = Volume(g, 0.5f);
+    maps[Property::speed_of_sound] = Volume(g, 1500.0f);
+    const Volume labels(g, Voxels{0.0f, 1.0f, 2.0f, 2.0f});
+    const LabelScale scales[] = {{2, Property::speed_of_sound, 1.02},
+                                 {2, Property::backscatter, 3.0},
+                                 {1, Property::attenuation, 0.5}};
+    scale_by_label(maps, labels, scales);
+    const auto& c = maps[Property::speed_of_sound].voxels();
+    EXPECT_EQ(c[0], 1500.0f);
+    EXPECT_EQ(c[1], 1500.0f);
+    EXPECT_FLOAT_EQ(c[2], 1530.0f);
+    EXPECT_FLOAT_EQ(c[3], 1530.0f);
+    // 0.5 x 3 = 1.5, held to backscatter's 1.
+    EXPECT_EQ(maps[Property::backscatter].voxels()[2], 1.0f);
+    EXPECT_EQ(maps[Property::backscatter].voxels()[1], 0.5f);
+    EXPECT_FLOAT_EQ(maps[Property::attenuation].voxels()[1], 0.25f);
+    EXPECT_EQ(maps[Property::attenuation].voxels()[2], 0.5f);
+    EXPECT_EQ(maps[Property::density].voxels()[2], 0.5f);
 }
 
 TEST(TissueTable, ValuesAreInRangeAndMatchLiterature) {

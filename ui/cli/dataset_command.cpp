@@ -18,10 +18,13 @@ namespace {
 constexpr ParameterDoc kSpecDoc = {
     "spec", "",
     "JSON file of the dataset: frames, frames_per_shard, seed, image {width, height} (pixels), "
-    "sources [{scene | phantom | volume, weight}], probes, frequency_mhz, depth_mm, focus_mm, "
-    "gain_db, dynamic_range_db (a number or [low, high]), pose {lateral_mm, elevation_mm, "
-    "rotation_deg, tilt_deg} (half-ranges about the source's start), disable, quality, write "
-    "[bmode, labels, envelope, rf, energy]; see ui/dataset/spec.h"};
+    "sources [{scene | phantom | volume, weight}], probes, transducer {any numeric "
+    "parameter of simulate's, e.g. frequency, depth, focus, f-number}, gain_db, "
+    "dynamic_range_db, noise_snr_db (each a number or [low, high], drawn uniformly per "
+    "frame), tgc {slope, sliders, slider_db}, tissues {TISSUE: {PROPERTY: [low, high] or "
+    "{spread}}}, pose {lateral_mm, elevation_mm, rotation_deg, tilt_deg} (half-ranges about "
+    "the source's start), disable, quality, write [bmode, labels, labels_echo, envelope, rf, "
+    "energy]; every drawn value is a column of the frame table; see ui/dataset/spec.h"};
 constexpr ParameterDoc kDatasetOutDoc = {
     "--out", "",
     "directory of the shards (shard_NNNNN.h5) and manifest.json; a run into a directory that "

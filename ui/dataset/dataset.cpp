@@ -57,7 +57,9 @@ nlohmann::json manifest(const Spec& spec, const std::string& dir) {
              "focus_mm, gain_db, dynamic_range_db, position, lateral, axial, elevation in "
              "world mm, pixel_mm, origin_mm = probe-plane position of pixel (0, 0) as "
              "(lateral, depth), valid_width, valid_height = the scanned grid in the top-left "
-             "corner); envelope, rf, energy: float32 per frame under /<name>/<index>; a "
+             "corner; then a column per value the spec draws: transducer.KEY, tgc.slope, "
+             "tgc.sliderK (dB), noise_snr_db, tissues.TISSUE.PROPERTY (the value the tissue "
+             "got)); envelope, rf, energy: float32 per frame under /<name>/<index>; a "
              "512-byte user block (spec_digest, shard, content_checksum) before the HDF5, "
              "checked by `sonotrace dataset --verify DIR`"}};
 }

@@ -12,13 +12,16 @@ namespace sonotrace::dataset {
 
 namespace {
 
-// The transducer of a frame: the preset with the drawn parameters (0 = the preset's).
-probe::Transducer transducer_of(const std::string& preset, double frequency_mhz, double depth_mm,
-                                double focus_mm, const std::string& source) {
-    probe::Transducer t = probe::find_transducer(preset, source);
-    if (frequency_mhz > 0.0) t.frequency_mhz = frequency_mhz;
-    if (depth_mm > 0.0) t.depth_mm = depth_mm;
-    if (focus_mm > 0.0) t.focus_mm = focus_mm;
+// The transducer of a frame: the preset with the spec's drawn parameters (the
+// frame's, or a corner of their ranges).
+probe::Transducer transducer_of(const std::string& preset, const Spec& spec,
+                                const std::vector<double>& values) {
+    probe::Transducer t = probe::find_transducer(preset, spec.path);
+    for (std::size_t n = 0; n < spec.transducer.size(); ++n)
+        for (const auto& doc : probe::transducer_parameter_docs())
+            if (spec.transducer[n].key == doc.key)
+                doc.set(t, base::exact_number_text(values[n]),
+                        spec.path + ": transducer." + doc.key);
     return t;
 }
 
@@ -32,26 +35,28 @@ FrameMaker::FrameMaker(const Spec& spec) : spec_(spec) {
             throw base::InputError(spec_.path, "sources[" + std::to_string(n) + "]", e.what());
         }
     }
-    // Every probe of every source at the corners of the ranges, before any frame: a
-    // focus beyond a depth the spec allows is found now, not at frame 90,000.
-    auto corners = [](const Range& r) {
-        return r.set ? std::vector<double>{r.low, r.high} : std::vector<double>{0.0};
-    };
+    // Every probe of every source at the corners of the transducer's ranges, before any
+    // frame: a focus beyond a depth the spec allows is found now, not at frame 90,000.
+    const std::size_t ranges = spec_.transducer.size();
+    if (ranges > 16)
+        throw base::InputError(spec_.path, "transducer",
+                               "draws at most 16 parameters (their 2^n corners are checked)");
     for (std::size_t n = 0; n < scenes_.size(); ++n) {
         const std::vector<std::string> presets =
             spec_.probes.empty() ? std::vector<std::string>{scenes_[n]->probe_preset}
                                  : spec_.probes;
         for (const std::string& preset : presets)
-            for (double f : corners(spec_.frequency_mhz))
-                for (double d : corners(spec_.depth_mm))
-                    for (double focus : corners(spec_.focus_mm)) {
-                        const std::string where =
-                            "sources[" + std::to_string(n) + "] with probe " + preset +
-                            (d > 0 ? ", depth " + base::number_text(d) + " mm" : "") +
-                            (focus > 0 ? ", focus " + base::number_text(focus) + " mm" : "");
-                        transducer_of(preset, f, d, focus, spec_.path)
-                            .validate(spec_.path + " (" + where + ")");
-                    }
+            for (uint32_t corner = 0; corner < (1u << ranges); ++corner) {
+                std::vector<double> values;
+                std::string where = "sources[" + std::to_string(n) + "] with probe " + preset;
+                for (std::size_t k = 0; k < ranges; ++k) {
+                    const Range& r = spec_.transducer[k].range;
+                    values.push_back(corner >> k & 1u ? r.high : r.low);
+                    where +=
+                        ", " + spec_.transducer[k].key + " " + base::number_text(values.back());
+                }
+                transducer_of(preset, spec_, values).validate(spec_.path + " (" + where + ")");
+            }
     }
 }
 
@@ -62,8 +67,8 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     const scene::Scene& scene = *scenes_[std::size_t(d.source)];
     const std::string where = "frame " + std::to_string(index);
     // -- the probe: the drawn preset and parameters, checked as every transducer is
-    const probe::Transducer t = transducer_of(d.probe.empty() ? scene.probe_preset : d.probe,
-                                              d.frequency_mhz, d.depth_mm, d.focus_mm, spec_.path);
+    const probe::Transducer t =
+        transducer_of(d.probe.empty() ? scene.probe_preset : d.probe, spec_, d.transducer);
     t.validate(spec_.path + " (" + where + ")");
     out.transducer = t;
     // -- the pose: moved and turned about the source's start, laid back on the surface
@@ -77,10 +82,8 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     // -- the frame's request, as `sonotrace simulate` would be asked for it
     scene::FrameRequest request;
     request.probe = t.name;
-    const auto exact = base::exact_number_text;  // the drawn values, to the bit
-    if (d.frequency_mhz > 0.0) request.transducer["frequency"] = exact(d.frequency_mhz);
-    if (d.depth_mm > 0.0) request.transducer["depth"] = exact(d.depth_mm);
-    if (d.focus_mm > 0.0) request.transducer["focus"] = exact(d.focus_mm);
+    for (std::size_t n = 0; n < spec_.transducer.size(); ++n)  // the drawn values, to the bit
+        request.transducer[spec_.transducer[n].key] = base::exact_number_text(d.transducer[n]);
     request.quality = imaging::to_string(spec_.quality);
     request.trace = spec_.trace_dimensions == 3 ? "3d" : "2d";
     request.seed = d.seed;
@@ -89,6 +92,8 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     request.labels = spec_.write_labels || spec_.write_echo_labels;
     request.gain_db = d.gain_db;
     request.dynamic_range_db = d.dynamic_range_db;
+    request.tgc = tgc_curve(d, t);
+    request.noise_snr_db = d.noise_snr_db;
     // Pixels that fit the scanned region into W x H.
     const auto [lo, hi] = probe::ScanGeometry(t).bounds();
     request.pixel_mm =
@@ -96,8 +101,20 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
         (1.0 + 1e-9);
     const imaging::SimulationSettings s =
         scene::make_settings(request, scene, spec_.path + " (" + where + ")");
+    out.gain_db = s.imaging.gain_db;
+    // The drawn tissue properties: every texel of a drawn tissue scaled (its label says
+    // which), in the plane and in a 3D trace's slab alike.
+    imaging::PlaneMapper mapper = scene.mapper;
+    if (!d.tissue_scales.empty())
+        mapper = [&scene, &d](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
+            tissue::Volume own;
+            tissue::Volume& l = labels ? *labels : own;
+            tissue::PropertyMaps maps = scene.mapper(grid, &l);
+            tissue::scale_by_label(maps, l, d.tissue_scales);
+            return maps;
+        };
     imaging::SimulatedFrame simulated = imaging::simulate_plane(
-        scene.mapper, placement, s, spec_.write_labels || spec_.write_echo_labels);
+        mapper, placement, s, spec_.write_labels || spec_.write_echo_labels);
     imaging::Frame& frame = simulated.frame;
     // -- onto the W x H grid
     const imaging::ScanConverted& image = frame.image;

@@ -14,6 +14,7 @@ struct DatasetFrame {
     FrameDraw draw;
     probe::Transducer transducer;  // as simulated
     probe::Pose pose;
+    double gain_db = 0.0;  // as simulated (the draw's, or the scene's)
     // The scan-converted frame fills the top-left valid_width x valid_height pixels of the
     // W x H grid (the rest is 0, label 0); pixel (0, 0)'s centre lies at origin_mm in the
     // probe plane (x lateral, y depth), pixels are pixel_mm square.

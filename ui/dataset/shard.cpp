@@ -136,9 +136,10 @@ class ShardWriter {
     hid_t file_ = -1;
 };
 
-// The /frames row type in memory and, packed, in the file.
-hid_t frame_row_type() {
-    const hid_t t = H5Tcreate(H5T_COMPOUND, sizeof(FrameRow));
+// The /frames row type in memory and, packed, in the file: a FrameRow, then a double per
+// drawn value (the spec's drawn_values, named as they are).
+hid_t frame_row_type(const std::vector<DrawnValue>& drawn) {
+    const hid_t t = H5Tcreate(H5T_COMPOUND, sizeof(FrameRow) + drawn.size() * sizeof(double));
     const hsize_t three = 3, two = 2;
     const hid_t vec3 = H5Tarray_create2(H5T_NATIVE_DOUBLE, 1, &three);
     const hid_t vec2 = H5Tarray_create2(H5T_NATIVE_DOUBLE, 1, &two);
@@ -161,6 +162,9 @@ hid_t frame_row_type() {
     H5Tinsert(t, "origin_mm", HOFFSET(FrameRow, origin_mm), vec2);
     H5Tinsert(t, "valid_width", HOFFSET(FrameRow, valid_width), H5T_NATIVE_INT32);
     H5Tinsert(t, "valid_height", HOFFSET(FrameRow, valid_height), H5T_NATIVE_INT32);
+    for (std::size_t k = 0; k < drawn.size(); ++k)
+        H5Tinsert(t, drawn[k].name.c_str(), sizeof(FrameRow) + k * sizeof(double),
+                  H5T_NATIVE_DOUBLE);
     H5Tclose(vec3);
     H5Tclose(vec2);
     H5Tclose(name);
@@ -191,10 +195,13 @@ void write_shard(const std::string& path, const std::string& output_name, const 
     if (spec.write_labels) stack("labels", &DatasetFrame::labels);
     if (spec.write_echo_labels) stack("labels_echo", &DatasetFrame::echo_labels);
 
-    std::vector<FrameRow> rows(frames.size());
+    const std::vector<DrawnValue> names =
+        frames.empty() ? std::vector<DrawnValue>{} : drawn_values(spec, frames.front().draw);
+    const std::size_t row_bytes = sizeof(FrameRow) + names.size() * sizeof(double);
+    std::vector<unsigned char> rows(frames.size() * row_bytes, 0);  // padding zero, as every time
     for (std::size_t f = 0; f < frames.size(); ++f) {
         const DatasetFrame& fr = frames[f];
-        FrameRow& r = rows[f];
+        FrameRow r;
         std::memset(&r, 0, sizeof r);
         r.index = fr.draw.index;
         r.seed = fr.draw.seed;
@@ -203,7 +210,7 @@ void write_shard(const std::string& path, const std::string& output_name, const 
         r.frequency_mhz = fr.transducer.frequency_mhz;
         r.depth_mm = fr.transducer.depth_mm;
         r.focus_mm = fr.transducer.focus_mm;
-        r.gain_db = fr.draw.gain_db;
+        r.gain_db = fr.gain_db;
         r.dynamic_range_db = fr.draw.dynamic_range_db;
         copy3(r.position, fr.pose.position);
         copy3(r.lateral, fr.pose.lateral());
@@ -214,9 +221,14 @@ void write_shard(const std::string& path, const std::string& output_name, const 
         r.origin_mm[1] = fr.origin_mm.y;
         r.valid_width = fr.valid_width;
         r.valid_height = fr.valid_height;
+        std::memcpy(&rows[f * row_bytes], &r, sizeof r);
+        const std::vector<DrawnValue> drawn = drawn_values(spec, fr.draw);
+        for (std::size_t k = 0; k < drawn.size(); ++k)
+            std::memcpy(&rows[f * row_bytes + sizeof r + k * sizeof(double)], &drawn[k].value,
+                        sizeof(double));
     }
     {
-        Handle memory(frame_row_type(), H5Tclose);
+        Handle memory(frame_row_type(names), H5Tclose);
         Handle packed(H5Tcopy(memory), H5Tclose);
         H5Tpack(packed);
         w.dataset(w.file(), "frames", packed, memory, {n}, {}, rows.data());

@@ -7,7 +7,9 @@
 //   /frames    [n] table         per frame: index, seed, source, probe, frequency_mhz,
 //                                depth_mm, focus_mm, gain_db, dynamic_range_db, position,
 //                                lateral, axial, elevation (world mm / unit), pixel_mm,
-//                                origin_mm, valid_width, valid_height
+//                                origin_mm, valid_width, valid_height, then a column per
+//                                value the spec draws (drawn_values: "transducer.focus",
+//                                "tgc.slope", "noise_snr_db", "tissues.brain.attenuation")
 //   /envelope/NNNNNNNN, /rf/NNNNNNNN    float32 [lines, samples] per frame (on request)
 //   /energy/NNNNNNNN                    float32 [rows, cols] per frame (on request)
 //   attributes: spec (the spec, canonical JSON), spec_digest, shard, first_frame,

@@ -4,13 +4,17 @@
 
 #include <cmath>
 #include <filesystem>
+#include <variant>
 
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
 #include "tissue/base/file_status.h"
 #include "tissue/base/hash.h"
 #include "tissue/base/json_util.h"
+#include "tissue/base/number_list.h"
 #include "tissue/image_io.h"
+#include "tissue/tissue_table.h"
+#include "tissue/transfer_function.h"
 
 namespace sonotrace::dataset {
 
@@ -20,23 +24,24 @@ using base::InputError;
 using nlohmann::json;
 namespace jsonio = base::jsonio;
 
-// A number, or [low, high] with low <= high, within [min, max].
-Range read_range(const json& j, const std::string& key, const std::string& source, double min,
-                 double max) {
+// A number, or [low, high] with low <= high, within [min, max]: `parent`.`key`.
+Range read_range(const json& j, const std::string& key, const std::string& source,
+                 const std::string& parent, double min, double max) {
     Range r;
     if (!j.contains(key)) return r;
     const json& v = j[key];
+    const std::string field = jsonio::join(parent, key);
     r.set = true;
     if (v.is_number()) {
-        r.low = r.high = jsonio::get_number(j, key, source, "", min, max);
+        r.low = r.high = jsonio::get_number(j, key, source, parent, min, max);
         return r;
     }
     if (!v.is_array() || v.size() != 2)
-        throw InputError(source, key, "must be a number or [low, high]");
+        throw InputError(source, field, "must be a number or [low, high]");
     const json pair = {{"low", v[0]}, {"high", v[1]}};
-    r.low = jsonio::get_number(pair, "low", source, key, min, max);
-    r.high = jsonio::get_number(pair, "high", source, key, min, max);
-    if (r.low > r.high) throw InputError(source, key, "low must not exceed high");
+    r.low = jsonio::get_number(pair, "low", source, field, min, max);
+    r.high = jsonio::get_number(pair, "high", source, field, min, max);
+    if (r.low > r.high) throw InputError(source, field, "low must not exceed high");
     return r;
 }
 
@@ -49,6 +54,96 @@ double uniform(uint64_t seed, uint64_t frame, uint64_t draw) {
 double draw_in(const Range& r, double fallback, uint64_t seed, uint64_t frame, uint64_t draw) {
     if (!r.set) return fallback;
     return r.low + (r.high - r.low) * uniform(seed, frame, draw);
+}
+
+// "transducer": {KEY: number or [low, high]} over the numeric transducer parameters;
+// their ranges are Transducer::validate's (FrameMaker checks the corners).
+void read_transducer_ranges(const json& j, const std::string& source, Spec& spec) {
+    if (!j.contains("transducer")) return;
+    const json& t = j["transducer"];
+    jsonio::require_object(t, source, "transducer");
+    const probe::Transducer any;
+    std::string numeric;
+    for (const auto& doc : probe::transducer_parameter_docs())
+        if (!std::holds_alternative<std::string>(doc.get(any)))
+            numeric += (numeric.empty() ? "" : ", ") + std::string(doc.key);
+    for (const auto& [key, value] : t.items()) {
+        const probe::TransducerParameterDoc* row = nullptr;
+        for (const auto& doc : probe::transducer_parameter_docs())
+            if (key == doc.key) row = &doc;
+        if (!row || std::holds_alternative<std::string>(row->get(any)))
+            throw InputError(source, jsonio::join("transducer", key),
+                             "not a numeric transducer parameter (known: " + numeric + ")");
+        TransducerRange r;
+        r.key = key;
+        r.whole = std::holds_alternative<int>(row->get(any));
+        r.range = read_range(t, key, source, "transducer", -1e9, 1e9);
+        if (r.whole) {
+            r.range.low = std::ceil(r.range.low), r.range.high = std::floor(r.range.high);
+            if (r.range.low > r.range.high)
+                throw InputError(source, jsonio::join("transducer", key), "holds no whole number");
+        }
+        spec.transducer.push_back(r);
+    }
+}
+
+// "tgc": {"slope": number or [low, high], "sliders": n, "slider_db": dB}.
+void read_tgc_range(const json& j, const std::string& source, Spec& spec) {
+    if (!j.contains("tgc")) return;
+    const json& t = j["tgc"];
+    jsonio::require_object(t, source, "tgc");
+    jsonio::require_known_keys(t, {"slope", "sliders", "slider_db"}, source, "tgc");
+    spec.tgc.set = true;
+    spec.tgc.slope = read_range(t, "slope", source, "tgc", 0.0, 5.0);
+    if (t.contains("sliders") != t.contains("slider_db"))
+        throw InputError(source, "tgc", "sliders and slider_db go together");
+    if (t.contains("sliders")) {
+        const double n = jsonio::get_number(t, "sliders", source, "tgc", 2, 32);
+        if (n != std::floor(n)) throw InputError(source, "tgc.sliders", "must be a whole number");
+        spec.tgc.sliders = int(n);
+        spec.tgc.slider_db = jsonio::get_number(t, "slider_db", source, "tgc", 0.0, 40.0);
+    }
+}
+
+// "tissues": {TISSUE: {PROPERTY: number, [low, high] or {"spread": s}}}.
+void read_tissue_ranges(const json& j, const std::string& source, Spec& spec) {
+    if (!j.contains("tissues")) return;
+    const json& tissues = j["tissues"];
+    jsonio::require_object(tissues, source, "tissues");
+    std::string properties;
+    for (const auto& info : tissue::kPropertyInfo)
+        properties += (properties.empty() ? "" : ", ") + std::string(info.key);
+    for (const auto& [name, entry] : tissues.items()) {
+        const std::string where = jsonio::join("tissues", name);
+        const tissue::TissueEntry& table = tissue::find_tissue(name, source, where);
+        jsonio::require_object(entry, source, where);
+        for (const auto& [key, value] : entry.items()) {
+            const std::string field = jsonio::join(where, key);
+            std::size_t p = 0;
+            while (p < tissue::kPropertyCount && tissue::kPropertyInfo[p].key != key) ++p;
+            if (p == tissue::kPropertyCount)
+                throw InputError(source, field, "unknown property (known: " + properties + ")");
+            const tissue::PropertyInfo& info = tissue::kPropertyInfo[p];
+            TissueRange r;
+            r.tissue = name;
+            r.label = tissue::tissue_label_of(name);
+            r.property = tissue::Property(p);
+            r.table_value = table.properties.values[p];
+            if (value.is_object()) {
+                jsonio::require_known_keys(value, {"spread"}, source, field);
+                if (!value.contains("spread")) throw InputError(source, field, "needs spread");
+                r.spread = jsonio::get_number(value, "spread", source, field, 0.0, 0.95);
+            } else {
+                r.values = read_range(entry, key, source, where, info.min, info.max);
+                if (!(r.table_value > 0.0))
+                    throw InputError(source, field,
+                                     "is 0 for " + name +
+                                         ": a value has nothing to scale; "
+                                         "give the tissue's shapes explicit properties instead");
+            }
+            spec.tissues.push_back(r);
+        }
+    }
 }
 
 // The spec with every whole number written as an integer: "frames": 8.0 and 8 are one
@@ -76,11 +171,18 @@ uint64_t Spec::digest() const {
 
 Spec parse_spec(const json& j, const std::string& source) {
     jsonio::require_object(j, source, "");
-    jsonio::require_known_keys(j,
-                               {"comment", "frames", "frames_per_shard", "seed", "image", "sources",
-                                "probes", "frequency_mhz", "depth_mm", "focus_mm", "gain_db",
-                                "dynamic_range_db", "pose", "disable", "quality", "trace", "write"},
-                               source, "");
+    // The keys of earlier versions, pointed to their new place.
+    for (const auto& [old, now] : {std::pair{"frequency_mhz", "frequency"},
+                                   std::pair{"depth_mm", "depth"}, std::pair{"focus_mm", "focus"}})
+        if (j.contains(old))
+            throw InputError(source, old,
+                             std::string("is now \"transducer\": {\"") + now + "\": ...}");
+    jsonio::require_known_keys(
+        j,
+        {"comment", "frames", "frames_per_shard", "seed", "image", "sources", "probes",
+         "transducer", "gain_db", "dynamic_range_db", "tgc", "noise_snr_db", "tissues", "pose",
+         "disable", "quality", "trace", "write"},
+        source, "");
     Spec spec;
     spec.path = source;
     spec.canonical = canonical_numbers(j).dump();
@@ -210,11 +312,16 @@ Spec parse_spec(const json& j, const std::string& source) {
                     "unknown preset '" + spec.probes.back() + "' (presets: " + names + ")");
         }
     }
-    spec.frequency_mhz = read_range(j, "frequency_mhz", source, 0.1, 100.0);
-    spec.depth_mm = read_range(j, "depth_mm", source, 1.0, 500.0);
-    spec.focus_mm = read_range(j, "focus_mm", source, 1.0, 500.0);
-    spec.gain_db = read_range(j, "gain_db", source, -100.0, 150.0);
-    spec.dynamic_range_db = read_range(j, "dynamic_range_db", source, 1.0, 200.0);
+    read_transducer_ranges(j, source, spec);
+    spec.gain_db =
+        read_range(j, "gain_db", source, "", imaging::kGainRange.low, imaging::kGainRange.high);
+    spec.dynamic_range_db =
+        read_range(j, "dynamic_range_db", source, "", imaging::kDynamicRangeRange.low,
+                   imaging::kDynamicRangeRange.high);
+    read_tgc_range(j, source, spec);
+    spec.noise_snr_db = read_range(j, "noise_snr_db", source, "", imaging::kNoiseSnrRange.low,
+                                   imaging::kNoiseSnrRange.high);
+    read_tissue_ranges(j, source, spec);
     if (j.contains("pose")) {
         const json& pose = j["pose"];
         jsonio::require_object(pose, source, "pose");
@@ -275,17 +382,36 @@ Spec read_spec(const std::string& path) {
     return parse_spec(base::jsonio::read_file(path), path);
 }
 
+namespace {
+
+// The draw number of a named quantity: its name hashed, the top bit set so that it never
+// meets the fixed numbers of draw_frame's enum.
+uint64_t named_draw(const std::string& name) {
+    uint64_t h = 0x6e616d65ull;
+    for (const char c : name) h = base::mix64(h ^ uint8_t(c));
+    return h | (uint64_t(1) << 63);
+}
+
+std::string transducer_column(const TransducerRange& r) {
+    return "transducer." + r.key;
+}
+std::string tissue_column(const TissueRange& r) {
+    return "tissues." + r.tissue + "." + std::string(tissue::info(r.property).key);
+}
+std::string slider_column(int k) {
+    return "tgc.slider" + std::to_string(k);
+}
+
+}  // namespace
+
 FrameDraw draw_frame(const Spec& spec, uint64_t index) {
-    // Draw numbers are fixed per quantity, so adding a range to a spec changes only that
-    // quantity's values, not the others'.
+    // Draw numbers are fixed per quantity (named ones by their column's name), so adding a
+    // range to a spec changes only that quantity's values, not the others'.
     enum : uint64_t {
         kSeed,
         kSource,
         kProbe,
-        kFrequency,
-        kDepth,
-        kFocus,
-        kGain,
+        kGain = 6,  // 3-5 were the frequency, depth and focus, now named
         kRange,
         kLateral,
         kElevation,
@@ -310,10 +436,18 @@ FrameDraw draw_frame(const Spec& spec, uint64_t index) {
         d.probe = spec.probes[std::min(
             spec.probes.size() - 1,
             std::size_t(uniform(spec.seed, index, kProbe) * double(spec.probes.size())))];
-    d.frequency_mhz = draw_in(spec.frequency_mhz, 0.0, spec.seed, index, kFrequency);
-    d.depth_mm = draw_in(spec.depth_mm, 0.0, spec.seed, index, kDepth);
-    d.focus_mm = draw_in(spec.focus_mm, 0.0, spec.seed, index, kFocus);
-    d.gain_db = draw_in(spec.gain_db, 36.0, spec.seed, index, kGain);
+    auto in = [&](const Range& r, uint64_t draw) {
+        return r.low + (r.high - r.low) * uniform(spec.seed, index, draw);
+    };
+    for (const TransducerRange& r : spec.transducer) {
+        const uint64_t draw = named_draw(transducer_column(r));
+        d.transducer.push_back(
+            r.whole ? std::min(r.range.high,
+                               r.range.low + std::floor(uniform(spec.seed, index, draw) *
+                                                        (r.range.high - r.range.low + 1.0)))
+                    : in(r.range, draw));
+    }
+    if (spec.gain_db.set) d.gain_db = in(spec.gain_db, kGain);
     d.dynamic_range_db = draw_in(spec.dynamic_range_db, 60.0, spec.seed, index, kRange);
     auto symmetric = [&](double half, uint64_t draw) {
         return half * (2.0 * uniform(spec.seed, index, draw) - 1.0);
@@ -322,7 +456,59 @@ FrameDraw draw_frame(const Spec& spec, uint64_t index) {
     d.elevation_mm = symmetric(spec.elevation_mm, kElevation);
     d.rotation_deg = symmetric(spec.rotation_deg, kRotation);
     d.tilt_deg = symmetric(spec.tilt_deg, kTilt);
+    if (spec.tgc.set) {
+        d.tgc_slope = spec.tgc.slope.set ? in(spec.tgc.slope, named_draw("tgc.slope")) : 0.6;
+        for (int k = 0; k < spec.tgc.sliders; ++k)
+            d.tgc_sliders_db.push_back(symmetric(spec.tgc.slider_db, named_draw(slider_column(k))));
+    }
+    if (spec.noise_snr_db.set) d.noise_snr_db = in(spec.noise_snr_db, named_draw("noise_snr_db"));
+    for (const TissueRange& r : spec.tissues) {
+        const uint64_t draw = named_draw(tissue_column(r));
+        tissue::LabelScale scale{r.label, r.property, 1.0};
+        double value = 0.0;
+        if (r.values.set) {
+            value = in(r.values, draw);
+            scale.factor = value / r.table_value;
+        } else {
+            scale.factor = 1.0 + symmetric(r.spread, draw);
+            value = r.table_value * scale.factor;
+        }
+        d.tissue_scales.push_back(scale);
+        d.tissue_values.push_back(value);
+    }
     return d;
+}
+
+std::vector<DrawnValue> drawn_values(const Spec& spec, const FrameDraw& draw) {
+    std::vector<DrawnValue> out;
+    for (std::size_t n = 0; n < spec.transducer.size(); ++n)
+        out.push_back({transducer_column(spec.transducer[n]), draw.transducer[n]});
+    if (spec.tgc.set) {
+        out.push_back({"tgc.slope", *draw.tgc_slope});
+        for (int k = 0; k < spec.tgc.sliders; ++k)
+            out.push_back({slider_column(k), draw.tgc_sliders_db[std::size_t(k)]});
+    }
+    if (spec.noise_snr_db.set) out.push_back({"noise_snr_db", *draw.noise_snr_db});
+    for (std::size_t n = 0; n < spec.tissues.size(); ++n)
+        out.push_back({tissue_column(spec.tissues[n]), draw.tissue_values[n]});
+    return out;
+}
+
+std::string tgc_curve(const FrameDraw& draw, const probe::Transducer& t) {
+    if (!draw.tgc_slope) return "auto";
+    // Two points carry the slope alone; sliders add their offsets at evenly spaced depths.
+    const int points = std::max(2, int(draw.tgc_sliders_db.size()));
+    std::string text;
+    for (int k = 0; k < points; ++k) {
+        const double depth = t.depth_mm * k / (points - 1);
+        double gain = 2.0 * *draw.tgc_slope * t.frequency_mhz * depth / 10.0;
+        if (!draw.tgc_sliders_db.empty()) gain += draw.tgc_sliders_db[std::size_t(k)];
+        if (k) text += ',';
+        text += base::exact_number_text(depth);
+        text += ':';
+        text += base::exact_number_text(gain);
+    }
+    return text;
 }
 
 }  // namespace sonotrace::dataset

@@ -1,6 +1,6 @@
 #pragma once
 // A dataset's specification (`sonotrace dataset SPEC.json`): which scenes, probes,
-// parameter ranges, poses and outputs, how many frames, and the seed. imaging::Frame i is a pure
+// parameter ranges, poses and outputs, how many frames, and the seed. Frame i is a pure
 // function of (spec, i): its draws come from a counter-based stream keyed by (seed, i),
 // so any frame can be made again alone and the result does not depend on how the work
 // was split among threads, shards or ranks.
@@ -18,11 +18,33 @@
 //                                    series directory, raw, images)
 //   ],
 //   "probes": ["convex", "linear"],  presets drawn uniformly; default: each source's own
-//   "frequency_mhz": [3, 5],         a number, or [low, high] drawn uniformly; default
-//   "depth_mm": [60, 90],            the preset's (frequency, depth, focus) or the CLI's
-//   "focus_mm": 40,                  default (gain 36 dB, dynamic range 60 dB)
-//   "gain_db": [30, 45],
-//   "dynamic_range_db": 60,
+//   "transducer": {"frequency": [3, 5], "depth": [60, 90], "focus": 40, "f-number": [1.5, 3]},
+//                                    any numeric transducer parameter (`simulate --help`
+//                                    lists them with units): a number, or [low, high]
+//                                    drawn uniformly (whole-number parameters such as
+//                                    "elements" uniformly among the whole numbers in it);
+//                                    unset: the preset's
+//   "gain_db": [30, 45],             a number or [low, high]; default the scene's (36 dB)
+//   "dynamic_range_db": 60,          default 60 dB
+//   "tgc": {"slope": [0.3, 0.9], "sliders": 8, "slider_db": 3},
+//                                    a TGC curve drawn per frame: the attenuation it
+//                                    makes up for, 2 x slope x f x depth (dB/(cm MHz),
+//                                    0 .. 5, default 0.6: simulate's auto), plus at
+//                                    "sliders" (2 .. 32) depths evenly from the face to
+//                                    the frame's depth a slider offset drawn uniformly in
+//                                    +-slider_db (0 .. 40 dB); linear in between; default:
+//                                    simulate's auto curve
+//   "noise_snr_db": [10, 40],        receiver noise at this SNR (simulate --noise-snr:
+//                                    the frame's mean echo power over the noise's, dB,
+//                                    -40 .. 120); default none
+//   "tissues": {"brain": {"speed_of_sound": [1520, 1580], "attenuation": {"spread": 0.2}}},
+//                                    per tissue (tissue table key), per property (the
+//                                    transfer-function keys): a value or [low, high] drawn
+//                                    uniformly, or {"spread": s}, a factor drawn uniformly
+//                                    in [1 - s, 1 + s] (s 0 .. 0.95); every texel of the
+//                                    tissue is scaled by (value / table value) or the
+//                                    factor, held to the property's range. Shapes with
+//                                    explicit properties have no tissue and keep theirs
 //   "pose": {"lateral_mm": 10, "elevation_mm": 10, "rotation_deg": 15, "tilt_deg": 5},
 //                                    half-ranges about the source's start pose (uniform);
 //                                    a moved probe is laid back on the skin or cortex
@@ -36,6 +58,7 @@
 // }
 #include <algorithm>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +68,7 @@
 #include "phantoms/scene/scene.h"
 #include "probe/pose.h"
 #include "probe/transducer.h"
+#include "tissue/property_maps.h"
 
 namespace sonotrace::dataset {
 
@@ -52,6 +76,31 @@ namespace sonotrace::dataset {
 struct Range {
     bool set = false;
     double low = 0.0, high = 0.0;
+};
+
+// A numeric transducer parameter drawn per frame (probe::transducer_parameter_docs key).
+struct TransducerRange {
+    std::string key;
+    Range range;
+    bool whole = false;  // an integer parameter: drawn among the whole numbers in range
+};
+
+// A tissue property drawn per frame: an absolute value, or a factor about its own.
+struct TissueRange {
+    std::string tissue;  // tissue_table() key
+    int label = 0;       // its label (tissue::tissue_label_of)
+    tissue::Property property = tissue::Property::speed_of_sound;
+    Range values;         // set: the value drawn from it, the factor value / table_value
+    double spread = 0.0;  // otherwise: a factor drawn from [1 - spread, 1 + spread]
+    double table_value = 0.0;
+};
+
+// A TGC curve drawn per frame (the key list above).
+struct TgcRange {
+    bool set = false;
+    Range slope;  // dB/(cm MHz); unset: 0.6
+    int sliders = 0;
+    double slider_db = 0.0;
 };
 
 struct SourceSpec {
@@ -68,7 +117,11 @@ struct Spec {
     int width = 256, height = 256;
     std::vector<SourceSpec> sources;
     std::vector<std::string> probes;  // empty: each source's own
-    Range frequency_mhz, depth_mm, focus_mm, gain_db, dynamic_range_db;
+    std::vector<TransducerRange> transducer;
+    Range gain_db, dynamic_range_db;
+    TgcRange tgc;
+    Range noise_snr_db;
+    std::vector<TissueRange> tissues;
     double lateral_mm = 0.0, elevation_mm = 0.0, rotation_deg = 0.0, tilt_deg = 0.0;
     std::string disable;  // comma list
     imaging::Quality quality = imaging::Quality::standard;
@@ -101,13 +154,33 @@ Spec parse_spec(const nlohmann::json& j, const std::string& source);
 // What frame `index` is: its source, probe, parameters, pose offsets and seed.
 struct FrameDraw {
     uint64_t index = 0;
-    uint64_t seed = 0;  // of the frame's simulation (beams, tracing, speckle)
-    int source = 0;     // index into Spec::sources
-    std::string probe;  // preset; empty = the source's own
-    double frequency_mhz = 0.0, depth_mm = 0.0, focus_mm = 0.0;  // 0 = the preset's
-    double gain_db = 36.0, dynamic_range_db = 60.0;
+    uint64_t seed = 0;               // of the frame's simulation (beams, tracing, speckle)
+    int source = 0;                  // index into Spec::sources
+    std::string probe;               // preset; empty = the source's own
+    std::vector<double> transducer;  // a value per Spec::transducer
+    std::optional<double> gain_db;   // unset: the scene's
+    double dynamic_range_db = 60.0;
     double lateral_mm = 0.0, elevation_mm = 0.0, rotation_deg = 0.0, tilt_deg = 0.0;
+    std::vector<tissue::LabelScale> tissue_scales;  // a factor per Spec::tissues
+    std::vector<double> tissue_values;              // the tissue's table value x factor
+    std::optional<double> tgc_slope;                // with Spec::tgc
+    std::vector<double> tgc_sliders_db;             // a slider offset per Spec::tgc.sliders
+    std::optional<double> noise_snr_db;
 };
 FrameDraw draw_frame(const Spec& spec, uint64_t index);
+
+// The values a frame drew from the spec's transducer, tgc, noise and tissue entries,
+// named as the frame table's columns ("transducer.focus", "tgc.slope", "tgc.slider3",
+// "noise_snr_db", "tissues.brain.attenuation"), in a fixed order: the same names for
+// every frame of a spec.
+struct DrawnValue {
+    std::string name;
+    double value = 0.0;
+};
+std::vector<DrawnValue> drawn_values(const Spec& spec, const FrameDraw& draw);
+
+// The TGC curve of a frame drawn with a TgcRange, for the transducer it is made with:
+// simulate's --tgc text (DEPTH:GAIN,..., numbers to the bit); "auto" without one.
+std::string tgc_curve(const FrameDraw& draw, const probe::Transducer& t);
 
 }  // namespace sonotrace::dataset
