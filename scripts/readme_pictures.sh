@@ -41,3 +41,16 @@ with h5py.File(sys.argv[1], "r") as f:
 PY
 oiiotool "$tmp/frame0.pgm" "$tmp/frame1.pgm" "$tmp/frame2.pgm" "$tmp/frame3.pgm" \
     --mosaic:pad=4 4x1 --resample 1048x264 --ch 0,0,0 -o docs/images/dataset-frames.png
+# The randomised dataset's first eight frames (docs/guide/dataset.md): frequency, F-number,
+# TGC, receiver noise and tissue properties drawn per frame.
+"$build/sonotrace" dataset -q phantoms/datasets/randomised.json --out "$tmp/randomised"
+python3 - "$tmp/randomised/shard_00000.h5" "$tmp/random" <<'PY'
+import sys
+import h5py
+with h5py.File(sys.argv[1], "r") as f:
+    for i, grey in enumerate(f["bmode"][:8]):
+        with open(f"{sys.argv[2]}{i}.pgm", "wb") as out:
+            out.write(b"P5 %d %d 255\n" % (grey.shape[1], grey.shape[0]) + grey.tobytes())
+PY
+oiiotool "$tmp"/random[0-7].pgm --mosaic:pad=4 4x2 --resample 1044x524 --ch 0,0,0 \
+    -o docs/images/dataset-randomised.png
