@@ -15,6 +15,7 @@
 #include <optional>
 #include <unordered_map>
 
+#include "phantoms/triangle_overlap.h"
 #include "tissue/base/error.h"
 #include "tissue/base/isolated.h"
 #include "tissue/vtk_legacy.h"
@@ -453,6 +454,59 @@ MeshShape::MeshShape(TriangleMesh mesh, const std::string& source) : mesh_(std::
     for (std::size_t t = 0; t < order_.size(); ++t) order_[t] = uint32_t(t);
     nodes_.reserve(2 * triangles.size() / kLeafTriangles + 1);
     build(0, uint32_t(triangles.size()), centres);
+    require_no_crossing(source);
+}
+
+void MeshShape::require_no_crossing(const std::string& source) const {
+    const auto& v = mesh_.vertices;
+    const auto& triangles = mesh_.triangles;
+    const double touch = 1e-9 * glm::length(upper_ - lower_);
+    auto boxes_meet = [](const Node& a, const Node& b) {
+        return glm::all(glm::lessThanEqual(a.lower, b.upper)) &&
+               glm::all(glm::lessThanEqual(b.lower, a.upper));
+    };
+    auto corners = [&](uint32_t t) {
+        return Triangle{v[triangles[t][0]], v[triangles[t][1]], v[triangles[t][2]]};
+    };
+    // The hierarchy against itself: pairs of nodes whose boxes meet, the larger split
+    // first, down to pairs of leaves.
+    auto volume = [](const Node& n) {
+        const glm::dvec3 e = n.upper - n.lower;
+        return e.x * e.y * e.z;
+    };
+    std::vector<std::pair<uint32_t, uint32_t>> pairs = {{0, 0}};
+    while (!pairs.empty()) {
+        const auto [i, j] = pairs.back();
+        pairs.pop_back();
+        const Node& a = nodes_[i];
+        const Node& b = nodes_[j];
+        if (i == j && a.count == 0) {
+            pairs.insert(pairs.end(), {{a.left, a.left}, {a.right, a.right}, {a.left, a.right}});
+            continue;
+        }
+        if (i != j && !boxes_meet(a, b)) continue;
+        if (i != j && a.count == 0 && (b.count > 0 || volume(a) >= volume(b))) {
+            pairs.insert(pairs.end(), {{a.left, j}, {a.right, j}});
+            continue;
+        }
+        if (i != j && b.count == 0) {
+            pairs.insert(pairs.end(), {{i, b.left}, {i, b.right}});
+            continue;
+        }
+        for (uint32_t p = a.first; p < a.first + a.count; ++p)
+            for (uint32_t q = i == j ? p + 1 : b.first; q < b.first + b.count; ++q) {
+                const uint32_t s = order_[p], t = order_[q];
+                const auto& x = triangles[s];
+                const auto& y = triangles[t];
+                bool shared = false;
+                for (uint32_t m : x) shared = shared || m == y[0] || m == y[1] || m == y[2];
+                if (shared || !triangles_cross(corners(s), corners(t), touch)) continue;
+                throw InputError(source, "triangle " + std::to_string(std::min(s, t)),
+                                 "crosses triangle " + std::to_string(std::max(s, t)) +
+                                     ": the surface intersects itself, so some points are "
+                                     "inside it twice or inside out");
+            }
+    }
 }
 
 uint32_t MeshShape::build(uint32_t first, uint32_t count, const std::vector<glm::dvec3>& centres) {

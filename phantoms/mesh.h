@@ -7,8 +7,9 @@
 // the counts a file declares fit its size (STL, PLY, VTK); at most kMaxMeshTriangles triangles;
 // every coordinate finite; no triangle of zero area; closed and consistently oriented (every edge
 // shared by exactly two triangles that run it in opposite directions, after coincident vertices are
-// merged); a positive enclosed volume. A mesh wound inwards is turned outwards. Self-intersections
-// are not looked for.
+// merged); a positive enclosed volume; no two triangles that share no vertex cross
+// (triangle_overlap.h), which would leave points inside twice or inside out, where the
+// inside test below has no answer. A mesh wound inwards is turned outwards.
 //
 // Inside test: the sign of (p - q) . N, where q is the point of the mesh nearest to p and
 // N the angle-weighted pseudo-normal of the feature q lies on (the triangle, an edge: the
@@ -67,6 +68,8 @@ class MeshShape {
         uint32_t left = 0, right = 0;   // inner: child nodes
     };
     uint32_t build(uint32_t first, uint32_t count, const std::vector<glm::dvec3>& centres);
+    // Throws base::InputError(source, "triangle N") for the first pair that crosses.
+    void require_no_crossing(const std::string& source) const;
 
     TriangleMesh mesh_;
     std::vector<glm::dvec3> face_normal_;                 // unit, per triangle

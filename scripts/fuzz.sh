@@ -42,6 +42,7 @@ seeds() {  # the repository's own files for a target, beside tests/fuzz/seeds/<t
     dataset_spec) echo phantoms/datasets ;;
     dicom_series) echo tests/fuzz/seeds/dicom ;;
     transfer_function) echo tissue/presets ;;
+    mesh) echo phantoms/meshes ;;
   esac
 }
 mkdir -p "$dir/crashes"

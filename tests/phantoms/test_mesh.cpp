@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "phantoms/mesh.h"
+#include "phantoms/triangle_overlap.h"
 #include "phantoms/phantom.h"
 #include "tests/phantoms/meshes_for_tests.h"
 #include "tests/test_util.h"
@@ -224,6 +225,39 @@ TEST(Mesh, NestedMeshesRasteriseAsTheirSpheresExceptAtBoundaries) {
 }
 
 // Each refusal names the mesh file and says what is wrong.
+// The separating-axis test against the definition for triangles in general position: two
+// triangles meet exactly when an edge of one passes through the other (segment against
+// triangle by solving a + u (b - a) + v (c - a) = p + t (q - p), Cramer's rule). 4,000
+// random pairs in a 2 mm cube (fixed seed), about half of them crossing.
+TEST(Mesh, TrianglesCrossExactlyWhenAnEdgePiercesTheOther) {
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
+    auto random_triangle = [&] {
+        phantoms::Triangle t;
+        for (auto& p : t) p = {coordinate(rng), coordinate(rng), coordinate(rng)};
+        return t;
+    };
+    auto pierces = [](const glm::dvec3& p, const glm::dvec3& q, const phantoms::Triangle& t) {
+        const glm::dmat3 m(t[1] - t[0], t[2] - t[0], p - q);
+        const double det = glm::determinant(m);
+        if (std::abs(det) < 1e-14) return false;
+        const glm::dvec3 x = glm::inverse(m) * (p - t[0]);  // (u, v, s)
+        return x.x >= 0 && x.y >= 0 && x.x + x.y <= 1 && x.z >= 0 && x.z <= 1;
+    };
+    int crossing = 0;
+    for (int n = 0; n < 4000; ++n) {
+        const phantoms::Triangle a = random_triangle(), b = random_triangle();
+        bool expected = false;
+        for (int k = 0; k < 3; ++k)
+            expected = expected || pierces(a[std::size_t(k)], a[std::size_t((k + 1) % 3)], b) ||
+                       pierces(b[std::size_t(k)], b[std::size_t((k + 1) % 3)], a);
+        ASSERT_EQ(phantoms::triangles_cross(a, b, 0.0), expected) << n;
+        crossing += expected;
+    }
+    EXPECT_GT(crossing, 400);
+    EXPECT_LT(crossing, 3600);
+}
+
 TEST(Mesh, BadMeshesAreRefusedNamingTheFile) {
     test::ScratchDir dir;
     const TriangleMesh good = icosphere(1, 5.0);
@@ -247,6 +281,20 @@ TEST(Mesh, BadMeshesAreRefusedNamingTheFile) {
         {flat.triangles[0][0], flat.triangles[0][1], uint32_t(flat.vertices.size() - 1)});
     write_obj(flat, dir / "flat.obj");
     refused("flat.obj", "zero area");
+    // Two spheres in one file: apart (one inside the other, as a vessel in an organ) they
+    // are a sound surface; overlapping, the surface crosses itself.
+    auto two_spheres = [&](const glm::dvec3& offset, const std::string& name) {
+        TriangleMesh both = good;
+        const TriangleMesh other = icosphere(1, 3.0, offset);
+        const auto base = uint32_t(both.vertices.size());
+        both.vertices.insert(both.vertices.end(), other.vertices.begin(), other.vertices.end());
+        for (auto t : other.triangles) both.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
+        write_obj(both, dir / name);
+    };
+    two_spheres(glm::dvec3(6.0, 0.0, 0.0), "crossing.obj");
+    refused("crossing.obj", "the surface intersects itself");
+    two_spheres(glm::dvec3(9.0, 0.0, 0.0), "apart.obj");
+    EXPECT_NO_THROW(phantoms::MeshShape(phantoms::read_mesh_file(dir / "apart.obj"), "apart.obj"));
     refused("missing.stl", "does not exist");
     std::ofstream(dir / "mesh.off") << "OFF\n";
     refused("mesh.off", "STL, OBJ, PLY or VTK polydata");
