@@ -1,10 +1,12 @@
-// The ground truth in a frame's pixels: tissue labels where they lie and where the echoes
-// show them, and their colour pictures (declared in imaging/simulation.h).
+// The ground truth in a frame's pixels: tissue labels and shape instances where they lie,
+// labels, true depth and echogenicity where the echoes show them, and the labels' colour
+// pictures (declared in imaging/simulation.h).
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <limits>
 #include <vector>
 
 #include "imaging/simulation.h"
@@ -26,24 +28,39 @@ bool texel_under(const glm::dvec2& plane, const PlaneGrid& grid, int& i, int& j)
 }
 }  // namespace
 
-cv::Mat scan_convert_labels(const tissue::Volume& labels, const PlaneGrid& grid,
-                            const ScanConverted& frame) {
-    cv::Mat out(frame.image.rows, frame.image.cols, CV_8U, cv::Scalar(0));
+namespace {
+// The texel under each pixel centre, nearest, as `type` (CV_8U or CV_16U), 0 outside.
+template <typename T>
+cv::Mat nearest_texels(const tissue::Volume& values, const PlaneGrid& grid,
+                       const ScanConverted& frame, int type) {
+    cv::Mat out(frame.image.rows, frame.image.cols, type, cv::Scalar(0));
+    const float top = float(std::numeric_limits<T>::max());
     for (int r = 0; r < out.rows; ++r) {
         for (int c = 0; c < out.cols; ++c) {
             if (!frame.inside.at<uint8_t>(r, c)) continue;
             int i = 0, j = 0;
             if (!texel_under(frame.origin + glm::dvec2(c, r) * frame.pixel_mm, grid, i, j))
                 continue;
-            out.at<uint8_t>(r, c) = uint8_t(std::clamp(labels.at(i, j, 0), 0.0f, 255.0f));
+            out.at<T>(r, c) = T(std::clamp(values.at(i, j, 0), 0.0f, top));
         }
     }
     return out;
 }
+}  // namespace
 
-cv::Mat scan_convert_labels_at_echo(const tissue::Volume& labels, const tissue::PropertyMaps& maps,
-                                    const PlaneGrid& grid, const probe::Transducer& t,
-                                    const ScanConverted& frame) {
+cv::Mat scan_convert_labels(const tissue::Volume& labels, const PlaneGrid& grid,
+                            const ScanConverted& frame) {
+    return nearest_texels<uint8_t>(labels, grid, frame, CV_8U);
+}
+
+cv::Mat scan_convert_instances(const tissue::Volume& instances, const PlaneGrid& grid,
+                               const ScanConverted& frame) {
+    return nearest_texels<uint16_t>(instances, grid, frame, CV_16U);
+}
+
+TruthAtEcho truth_at_echo(const tissue::Volume& labels, const tissue::PropertyMaps& maps,
+                          const PlaneGrid& grid, const probe::Transducer& t,
+                          const ScanConverted& frame) {
     const probe::ScanGeometry geometry(t);
     const glm::dvec3 spacing = grid.geometry.spacing;
     const tissue::Volume& speed = maps[tissue::Property::speed_of_sound];
@@ -86,9 +103,13 @@ cv::Mat scan_convert_labels_at_echo(const tissue::Volume& labels, const tissue::
         return double(d[std::size_t(n)]) +
                (x - n) * double(d[std::size_t(n) + 1] - d[std::size_t(n)]);
     };
-    cv::Mat out(frame.image.rows, frame.image.cols, CV_8U, cv::Scalar(0));
-    for (int r = 0; r < out.rows; ++r) {
-        for (int c = 0; c < out.cols; ++c) {
+    const int rows = frame.image.rows, cols = frame.image.cols;
+    TruthAtEcho out{cv::Mat(rows, cols, CV_8U, cv::Scalar(0)),
+                    cv::Mat(rows, cols, CV_32F, cv::Scalar(0)),
+                    cv::Mat(rows, cols, CV_32F, cv::Scalar(0))};
+    const tissue::Volume& backscatter = maps[tissue::Property::backscatter];
+    for (int r = 0; r < rows; ++r) {
+        for (int c = 0; c < cols; ++c) {
             if (!frame.inside.at<uint8_t>(r, c)) continue;
             const glm::dvec2 plane = frame.origin + glm::dvec2(c, r) * frame.pixel_mm;
             const glm::dvec2 ld = geometry.line_and_depth(plane);
@@ -96,12 +117,20 @@ cv::Mat scan_convert_labels_at_echo(const tissue::Volume& labels, const tissue::
             const double f = ld.x - l0;
             const double depth =
                 (1.0 - f) * true_depth_at(l0, ld.y) + f * true_depth_at(l0 + 1, ld.y);
+            out.depth_mm.at<float>(r, c) = float(depth);
             int i = 0, j = 0;
             if (!texel(geometry.point(ld.x, depth), i, j)) continue;
-            out.at<uint8_t>(r, c) = uint8_t(std::clamp(labels.at(i, j, 0), 0.0f, 255.0f));
+            out.labels.at<uint8_t>(r, c) = uint8_t(std::clamp(labels.at(i, j, 0), 0.0f, 255.0f));
+            out.echogenicity.at<float>(r, c) = backscatter.at(i, j, 0);
         }
     }
     return out;
+}
+
+cv::Mat scan_convert_labels_at_echo(const tissue::Volume& labels, const tissue::PropertyMaps& maps,
+                                    const PlaneGrid& grid, const probe::Transducer& t,
+                                    const ScanConverted& frame) {
+    return truth_at_echo(labels, maps, grid, t, frame).labels;
 }
 
 cv::Vec3b label_colour(int label) {

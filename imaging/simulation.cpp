@@ -585,10 +585,14 @@ SimulatedFrame simulate_plane(const PlaneMapper& mapper, const ScenePlacement& s
     PlaneScan scan = scan_plane(mapper, scene, settings, with_labels, progress);
     SimulatedFrame out;
     out.frame = std::move(scan.frame);
+    out.grid = scan.grid;
     if (scan.labels) {
         out.labels = scan_convert_labels(*scan.labels, scan.grid, out.frame.image);
-        out.echo_labels = scan_convert_labels_at_echo(*scan.labels, scan.maps, scan.grid,
-                                                      settings.transducer, out.frame.image);
+        TruthAtEcho truth =
+            truth_at_echo(*scan.labels, scan.maps, scan.grid, settings.transducer, out.frame.image);
+        out.echo_labels = std::move(truth.labels);
+        out.true_depth = std::move(truth.depth_mm);
+        out.echogenicity = std::move(truth.echogenicity);
     }
     return out;
 }

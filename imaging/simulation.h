@@ -228,8 +228,12 @@ using PlaneMapper =
 struct ScenePlacement;
 struct SimulatedFrame {
     Frame frame;
-    std::optional<cv::Mat> labels;       // scan-converted ground truth, on request
-    std::optional<cv::Mat> echo_labels;  // the same where the echoes show it
+    PlaneGrid grid;  // the plane's (scan_plane): what a caller's own truth maps sample
+    // The ground truth on request (truth_at_echo, scan_convert_labels).
+    std::optional<cv::Mat> labels;        // tissue labels where they lie
+    std::optional<cv::Mat> echo_labels;   // the same where the echoes show them
+    std::optional<cv::Mat> true_depth;    // the true depth of what each pixel shows
+    std::optional<cv::Mat> echogenicity;  // and its backscatter
 };
 
 // A frame with what lies in its plane: the plane's grid, property maps (their backscatter
@@ -290,6 +294,27 @@ cv::Mat scan_convert_labels(const tissue::Volume& labels, const PlaneGrid& grid,
 cv::Mat scan_convert_labels_at_echo(const tissue::Volume& labels, const tissue::PropertyMaps& maps,
                                     const PlaneGrid& grid, const probe::Transducer& t,
                                     const ScanConverted& frame);
+
+// Shape instances (a phantom's shape index, 1-based) under each pixel centre, as
+// scan_convert_labels, in 16 bits (CV_16U).
+cv::Mat scan_convert_instances(const tissue::Volume& instances, const PlaneGrid& grid,
+                               const ScanConverted& frame);
+
+// The ground truth of what each pixel shows, found as scan_convert_labels_at_echo finds
+// it (display depth taken back along the line through the speed of sound; no refraction):
+struct TruthAtEcho {
+    cv::Mat labels;  // CV_8U: the tissue label there
+    // CV_32F, mm: its true depth, along the pixel's line from the face (the depth the
+    // display would show it at in a medium of c0 everywhere); 0 outside the scan.
+    cv::Mat depth_mm;
+    // CV_32F: its echogenicity with nothing in the way, the map's backscatter (0..1, the
+    // speckle's mean power goes as its square) with no attenuation, shadowing or TGC;
+    // 0 outside the scan or past the grid.
+    cv::Mat echogenicity;
+};
+TruthAtEcho truth_at_echo(const tissue::Volume& labels, const tissue::PropertyMaps& maps,
+                          const PlaneGrid& grid, const probe::Transducer& t,
+                          const ScanConverted& frame);
 
 // Colour picture of a label image (one fixed colour per tissue of tissue_table()).
 cv::Mat label_picture(const cv::Mat& labels);

@@ -369,18 +369,20 @@ double Phantom::paper_density_at(const glm::dvec3& p) const {
     return d;
 }
 
-tissue::AcousticProperties Phantom::at(const glm::dvec3& p, int* label) const {
+tissue::AcousticProperties Phantom::at(const glm::dvec3& p, int* label, int* instance) const {
     tissue::AcousticProperties value = background;
-    int l = background_label;
-    for (const Shape& s : shapes) {
+    int l = background_label, which = 0;
+    for (std::size_t k = 0; k < shapes.size(); ++k) {
+        const Shape& s = shapes[k];
         const double inside = s.weight(p, smoothing_mm);
         if (inside <= 0.0) continue;
         for (std::size_t n = 0; n < tissue::kPropertyCount; ++n)
             value.values[n] =
                 float(value.values[n] + inside * (s.properties.values[n] - value.values[n]));
-        if (inside >= 0.5) l = s.label;
+        if (inside >= 0.5) l = s.label, which = int(k) + 1;
     }
     if (label) *label = l;
+    if (instance) *instance = which;
     return value;
 }
 
@@ -534,20 +536,22 @@ tissue::VolumeGeometry plane_grid_2d(const Phantom& phantom) {
 }
 
 tissue::PropertyMaps rasterise(const Phantom& phantom, const tissue::VolumeGeometry& grid,
-                               tissue::Volume* labels) {
+                               tissue::Volume* labels, tissue::Volume* instances) {
     tissue::PropertyMaps maps;
     for (auto& f : maps.fields) f = tissue::Volume(grid);
     if (labels) *labels = tissue::Volume(grid);
+    if (instances) *instances = tissue::Volume(grid);
     const glm::ivec3 n = grid.dims;
     tbb::parallel_for(0, n.y * n.z, [&](int row) {
         const int j = row % n.y, k = row / n.y;
         for (int i = 0; i < n.x; ++i) {
-            int label = 0;
-            const tissue::AcousticProperties p =
-                phantom.at(grid.index_to_world({double(i), double(j), double(k)}), &label);
+            int label = 0, instance = 0;
+            const tissue::AcousticProperties p = phantom.at(
+                grid.index_to_world({double(i), double(j), double(k)}), &label, &instance);
             for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
                 maps.fields[f].at(i, j, k) = p.values[f];
             if (labels) labels->at(i, j, k) = float(label);
+            if (instances) instances->at(i, j, k) = float(instance);
         }
     });
     return maps;

@@ -112,9 +112,11 @@ struct Phantom {
     std::optional<ParticleSource> injection;          // "source" entry
     nlohmann::json trace = nlohmann::json::object();  // tracer settings ("trace" entry)
 
-    // Properties (blended linearly across each shape's boundary over smoothing_mm) and
-    // the label (the shape covering the point by half or more) at a point.
-    tissue::AcousticProperties at(const glm::dvec3& p, int* label = nullptr) const;
+    // Properties (blended linearly across each shape's boundary over smoothing_mm), the
+    // label and the instance (the last shape covering the point by half or more: its
+    // tissue label, and its place in `shapes` from 1; 0 for the background) at a point.
+    tissue::AcousticProperties at(const glm::dvec3& p, int* label = nullptr,
+                                  int* instance = nullptr) const;
     // Paper mode: the density d at a point (blended like the properties, plus textures).
     double paper_density_at(const glm::dvec3& p) const;
 };
@@ -123,9 +125,11 @@ struct Phantom {
 Phantom parse_phantom(const nlohmann::json& j, const std::string& source);
 Phantom load_phantom(const std::string& path);
 
-// The phantom on a grid: property maps and, on request, tissue labels (nearest).
+// The phantom on a grid: property maps and, on request, tissue labels and shape
+// instances (nearest).
 tissue::PropertyMaps rasterise(const Phantom& phantom, const tissue::VolumeGeometry& grid,
-                               tissue::Volume* labels = nullptr);
+                               tissue::Volume* labels = nullptr,
+                               tissue::Volume* instances = nullptr);
 // Paper mode: the density d on a grid.
 tissue::Volume rasterise_paper_density(const Phantom& phantom, const tissue::VolumeGeometry& grid);
 // The phantom's 2D grid for tracing: the z = size/2 plane at its resolution.

@@ -84,7 +84,8 @@ std::vector<double> aperture_weights(const LineArray& array, double width_mm, Ap
 std::pair<int, int> aperture_span(const LineArray& array, double width_mm, Apodization a) {
     const int n = int(array.along.size());
     if (n == 0) return {0, 0};
-    const auto [lo, hi] = aperture_window(array, width_mm);
+    const auto window = aperture_window(array, width_mm);
+    const double lo = window.first, hi = window.second;  // not a binding: lambdas take these
     auto weighted = [&](int e) {
         const double s = array.along[std::size_t(e)];
         return s >= lo && s <= hi &&

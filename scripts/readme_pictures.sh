@@ -54,3 +54,12 @@ with h5py.File(sys.argv[1], "r") as f:
 PY
 oiiotool "$tmp"/random[0-7].pgm --mosaic:pad=4 4x2 --resample 1044x524 --ch 0,0,0 \
     -o docs/images/dataset-randomised.png
+# The ground truth --labels writes beside a frame of the mesh abdomen: the frame, the true
+# depth of what each pixel shows (0-200 mm as black to white), its echogenicity (0-1) and
+# the shape instances (each index a grey step).
+"$build/sonotrace" simulate -q --phantom phantoms/abdomen_meshes.json --labels --out "$tmp/truth"
+oiiotool "$tmp/truth/bmode_depth.exr" --mulc 0.005 --ch 0,0,0 -d uint8 -o "$tmp/depth.png"
+oiiotool "$tmp/truth/bmode_echogenicity.exr" --ch 0,0,0 -d uint8 -o "$tmp/echo.png"
+oiiotool "$tmp/truth/bmode_instances.png" --mulc 6000 --ch 0,0,0 -d uint8 -o "$tmp/instances.png"
+oiiotool "$tmp/truth/bmode.png" --ch 0,0,0 "$tmp/depth.png" "$tmp/echo.png" "$tmp/instances.png" \
+    --mosaic:pad=8 4x1 --resize 1200x0 -o docs/images/truth-maps.png

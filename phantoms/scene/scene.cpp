@@ -323,8 +323,19 @@ std::shared_ptr<const Scene> phantom_scene(phantoms::Phantom phantom,
     scene->mapper = [ph](const tissue::VolumeGeometry& grid, tissue::Volume* labels) {
         return phantoms::rasterise(*ph, grid, labels);
     };
+    scene->instances = [ph](const tissue::VolumeGeometry& grid) {
+        tissue::Volume instances;
+        phantoms::rasterise(*ph, grid, nullptr, &instances);
+        return instances;
+    };
     scene->phantom = std::move(ph);
     return scene;
+}
+
+cv::Mat instance_map(const Scene& scene, const imaging::SimulatedFrame& frame) {
+    const imaging::ScanConverted& image = frame.frame.image;
+    if (!scene.instances) return cv::Mat(image.image.rows, image.image.cols, CV_16U, cv::Scalar(0));
+    return imaging::scan_convert_instances(scene.instances(frame.grid.geometry), frame.grid, image);
 }
 
 void SceneOptions::validate() const {

@@ -85,6 +85,10 @@ struct Scene {
     // is near black). `simulate --gain` and the GUI's slider start here.
     double gain_db = kDefaultGainDb;
     PlaneMapper mapper;  // properties and labels on a plane grid
+    // A phantom's shape instances on a grid (Phantom::at: its place in the phantom's
+    // shapes from 1, the targets' painted cores after the JSON's shapes; 0 background);
+    // empty for a volume, which has none.
+    std::function<tissue::Volume(const tissue::VolumeGeometry&)> instances;
     // Reach of the tracer's interface search: beyond it the medium is a plateau.
     double interface_reach_mm = 1.0;
     // Sub-resolution targets (a phantom's points and wires) and the blur of their painted
@@ -120,6 +124,10 @@ struct Scene {
     glm::dvec3 box_low() const;
     glm::dvec3 box_high() const;
 };
+
+// The instance map of a simulated frame (scan_convert_instances on its plane grid): CV_16U,
+// all 0 for a scene without instances.
+cv::Mat instance_map(const Scene& scene, const imaging::SimulatedFrame& frame);
 
 // What to scan: the volume options, or a phantom file instead; the view of the embedded
 // head; a pose instead of the scene's own.

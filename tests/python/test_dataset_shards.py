@@ -113,6 +113,22 @@ def test_the_frame_table_has_a_column_for_every_drawn_value(tmp_path):
     assert len(set(rows["noise_snr_db"])) == len(rows)  # drawn per frame
 
 
+def test_truth_maps_in_shards(tmp_path):
+    run, out = make(tmp_path, spec(write=["bmode", "labels", "depth", "echogenicity",
+                                          "instances"]))
+    assert run.returncode == 0, run.stderr
+    with h5py.File(out / "shard_00000.h5", "r") as f:
+        assert f["depth"].dtype == np.float32 and f["depth"].shape == (2, 32, 40)
+        assert f["echogenicity"].dtype == np.float32
+        assert f["instances"].dtype == np.uint16
+        labels, instances = f["labels"][:], f["instances"][:]
+        assert set(np.unique(instances)) <= {0, 1, 2}
+        assert np.all(labels[instances == 1] == 1)  # the cyst: water
+        # Where the liver shows (label 5), its backscatter: the table's 0.5.
+        echo = f["echogenicity"][:]
+        assert np.median(echo[labels == 5]) == pytest.approx(0.5, abs=0.01)
+
+
 @pytest.mark.parametrize("change,field", [
     ({"frames": 0}, "frames"),
     ({"write": ["bmode", "video"]}, "write[1]"),

@@ -81,6 +81,19 @@ def test_a_frame_is_the_clis_frame_byte_for_byte(tmp_path):
     lines, samples = cli["rf"]["lines"], cli["rf"]["samples"]
     assert frame.envelope.shape == (lines, samples) and frame.envelope.dtype == np.float32
     assert frame.rf.shape == (lines, samples)
+    # The other truth maps, on the frame's pixels: the cyst (shape 1, water: label 1) and
+    # the plaque (shape 2, explicit properties: label 0) in cyst_and_stone.
+    for name, dtype in (("true_depth", np.float32), ("echogenicity", np.float32),
+                        ("instances", np.uint16)):
+        array = getattr(frame, name)
+        assert array.dtype == dtype and array.shape == frame.bmode.shape, name
+    assert set(np.unique(frame.instances)) == {0, 1, 2}
+    assert np.all(frame.labels[frame.instances == 1] == 1)
+    assert np.all(frame.labels[frame.instances == 2] == 0)
+    assert 0 <= frame.echogenicity.min() and frame.echogenicity.max() <= 1
+    middle = frame.true_depth[:, frame.true_depth.shape[1] // 2]
+    assert np.all(np.diff(middle[middle > 0]) > 0)  # deeper down the column
+    assert sonotrace.simulate(**FAST).instances is None
 
 
 def test_errors_are_input_errors_with_the_clis_messages():

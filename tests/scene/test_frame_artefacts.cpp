@@ -341,7 +341,10 @@ TEST(FrameArtefacts, HomogeneousSpeckleShowsNoStripesAtDatasetSizes) {
 // display depth, so a label boundary at a true depth of 30 mm shows at 10 + 5 + 10 = 25
 // mm on every line, and the true-position map keeps it at 30 mm. Tolerance: a texel (0.1
 // mm) of the map, a pixel (0.2 mm) of the frame and the walk's half texel, 0.5 mm in all. Where the
-// anatomy shown lies past the map the label is 0 (unknown).
+// anatomy shown lies past the map the label is 0 (unknown). The true depth of what a pixel
+// at display depth D shows is, by the same hand: D above the layer, 10 + 2 (D - 10) in it
+// (D up to 15 mm), D + 5 below it (within 0.3 mm); its echogenicity is the backscatter
+// there (0.2 above the boundary, 0.6 below, exactly away from it).
 TEST(EchoLabels, ShowABoundaryBehindAFastLayerWhereItsEchoArrives) {
     probe::Transducer t = probe::find_transducer("linear", "test");
     t.depth_mm = 40.0;
@@ -357,6 +360,7 @@ TEST(EchoLabels, ShowABoundaryBehindAFastLayerWhereItsEchoArrives) {
                 depth >= 10.0 && depth < 20.0 ? float(2.0 * tissue::kReferenceSpeed)
                                               : float(tissue::kReferenceSpeed);
             labels.at(i, j, 0) = depth < 30.0 ? 1.0f : 2.0f;
+            maps[tissue::Property::backscatter].at(i, j, 0) = depth < 30.0 ? 0.2f : 0.6f;
         }
     }
     imaging::LineData lines;
@@ -365,7 +369,10 @@ TEST(EchoLabels, ShowABoundaryBehindAFastLayerWhereItsEchoArrives) {
     lines.fs_hz = tissue::kReferenceSpeed * 1e3 / (2.0 * 0.1);  // 0.1 mm of depth a sample
     lines.values.assign(std::size_t(lines.lines) * std::size_t(lines.samples), 0.0f);
     const imaging::ScanConverted frame = imaging::scan_convert(lines, t, 0.2);
-    const cv::Mat at_echo = imaging::scan_convert_labels_at_echo(labels, maps, grid, t, frame);
+    const imaging::TruthAtEcho truth = imaging::truth_at_echo(labels, maps, grid, t, frame);
+    const cv::Mat& at_echo = truth.labels;
+    EXPECT_TRUE(cv::countNonZero(at_echo != imaging::scan_convert_labels_at_echo(labels, maps, grid,
+                                                                                 t, frame)) == 0);
     const cv::Mat at_truth = imaging::scan_convert_labels(labels, grid, frame);
     int checked = 0;
     for (int r = 0; r < frame.image.rows; ++r) {
@@ -376,7 +383,12 @@ TEST(EchoLabels, ShowABoundaryBehindAFastLayerWhereItsEchoArrives) {
             // margin): unknown, 0.
             if (std::abs(depth - 25.0) > 0.5 && depth < 36.5) {
                 ASSERT_EQ(at_echo.at<uint8_t>(r, c), depth < 25.0 ? 1 : 2) << depth;
+                ASSERT_EQ(truth.echogenicity.at<float>(r, c), depth < 25.0 ? 0.2f : 0.6f);
             }
+            const double expected = depth < 10.0   ? depth
+                                    : depth < 15.0 ? 10.0 + 2.0 * (depth - 10.0)
+                                                   : depth + 5.0;
+            ASSERT_NEAR(truth.depth_mm.at<float>(r, c), expected, 0.3) << depth;
             if (depth > 37.5) {
                 ASSERT_EQ(at_echo.at<uint8_t>(r, c), 0) << depth;
             }

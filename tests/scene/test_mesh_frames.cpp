@@ -3,6 +3,7 @@
 // radius and tissue, the same frames otherwise. Levels measured on the envelope.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -101,6 +102,58 @@ TEST(MeshFrames, AnIcosphereImagesAsItsAnalyticSphere) {
     EXPECT_NEAR(mean(contrast[1]), mean(contrast[0]), 4.0 * error);
     // And the ball shows: backscatter 0.25 is -6 dB of the liver's.
     EXPECT_NEAR(mean(contrast[0]), -6.0, 1.5);
+}
+
+// Instances: a sphere mesh (shape 1) holding a smaller sphere (shape 2), an analytic box
+// (shape 3) beside them. Each pixel's instance is the innermost shape whose surface holds
+// its centre: worked out here from the geometry (the probe plane is z = 5, the probe's
+// centre at x = 20 on top, depth along y), exact away from the surfaces (0.5 mm: the
+// interactive quality's map texel, which the nearest texel may miss by half its diagonal).
+TEST(MeshFrames, InstancesNameTheShapeEachPixelLiesIn) {
+    test::ScratchDir dir;
+    const glm::dvec3 c(16.0, 18.0, 5.0);
+    test::write_obj(test::icosphere(4, 7.0, c), dir / "outer.obj");
+    test::write_obj(test::icosphere(3, 3.0, c), dir / "inner.obj");
+    const nlohmann::json j = {
+        {"name", "nested"},
+        {"size", {40, 40, 10}},
+        {"background", {{"tissue", "liver"}}},
+        {"shapes",
+         {{{"type", "mesh"}, {"file", "outer.obj"}, {"tissue", "kidney"}},
+          {{"type", "mesh"}, {"file", "inner.obj"}, {"tissue", "blood"}},
+          {{"type", "box"}, {"min", {28, 10, 0}}, {"max", {34, 16, 10}}, {"tissue", "fat"}}}},
+        {"probe", {{"preset", "linear"}}}};
+    const auto scene = scene::phantom_scene(phantoms::parse_phantom(j, dir / "nested.json"));
+    imaging::SimulationSettings settings;
+    settings.transducer = probe::find_transducer("linear", "test");
+    settings.quality = imaging::Quality::interactive;
+    scene->apply_to(settings);
+    const imaging::SimulatedFrame frame =
+        imaging::simulate_plane(scene->mapper, scene->start, settings, true);
+    const cv::Mat instances = scene::instance_map(*scene, frame);
+    ASSERT_EQ(instances.type(), CV_16U);
+    const imaging::ScanConverted& image = frame.frame.image;
+    int counted[4] = {};
+    for (int r = 0; r < instances.rows; ++r)
+        for (int col = 0; col < instances.cols; ++col) {
+            if (!image.inside.at<uint8_t>(r, col)) continue;
+            // The pixel in the phantom's frame: lateral about x = 20, depth along y.
+            const glm::dvec2 p = image.origin + glm::dvec2(col, r) * image.pixel_mm;
+            const glm::dvec3 at(20.0 + p.x, p.y, 5.0);
+            const double to_centre = glm::length(at - c);
+            const bool in_box = at.x > 28 && at.x < 34 && at.y > 10 && at.y < 16;
+            const double margin =
+                std::min({std::abs(to_centre - 7.0), std::abs(to_centre - 3.0),
+                          in_box || (at.x > 27.5 && at.x < 34.5 && at.y > 9.5 && at.y < 16.5)
+                              ? std::min({std::abs(at.x - 28), std::abs(at.x - 34),
+                                          std::abs(at.y - 10), std::abs(at.y - 16)})
+                              : 1.0});
+            if (margin < 0.5 || at.y < 0.5) continue;
+            const int expected = to_centre < 3.0 ? 2 : to_centre < 7.0 ? 1 : in_box ? 3 : 0;
+            ASSERT_EQ(instances.at<uint16_t>(r, col), expected) << at.x << " " << at.y;
+            ++counted[expected];
+        }
+    for (int k = 0; k < 4; ++k) EXPECT_GT(counted[k], 50) << k;
 }
 
 }  // namespace

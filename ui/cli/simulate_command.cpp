@@ -61,7 +61,10 @@ constexpr ParameterDoc kSceneDoc = {
 // The files a request's parameter makes the command write (the table says what they hold).
 const std::map<std::string, std::string> kFilesWritten = {
     {"labels",
-     "Written as NAME_labels.png and NAME_labels_echo.png, with a colour preview of each"},
+     "Written as NAME_labels.png and NAME_labels_echo.png, with a colour preview of each; "
+     "with them NAME_depth.exr (the true depth in mm of what each pixel shows), "
+     "NAME_echogenicity.exr (its backscatter, 0..1, with no attenuation or shadowing on the "
+     "way) and NAME_instances.png (16 bits: a phantom's shape index from 1, 0 background)"},
     {"energy", "Written as NAME_energy.png"},
     {"sweep", "Written as NAME_0000.png, ... and a video"},
 };
@@ -165,6 +168,25 @@ constexpr LabelOutput kLabelOutputs[] = {
     {"_labels_echo", "echo_position", &imaging::SimulatedFrame::echo_labels,
      "same pixels as the frame; the anatomy where its echoes show it (display depth c0 t / 2 "
      "at 1540 m/s taken back along each line through the speed of sound; no refraction)"},
+};
+
+// The other truth maps --labels writes, in the frame's pixels.
+struct TruthOutput {
+    const char* suffix;  // NAME<suffix>
+    const char* record;  // its entry in the sidecar's "labels"
+    int bits;            // 32: float EXR; 16: PNG
+    const char* geometry;
+};
+constexpr TruthOutput kTruthOutputs[] = {
+    {"_depth.exr", "true_depth_mm", 32,
+     "float mm: the true depth, along each pixel's line from the face, of what the pixel shows "
+     "(as echo_position finds it); 0 outside the scan"},
+    {"_echogenicity.exr", "echogenicity", 32,
+     "float 0..1: the backscatter of what each pixel shows (as echo_position finds it), with "
+     "no attenuation, shadowing or TGC; the speckle's mean power goes as its square"},
+    {"_instances.png", "instances", 16,
+     "16-bit: the phantom shape each pixel centre lies in (its place in the phantom's shapes "
+     "from 1; 0 the background, and everywhere for a volume), where it lies"},
 };
 
 // Values of a --scene file become the results of the options not given on the command
@@ -313,6 +335,8 @@ int run_simulate_command(const SimulateOptions& o) {
                 frame_paths.push_back((out / (stem + l.suffix + ".png")).string());
                 frame_paths.push_back((out / (stem + l.suffix + "_preview.png")).string());
             }
+            for (const TruthOutput& t : kTruthOutputs)
+                frame_paths.push_back((out / (stem + t.suffix)).string());
         }
         if (o.request.energy) frame_paths.push_back((out / (stem + "_energy.png")).string());
         if (o.resume && f + 1 < placements.size() &&
@@ -375,6 +399,21 @@ int run_simulate_command(const SimulateOptions& o) {
                     {"files",
                      (out / (o.name + (sweeping ? "_NNNN" : "") + l.suffix + ".png")).string()},
                     {"geometry", l.geometry}};
+            }
+            const cv::Mat truth[] = {*simulated.true_depth, *simulated.echogenicity,
+                                     scene::instance_map(*scene, simulated)};
+            for (std::size_t k = 0; k < std::size(kTruthOutputs); ++k) {
+                const TruthOutput& t = kTruthOutputs[k];
+                cv::Mat values;
+                truth[k].convertTo(values, CV_32F);
+                const std::string path = (out / (stem + t.suffix)).string();
+                tissue::write_gray_image(
+                    frame_files.stage(path), values.cols, values.rows,
+                    std::vector<float>(values.begin<float>(), values.end<float>()), t.bits);
+                written.push_back(path);
+                label_record[t.record] = {
+                    {"files", (out / (o.name + (sweeping ? "_NNNN" : "") + t.suffix)).string()},
+                    {"geometry", t.geometry}};
             }
         }
         if (o.request.energy) {

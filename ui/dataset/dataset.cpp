@@ -52,7 +52,8 @@ nlohmann::json manifest(const Spec& spec, const std::string& dir) {
             {"labels", tissue::label_legend()},
             {"layout",
              "each shard: bmode and labels (and labels_echo on request: where the echoes show the "
-             "anatomy) uint8 [n, height, width]; frames: a table of n rows "
+             "anatomy) uint8 [n, height, width]; on request depth (mm) and echogenicity "
+             "float32 and instances uint16 [n, height, width]; frames: a table of n rows "
              "(index, seed, source = index into sources, probe, frequency_mhz, depth_mm, "
              "focus_mm, gain_db, dynamic_range_db, position, lateral, axial, elevation in "
              "world mm, pixel_mm, origin_mm = probe-plane position of pixel (0, 0) as "
@@ -120,10 +121,12 @@ std::string write_manifest(const Spec& spec, const std::string& dir) {
 }
 
 void check_shard_fits_memory(const Spec& spec) {
-    // A shard's frames are held until it is written, then its image beside them: at least
-    // bmode and labels (one byte a pixel each) twice over, before any optional output.
-    const double bytes = (spec.write_echo_labels ? 6.0 : 4.0) * double(spec.frames_per_shard) *
-                         spec.width * spec.height;
+    // A shard's frames are held until it is written, then its image beside them: the
+    // per-pixel maps (bmode, labels and echo labels one byte each, depth and echogenicity
+    // four, instances two) twice over, before the optional per-frame arrays.
+    const double per_pixel =
+        3.0 + 4.0 * (spec.write_depth + spec.write_echogenicity) + 2.0 * spec.write_instances;
+    const double bytes = 2.0 * per_pixel * double(spec.frames_per_shard) * spec.width * spec.height;
     base::check_allocation(bytes, spec.path, "frames_per_shard");
 }
 

@@ -89,7 +89,9 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     request.seed = d.seed;
     request.disable = spec_.disable;
     request.energy = spec_.write_energy;
-    request.labels = spec_.write_labels || spec_.write_echo_labels;
+    const bool truth = spec_.write_labels || spec_.write_echo_labels || spec_.write_depth ||
+                       spec_.write_echogenicity;
+    request.labels = truth;
     request.gain_db = d.gain_db;
     request.dynamic_range_db = d.dynamic_range_db;
     request.tgc = tgc_curve(d, t);
@@ -113,8 +115,7 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
             tissue::scale_by_label(maps, l, d.tissue_scales);
             return maps;
         };
-    imaging::SimulatedFrame simulated = imaging::simulate_plane(
-        mapper, placement, s, spec_.write_labels || spec_.write_echo_labels);
+    imaging::SimulatedFrame simulated = imaging::simulate_plane(mapper, placement, s, truth);
     imaging::Frame& frame = simulated.frame;
     // -- onto the W x H grid
     const imaging::ScanConverted& image = frame.image;
@@ -127,8 +128,16 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
     imaging::grey_levels(image.image)(valid).copyTo(out.bmode(valid));
     out.labels = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
     if (simulated.labels) (*simulated.labels)(valid).copyTo(out.labels(valid));
-    out.echo_labels = cv::Mat(spec_.height, spec_.width, CV_8U, cv::Scalar(0));
-    if (simulated.echo_labels) (*simulated.echo_labels)(valid).copyTo(out.echo_labels(valid));
+    auto on_the_grid = [&](const std::optional<cv::Mat>& map, int type) {
+        cv::Mat grid(spec_.height, spec_.width, type, cv::Scalar(0));
+        if (map) (*map)(valid).copyTo(grid(valid));
+        return grid;
+    };
+    out.echo_labels = on_the_grid(simulated.echo_labels, CV_8U);
+    if (spec_.write_depth) out.true_depth = on_the_grid(simulated.true_depth, CV_32F);
+    if (spec_.write_echogenicity) out.echogenicity = on_the_grid(simulated.echogenicity, CV_32F);
+    if (spec_.write_instances)
+        out.instances = on_the_grid(scene::instance_map(scene, simulated), CV_16U);
     out.envelope = std::move(frame.envelope);
     out.rf = std::move(frame.rf);
     out.energy = std::move(frame.absorbed);

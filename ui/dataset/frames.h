@@ -23,7 +23,10 @@ struct DatasetFrame {
     int valid_width = 0, valid_height = 0;
     cv::Mat bmode;        // CV_8U, H x W (display grey levels, as simulate's png8)
     cv::Mat labels;       // CV_8U, H x W: tissue index (1-based, the tissue table), 0 outside
-    cv::Mat echo_labels;  // the same where the echoes show them (scan_convert_labels_at_echo)
+    cv::Mat echo_labels;  // the same where the echoes show them (imaging::truth_at_echo)
+    // Written on request only (empty otherwise):
+    cv::Mat true_depth, echogenicity;  // CV_32F, H x W: of what each pixel shows (the same)
+    cv::Mat instances;                 // CV_16U, H x W: a phantom's shape index, 0 background
     imaging::LineData envelope, rf;
     tissue::Volume energy;  // absorbed energy on the map grid
 };

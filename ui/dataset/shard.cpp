@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <optional>
+#include <stdexcept>
 #include <string_view>
 
 #include "sonotrace_version.h"
@@ -181,19 +182,30 @@ void write_shard(const std::string& path, const std::string& output_name, const 
                  uint64_t shard, const std::vector<DatasetFrame>& frames) {
     ShardWriter w(output_name);
     const hsize_t n = frames.size(), h = hsize_t(spec.height), wd = hsize_t(spec.width);
-    auto stack = [&](const char* name, cv::Mat DatasetFrame::*image) {
-        std::vector<uint8_t> pixels(n * h * wd);
+    // A frame-stacked [n, H, W] dataset of the frames' images (memory_type's pixels).
+    auto stack = [&](const char* name, cv::Mat DatasetFrame::*image, hid_t file_type,
+                     hid_t memory_type) {
+        const std::size_t row = wd * H5Tget_size(memory_type);
+        std::vector<uint8_t> pixels(n * h * row);
         for (std::size_t f = 0; f < frames.size(); ++f) {
             const cv::Mat& m = frames[f].*image;
+            if (m.elemSize() != H5Tget_size(memory_type)) throw std::logic_error(name);
             for (int y = 0; y < spec.height; ++y)
-                std::memcpy(&pixels[(f * h + hsize_t(y)) * wd], m.ptr<uint8_t>(y), wd);
+                std::memcpy(&pixels[(f * h + hsize_t(y)) * row], m.ptr<uint8_t>(y), row);
         }
-        w.dataset(w.file(), name, H5T_STD_U8LE, H5T_NATIVE_UINT8, {n, h, wd}, {1, h, wd},
-                  pixels.data());
+        w.dataset(w.file(), name, file_type, memory_type, {n, h, wd}, {1, h, wd}, pixels.data());
     };
-    if (spec.write_bmode) stack("bmode", &DatasetFrame::bmode);
-    if (spec.write_labels) stack("labels", &DatasetFrame::labels);
-    if (spec.write_echo_labels) stack("labels_echo", &DatasetFrame::echo_labels);
+    const auto u8 = std::pair{H5T_STD_U8LE, H5T_NATIVE_UINT8};
+    if (spec.write_bmode) stack("bmode", &DatasetFrame::bmode, u8.first, u8.second);
+    if (spec.write_labels) stack("labels", &DatasetFrame::labels, u8.first, u8.second);
+    if (spec.write_echo_labels)
+        stack("labels_echo", &DatasetFrame::echo_labels, u8.first, u8.second);
+    if (spec.write_depth)
+        stack("depth", &DatasetFrame::true_depth, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT);
+    if (spec.write_echogenicity)
+        stack("echogenicity", &DatasetFrame::echogenicity, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT);
+    if (spec.write_instances)
+        stack("instances", &DatasetFrame::instances, H5T_STD_U16LE, H5T_NATIVE_UINT16);
 
     const std::vector<DrawnValue> names =
         frames.empty() ? std::vector<DrawnValue>{} : drawn_values(spec, frames.front().draw);

@@ -362,16 +362,20 @@ Spec parse_spec(const json& j, const std::string& source) {
         spec.write_bmode = spec.write_labels = false;
         for (std::size_t n = 0; n < w.size(); ++n) {
             const std::string name = w[n].is_string() ? w[n].get<std::string>() : "";
-            bool* flag = name == "bmode"         ? &spec.write_bmode
-                         : name == "labels"      ? &spec.write_labels
-                         : name == "labels_echo" ? &spec.write_echo_labels
-                         : name == "envelope"    ? &spec.write_envelope
-                         : name == "rf"          ? &spec.write_rf
-                         : name == "energy"      ? &spec.write_energy
-                                                 : nullptr;
+            bool* flag = name == "bmode"          ? &spec.write_bmode
+                         : name == "labels"       ? &spec.write_labels
+                         : name == "labels_echo"  ? &spec.write_echo_labels
+                         : name == "depth"        ? &spec.write_depth
+                         : name == "echogenicity" ? &spec.write_echogenicity
+                         : name == "instances"    ? &spec.write_instances
+                         : name == "envelope"     ? &spec.write_envelope
+                         : name == "rf"           ? &spec.write_rf
+                         : name == "energy"       ? &spec.write_energy
+                                                  : nullptr;
             if (!flag)
                 throw InputError(source, "write[" + std::to_string(n) + "]",
-                                 "must be bmode, labels, labels_echo, envelope, rf or energy");
+                                 "must be bmode, labels, labels_echo, depth, echogenicity, "
+                                 "instances, envelope, rf or energy");
             *flag = true;
         }
     }

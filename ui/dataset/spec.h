@@ -53,8 +53,11 @@
 //   "trace": "3d",                   2d (default) or 3d: the slab of the elevation beam
 //                                    (simulate --trace)
 //   "write": ["bmode", "labels"]     also "labels_echo" (the labels where the echoes show
-//                                    them, simulate's NAME_labels_echo.png), "envelope",
-//                                    "rf", "energy"
+//                                    them, simulate's NAME_labels_echo.png), "depth" (the
+//                                    true depth of what each pixel shows, mm),
+//                                    "echogenicity" (its backscatter with nothing in the
+//                                    way), "instances" (a phantom's shape index per pixel),
+//                                    "envelope", "rf", "energy"
 // }
 #include <algorithm>
 #include <cstdint>
@@ -126,6 +129,7 @@ struct Spec {
     std::string disable;  // comma list
     imaging::Quality quality = imaging::Quality::standard;
     int trace_dimensions = 2;
+    bool write_depth = false, write_echogenicity = false, write_instances = false;
     bool write_bmode = true, write_labels = true, write_echo_labels = false, write_envelope = false,
          write_rf = false, write_energy = false;
     // The spec as read, canonical (sorted keys, no whitespace), and a digest of what it

@@ -84,7 +84,8 @@ Request parse(const py::kwargs& kwargs) {
 // One frame and what describes it, owned by the arrays that view it.
 struct FrameData {
     imaging::SimulatedFrame simulated;
-    cv::Mat bmode;  // the png8 grey levels
+    std::optional<cv::Mat> instances;  // with the labels
+    cv::Mat bmode;                     // the png8 grey levels
     nlohmann::json sidecar;
 };
 
@@ -113,11 +114,22 @@ class Frame {
         const cv::Mat& m = *data_->simulated.echo_labels;
         return view<uint8_t>(data_, m.ptr<uint8_t>(), {m.rows, m.cols});
     }
+    py::object true_depth() const { return float_map(data_->simulated.true_depth); }
+    py::object echogenicity() const { return float_map(data_->simulated.echogenicity); }
+    py::object instances() const {
+        if (!data_->instances) return py::none();
+        const cv::Mat& m = *data_->instances;
+        return view<uint16_t>(data_, m.ptr<uint16_t>(), {m.rows, m.cols});
+    }
     py::array_t<float> envelope() const { return lines(data_->simulated.frame.envelope); }
     py::array_t<float> rf() const { return lines(data_->simulated.frame.rf); }
     py::object sidecar() const { return to_python(data_->sidecar); }
 
   private:
+    py::object float_map(const std::optional<cv::Mat>& m) const {
+        if (!m) return py::none();
+        return view<float>(data_, m->ptr<float>(), {m->rows, m->cols});
+    }
     py::array_t<float> lines(const imaging::LineData& d) const {
         return view<float>(data_, d.values.data(), {d.lines, d.samples});
     }
@@ -145,6 +157,8 @@ class Run {
             data->simulated = imaging::simulate_plane(setup_.scene->mapper, placement.scene,
                                                       setup_.settings, request_.frame.labels);
             data->bmode = imaging::grey_levels(data->simulated.frame.image.image);
+            if (request_.frame.labels)
+                data->instances = scene::instance_map(*setup_.scene, data->simulated);
             data->sidecar = scene::frame_sidecar(request_.frame, setup_, data->simulated.frame);
             data->sidecar["pose"] = scene::pose_json(placement.scene.pose);
             if (setup_.placements.size() > 1)
@@ -205,6 +219,18 @@ PYBIND11_MODULE(sonotrace, m) {
         .def_property_readonly(
             "echo_labels", &Frame::echo_labels,
             "uint8 [rows, cols]: the labels where the echoes show them (labels=True), else None")
+        .def_property_readonly("true_depth", &Frame::true_depth,
+                               "float32 [rows, cols]: the true depth (mm, along each pixel's "
+                               "line from the face) of what each pixel shows (labels=True), "
+                               "else None")
+        .def_property_readonly("echogenicity", &Frame::echogenicity,
+                               "float32 [rows, cols]: the backscatter (0..1) of what each pixel "
+                               "shows, with no attenuation or shadowing on the way "
+                               "(labels=True), else None")
+        .def_property_readonly("instances", &Frame::instances,
+                               "uint16 [rows, cols]: the phantom shape each pixel lies in (its "
+                               "place in the phantom's shapes from 1, 0 background; all 0 for "
+                               "a volume) (labels=True), else None")
         .def_property_readonly("envelope", &Frame::envelope, "float32 [lines, samples]")
         .def_property_readonly("rf", &Frame::rf, "float32 [lines, samples]")
         .def_property_readonly("sidecar", &Frame::sidecar,
