@@ -71,7 +71,7 @@ done
 # The Python module's inputs (tests/fuzz/fuzz_python.py), with the Release build's module:
 # the sanitizer build has none (Python cannot load ASan).
 release="${SONOTRACE_RELEASE_DIR:-build}"
-if ls "$release"/python/sonotrace*.so >/dev/null 2>&1 && [ -z "${SONOTRACE_FUZZ_TARGETS:-}" ]; then
+if ls "$release"/python/sonotrace/_sonotrace*.so >/dev/null 2>&1 && [ -z "${SONOTRACE_FUZZ_TARGETS:-}" ]; then
   if SONOTRACE_BINARY="$release/sonotrace" SONOTRACE_SOURCE_DIR="$PWD" \
       SONOTRACE_PYTHON_DIR="$release/python" python3 tests/fuzz/fuzz_python.py \
       --seconds "$seconds" --seed "$seed" --crashes "$dir/crashes" >&2; then :; else status=1; fi

@@ -47,6 +47,9 @@ packages=(
   # the embedded default volume: Colin27 T1 head MRI
   mricron-data
 )
+# The tests check sonotrace.torch's FrameDataset against the dataset's shards; PyTorch
+# stays optional for users (the module imports it only there).
+if [ "$mode" = test ]; then packages+=(python3-torch); fi
 # The sanitizer run also fuzzes every input parser (scripts/fuzz.sh: clang's libFuzzer).
 if [ "$mode" = sanitize ]; then packages+=(clang libclang-rt-14-dev); fi
 
@@ -94,11 +97,11 @@ if [ "$mode" = sanitize ]; then
 fi
 
 configure_and_build "$build_dir" -DCMAKE_BUILD_TYPE=Release
-# `import sonotrace` from the repository: a link to the Python module in build/python
-# (elsewhere: PYTHONPATH=<this repository>/build/python).
-for module in "$build_dir"/python/sonotrace*.so; do
-  [ -e "$module" ] && ln -sfn "$module" "$(basename "$module")"
-done
+# `import sonotrace` from the repository: a link to the Python package in build/python
+# (elsewhere: PYTHONPATH=<this repository>/build/python). The module of earlier versions
+# (a lone sonotrace*.so) would hide it.
+rm -f sonotrace.cpython-*.so "$build_dir"/python/sonotrace.cpython-*.so
+[ -d "$build_dir/python/sonotrace" ] && ln -sfn "$build_dir/python/sonotrace" sonotrace
 
 case "$mode" in
   build) ;;

@@ -7,9 +7,10 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     using namespace sonotrace;
-    const std::string_view head(reinterpret_cast<const char*>(data), std::min<std::size_t>(size, 16));
-    const char* name = head.starts_with("ply")         ? "mesh.ply"
-                       : head.starts_with("# vtk")     ? "mesh.vtk"
+    const std::string_view head(reinterpret_cast<const char*>(data),
+                                std::min<std::size_t>(size, 16));
+    const char* name = head.starts_with("ply")     ? "mesh.ply"
+                       : head.starts_with("# vtk") ? "mesh.vtk"
                        : head.starts_with("solid") || size >= 84 && head.find('\0') != head.npos
                            ? "mesh.stl"
                            : "mesh.obj";

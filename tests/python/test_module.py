@@ -96,6 +96,36 @@ def test_a_frame_is_the_clis_frame_byte_for_byte(tmp_path):
     assert sonotrace.simulate(**FAST).instances is None
 
 
+def test_a_scenes_frames_are_simulates_frames():
+    """Scene loads once and keeps its tables between frames; what it makes does not depend
+    on that: each frame equals sonotrace.simulate's with the same options, byte for byte,
+    whatever frames came before (the warm-up's and another pose's)."""
+    scene = sonotrace.Scene(phantom=CYST, quality="interactive", depth=30)
+    assert scene.probe == "linear" and scene.start_pose["position_mm"]
+    pose = "at=24,0,5 beam=0,1,0 lateral=1,0,0"
+    for options in (dict(seed=5, focus=20), dict(seed=6, focus=20, pose=pose, labels=True),
+                    dict(seed=5, focus=25, gain=44)):
+        frame = scene.frame(**options)
+        alone = sonotrace.simulate(phantom=CYST, quality="interactive", depth=30, **options)
+        assert np.array_equal(frame.bmode, alone.bmode), options
+        assert np.array_equal(frame.envelope, alone.envelope), options
+        if "labels" in options:
+            assert np.array_equal(frame.instances, alone.instances)
+            assert np.array_equal(frame.true_depth, alone.true_depth)
+        assert frame.sidecar["pose"] == alone.sidecar["pose"]
+    # What loads a scene belongs to Scene(...); a pose outside it is refused.
+    with pytest.raises(sonotrace.InputError, match="'phantom': belongs to the scene"):
+        scene.frame(phantom=CYST)
+    with pytest.raises(sonotrace.InputError, match="sweep"):
+        scene.frame(sweep="lateral:4:1")
+    with pytest.raises(sonotrace.InputError, match="colour"):
+        scene.frame(colour=2)
+    with pytest.raises(sonotrace.InputError, match="pose"):
+        scene.frame(pose="at=900,0,5 beam=0,1,0")
+    with pytest.raises(sonotrace.InputError, match="missing.json"):
+        sonotrace.Scene(phantom="missing.json")
+
+
 def test_errors_are_input_errors_with_the_clis_messages():
     with pytest.raises(sonotrace.InputError, match="colour"):
         sonotrace.simulate(colour=3)

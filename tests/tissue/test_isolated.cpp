@@ -1,6 +1,7 @@
 // base::in_child_process: work on untrusted bytes whose crash must stay the child's.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <csignal>
 #include <new>
 #include <string>
@@ -26,6 +27,23 @@ TEST(InChildProcess, ReportsTheAnswerOrHowTheChildEnded) {
         });
     ASSERT_TRUE(crashed.has_value());
     EXPECT_NE(crashed->find("crashed (signal"), std::string::npos) << *crashed;
+}
+
+// A child that never ends (a reader looping on a malformed file) is ended by its CPU
+// limit: the caller is told, after about that much time, instead of waiting for ever.
+TEST(RunForked, AChildThatRunsAwayIsEndedByItsCpuLimit) {
+    const auto start = std::chrono::steady_clock::now();
+    const std::optional<std::string> ended = base::run_forked(
+        [](int) {
+            volatile uint64_t spin = 0;
+            for (;;) spin = spin + 1;
+        },
+        [](int) {}, 0, true, 1);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ASSERT_TRUE(ended.has_value());
+    EXPECT_NE(ended->find("CPU time limit"), std::string::npos) << *ended;
+    EXPECT_LT(seconds, 30.0);  // 1 s of CPU; wall time on a loaded machine more
 }
 
 #if !defined(__SANITIZE_ADDRESS__)

@@ -50,7 +50,8 @@ bool PipeReader::bytes(void* data, std::size_t n) {
 
 std::optional<std::string> run_forked(const std::function<void(int fd)>& child,
                                       const std::function<void(int fd)>& parent,
-                                      std::size_t memory_limit_bytes, bool quiet) {
+                                      std::size_t memory_limit_bytes, bool quiet,
+                                      unsigned cpu_limit_seconds) {
     int fds[2];
     if (::pipe(fds) != 0)
         throw std::runtime_error("pipe() failed: " + std::string(std::strerror(errno)));
@@ -76,6 +77,11 @@ std::optional<std::string> run_forked(const std::function<void(int fd)>& child,
             ::setrlimit(RLIMIT_AS, &limit);
         }
 #endif
+        if (cpu_limit_seconds > 0) {  // SIGXCPU at the soft limit ends the child
+            const rlimit limit{cpu_limit_seconds, cpu_limit_seconds + 1};
+            ::setrlimit(RLIMIT_CPU, &limit);
+            std::signal(SIGXCPU, SIG_DFL);
+        }
         if (quiet) {
             const int null = ::open("/dev/null", O_WRONLY);
             if (null >= 0) ::dup2(null, STDERR_FILENO);

@@ -24,9 +24,12 @@ std::optional<std::string> in_child_process(const std::function<std::optional<st
 // the parent installed (a fuzzer's would record the child's death as its own finding),
 // as does a sanitizer's death; `quiet` sends its stderr to /dev/null. nullopt when the
 // child exited 0, otherwise how it ended: "signal Segmentation fault", "exit status 3".
+// `cpu_limit_seconds` (0: none) ends a child that runs away (a reader looping for ever on
+// a malformed file) after that much CPU time: "signal CPU time limit exceeded".
 std::optional<std::string> run_forked(const std::function<void(int fd)>& child,
                                       const std::function<void(int fd)>& parent,
-                                      std::size_t memory_limit_bytes = 0, bool quiet = false);
+                                      std::size_t memory_limit_bytes = 0, bool quiet = false,
+                                      unsigned cpu_limit_seconds = 0);
 
 // A child's answer, written whole (a child whose parent went away exits with status 2).
 class PipeWriter {

@@ -26,115 +26,13 @@
 #include "tissue/base/file_read.h"
 #include "tissue/base/memory.h"
 #include "ui/dataset/shard.h"
+#include "ui/python/bindings.h"
 
 namespace py = pybind11;
 using namespace sonotrace;
+using namespace sonotrace::python;
 
 namespace {
-
-// A NumPy array over memory that `owner` keeps alive (no copy).
-template <typename T, typename Owner>
-py::array_t<T> view(std::shared_ptr<Owner> owner, const T* data, std::vector<py::ssize_t> shape) {
-    auto* keep = new std::shared_ptr<Owner>(std::move(owner));
-    py::capsule free(keep, [](void* p) { delete static_cast<std::shared_ptr<Owner>*>(p); });
-    return py::array_t<T>(shape, data, free);
-}
-
-// Keyword arguments as a frame request (phantoms/scene/request.h): the keys of its table
-// ('_' for '-'; the CLI's --key), True for a flag, a list as comma-separated text; and
-// `threads` (0 = all cores), which changes no pixel.
-struct Request {
-    scene::FrameRequest frame;
-    int threads = 0;
-};
-Request parse(const py::kwargs& kwargs) {
-    constexpr const char* kSource = "sonotrace.simulate";
-    Request out;
-    for (const auto& [key, value] : kwargs) {
-        const std::string name = py::str(key).cast<std::string>();
-        if (name == "threads") {
-            if (py::isinstance<py::bool_>(value) || !py::isinstance<py::int_>(value) ||
-                value.cast<long long>() < 0 || value.cast<long long>() > 1024)
-                throw base::InputError(kSource, name, "must be a whole number from 0 to 1024");
-            out.threads = value.cast<int>();
-            continue;
-        }
-        const scene::ParameterKind kind = scene::request_parameter_kind(name);
-        std::string text;
-        if (py::isinstance<py::bool_>(value)) {
-            // A bare True for a parameter with a value is a mistake, not the text "True".
-            if (kind == scene::ParameterKind::value)
-                throw base::InputError(
-                    kSource, name,
-                    "takes a value, not " + std::string(value.cast<bool>() ? "True" : "False"));
-            text = value.cast<bool>() ? "true" : "false";
-        } else if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
-            for (const auto& item : value) {
-                if (!text.empty()) text += ',';
-                text += py::str(item).cast<std::string>();
-            }
-        } else {
-            text = py::str(value).cast<std::string>();
-        }
-        scene::set_request_parameter(out.frame, name, text, kSource);
-    }
-    return out;
-}
-
-// One frame and what describes it, owned by the arrays that view it.
-struct FrameData {
-    imaging::SimulatedFrame simulated;
-    std::optional<cv::Mat> instances;  // with the labels
-    cv::Mat bmode;                     // the png8 grey levels
-    nlohmann::json sidecar;
-};
-
-py::object to_python(const nlohmann::json& j) {
-    return py::module_::import("json").attr("loads")(j.dump());
-}
-
-class Frame {
-  public:
-    explicit Frame(std::shared_ptr<FrameData> data) : data_(std::move(data)) {}
-    py::array_t<uint8_t> bmode() const {
-        const cv::Mat& m = data_->bmode;
-        return view<uint8_t>(data_, m.ptr<uint8_t>(), {m.rows, m.cols});
-    }
-    py::array_t<float> image() const {
-        const cv::Mat& m = data_->simulated.frame.image.image;
-        return view<float>(data_, m.ptr<float>(), {m.rows, m.cols});
-    }
-    py::object labels() const {
-        if (!data_->simulated.labels) return py::none();
-        const cv::Mat& m = *data_->simulated.labels;
-        return view<uint8_t>(data_, m.ptr<uint8_t>(), {m.rows, m.cols});
-    }
-    py::object echo_labels() const {
-        if (!data_->simulated.echo_labels) return py::none();
-        const cv::Mat& m = *data_->simulated.echo_labels;
-        return view<uint8_t>(data_, m.ptr<uint8_t>(), {m.rows, m.cols});
-    }
-    py::object true_depth() const { return float_map(data_->simulated.true_depth); }
-    py::object echogenicity() const { return float_map(data_->simulated.echogenicity); }
-    py::object instances() const {
-        if (!data_->instances) return py::none();
-        const cv::Mat& m = *data_->instances;
-        return view<uint16_t>(data_, m.ptr<uint16_t>(), {m.rows, m.cols});
-    }
-    py::array_t<float> envelope() const { return lines(data_->simulated.frame.envelope); }
-    py::array_t<float> rf() const { return lines(data_->simulated.frame.rf); }
-    py::object sidecar() const { return to_python(data_->sidecar); }
-
-  private:
-    py::object float_map(const std::optional<cv::Mat>& m) const {
-        if (!m) return py::none();
-        return view<float>(data_, m->ptr<float>(), {m->rows, m->cols});
-    }
-    py::array_t<float> lines(const imaging::LineData& d) const {
-        return view<float>(data_, d.values.data(), {d.lines, d.samples});
-    }
-    std::shared_ptr<FrameData> data_;
-};
 
 // A prepared run (every option checked, the scene loaded) and its placements, one frame
 // at a time.
@@ -146,25 +44,11 @@ class Run {
     }
     std::size_t size() const { return setup_.placements.size(); }
     Frame frame(std::size_t index) const {
-        auto data = std::make_shared<FrameData>();
-        {
-            py::gil_scoped_release release;
-            std::optional<tbb::global_control> thread_limit;
-            if (request_.threads > 0)
-                thread_limit.emplace(tbb::global_control::max_allowed_parallelism,
-                                     std::size_t(request_.threads));
-            const scene::SweepPlacement& placement = setup_.placements.at(index);
-            data->simulated = imaging::simulate_plane(setup_.scene->mapper, placement.scene,
-                                                      setup_.settings, request_.frame.labels);
-            data->bmode = imaging::grey_levels(data->simulated.frame.image.image);
-            if (request_.frame.labels)
-                data->instances = scene::instance_map(*setup_.scene, data->simulated);
-            data->sidecar = scene::frame_sidecar(request_.frame, setup_, data->simulated.frame);
-            data->sidecar["pose"] = scene::pose_json(placement.scene.pose);
-            if (setup_.placements.size() > 1)
-                data->sidecar["sweep_offset_mm"] = placement.offset_mm;
-        }
-        return Frame(std::move(data));
+        const scene::SweepPlacement& placement = setup_.placements.at(index);
+        Frame frame = make_frame(request_, setup_, placement.scene);
+        if (setup_.placements.size() > 1)
+            frame.data()->sidecar["sweep_offset_mm"] = placement.offset_mm;
+        return frame;
     }
 
   private:
@@ -188,7 +72,7 @@ class Sweep {
 
 }  // namespace
 
-PYBIND11_MODULE(sonotrace, m) {
+PYBIND11_MODULE(_sonotrace, m) {
     m.doc() =
         "sonotrace: ultrasound frames by particle tracing through tissue maps. Keyword "
         "arguments are the frame's parameters, the options of `sonotrace simulate` that are "
@@ -196,7 +80,12 @@ PYBIND11_MODULE(sonotrace, m) {
         "'_' for '-', and threads; errors are sonotrace.InputError naming the option or file "
         "and field.";
     m.attr("__version__") = SONOTRACE_VERSION;
+    // As our programs do at their start (tissue/base/memory.h): a frame's transient buffers
+    // are kept by the allocator for the next frame, not mapped and zeroed afresh (half a
+    // frame's time in the kernel otherwise: bench/scene_frames.py).
+    base::keep_freed_memory();
     static py::exception<base::InputError> input_error(m, "InputError", PyExc_ValueError);
+    input_error.attr("__module__") = "sonotrace";  // as users name it: sonotrace.InputError
     py::register_exception_translator([](std::exception_ptr p) {
         try {
             if (p) std::rethrow_exception(p);
@@ -235,6 +124,8 @@ PYBIND11_MODULE(sonotrace, m) {
         .def_property_readonly("rf", &Frame::rf, "float32 [lines, samples]")
         .def_property_readonly("sidecar", &Frame::sidecar,
                                "dict: the frame's JSON sidecar (probe, pose, image geometry, ...)");
+
+    bind_scenes(m);
 
     m.def(
         "simulate", [](py::kwargs kwargs) { return Run(kwargs).frame(0); },
