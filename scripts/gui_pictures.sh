@@ -16,3 +16,4 @@ shot gui_volume --scene /usr/share/mricron/templates/ch2.nii.gz --tf mri-t1-head
   --frames 2 --context-renderer gpu
 shot gui_mirror --scene phantom:mirror --frames 3
 shot gui_explain --scene phantom:cyst_and_stone --explain "acoustic shadowing" --frames 3
+shot gui_meshes --scene phantom:abdomen_meshes --frames 3

@@ -158,8 +158,7 @@ void ColourTransferFunction::bind(const tissue::Volume& volume) {
         low_quantile_ == 0.0 ? volume.value_range().first : volume.quantile(low_quantile_);
     const float high =
         high_quantile_ == 1.0 ? volume.value_range().second : volume.quantile(high_quantile_);
-    window_low_ = low;
-    inverse_window_ = high > low ? 1.0f / (high - low) : 1.0f;
+    set_window(low, high);
 }
 
 ColourTransferFunction ColourTransferFunction::with_extinction_scaled(double factor) const {

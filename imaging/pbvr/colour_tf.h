@@ -38,6 +38,11 @@ class ColourTransferFunction {
 
     // Sets the intensity window from the volume (quantiles). Required before normalize().
     void bind(const tissue::Volume& volume);
+    // Sets it to [low, high] (a volume of indices, whose window the caller knows).
+    void set_window(float low, float high) {
+        window_low_ = low;
+        inverse_window_ = high > low ? 1.0f / (high - low) : 1.0f;
+    }
     float normalize(float raw) const {
         return glm::clamp((raw - window_low_) * inverse_window_, 0.0f, 1.0f);
     }

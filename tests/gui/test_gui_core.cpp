@@ -12,6 +12,7 @@
 #include <set>
 #include <thread>
 
+#include "imaging/simulation.h"
 #include "phantoms/phantom.h"
 #include "probe/array_geometry.h"
 #include "tissue/base/error.h"
@@ -89,6 +90,44 @@ TEST(GuiScene, CatalogueListsHeadViewsAndEveryPhantom) {
     // Every phantom of the catalogue loads as a scene.
     for (std::size_t i = 2; i < entries.size(); ++i)
         EXPECT_NO_THROW(load_scene(entries[i].name, kPhantoms)) << entries[i].name;
+}
+
+// A phantom of meshes is drawn by its shapes, not its impedance: every texel of the
+// context holds the shape it lies in (the phantom's own inside test, at the texel
+// centre), the meshes' shapes are drawn in their tissue's legend colour, the layers
+// (which fill the box) and the background not at all.
+TEST(GuiScene, AMeshPhantomsContextDrawsEachOrganInItsTissuesColour) {
+    const auto scene = load_scene("phantom:abdomen_meshes", kPhantoms);
+    ASSERT_TRUE(scene->phantom && scene->context);
+    const phantoms::Phantom& phantom = *scene->phantom;
+    const tissue::Volume& context = *scene->context;
+    const tissue::VolumeGeometry& g = context.geometry();
+    int checked = 0;
+    for (int k = 0; k < g.dims.z; k += 7)
+        for (int j = 0; j < g.dims.y; j += 7)
+            for (int i = 0; i < g.dims.x; i += 7) {
+                int instance = 0;
+                phantom.at(g.index_to_world({double(i), double(j), double(k)}), nullptr, &instance);
+                ASSERT_EQ(context.at(i, j, k), float(instance));
+                ++checked;
+            }
+    EXPECT_GT(checked, 1000);
+    const auto& tf = scene->context_tf;
+    EXPECT_EQ(tf.extinction(tf.normalize(0.0f)), 0.0f);  // the background
+    for (std::size_t k = 0; k < phantom.shapes.size(); ++k) {
+        const phantoms::Shape& shape = phantom.shapes[k];
+        const float s = tf.normalize(float(k + 1));
+        if (shape.type == phantoms::ShapeType::layer) {
+            EXPECT_EQ(tf.extinction(s), 0.0f) << k;
+            continue;
+        }
+        EXPECT_GT(tf.extinction(s), 0.0f) << k;
+        const cv::Vec3b bgr = imaging::label_colour(shape.label);
+        const glm::vec3 c = tf.colour(s);
+        EXPECT_NEAR(c.x, bgr[2] / 255.0, 0.01) << k;
+        EXPECT_NEAR(c.y, bgr[1] / 255.0, 0.01) << k;
+        EXPECT_NEAR(c.z, bgr[0] / 255.0, 0.01) << k;
+    }
 }
 
 TEST(GuiScene, BadFilesAreErrorsNamingTheFile) {
