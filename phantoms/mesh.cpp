@@ -141,11 +141,11 @@ TriangleMesh read_with_assimp(const std::string& path) {
 // read_with_assimp in a child process (base::run_forked): a reader that crashes or runs
 // away on a malformed file ends the child, and the caller gets a refusal naming the file.
 TriangleMesh read_isolated(const std::string& path) {
-    // CPU time for the reader: 5 s, and 1 s a megabyte (Assimp reads ASCII meshes at tens of
+    // CPU time for the reader: 2 s, and 1 s a megabyte (Assimp reads ASCII meshes at tens of
     // MB/s); its PLY reader looped for ever on a 342-byte file the fuzzer made.
     std::error_code ignored;
     const auto megabytes = unsigned(std::filesystem::file_size(path, ignored) >> 20);
-    const unsigned cpu_seconds = 5 + megabytes;
+    const unsigned cpu_seconds = 2 + megabytes;
     TriangleMesh raw;
     uint8_t status = 255;
     std::string source, field, detail;
