@@ -328,10 +328,20 @@ double Shape::signed_distance(const glm::dvec3& p) const {
     return 1e30;
 }
 
-double Shape::weight(const glm::dvec3& p, double smoothing_mm) const {
+double Shape::weight(const glm::dvec3& p, double smoothing_mm, double* steady_mm) const {
+    if (steady_mm) *steady_mm = 0.0;
     // Beyond the ramp's reach of a mesh's bounding box: no surface search.
-    if (type == ShapeType::mesh && mesh->distance_to_bounds(p) > 0.5 * smoothing_mm) return 0.0;
+    if (type == ShapeType::mesh) {
+        const double to_bounds = mesh->distance_to_bounds(p);
+        if (to_bounds > 0.5 * smoothing_mm) {
+            if (steady_mm) *steady_mm = to_bounds - 0.5 * smoothing_mm;
+            return 0.0;
+        }
+    }
     const double d = signed_distance(p);
+    // Past the ramp the weight is 0 or 1 until the distance reaches it again.
+    if (steady_mm && type == ShapeType::mesh && !parabolic)
+        *steady_mm = std::max(0.0, std::abs(d) - 0.5 * smoothing_mm);
     if (parabolic) {  // distance from the axis = d + radius
         const double rho = (d + radius) / radius;
         return std::max(0.0, 1.0 - rho * rho);
@@ -370,11 +380,17 @@ double Phantom::paper_density_at(const glm::dvec3& p) const {
 }
 
 tissue::AcousticProperties Phantom::at(const glm::dvec3& p, int* label, int* instance) const {
+    std::vector<double> weights(shapes.size());
+    for (std::size_t k = 0; k < shapes.size(); ++k) weights[k] = shapes[k].weight(p, smoothing_mm);
+    return blend(weights.data(), label, instance);
+}
+
+tissue::AcousticProperties Phantom::blend(const double* weights, int* label, int* instance) const {
     tissue::AcousticProperties value = background;
     int l = background_label, which = 0;
     for (std::size_t k = 0; k < shapes.size(); ++k) {
         const Shape& s = shapes[k];
-        const double inside = s.weight(p, smoothing_mm);
+        const double inside = weights[k];
         if (inside <= 0.0) continue;
         for (std::size_t n = 0; n < tissue::kPropertyCount; ++n)
             value.values[n] =
@@ -542,12 +558,27 @@ tissue::PropertyMaps rasterise(const Phantom& phantom, const tissue::VolumeGeome
     if (labels) *labels = tissue::Volume(grid);
     if (instances) *instances = tissue::Volume(grid);
     const glm::ivec3 n = grid.dims;
+    const std::size_t count = phantom.shapes.size();
     tbb::parallel_for(0, n.y * n.z, [&](int row) {
         const int j = row % n.y, k = row / n.y;
+        // Along the row each shape's weight is kept while the row has not gone as far as
+        // the distance it is steady over (Shape::weight): a mesh's surface is searched
+        // near it only. The same weights as Phantom::at's, so the same maps.
+        std::vector<double> weight(count), steady(count, 0.0), gone(count, 0.0);
+        glm::dvec3 previous(0.0);
         for (int i = 0; i < n.x; ++i) {
+            const glm::dvec3 at = grid.index_to_world({double(i), double(j), double(k)});
+            const double step = i > 0 ? glm::length(at - previous) : 0.0;
+            previous = at;
+            for (std::size_t m = 0; m < count; ++m) {
+                gone[m] += step;
+                // A margin of 1e-9 of the distance for its rounding.
+                if (i > 0 && gone[m] < steady[m] * (1.0 - 1e-9) - 1e-9) continue;
+                weight[m] = phantom.shapes[m].weight(at, phantom.smoothing_mm, &steady[m]);
+                gone[m] = 0.0;
+            }
             int label = 0, instance = 0;
-            const tissue::AcousticProperties p = phantom.at(
-                grid.index_to_world({double(i), double(j), double(k)}), &label, &instance);
+            const tissue::AcousticProperties p = phantom.blend(weight.data(), &label, &instance);
             for (std::size_t f = 0; f < tissue::kPropertyCount; ++f)
                 maps.fields[f].at(i, j, k) = p.values[f];
             if (labels) labels->at(i, j, k) = float(label);

@@ -84,8 +84,10 @@ struct Shape {
     // smallest radius.
     double signed_distance(const glm::dvec3& p) const;
     // How much of the shape is at p (0..1): the linear ramp over `smoothing` across the
-    // boundary, or the parabolic profile.
-    double weight(const glm::dvec3& p, double smoothing_mm) const;
+    // boundary, or the parabolic profile. `steady_mm` (optional) receives a distance from
+    // p within which the weight is the same (0 when none is known): a mesh's distance is
+    // exact, so beyond the ramp it cannot change sooner than the distance left to it.
+    double weight(const glm::dvec3& p, double smoothing_mm, double* steady_mm = nullptr) const;
 };
 
 // 2D particle injection of a paper-mode (or any) phantom for `sonotrace trace`.
@@ -117,6 +119,9 @@ struct Phantom {
     // tissue label, and its place in `shapes` from 1; 0 for the background) at a point.
     tissue::AcousticProperties at(const glm::dvec3& p, int* label = nullptr,
                                   int* instance = nullptr) const;
+    // The same from each shape's weight at the point (weights[k] of shapes[k]).
+    tissue::AcousticProperties blend(const double* weights, int* label = nullptr,
+                                     int* instance = nullptr) const;
     // Paper mode: the density d at a point (blended like the properties, plus textures).
     double paper_density_at(const glm::dvec3& p) const;
 };
