@@ -169,15 +169,13 @@ std::vector<imaging::TgcPoint> parse_tgc(const std::string& text, const probe::T
     std::istringstream list(text);
     for (std::string item; std::getline(list, item, ',');) {
         const auto colon = item.find(':');
-        imaging::TgcPoint p;
-        try {
-            if (colon == std::string::npos) throw std::invalid_argument("no colon");
-            p.depth_mm = std::stod(item.substr(0, colon));
-            p.gain_db = std::stod(item.substr(colon + 1));
-        } catch (const std::exception&) {
+        const std::optional<double> depth =
+            colon == std::string::npos ? std::nullopt : base::finite_number(item.substr(0, colon));
+        const std::optional<double> gain =
+            colon == std::string::npos ? std::nullopt : base::finite_number(item.substr(colon + 1));
+        if (!depth || !gain)
             throw base::InputError("--tgc", item, "expected DEPTH:GAIN (mm:dB), 'auto' or 'none'");
-        }
-        curve.push_back(p);
+        curve.push_back({*depth, *gain});
     }
     return curve;
 }
@@ -305,7 +303,7 @@ void set_request_parameter(FrameRequest& request, std::string_view key, const st
                     request.*member = std::stoull(text);
                 } else {
                     fail(base::not_a_finite_number(text));
-                    request.*member = std::stod(text);
+                    request.*member = *base::finite_number(text);
                 }
             },
             p.member);

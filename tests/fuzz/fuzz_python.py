@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Fuzzes what the Python module takes from its user: keyword arguments
 (`sonotrace.sweep(**keywords)` checks them and prepares the run exactly as `simulate`
-does, without drawing a frame) and shard files (`sonotrace.read_shard`, on mutations of
+does, without drawing a frame; `Scene.frame(**keywords)` on a loaded scene, drawing the
+frame when they are sound) and shard files (`sonotrace.read_shard`, on mutations of
 real shards; half of them sealed with a sound header over the mutated bytes, so that they
 pass the checksum and reach h5py). Every call must return or raise sonotrace.InputError:
 any other exception, a hang, or the interpreter's death is a finding, reported with the
@@ -124,14 +125,25 @@ def child(args):
     shards = [open(os.path.join(work, "dataset", f"shard_0000{k}.h5"), "rb").read()
               for k in range(2)]
     names = option_names()
+    scene = sonotrace.Scene(phantom=CYST, quality="interactive", depth=30, focus=20)
     rng = random.Random(args.seed)
     deadline = time.time() + args.seconds if args.seconds else None
-    counts = {"keywords": 0, "shards": 0, "accepted": 0, "refused": 0}
+    counts = {"keywords": 0, "scene": 0, "shards": 0, "accepted": 0, "refused": 0}
     case_file = os.path.join(work, "case")
     n = 0
     while (deadline is None and n < args.cases) or (deadline is not None and time.time() < deadline):
         n += 1
-        if rng.random() < 0.5:
+        kind = rng.random()
+        if kind < 0.15:
+            keywords = {}
+            for _ in range(rng.randrange(1, 4)):
+                keywords[rng.choice(names)] = a_value(rng, extra)
+            with open(case_file, "w") as f:
+                f.write("sonotrace.Scene(phantom=CYST, quality='interactive', depth=30, "
+                        "focus=20).frame(**" + repr(keywords) + ")\n")
+            call = lambda: scene.frame(**keywords)  # noqa: E731
+            counts["scene"] += 1
+        elif kind < 0.5:
             keywords = keyword_case(rng, names, extra)
             with open(case_file, "w") as f:
                 f.write("sonotrace.sweep(**" + repr(keywords) + ")\n")

@@ -143,6 +143,13 @@ def test_errors_are_input_errors_with_the_clis_messages():
         with pytest.raises(sonotrace.InputError, match="not a whole number"):
             sonotrace.simulate(seed=seed, **FAST)
     assert issubclass(sonotrace.InputError, ValueError)
+    for threads in [-1, 2**64, 1025, 2.0, True]:  # 2**64 raised RuntimeError (fuzz_python)
+        with pytest.raises(sonotrace.InputError, match="threads.*whole number from 0 to 1024"):
+            sonotrace.simulate(threads=threads, **FAST)
+    # A number too small for a double reads as its nearest (strtod), as on the command
+    # line: std::stod raised out_of_range, which reached Python as IndexError (fuzz_python).
+    frame = sonotrace.simulate(refraction_smoothing=1e-320, **FAST)
+    assert frame.sidecar["quality"]["refraction_smoothing_mm"] < 1e-300
 
 
 def test_arrays_outlive_their_frame():

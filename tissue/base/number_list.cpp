@@ -17,11 +17,15 @@ std::string exact_number_text(double v) {
     return std::string(text, end);
 }
 
-std::optional<std::string> not_a_finite_number(const std::string& text) {
+std::optional<double> finite_number(const std::string& text) {
     char* end = nullptr;
     const double v = std::strtod(text.c_str(), &end);
-    if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v))
-        return "value " + text + " is not a finite number";
+    if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v)) return std::nullopt;
+    return v;
+}
+
+std::optional<std::string> not_a_finite_number(const std::string& text) {
+    if (!finite_number(text)) return "value " + text + " is not a finite number";
     return std::nullopt;
 }
 
@@ -39,15 +43,9 @@ std::optional<std::string> parse_number_list(const std::string& text, std::vecto
     out->clear();
     std::istringstream in(text);
     for (std::string part; std::getline(in, part, ',');) {
-        std::size_t used = 0;
-        double v = 0.0;
-        try {
-            v = std::stod(part, &used);
-        } catch (const std::exception&) {
-            return "'" + part + "' is not a number";
-        }
-        if (used != part.size() || !std::isfinite(v)) return "'" + part + "' is not a number";
-        out->push_back(v);
+        const std::optional<double> v = finite_number(part);
+        if (!v) return "'" + part + "' is not a number";
+        out->push_back(*v);
     }
     return std::nullopt;
 }

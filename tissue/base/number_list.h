@@ -9,6 +9,9 @@
 
 namespace sonotrace::base {
 
+// `text` as a number if all of it is one and it is finite (strtod's reading: a value too
+// small for a double is its nearest, 0 or a denormal, not an error).
+std::optional<double> finite_number(const std::string& text);
 // Why `text` is not a finite number (all of it, NaN and infinities refused), or nothing
 // if it is one: the message every option and keyword gives.
 std::optional<std::string> not_a_finite_number(const std::string& text);

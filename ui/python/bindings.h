@@ -19,6 +19,7 @@
 #include "phantoms/scene/records.h"
 #include "phantoms/scene/request.h"
 #include "tissue/base/error.h"
+#include "tissue/base/number_list.h"
 
 namespace sonotrace::python {
 
@@ -44,10 +45,14 @@ inline void apply_kwargs(Request& out, const py::kwargs& kwargs, const char* kSo
     for (const auto& [key, value] : kwargs) {
         const std::string name = py::str(key).cast<std::string>();
         if (name == "threads") {
-            if (py::isinstance<py::bool_>(value) || !py::isinstance<py::int_>(value) ||
-                value.cast<long long>() < 0 || value.cast<long long>() > 1024)
+            // Read from its text: an int beyond 64 bits cannot be cast (RuntimeError).
+            const std::string digits =
+                py::isinstance<py::bool_>(value) || !py::isinstance<py::int_>(value)
+                    ? std::string()
+                    : py::str(value).cast<std::string>();
+            if (base::not_a_whole_number(digits) || std::stoull(digits) > 1024)
                 throw base::InputError(kSource, name, "must be a whole number from 0 to 1024");
-            out.threads = value.cast<int>();
+            out.threads = int(std::stoull(digits));
             continue;
         }
         const scene::ParameterKind kind = scene::request_parameter_kind(name);
