@@ -290,13 +290,18 @@ std::vector<Scene::Material> Scene::materials() const {
     return out;
 }
 
+tissue::VolumeGeometry phantom_context_grid(const phantoms::Phantom& phantom) {
+    const glm::dvec3 size = phantom.size;
+    const double h = std::max({1.0, size.x / 160.0, size.y / 160.0, size.z / 160.0});
+    tissue::VolumeGeometry grid;
+    grid.dims = glm::max(glm::ivec3(size / h) + 1, glm::ivec3(2));
+    grid.spacing = glm::dvec3(h);
+    return grid;
+}
+
 std::shared_ptr<const tissue::Volume> Scene::context_volume() const {
     if (volume) return {volume, &volume->loaded.volume};  // shares the loaded volume
-    const double h =
-        std::max({1.0, phantom->size.x / 160.0, phantom->size.y / 160.0, phantom->size.z / 160.0});
-    tissue::VolumeGeometry grid;
-    grid.dims = glm::max(glm::ivec3(phantom->size / h) + 1, glm::ivec3(2));
-    grid.spacing = glm::dvec3(h);
+    const tissue::VolumeGeometry grid = phantom_context_grid(*phantom);
     const tissue::PropertyMaps maps = phantoms::rasterise(*phantom, grid);
     auto impedance = std::make_shared<tissue::Volume>(grid);
     const auto& rho = maps[tissue::Property::density].voxels();

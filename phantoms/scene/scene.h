@@ -125,6 +125,10 @@ struct Scene {
     glm::dvec3 box_high() const;
 };
 
+// The grid a phantom's 3D context is drawn on (Scene::context_volume, the GUI's shapes):
+// its box at 1 mm, or coarser so that no side has more than 160 samples.
+tissue::VolumeGeometry phantom_context_grid(const phantoms::Phantom& phantom);
+
 // The instance map of a simulated frame (scan_convert_instances on its plane grid): CV_16U,
 // all 0 for a scene without instances.
 cv::Mat instance_map(const Scene& scene, const imaging::SimulatedFrame& frame);

@@ -19,7 +19,7 @@ bool ends_with(const std::string& s, const std::string& tail) {
 }
 
 // The 3D context of a phantom with mesh shapes: each texel the shape it lies in
-// (phantoms::rasterise's instances, on the grid of Scene::context_volume), each shape in
+// (Scene::instances, on scene::phantom_context_grid), each shape in
 // its tissue's colour of the label maps' legend (imaging::label_colour), at an opacity
 // that lets a fifth of the light through it (1 - 0.2^(1 / d) a millimetre, d the diameter
 // of a ball of its volume), so that a vessel inside a liver shows through it; the layers and
@@ -28,13 +28,9 @@ bool ends_with(const std::string& s, const std::string& tail) {
 // passes the others' bands in a tenth of a texel. Its acoustic impedance, the context of
 // other phantoms, draws an abdomen as a block with nothing inside.
 void mesh_phantom_context(const phantoms::Phantom& phantom, Scene& scene) {
-    const double h = std::max({1.0, phantom.size.x / 160.0, phantom.size.y / 160.0,
-                               phantom.size.z / 160.0});  // as Scene::context_volume
-    tissue::VolumeGeometry grid;
-    grid.dims = glm::max(glm::ivec3(phantom.size / h) + 1, glm::ivec3(2));
-    grid.spacing = glm::dvec3(h);
-    auto instances = std::make_shared<tissue::Volume>();
-    phantoms::rasterise(phantom, grid, nullptr, instances.get());
+    const tissue::VolumeGeometry grid = scene::phantom_context_grid(phantom);
+    const double h = grid.spacing.x;
+    auto instances = std::make_shared<tissue::Volume>(scene.instances(grid));
     const std::size_t count = phantom.shapes.size();
     std::vector<double> texels(count + 1, 0.0);
     for (const float v : instances->voxels()) texels[std::size_t(v)] += 1.0;
