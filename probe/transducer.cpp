@@ -344,6 +344,27 @@ const std::vector<Transducer>& transducer_presets() {
         radial.depth_mm = 40.0;
         radial.lines = 256;
         p.push_back(radial);
+
+        // The probe of the PICMUS challenge (Liebgott et al., IEEE IUS 2016: an L11-4v on a
+        // Verasonics scanner), for plane-wave and diverging-wave imaging: 128 elements at
+        // 0.30 mm (kerf 0.03 mm), 5.208 MHz, 67 % bandwidth, a 2.5-cycle excitation,
+        // elevation focus 20 mm with 5 mm high elements, no transmit apodization.
+        Transducer picmus = p.front();  // the linear preset's array
+        picmus.name = "picmus";
+        picmus.description =
+            "linear 5.208 MHz, 128 elements at 0.30 mm, the PICMUS challenge's L11-4v "
+            "(67 % bandwidth, 2.5-cycle excitation, elevation focus 20 mm, element height "
+            "5 mm)";
+        picmus.frequency_mhz = 5.208;
+        picmus.bandwidth = 0.67;
+        picmus.cycles = 2.5;
+        picmus.focus_mm = 25.0;
+        picmus.tx_apodization = Apodization::rectangular;
+        picmus.rx_f_number = 1.75;
+        picmus.elevation_focus_mm = 20.0;
+        picmus.slice_thickness_mm = 1.18;  // 0.2957 mm * 20 / 5
+        picmus.depth_mm = 50.0;
+        p.push_back(picmus);
         return p;
     }();
     return presets;

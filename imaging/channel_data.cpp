@@ -1,0 +1,182 @@
+#include "imaging/channel_data.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+
+#include <tbb/parallel_for.h>
+
+#include "probe/aperture.h"
+#include "probe/pulse.h"
+#include "tissue/acoustic_map.h"
+
+namespace sonotrace::imaging {
+namespace {
+
+constexpr double kC0MmPerS = tissue::kReferenceSpeed * 1e3;
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+
+double sinc(double x) {
+    return std::abs(x) < 1e-8 ? 1.0 : std::sin(x) / x;
+}
+
+// The three waveforms g_j(k / fs), k = -half .. half (header): the pulse-echo band's
+// weights times the transmit's half-integration and (f / f0 - 1)^j.
+struct Waveforms {
+    int half = 0;
+    std::array<std::vector<std::complex<float>>, 3> g;
+};
+
+Waveforms make_waveforms(const probe::Transducer& t, double fs) {
+    const auto band = probe::pulse_band(t, probe::BandUse::echo);
+    const probe::PulseEcho pulse(t);
+    Waveforms w;
+    // The half-integration lengthens the pulse a little; the band repeats its waveform
+    // every 1 / step, which the taps must stay inside.
+    w.half = std::min(int(std::ceil(1.5 * pulse.half_length_s() * fs)),
+                      int(std::floor(0.5 / band->step_hz * fs)) - 1);
+    const double f0 = band->centre_hz;
+    const std::complex<double> quarter = std::polar(1.0, -0.25 * std::numbers::pi);
+    for (int j = 0; j < 3; ++j) {
+        w.g[std::size_t(j)].resize(std::size_t(2 * w.half + 1));
+        for (int k = -w.half; k <= w.half; ++k) {
+            std::complex<double> sum = 0.0;
+            for (int m = 0; m < band->count(); ++m) {
+                const double f = band->frequency_hz(m);
+                sum += band->weight[std::size_t(m)] * std::sqrt(f0 / f) * quarter *
+                       std::pow(f / f0 - 1.0, j) * std::polar(1.0, kTwoPi * f * k / fs);
+            }
+            w.g[std::size_t(j)][std::size_t(k + w.half)] = std::complex<float>(sum);
+        }
+    }
+    return w;
+}
+
+// The fit's frequencies f0 (1 + nu_q), q = 0, 1, 2: the -6 dB band edges and f0.
+std::array<double, 3> fit_points(const probe::Transducer& t) {
+    const double b = 0.5 * t.bandwidth;
+    return {-b, 0.0, b};
+}
+
+// Coefficients of the quadratic in nu = f / f0 - 1 through (nu_q, p_q).
+std::array<double, 3> quadratic(const std::array<double, 3>& p, double b) {
+    return {p[1], (p[2] - p[0]) / (2.0 * b), (p[2] + p[0] - 2.0 * p[1]) / (2.0 * b * b)};
+}
+
+// An echo as one transmit lights it.
+struct LitEcho {
+    glm::dvec2 r;
+    double time_s;                 // arrival of the transmit plus the extra delay
+    std::complex<double> amplitude;  // sigma times the transmit's amplitude at r
+    std::array<double, 3> transmit_directivity;  // at the fit's frequencies
+};
+
+}  // namespace
+
+ChannelData channel_layout(const probe::Transducer& t, const probe::TransmitScheme& scheme,
+                           const ChannelSettings& settings) {
+    ChannelData c;
+    c.transmits = int(scheme.waves.size());
+    c.elements = t.elements;
+    c.frequency_hz = t.frequency_mhz * 1e6;
+    c.fs_hz = settings.sampling_mhz > 0.0 ? settings.sampling_mhz * 1e6 : 4.0 * c.frequency_hz;
+    c.start_s = settings.start_us * 1e-6;
+    c.speed_m_s = tissue::kReferenceSpeed;
+    c.element_x_mm = probe::element_positions_mm(t);
+    c.waves = scheme.waves;
+    const double depth = settings.depth_mm > 0.0 ? settings.depth_mm : t.depth_mm;
+    const double span = t.array_length_mm();
+    const probe::PulseEcho pulse(t);
+    double latest = 0.0;
+    for (const probe::TransmitWave& wave : scheme.waves) {
+        const probe::TransmitField field(t, wave);
+        c.delays_s.push_back(field.delays_s());
+        for (double x : {-0.5 * span, 0.0, 0.5 * span})
+            latest = std::max(latest, field.at({x, depth}).time_s);
+    }
+    latest += std::hypot(depth, span) / kC0MmPerS + 1.5 * pulse.half_length_s();
+    c.samples = std::max(1, int(std::ceil((latest - c.start_s) * c.fs_hz)) + 1);
+    return c;
+}
+
+ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme& scheme,
+                         const std::vector<ChannelEcho>& echoes, const ChannelSettings& settings) {
+    ChannelData c = channel_layout(t, scheme, settings);
+    const int S = c.samples;
+    c.values.assign(std::size_t(c.transmits) * std::size_t(c.elements) * std::size_t(S), 0.0f);
+    const Waveforms waveforms = make_waveforms(t, c.fs_hz);
+    const std::array<double, 3> nu = fit_points(t);
+    const double b = nu[2];
+    const double f0 = c.frequency_hz, fs = c.fs_hz;
+    const double directivity_scale = std::numbers::pi * t.element_width_mm / t.wavelength_mm();
+
+    for (int w = 0; w < c.transmits; ++w) {
+        const probe::TransmitField field(t, scheme.waves[std::size_t(w)]);
+        std::vector<LitEcho> lit;
+        lit.reserve(echoes.size());
+        for (const ChannelEcho& echo : echoes) {
+            const probe::TransmitField::Arrival a = field.at(echo.position);
+            if (!(a.amplitude > 0.0)) continue;
+            LitEcho l{echo.position, a.time_s + echo.extra_delay_s, echo.strength * a.amplitude,
+                      {}};
+            for (int q = 0; q < 3; ++q)
+                l.transmit_directivity[std::size_t(q)] =
+                    sinc(directivity_scale * (1.0 + nu[std::size_t(q)]) * a.sin_angle);
+            lit.push_back(l);
+        }
+        tbb::parallel_for(0, c.elements, [&](int e) {
+            // The three amplitude trains of this channel (header).
+            std::array<std::vector<std::complex<float>>, 3> train;
+            for (auto& v : train) v.assign(std::size_t(S), 0.0f);
+            const double xe = c.element_x_mm[std::size_t(e)];
+            for (const LitEcho& l : lit) {
+                const glm::dvec2 d(l.r.x - xe, l.r.y);
+                const double R = glm::length(d);
+                if (!(R > 0.0)) continue;
+                const double sin_back = d.x / R, cos_back = d.y / R;
+                std::array<double, 3> p;
+                for (int q = 0; q < 3; ++q)
+                    p[std::size_t(q)] =
+                        l.transmit_directivity[std::size_t(q)] *
+                        sinc(directivity_scale * (1.0 + nu[std::size_t(q)]) * sin_back);
+                const std::array<double, 3> coefficient = quadratic(p, b);
+                const double arrival = l.time_s + R / kC0MmPerS;
+                const double position = (arrival - c.start_s) * fs;
+                const int n0 = int(std::floor(position));
+                if (n0 < -waveforms.half || n0 + 1 >= S + waveforms.half) continue;
+                const double u = position - n0;
+                const std::complex<double> amplitude = l.amplitude * cos_back / std::sqrt(R);
+                for (int side = 0; side < 2; ++side) {
+                    const int n = n0 + side;
+                    if (n < 0 || n >= S) continue;
+                    const double share = side ? u : 1.0 - u;
+                    const std::complex<double> carrier =
+                        std::polar(share, -kTwoPi * f0 * (arrival - c.time_s(n)));
+                    for (int j = 0; j < 3; ++j)
+                        train[std::size_t(j)][std::size_t(n)] += std::complex<float>(
+                            amplitude * coefficient[std::size_t(j)] * carrier);
+                }
+            }
+            // RF = Re sum_j train_j (*) g_j.
+            float* out = c.channel(w, e);
+            const int H = waveforms.half;
+            for (int j = 0; j < 3; ++j) {
+                const auto& g = waveforms.g[std::size_t(j)];
+                const auto& a = train[std::size_t(j)];
+                for (int n = 0; n < S; ++n) {
+                    if (a[std::size_t(n)] == std::complex<float>(0.0f)) continue;
+                    const int lo = std::max(-H, -n), hi = std::min(H, S - 1 - n);
+                    const float ar = a[std::size_t(n)].real(), ai = a[std::size_t(n)].imag();
+                    for (int k = lo; k <= hi; ++k) {
+                        const std::complex<float> gk = g[std::size_t(k + H)];
+                        out[n + k] += ar * gk.real() - ai * gk.imag();
+                    }
+                }
+            }
+        });
+    }
+    return c;
+}
+
+}  // namespace sonotrace::imaging

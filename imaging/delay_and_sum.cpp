@@ -1,0 +1,117 @@
+#include "imaging/delay_and_sum.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <opencv2/core.hpp>
+#include <tbb/parallel_for.h>
+
+#include "probe/transmit.h"
+
+namespace sonotrace::imaging {
+namespace {
+
+constexpr double kTurn = 2.0 * std::numbers::pi;
+
+// Catmull-Rom interpolation of v at fractional position p (0 outside [0, n - 1]).
+std::complex<float> interpolate(const std::complex<float>* v, int n, double p) {
+    const int i = int(std::floor(p));
+    if (i < 1 || i + 2 >= n) {
+        if (i < 0 || i + 1 >= n) return 0.0f;
+        const float u = float(p - i);
+        return v[i] * (1.0f - u) + v[i + 1] * u;
+    }
+    const float u = float(p - i), u2 = u * u, u3 = u2 * u;
+    return v[i - 1] * (-0.5f * u3 + u2 - 0.5f * u) + v[i] * (1.5f * u3 - 2.5f * u2 + 1.0f) +
+           v[i + 1] * (-1.5f * u3 + 2.0f * u2 + 0.5f * u) + v[i + 2] * (0.5f * u3 - 0.5f * u2);
+}
+
+}  // namespace
+
+PixelGrid pixel_grid(const probe::Transducer& t, double from_mm, double to_mm, double pixel_mm) {
+    PixelGrid g;
+    g.dx_mm = g.dz_mm = pixel_mm;
+    const double half = 0.5 * t.array_length_mm();
+    g.nx = std::max(1, int(std::floor(2.0 * half / pixel_mm)) + 1);
+    g.x0_mm = -0.5 * (g.nx - 1) * pixel_mm;
+    g.z0_mm = from_mm;
+    g.nz = std::max(1, int(std::floor((to_mm - from_mm) / pixel_mm)) + 1);
+    return g;
+}
+
+std::vector<std::complex<float>> analytic_signal(const float* x, int n) {
+    const int padded = cv::getOptimalDFTSize(n + n / 8 + 16);
+    cv::Mat spectrum(1, padded, CV_32FC2, cv::Scalar::all(0));
+    for (int k = 0; k < n; ++k) spectrum.at<cv::Vec2f>(0, k)[0] = x[k];
+    cv::dft(spectrum, spectrum);
+    // Keep DC and Nyquist, double the positive half, clear the negative one.
+    for (int k = 1; k < padded; ++k) {
+        cv::Vec2f& s = spectrum.at<cv::Vec2f>(0, k);
+        if (2 * k < padded) {
+            s *= 2.0f;
+        } else if (2 * k > padded) {
+            s = cv::Vec2f(0.0f, 0.0f);
+        }
+    }
+    cv::dft(spectrum, spectrum, cv::DFT_INVERSE | cv::DFT_SCALE);
+    std::vector<std::complex<float>> out(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) {
+        const cv::Vec2f& s = spectrum.at<cv::Vec2f>(0, k);
+        out[std::size_t(k)] = {s[0], s[1]};
+    }
+    return out;
+}
+
+BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
+                              const PixelGrid& grid, const DasSettings& settings, int first,
+                              int last) {
+    if (last < 0) last = c.transmits;
+    BeamformedImage image;
+    image.grid = grid;
+    image.values.assign(std::size_t(grid.nx) * std::size_t(grid.nz), 0.0f);
+    const int S = c.samples, E = c.elements;
+    const double f0 = c.frequency_hz, fs = c.fs_hz, c0 = c.speed_m_s * 1e3;  // mm/s
+    std::vector<std::complex<float>> baseband(std::size_t(E) * std::size_t(S));
+    for (int w = first; w < last; ++w) {
+        // Each channel's analytic signal at baseband.
+        tbb::parallel_for(0, E, [&](int e) {
+            const std::vector<std::complex<float>> a = analytic_signal(c.channel(w, e), S);
+            std::complex<float>* out = baseband.data() + std::size_t(e) * std::size_t(S);
+            for (int n = 0; n < S; ++n)
+                out[n] = a[std::size_t(n)] *
+                         std::complex<float>(std::polar(1.0, -kTurn * f0 * c.time_s(n)));
+        });
+        const probe::TransmitField field(t, c.waves[std::size_t(w)]);
+        tbb::parallel_for(0, grid.nz, [&](int j) {
+            const double z = grid.z(j);
+            const double half_width = std::max(0.5 * z / settings.f_number, 0.5 * t.pitch_mm);
+            for (int i = 0; i < grid.nx; ++i) {
+                const double x = grid.x(i);
+                const double transmit_time = field.at({x, z}).time_s;
+                const auto lo = std::lower_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
+                                                 x - half_width);
+                const auto hi = std::upper_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
+                                                 x + half_width);
+                std::complex<double> sum = 0.0;
+                for (auto it = lo; it < hi; ++it) {
+                    const int e = int(it - c.element_x_mm.begin());
+                    const double weight =
+                        probe::apodization_weight(settings.apodization,
+                                                  0.5 + (*it - x) / (2.0 * half_width));
+                    if (!(weight > 0.0)) continue;
+                    const double delay = transmit_time + std::hypot(x - *it, z) / c0;
+                    const double position = (delay - c.start_s) * fs;
+                    const std::complex<float> v = interpolate(
+                        baseband.data() + std::size_t(e) * std::size_t(S), S, position);
+                    sum += weight * std::complex<double>(v) * std::polar(1.0, kTurn * f0 * delay);
+                }
+                image.values[std::size_t(j) * std::size_t(grid.nx) + std::size_t(i)] +=
+                    std::complex<float>(sum);
+            }
+        });
+    }
+    return image;
+}
+
+}  // namespace sonotrace::imaging

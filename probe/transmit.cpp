@@ -1,0 +1,243 @@
+#include "probe/transmit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "tissue/acoustic_map.h"
+#include "tissue/base/error.h"
+#include "tissue/base/number_list.h"
+
+namespace sonotrace::probe {
+namespace {
+
+constexpr double kDegree = std::numbers::pi / 180.0;
+// A scheme longer than this is a typing slip, not an acquisition (PICMUS uses 75).
+constexpr int kMostTransmits = 10000;
+
+std::vector<std::string> split(const std::string& text, char separator) {
+    std::vector<std::string> parts;
+    std::size_t start = 0;
+    for (;;) {
+        const std::size_t end = text.find(separator, start);
+        parts.push_back(text.substr(start, end == std::string::npos ? end : end - start));
+        if (end == std::string::npos) return parts;
+        start = end + 1;
+    }
+}
+
+// Angles in degrees: "A", "A,B,..." or "FROM:TO:N" (the parts after the kind).
+std::vector<double> parse_angles(const std::vector<std::string>& parts, const std::string& source,
+                                 const std::string& field) {
+    std::vector<double> angles;
+    if (parts.size() == 1) {
+        if (auto error = base::parse_number_list(parts[0], &angles))
+            throw base::InputError(source, field, "angles (degrees): " + *error);
+    } else if (parts.size() == 3) {
+        const auto from = base::finite_number(parts[0]), to = base::finite_number(parts[1]);
+        if (!from || !to)
+            throw base::InputError(source, field,
+                                   "FROM:TO:N needs numbers for FROM and TO (degrees), got '" +
+                                       parts[0] + "' and '" + parts[1] + "'");
+        if (base::not_a_whole_number(parts[2]))
+            throw base::InputError(source, field,
+                                   "FROM:TO:N needs a whole number N of transmits, got '" +
+                                       parts[2] + "'");
+        const auto n = base::finite_number(parts[2]);
+        if (!(*n >= 1.0))
+            throw base::InputError(source, field, "zero transmits: N must be at least 1");
+        if (*n > kMostTransmits)
+            throw base::InputError(source, field,
+                                   "N = " + parts[2] + " transmits; at most " +
+                                       std::to_string(kMostTransmits));
+        const int count = int(*n);
+        for (int k = 0; k < count; ++k)
+            angles.push_back(count == 1 ? *from : *from + (*to - *from) * k / (count - 1));
+    } else {
+        throw base::InputError(source, field,
+                               "angles are A, A,B,... or FROM:TO:N (degrees), got '" +
+                                   [&] {
+                                       std::string joined;
+                                       for (std::size_t i = 0; i < parts.size(); ++i) {
+                                           if (i) joined += ':';
+                                           joined += parts[i];
+                                       }
+                                       return joined;
+                                   }() +
+                                   "'");
+    }
+    if (angles.empty()) throw base::InputError(source, field, "zero transmits: no angle given");
+    if (angles.size() > std::size_t(kMostTransmits))
+        throw base::InputError(source, field,
+                               std::to_string(angles.size()) + " transmits; at most " +
+                                   std::to_string(kMostTransmits));
+    for (double a : angles) {
+        if (!(std::abs(a) < 90.0))
+            throw base::InputError(source, field,
+                                   "angle " + base::number_text(a) +
+                                       " degrees: a transmit must point into the tissue "
+                                       "(|angle| < 90)");
+    }
+    return angles;
+}
+
+double sinc(double x) {
+    return std::abs(x) < 1e-8 ? 1.0 : std::sin(x) / x;
+}
+
+// The element's directivity at f0 towards sin theta (probe/aperture.h's D).
+double element_directivity(const Transducer& t, double sin_theta) {
+    const double cos_theta = std::sqrt(std::max(0.0, 1.0 - sin_theta * sin_theta));
+    return sinc(std::numbers::pi * t.element_width_mm * sin_theta / t.wavelength_mm()) * cos_theta;
+}
+
+}  // namespace
+
+glm::dvec2 TransmitWave::virtual_source() const {
+    return {-source_distance_mm * std::sin(angle_rad), -source_distance_mm * std::cos(angle_rad)};
+}
+
+std::string TransmitWave::label() const {
+    char text[64];
+    if (kind == Kind::plane)
+        std::snprintf(text, sizeof text, "plane %.2f deg", angle_rad / kDegree);
+    else
+        std::snprintf(text, sizeof text, "diverging %.3g mm, %.2f deg", source_distance_mm,
+                      angle_rad / kDegree);
+    return text;
+}
+
+TransmitScheme parse_transmit_scheme(const std::string& text, const std::string& source,
+                                     const std::string& field) {
+    const std::vector<std::string> parts = split(text, ':');
+    const std::string& kind = parts[0];
+    TransmitScheme scheme;
+    scheme.text = text;
+    if (kind == "plane") {
+        if (parts.size() < 2)
+            throw base::InputError(source, field,
+                                   "plane needs its angles: plane:A, plane:A,B,... or "
+                                   "plane:FROM:TO:N (degrees)");
+        for (double a : parse_angles({parts.begin() + 1, parts.end()}, source, field))
+            scheme.waves.push_back({TransmitWave::Kind::plane, a * kDegree, 0.0});
+    } else if (kind == "diverging") {
+        if (parts.size() < 2)
+            throw base::InputError(source, field,
+                                   "diverging needs the virtual source's distance behind the "
+                                   "face: diverging:D or diverging:D:ANGLES (mm, degrees)");
+        const auto distance = base::finite_number(parts[1]);
+        if (!distance)
+            throw base::InputError(source, field,
+                                   "the virtual source's distance must be a number (mm), got '" +
+                                       parts[1] + "'");
+        if (!(*distance > 0.0))
+            throw base::InputError(source, field,
+                                   "the virtual source must lie behind the face (distance > 0 "
+                                   "mm), got " +
+                                       base::number_text(*distance) +
+                                       " mm: a source in front of the array is a focused "
+                                       "transmit");
+        const std::vector<double> angles =
+            parts.size() == 2 ? std::vector<double>{0.0}
+                              : parse_angles({parts.begin() + 2, parts.end()}, source, field);
+        for (double a : angles)
+            scheme.waves.push_back({TransmitWave::Kind::diverging, a * kDegree, *distance});
+    } else {
+        throw base::InputError(source, field,
+                               "unknown transmit '" + kind +
+                                   "' (plane:ANGLES or diverging:DISTANCE[:ANGLES])");
+    }
+    return scheme;
+}
+
+std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme,
+                                                  const Transducer& t, const std::string& source,
+                                                  const std::string& field) {
+    if (scheme.empty()) throw base::InputError(source, field, "zero transmits");
+    if (t.type != TransducerType::linear && t.type != TransducerType::phased)
+        throw base::InputError(source, field,
+                               "plane and diverging waves need a flat array (linear or phased); "
+                               "the probe is " +
+                                   to_string(t.type));
+    // The first grating lobe at f0 lies at sin theta - lambda / pitch; past the limit it
+    // comes within the element's -6 dB directivity.
+    const double ratio = t.wavelength_mm() / t.pitch_mm;
+    double worst = 0.0;
+    for (const TransmitWave& w : scheme.waves) {
+        double angle = std::abs(w.angle_rad);
+        if (w.kind == TransmitWave::Kind::diverging)
+            angle += std::atan(0.5 * t.array_length_mm() / w.source_distance_mm);
+        worst = std::max(worst, std::min(angle, 0.5 * std::numbers::pi));
+    }
+    std::vector<std::string> warnings;
+    const double lobe = std::sin(worst) - ratio;
+    if (lobe > -1.0 && element_directivity(t, lobe) > 0.5) {
+        warnings.push_back(field + ": rays at " + base::number_text(worst / kDegree) +
+                           " degrees send a grating lobe towards " +
+                           base::number_text(std::asin(lobe) / kDegree) +
+                           " degrees within the elements' -6 dB directivity (pitch " +
+                           base::number_text(t.pitch_mm) + " mm, wavelength " +
+                           base::number_text(t.wavelength_mm()) + " mm)");
+    }
+    return warnings;
+}
+
+std::vector<double> element_positions_mm(const Transducer& t) {
+    std::vector<double> x(std::size_t(t.elements));
+    for (int i = 0; i < t.elements; ++i) x[std::size_t(i)] = (i - 0.5 * (t.elements - 1)) * t.pitch_mm;
+    return x;
+}
+
+TransmitField::TransmitField(const Transducer& t, const TransmitWave& wave)
+    : wave_(wave),
+      x_(element_positions_mm(t)),
+      apodization_(t.tx_apodization),
+      half_span_(0.5 * t.array_length_mm()),
+      pitch_(t.pitch_mm),
+      lambda0_(t.wavelength_mm()) {
+    delays_.resize(x_.size());
+    weights_.resize(x_.size());
+    for (std::size_t i = 0; i < x_.size(); ++i) {
+        delays_[i] = at({x_[i], 0.0}).time_s;
+        weights_[i] = apodization_weight(apodization_, (double(i) + 0.5) / double(x_.size()));
+    }
+}
+
+TransmitField::Arrival TransmitField::at(const glm::dvec2& r) const {
+    constexpr double c0_mm_per_s = tissue::kReferenceSpeed * 1e3;
+    Arrival a;
+    double s = 0.0, cos_angle = 1.0, effective_range = 0.0, geometry = 1.0;
+    if (wave_.kind == TransmitWave::Kind::plane) {
+        const double sn = std::sin(wave_.angle_rad), cs = std::cos(wave_.angle_rad);
+        a.time_s = (r.x * sn + r.y * cs) / c0_mm_per_s;
+        a.sin_angle = sn;
+        cos_angle = cs;
+        s = r.x - r.y * sn / cs;
+        effective_range = r.y / cs;
+    } else {
+        const glm::dvec2 v = wave_.virtual_source();
+        const double to_r = glm::length(r - v);
+        a.time_s = (to_r - glm::length(v)) / c0_mm_per_s;
+        if (!(r.y > 0.0) || to_r <= 0.0) return a;
+        s = v.x + (r.x - v.x) * (-v.y) / (r.y - v.y);
+        a.sin_angle = (r.x - v.x) / to_r;
+        cos_angle = (r.y - v.y) / to_r;
+        const double behind = glm::length(glm::dvec2(s, 0.0) - v), in_front = to_r - behind;
+        geometry = behind / to_r;
+        effective_range = behind * in_front / to_r;
+    }
+    if (!(r.y > 0.0) || !(effective_range > 0.0)) return a;
+    // The apodization at the nearer end continues past it, where the edge step fades.
+    const double u = std::clamp((s + half_span_) / (2.0 * half_span_), 0.0, 1.0);
+    const double weight = apodization_weight(apodization_, u);
+    if (!(weight > 0.0)) return a;
+    // The aperture's ends: a step over a Fresnel zone, in the Fresnel parameter of the
+    // distance inside the nearer end (header).
+    const double fresnel = cos_angle * std::sqrt(2.0 / (lambda0_ * effective_range));
+    const double inside = std::min(s + half_span_, half_span_ - s) * fresnel;
+    const double edge = 0.5 * std::erfc(-std::sqrt(std::numbers::pi) * inside);
+    a.amplitude = weight * edge * std::sqrt(lambda0_ * geometry) / pitch_;
+    return a;
+}
+
+}  // namespace sonotrace::probe

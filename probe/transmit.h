@@ -1,0 +1,106 @@
+#pragma once
+// Unfocused transmits of a flat array (linear, phased): steered plane waves and diverging
+// waves from a virtual source behind the array, the modes of ultrafast imaging. Each is a
+// type with its equations beside it, in the probe plane (x along the array, y = z into
+// the tissue, origin at the face's centre, elements at (x_i, 0)).
+//
+// Element i fires at d_i, the time the transmit's ideal wave passes it, and radiates (the
+// aperture model's element, probe/aperture.h) a_i D(theta, f) exp(-i 2 pi f (d_i + R_i /
+// c0)) / sqrt(R_i) to a point r at R_i = |r - x_i|, D = sinc(pi w f sin theta / c0) cos
+// theta. By stationary phase the element sum is one wave (the arrivals of the elements
+// at r spread no further than the pulse):
+//
+//   sum_i ... = (a(s*) / pitch) sinc(pi w f sin theta* / c0) sqrt(lambda_f G)
+//               exp(-i pi / 4) exp(-i 2 pi f tau(r)),
+//
+// s* the element whose ray passes through r, theta* that ray's angle from the normal,
+// G a geometric factor (plane: 1; diverging: R2 / (R1 + R2), R2 = |s* - v| behind the
+// face, R1 = |r - s*| in front), tau(r) the arrival time of the ideal wave:
+//
+//   plane, angle theta:       tau = (x sin theta + z cos theta) / c0,  s* = x - z tan theta
+//   diverging, source v:      tau = (|r - v| - |v|) / c0,  s* on the line from v through r
+//
+// Time zero is the instant the wave passes the face's centre (a plane wave) or would pass
+// it (a diverging wave). The sqrt(lambda_f) exp(-i pi / 4), a half-integration of the
+// pulse, is the same for every point and goes into the waveform the channel data are
+// made with (imaging/channel_data.h). The aperture's ends are a smooth step over a
+// Fresnel zone (0.5 at the geometric boundary, 0.99 a zone inside it); the edge waves
+// they also send, pulses of their own later arrival, are not modelled
+// (test: ChannelData.PointEchoesMatchTheElementByElementSum measures what that leaves).
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "probe/transducer.h"
+
+namespace sonotrace::probe {
+
+struct TransmitWave {
+    enum class Kind { plane, diverging };
+    Kind kind = Kind::plane;
+    // Plane: the steering angle from the normal (rad, positive towards +x). Diverging: the
+    // direction of the virtual source's axis, the source at `source_distance_mm` behind the
+    // face's centre along it.
+    double angle_rad = 0.0;
+    double source_distance_mm = 0.0;
+    glm::dvec2 virtual_source() const;  // diverging: (-b sin a, -b cos a)
+    std::string label() const;          // "plane 10.0 deg", "diverging 20 mm, 0.0 deg"
+};
+
+// A list of transmits, in firing order.
+struct TransmitScheme {
+    std::vector<TransmitWave> waves;
+    bool empty() const { return waves.empty(); }
+    // The text `parse_transmit_scheme` reads back to this scheme ("plane:-16:16:75").
+    std::string text;
+};
+
+// The syntax of --transmit (the CLI's help shows this):
+//   plane:A            one plane wave at A degrees
+//   plane:A,B,...      a list of angles (degrees)
+//   plane:FROM:TO:N    N angles evenly from FROM to TO (degrees; N >= 1; N = 1: FROM)
+//   diverging:D        one diverging wave, virtual source D mm behind the face's centre
+//   diverging:D:ANGLES the same, its axis steered by each angle (list or FROM:TO:N)
+// Throws base::InputError(source, field): unknown kind, a malformed or empty list, zero
+// transmits, an angle beyond 90 degrees, a virtual source not behind the face (D <= 0).
+TransmitScheme parse_transmit_scheme(const std::string& text, const std::string& source,
+                                     const std::string& field);
+
+// The checks that need the array: only flat arrays (linear, phased) take these transmits;
+// throws base::InputError(source, field). Returns warnings (angles past the grating-lobe
+// limit of the array at the band's upper -6 dB frequency: sin theta > lambda / pitch - 1).
+std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme,
+                                                  const Transducer& t, const std::string& source,
+                                                  const std::string& field);
+
+// Element positions of a flat array along x (mm), centred on the face.
+std::vector<double> element_positions_mm(const Transducer& t);
+
+// One transmit on one array: the elements' delays and where its wave reaches.
+class TransmitField {
+  public:
+    TransmitField(const Transducer& t, const TransmitWave& wave);
+    // d_i (s): element i fires when the ideal wave passes it.
+    const std::vector<double>& delays_s() const { return delays_; }
+    const std::vector<double>& apodization() const { return weights_; }
+    // The wave at r (probe plane, mm): its arrival time tau (s), the frequency-independent
+    // part of its amplitude (a(s*) sqrt(lambda0 G) / pitch times the aperture's edge step;
+    // 0 where no element's ray reaches r), and sin theta* (the transmit directivity's
+    // argument is pi w f sin theta* / c0).
+    struct Arrival {
+        double time_s = 0.0;
+        double amplitude = 0.0;
+        double sin_angle = 0.0;
+    };
+    Arrival at(const glm::dvec2& r) const;
+    const TransmitWave& wave() const { return wave_; }
+
+  private:
+    TransmitWave wave_;
+    std::vector<double> x_, delays_, weights_;
+    Apodization apodization_;
+    double half_span_ = 0.0, pitch_ = 0.0, lambda0_ = 0.0;
+};
+
+}  // namespace sonotrace::probe
