@@ -7,8 +7,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <array>
 #include <complex>
+#include <limits>
 #include <numbers>
+
+#include <opencv2/core.hpp>
 
 #include "imaging/channel_data.h"
 #include "imaging/delay_and_sum.h"
@@ -227,6 +231,172 @@ TEST(ChannelData, TransmitSchemesParseAndRefuseBadInput) {
     EXPECT_THROW(probe::validate_transmit_scheme(plane, probe::find_transducer("convex", "test"),
                                                  "--transmit", ""),
                  base::InputError);
+}
+
+
+// Point targets under 1 plane wave and under 75 compounded over +-16 degrees: the lateral
+// FWHM of the beamformer's image against an independent delay-and-sum written here (the
+// channels' analytic signal upsampled 16 times by zero-padding their spectrum, nearest
+// upsampled sample), and the narrowing against what the synthetic transmit aperture
+// predicts: the broadband lateral response sum_f |S(f)| sum_w sum_e exp(i 2 pi f / c0 dx
+// (sin theta_w + sin phi_e)) of the transmit angles theta_w and the directions phi_e from
+// the target to the receiving elements, each way's lateral spatial frequencies added.
+namespace compounding {
+
+struct Profile {
+    std::vector<double> x, value;
+};
+double fwhm(const Profile& p) {
+    const int peak = int(std::max_element(p.value.begin(), p.value.end()) - p.value.begin());
+    const double half = 0.5 * p.value[std::size_t(peak)];
+    auto crossing = [&](int step) {
+        for (int i = peak; i + step >= 0 && i + step < int(p.value.size()); i += step) {
+            const double a = p.value[std::size_t(i)], b = p.value[std::size_t(i + step)];
+            if (b <= half)
+                return p.x[std::size_t(i)] +
+                       (p.x[std::size_t(i + step)] - p.x[std::size_t(i)]) * (a - half) / (a - b);
+        }
+        return std::numeric_limits<double>::quiet_NaN();
+    };
+    return crossing(1) - crossing(-1);
+}
+
+}  // namespace compounding
+
+TEST(ChannelData, CompoundingNarrowsPointsAsTheSyntheticApertureDoes) {
+    using compounding::fwhm;
+    using compounding::Profile;
+    probe::Transducer t = probe::find_transducer("picmus", "test");
+    t.depth_mm = 40.0;
+    const std::vector<double> depths{15.0, 25.0, 35.0};
+    std::vector<ChannelEcho> echoes;
+    for (double z : depths) echoes.push_back({{0.0, z}, 1.0, 0.0});
+    const probe::TransmitScheme scheme = probe::parse_transmit_scheme("plane:-16:16:75", "t", "");
+    const ChannelData channels = channel_data(t, scheme, echoes, {});
+    const int single = 37;  // 0 degrees
+    ASSERT_NEAR(scheme.waves[single].angle_rad, 0.0, 1e-12);
+    DasSettings das;
+    das.f_number = 1.75;
+    das.apodization = probe::Apodization::rectangular;
+    const double dx = 0.02;
+
+    // The independent beamformer's channels: upsampled analytic signals, per transmit.
+    const int up = 16, S = channels.samples;
+    const int padded = cv::getOptimalDFTSize(S + 64);
+    auto upsampled = [&](int w) {
+        std::vector<std::vector<std::complex<float>>> out(std::size_t(channels.elements));
+        for (int e = 0; e < channels.elements; ++e) {
+            cv::Mat spectrum(1, padded, CV_32FC2, cv::Scalar::all(0));
+            for (int n = 0; n < S; ++n) spectrum.at<cv::Vec2f>(0, n)[0] = channels.at(w, e, n);
+            cv::dft(spectrum, spectrum);
+            cv::Mat wide(1, padded * up, CV_32FC2, cv::Scalar::all(0));
+            for (int k = 1; k < padded / 2; ++k)  // positive frequencies, doubled
+                wide.at<cv::Vec2f>(0, k) = 2.0f * spectrum.at<cv::Vec2f>(0, k);
+            cv::dft(wide, wide, cv::DFT_INVERSE);
+            auto& v = out[std::size_t(e)];
+            v.resize(std::size_t(padded * up));
+            for (int n = 0; n < padded * up; ++n) {
+                const cv::Vec2f& s = wide.at<cv::Vec2f>(0, n);
+                v[std::size_t(n)] = std::complex<float>(s[0], s[1]) / float(padded);
+            }
+        }
+        return out;
+    };
+    // The test's own delays: pixel (x_i, z) under transmit w, added to `sum`.
+    auto add_transmit = [&](int w, const std::vector<std::vector<std::complex<float>>>& channel,
+                            double z, const std::vector<double>& xs,
+                            std::vector<std::complex<double>>& sum) {
+        const double a = scheme.waves[std::size_t(w)].angle_rad;
+        for (std::size_t i = 0; i < xs.size(); ++i) {
+            const double transmit = (xs[i] * std::sin(a) + z * std::cos(a)) / kC0;
+            for (int e = 0; e < channels.elements; ++e) {
+                const double xe = channels.element_x_mm[std::size_t(e)];
+                if (std::abs(xe - xs[i]) > 0.5 * z / das.f_number) continue;
+                const double delay = transmit + std::hypot(xs[i] - xe, z) / kC0;
+                const long n = std::lround((delay - channels.start_s) * channels.fs_hz * up);
+                if (n >= 0 && n < long(channel[std::size_t(e)].size()))
+                    sum[i] += std::complex<double>(channel[std::size_t(e)][std::size_t(n)]);
+            }
+        }
+    };
+    // The synthetic aperture's prediction (header), on the pulse's band.
+    const Spectrum spectrum = pulse_spectrum(t, 2e5);
+    auto predicted = [&](int first, int last, double z, const std::vector<double>& xs) {
+        Profile p;
+        for (double x : xs) {
+            std::complex<double> sum = 0.0;
+            for (std::size_t k = 0; k < spectrum.f.size(); ++k) {
+                const double kx = 2.0 * kPi * spectrum.f[k] / kC0 * x;
+                std::complex<double> transmit = 0.0, receive = 0.0;
+                for (int w = first; w < last; ++w)
+                    transmit += std::polar(1.0, kx * std::sin(scheme.waves[std::size_t(w)].angle_rad));
+                for (double xe : channels.element_x_mm)
+                    if (std::abs(xe) <= 0.5 * z / das.f_number)
+                        receive += std::polar(1.0, kx * -xe / std::hypot(xe, z));
+                sum += std::abs(spectrum.s[k]) * transmit * receive;
+            }
+            p.x.push_back(x);
+            p.value.push_back(std::abs(sum));
+        }
+        return fwhm(p);
+    };
+
+    std::vector<double> xs;
+    for (double x = -2.0; x <= 2.0 + 1e-9; x += dx) xs.push_back(x);
+    // The beamformer's image around each target (the row of its brightest pixel), 1 and
+    // 75 waves; then the independent sums on those rows, one pass over the transmits.
+    const std::size_t D = depths.size();
+    std::vector<std::array<double, 2>> width(D), row_depth(D), prediction(D);
+    for (std::size_t d = 0; d < D; ++d) {
+        for (int mode = 0; mode < 2; ++mode) {
+            const int first = mode == 0 ? single : 0, last = mode == 0 ? single + 1 : 75;
+            PixelGrid grid;
+            grid.x0_mm = xs.front(), grid.dx_mm = dx, grid.nx = int(xs.size());
+            grid.z0_mm = depths[d] - 0.3, grid.dz_mm = 0.02, grid.nz = 31;
+            const BeamformedImage image = delay_and_sum(channels, t, grid, das, first, last);
+            int best = 0;
+            for (int k = 0; k < int(image.values.size()); ++k)
+                if (std::abs(image.values[std::size_t(k)]) >
+                    std::abs(image.values[std::size_t(best)]))
+                    best = k;
+            const int row = best / grid.nx;
+            Profile p{xs, {}};
+            for (int i = 0; i < grid.nx; ++i) p.value.push_back(std::abs(image.at(i, row)));
+            width[d][std::size_t(mode)] = fwhm(p);
+            row_depth[d][std::size_t(mode)] = grid.z(row);
+            prediction[d][std::size_t(mode)] = predicted(first, last, depths[d], xs);
+        }
+    }
+    std::vector<std::array<std::vector<std::complex<double>>, 2>> sums(D);
+    for (auto& s : sums) s[0].assign(xs.size(), 0.0), s[1].assign(xs.size(), 0.0);
+    for (int w = 0; w < 75; ++w) {
+        const auto channel = upsampled(w);
+        for (std::size_t d = 0; d < D; ++d) {
+            add_transmit(w, channel, row_depth[d][1], xs, sums[d][1]);
+            if (w == single) add_transmit(w, channel, row_depth[d][0], xs, sums[d][0]);
+        }
+    }
+    for (std::size_t d = 0; d < D; ++d) {
+        const double z = depths[d];
+        std::array<double, 2> independent;
+        for (int mode = 0; mode < 2; ++mode) {
+            Profile p{xs, {}};
+            for (const auto& v : sums[d][std::size_t(mode)]) p.value.push_back(std::abs(v));
+            independent[std::size_t(mode)] = fwhm(p);
+            EXPECT_NEAR(width[d][std::size_t(mode)], independent[std::size_t(mode)],
+                        0.10 * independent[std::size_t(mode)])
+                << "z " << z << (mode ? ", 75 waves" : ", 1 wave");
+        }
+        const double ratio = width[d][1] / width[d][0],
+                     predicted_ratio = prediction[d][1] / prediction[d][0];
+        std::printf("z %.0f mm: FWHM 1 wave %.3f mm (independent %.3f, predicted %.3f), 75 "
+                    "waves %.3f mm (independent %.3f, predicted %.3f); ratio %.3f, predicted "
+                    "%.3f\n",
+                    z, width[d][0], independent[0], prediction[d][0], width[d][1], independent[1],
+                    prediction[d][1], ratio, predicted_ratio);
+        EXPECT_NEAR(ratio, predicted_ratio, 0.15 * predicted_ratio) << "z " << z;
+        EXPECT_LT(ratio, 0.9);
+    }
 }
 
 }  // namespace
