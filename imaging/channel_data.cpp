@@ -15,7 +15,6 @@
 namespace sonotrace::imaging {
 namespace {
 
-constexpr double kC0MmPerS = tissue::kReferenceSpeed * 1e3;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 double sinc(double x) {
@@ -29,7 +28,7 @@ struct Waveforms {
     std::array<std::vector<std::complex<float>>, 3> g;
 };
 
-Waveforms make_waveforms(const probe::Transducer& t, double fs) {
+Waveforms make_waveforms(const probe::Transducer& t, double fs, bool half_integrated) {
     const auto band = probe::pulse_band(t, probe::BandUse::echo);
     const probe::PulseEcho pulse(t);
     Waveforms w;
@@ -38,14 +37,16 @@ Waveforms make_waveforms(const probe::Transducer& t, double fs) {
     w.half = std::min(int(std::ceil(1.5 * pulse.half_length_s() * fs)),
                       int(std::floor(0.5 / band->step_hz * fs)) - 1);
     const double f0 = band->centre_hz;
-    const std::complex<double> quarter = std::polar(1.0, -0.25 * std::numbers::pi);
+    const std::complex<double> quarter =
+        half_integrated ? std::polar(1.0, -0.25 * std::numbers::pi) : 1.0;
     for (int j = 0; j < 3; ++j) {
         w.g[std::size_t(j)].resize(std::size_t(2 * w.half + 1));
         for (int k = -w.half; k <= w.half; ++k) {
             std::complex<double> sum = 0.0;
             for (int m = 0; m < band->count(); ++m) {
                 const double f = band->frequency_hz(m);
-                sum += band->weight[std::size_t(m)] * std::sqrt(f0 / f) * quarter *
+                sum += band->weight[std::size_t(m)] * (half_integrated ? std::sqrt(f0 / f) : 1.0) *
+                       quarter *
                        std::pow(f / f0 - 1.0, j) * std::polar(1.0, kTwoPi * f * k / fs);
             }
             w.g[std::size_t(j)][std::size_t(k + w.half)] = std::complex<float>(sum);
@@ -99,6 +100,7 @@ struct LitEcho {
     float time_s;                    // arrival of the transmit plus the extra delay, from start
     std::complex<float> amplitude;   // sigma times the transmit's amplitude at r
     std::array<float, 3> transmit_directivity;  // at the fit's frequencies
+    int family;  // 0: lit by the transmit's wave (half-integrated pulse); 1: lit by particles
 };
 
 }  // namespace
@@ -131,10 +133,16 @@ ChannelData channel_layout(const probe::Transducer& t, const probe::TransmitSche
 
 ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme& scheme,
                          const std::vector<ChannelEcho>& echoes, const ChannelSettings& settings) {
+    return channel_data(t, scheme, [&](int) { return echoes; }, settings);
+}
+
+ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme& scheme,
+                         const TransmitEchoes& echoes_of, const ChannelSettings& settings) {
     ChannelData c = channel_layout(t, scheme, settings);
     const int S = c.samples;
     c.values.assign(std::size_t(c.transmits) * std::size_t(c.elements) * std::size_t(S), 0.0f);
-    const Waveforms waveforms = make_waveforms(t, c.fs_hz);
+    const std::array<Waveforms, 2> waveforms{make_waveforms(t, c.fs_hz, true),
+                                             make_waveforms(t, c.fs_hz, false)};
     const std::array<double, 3> nu = fit_points(t);
     const double b = nu[2];
     const double f0 = c.frequency_hz, fs = c.fs_hz;
@@ -144,23 +152,32 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
 
     for (int w = 0; w < c.transmits; ++w) {
         const probe::TransmitField field(t, scheme.waves[std::size_t(w)]);
+        const std::vector<ChannelEcho> echoes = echoes_of(w);
         std::vector<LitEcho> lit;
         lit.reserve(echoes.size());
+        bool particles = false;
         for (const ChannelEcho& echo : echoes) {
-            const probe::TransmitField::Arrival a = field.at(echo.position);
+            probe::TransmitField::Arrival a;
+            if (echo.lit) {
+                a = {echo.lit->arrival_s, 1.0, echo.lit->transmit_sin_angle};
+                particles = true;
+            } else {
+                a = field.at(echo.position);
+            }
             if (!(a.amplitude > 0.0)) continue;
             LitEcho l{float(echo.position.x), float(echo.position.y),
                       float(a.time_s + echo.extra_delay_s - c.start_s),
-                      std::complex<float>(echo.strength * a.amplitude), {}};
+                      std::complex<float>(echo.strength * a.amplitude), {}, echo.lit ? 1 : 0};
             for (int q = 0; q < 3; ++q)
                 l.transmit_directivity[std::size_t(q)] =
                     float(sinc(directivity_scale * (1.0 + nu[std::size_t(q)]) * a.sin_angle));
             lit.push_back(l);
         }
         tbb::parallel_for(0, c.elements, [&](int e) {
-            // The three amplitude trains of this channel (header).
-            std::array<std::vector<std::complex<float>>, 3> train;
-            for (auto& v : train) v.assign(std::size_t(S), 0.0f);
+            // The three amplitude trains of this channel (header), per family.
+            std::array<std::array<std::vector<std::complex<float>>, 3>, 2> trains;
+            for (int family = 0; family < (particles ? 2 : 1); ++family)
+                for (auto& v : trains[std::size_t(family)]) v.assign(std::size_t(S), 0.0f);
             const float xe = float(c.element_x_mm[std::size_t(e)]);
             const float inverse_c0 = float(1.0 / kC0MmPerS);
             const float turns_per_sample = float(f0 / fs);
@@ -184,6 +201,7 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
                 const std::complex<float> at_n1 = at_n0 * step_forward;
                 const std::complex<float> amplitude =
                     l.amplitude * (l.z * inverse_R / std::sqrt(R));
+                auto& train = trains[std::size_t(l.family)];
                 for (int j = 0; j < 3; ++j) {
                     const std::complex<float> a = amplitude * coefficient[std::size_t(j)];
                     train[std::size_t(j)][std::size_t(n0)] += a * at_n0 * (1.0f - u);
@@ -192,10 +210,11 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
             }
             // RF = Re sum_j train_j (*) g_j.
             float* out = c.channel(w, e);
-            const int H = waveforms.half;
+            for (int family = 0; family < (particles ? 2 : 1); ++family)
             for (int j = 0; j < 3; ++j) {
-                const auto& g = waveforms.g[std::size_t(j)];
-                const auto& a = train[std::size_t(j)];
+                const int H = waveforms[std::size_t(family)].half;
+                const auto& g = waveforms[std::size_t(family)].g[std::size_t(j)];
+                const auto& a = trains[std::size_t(family)][std::size_t(j)];
                 for (int n = 0; n < S; ++n) {
                     if (a[std::size_t(n)] == std::complex<float>(0.0f)) continue;
                     const int lo = std::max(-H, -n), hi = std::min(H, S - 1 - n);

@@ -27,6 +27,8 @@
 // tests/imaging/channel_data_test.cpp.
 #include <complex>
 #include <cstddef>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,15 +36,32 @@
 
 #include "probe/transducer.h"
 #include "probe/transmit.h"
+#include "tissue/acoustic_map.h"
 
 namespace sonotrace::imaging {
 
-// A point that echoes: where it is (probe plane, mm), its strength sigma (mm, may carry a
-// phase), and any delay of its path beyond the straight ways at c0 (s, both ways together).
+// The speed of sound the channels' delays take (tissue::kReferenceSpeed), in mm/s.
+inline constexpr double kC0MmPerS = tissue::kReferenceSpeed * 1e3;
+
+// A point that echoes: where it is (probe plane, mm), its strength sigma (mm^1/2, may
+// carry a phase: a 2D scatterer of backscatter width w has |sigma| = sqrt(w / (2 pi))),
+// and any delay of its path beyond the straight ways at c0 (s, both ways together).
+//
+// An echo the transmit's particles carried to its place themselves (a reflection the
+// tracer recorded: imaging/channel_frame.h) is `lit`: its transmit arrival time and the
+// direction its particle left the array are given, its strength holds the transmit's
+// amplitude, and it is one of the secondary sources whose sum over a reflector makes the
+// reflected wave. That sum (stationary phase along the reflector) is itself a
+// half-integration, so lit echoes take the pulse without the transmit's (header).
 struct ChannelEcho {
     glm::dvec2 position{0.0};
     std::complex<double> strength = 1.0;
     double extra_delay_s = 0.0;
+    struct Lit {
+        double arrival_s = 0.0;          // after the transmit's time zero
+        double transmit_sin_angle = 0.0;  // of the particle's launch, from the normal
+    };
+    std::optional<Lit> lit;
 };
 
 // Parameters of a channel-data acquisition:
@@ -91,5 +110,9 @@ inline double channel_bytes(const ChannelData& layout) {
 // The channel data of `echoes` under every transmit of `scheme` (header).
 ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme& scheme,
                          const std::vector<ChannelEcho>& echoes, const ChannelSettings& settings);
+// The same with each transmit's own echoes (asked for once per transmit, in order).
+using TransmitEchoes = std::function<std::vector<ChannelEcho>(int transmit)>;
+ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme& scheme,
+                         const TransmitEchoes& echoes, const ChannelSettings& settings);
 
 }  // namespace sonotrace::imaging

@@ -46,7 +46,7 @@ std::vector<ChannelEcho> channel_scatterers(const probe::Transducer& t, const gl
                 // Box-Muller: one Gaussian of the pair.
                 const double gaussian = std::sqrt(-2.0 * std::log(unit(c))) *
                                         std::cos(2.0 * std::numbers::pi * unit(d));
-                out.push_back({r, gaussian * level * scale, 0.0});
+                out.push_back({r, gaussian * level * scale, 0.0, std::nullopt});
             }
         }
     return out;

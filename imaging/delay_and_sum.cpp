@@ -70,6 +70,7 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
     BeamformedImage image;
     image.grid = grid;
     image.values.assign(std::size_t(grid.nx) * std::size_t(grid.nz), 0.0f);
+    image.weights.assign(image.values.size(), 0.0f);
     const int S = c.samples, E = c.elements;
     const double f0 = c.frequency_hz, fs = c.fs_hz, c0 = c.speed_m_s * 1e3;  // mm/s
     std::vector<std::complex<float>> baseband(std::size_t(E) * std::size_t(S));
@@ -94,20 +95,23 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
                 const auto hi = std::upper_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
                                                  x + half_width);
                 std::complex<double> sum = 0.0;
+                double weights = 0.0;
                 for (auto it = lo; it < hi; ++it) {
                     const int e = int(it - c.element_x_mm.begin());
                     const double weight =
                         probe::apodization_weight(settings.apodization,
                                                   0.5 + (*it - x) / (2.0 * half_width));
                     if (!(weight > 0.0)) continue;
+                    weights += weight;
                     const double delay = transmit_time + std::hypot(x - *it, z) / c0;
                     const double position = (delay - c.start_s) * fs;
                     const std::complex<float> v = interpolate(
                         baseband.data() + std::size_t(e) * std::size_t(S), S, position);
                     sum += weight * std::complex<double>(v) * std::polar(1.0, kTurn * f0 * delay);
                 }
-                image.values[std::size_t(j) * std::size_t(grid.nx) + std::size_t(i)] +=
-                    std::complex<float>(sum);
+                const std::size_t at = std::size_t(j) * std::size_t(grid.nx) + std::size_t(i);
+                image.values[at] += std::complex<float>(sum);
+                image.weights[at] += float(weights);
             }
         });
     }

@@ -41,8 +41,12 @@ struct DasSettings {
 struct BeamformedImage {
     PixelGrid grid;
     std::vector<std::complex<float>> values;  // [j * nx + i]: analytic pixel values
+    std::vector<float> weights;               // [j * nx + i]: sum of the weights a_e used
     std::complex<float> at(int i, int j) const {
         return values[std::size_t(j) * std::size_t(grid.nx) + std::size_t(i)];
+    }
+    float weight_sum(int i, int j) const {
+        return weights[std::size_t(j) * std::size_t(grid.nx) + std::size_t(i)];
     }
 };
 

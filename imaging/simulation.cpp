@@ -1,5 +1,7 @@
 #include "imaging/simulation.h"
 
+#include "imaging/channel_frame.h"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -295,6 +297,24 @@ simulator::EchoEvent<2> on_the_plane(const simulator::EchoEvent<3>& e, const glm
     return out;
 }
 
+}  // namespace
+
+simulator::TraceSettings frame_trace_settings(const SimulationSettings& settings) {
+    const probe::Transducer& t = settings.transducer;
+    simulator::TraceSettings trace = settings.trace;
+    trace.step_texels = settings.step_texels > 0.0 ? settings.step_texels
+                                                   : quality_level(settings.quality).step_texels;
+    trace.frequency_mhz = t.frequency_mhz;
+    // The roulette's threshold follows the loss the automatic TGC makes up for: a particle
+    // 30 dB weaker than brain would leave it at its depth is let go, not one that is weak
+    // because it is deep (through the skull, most particles ended before the far side).
+    trace.roulette_loss_db_per_mm = 0.5 * automatic_tgc_db(t.frequency_mhz, 1.0);
+    trace.seed = settings.seed;
+    return trace;
+}
+
+namespace {
+
 // One frame: beams, trace, the image. `Dim` 2 traces the plane `map`; 3 the slab `map`
 // over `traced`, whose echoes are then projected on the plane and moved to the map frame
 // of `grid`, where the image is made over `plane`.
@@ -328,15 +348,7 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
             sources = probe::make_beams_3d(t, beam, to_map);
     });
 
-    simulator::TraceSettings trace = settings.trace;
-    trace.step_texels = settings.step_texels > 0.0 ? settings.step_texels
-                                                   : quality_level(settings.quality).step_texels;
-    trace.frequency_mhz = t.frequency_mhz;
-    // The roulette's threshold follows the loss the automatic TGC makes up for: a particle
-    // 30 dB weaker than brain would leave it at its depth is let go, not one that is weak
-    // because it is deep (through the skull, most particles ended before the far side).
-    trace.roulette_loss_db_per_mm = 0.5 * automatic_tgc_db(t.frequency_mhz, 1.0);
-    trace.seed = settings.seed;
+    simulator::TraceSettings trace = frame_trace_settings(settings);
     trace.record_scatter_echoes = false;
     // The speckle is lit by the plane's map (synthesize_rf): the illumination alone.
     trace.echo_profile = simulator::EchoProfileSettings{1.0 / layout.fs_hz, layout.samples};
@@ -459,6 +471,7 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
 Frame simulate_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                      const probe::Pose& pose, const SimulationSettings& settings,
                      const FrameProgress& progress) {
+    if (settings.transmit) return simulate_channel_frame(map, grid, pose, settings, progress);
     return trace_and_image<2>(map, grid, map, grid, pose, settings, progress);
 }
 

@@ -10,10 +10,13 @@
 #include <vector>
 
 #include "imaging/bmode.h"
+#include "imaging/channel_data.h"
+#include "imaging/channel_scatterers.h"
 #include "imaging/scan_conversion.h"
 #include "probe/beam.h"
 #include "probe/pose.h"
 #include "probe/transducer.h"
+#include "probe/transmit.h"
 #include "simulator/trace_settings.h"
 #include "simulator/tracer.h"
 #include "tissue/acoustic_map.h"
@@ -109,6 +112,11 @@ struct SimulationSettings {
     // Keep the reflection echoes the image is made from in Frame::echoes (analysis:
     // which events light a region).
     bool keep_echoes = false;
+    // Unfocused transmits (plane or diverging waves) with each element's channel data,
+    // beamformed by delay-and-sum (imaging/channel_frame.h); unset: focused line by line.
+    // The channels are sampled at imaging.sampling_mhz; their scatterers as `scatterers`.
+    std::optional<probe::TransmitScheme> transmit;
+    ScattererSettings scatterers;
 
     // Throws base::InputError naming the first bad parameter.
     void validate(const std::string& source) const;
@@ -162,6 +170,11 @@ void light_from_slab(tissue::PropertyMaps& plane, const PlaneGrid& plane_grid,
                      const tissue::PropertyMaps& slab, const PlaneGrid& slab_grid,
                      const probe::Transducer& t);
 
+// The tracer's settings of a frame, before what its mode adds: the settings' own with the
+// step of the quality, the probe's frequency, the roulette following the automatic TGC's
+// loss, and the seed.
+simulator::TraceSettings frame_trace_settings(const SimulationSettings& settings);
+
 // Maps the tracer's map frame back to world coordinates.
 MapToWorld map_to_world(const probe::Pose& pose, const PlaneGrid& grid);
 
@@ -175,6 +188,7 @@ struct Frame {
     tissue::Volume absorbed;
     std::vector<simulator::Path<2>> paths;        // SimulationSettings::trace.record_paths per line
     std::vector<simulator::EchoEvent<2>> echoes;  // SimulationSettings::keep_echoes
+    std::optional<ChannelData> channels;          // SimulationSettings::transmit
     nlohmann::json timings = nlohmann::json::object();  // seconds per stage
 };
 

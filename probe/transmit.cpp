@@ -6,6 +6,7 @@
 
 #include "tissue/acoustic_map.h"
 #include "tissue/base/error.h"
+#include "tissue/base/hash.h"
 #include "tissue/base/number_list.h"
 
 namespace sonotrace::probe {
@@ -203,6 +204,10 @@ TransmitField::TransmitField(const Transducer& t, const TransmitWave& wave)
     }
 }
 
+double TransmitField::aperture_weight(double s) const {
+    return apodization_weight(apodization_, (s + half_span_) / (2.0 * half_span_));
+}
+
 TransmitField::Arrival TransmitField::at(const glm::dvec2& r) const {
     constexpr double c0_mm_per_s = tissue::kReferenceSpeed * 1e3;
     Arrival a;
@@ -238,6 +243,35 @@ TransmitField::Arrival TransmitField::at(const glm::dvec2& r) const {
     const double edge = 0.5 * std::erfc(-std::sqrt(std::numbers::pi) * inside);
     a.amplitude = weight * edge * std::sqrt(lambda0_ * geometry) / pitch_;
     return a;
+}
+
+Sources<2> transmit_sources(const Transducer& t, const TransmitScheme& scheme, int count,
+                            uint64_t seed, const glm::dvec2& to_map) {
+    Sources<2> sources;
+    const int n = std::max(1, count);
+    sources.reserve(scheme.waves.size() * std::size_t(n));
+    const double half = 0.5 * t.array_length_mm();
+    for (std::size_t w = 0; w < scheme.waves.size(); ++w) {
+        const TransmitWave& wave = scheme.waves[w];
+        const TransmitField field(t, wave);
+        for (int i = 0; i < n; ++i) {
+            const uint64_t bits = base::mix64(seed ^ base::mix64((uint64_t(w) << 32) ^ uint64_t(i)));
+            const double s = -half + 2.0 * half * (i + double(bits >> 11) * 0x1.0p-53) / n;
+            const glm::dvec2 at(s, 0.0);
+            const glm::dvec2 heading =
+                wave.kind == TransmitWave::Kind::plane
+                    ? glm::dvec2(std::sin(wave.angle_rad), std::cos(wave.angle_rad))
+                    : glm::normalize(at - wave.virtual_source());
+            SourceParticle<2> p;
+            p.position = glm::vec2(at + to_map);
+            p.direction = glm::vec2(heading);
+            p.energy = 1.0f / float(n);
+            p.line = uint32_t(w);
+            p.time_s = float(field.at(at).time_s);
+            sources.push_back(p);
+        }
+    }
+    return sources;
 }
 
 }  // namespace sonotrace::probe

@@ -27,11 +27,13 @@
 // Fresnel zone (0.5 at the geometric boundary, 0.99 a zone inside it); the edge waves
 // they also send, pulses of their own later arrival, are not modelled
 // (test: ChannelData.PointEchoesMatchTheElementByElementSum measures what that leaves).
+#include <cstdint>
 #include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
 
+#include "probe/source_particle.h"
 #include "probe/transducer.h"
 
 namespace sonotrace::probe {
@@ -94,6 +96,8 @@ class TransmitField {
         double sin_angle = 0.0;
     };
     Arrival at(const glm::dvec2& r) const;
+    // The apodization a(s) at s mm along the face (0 beyond the array).
+    double aperture_weight(double s) const;
     const TransmitWave& wave() const { return wave_; }
 
   private:
@@ -102,5 +106,15 @@ class TransmitField {
     Apodization apodization_;
     double half_span_ = 0.0, pitch_ = 0.0, lambda0_ = 0.0;
 };
+
+// The particles of every transmit for the tracer (line id = transmit index): `count` each,
+// stratified along the array's face (jittered by a hash of seed, transmit and particle),
+// each heading along its ray (plane: the steering direction; diverging: away from the
+// virtual source) with its clock starting at its place's firing time, energy 1 / count;
+// shifted by `to_map` into the tracer's map frame. Each stands for array length / count
+// mm of the wavefront as it leaves (what a reflection's secondary source is weighted by:
+// imaging/channel_frame.h).
+Sources<2> transmit_sources(const Transducer& t, const TransmitScheme& scheme, int count,
+                            uint64_t seed, const glm::dvec2& to_map);
 
 }  // namespace sonotrace::probe

@@ -108,7 +108,7 @@ TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
         for (const glm::dvec2& target : targets) {
             SCOPED_TRACE(scheme_text + " target (" + std::to_string(target.x) + ", " +
                          std::to_string(target.y) + ")");
-            const ChannelData model = channel_data(t, scheme, {{target, 1.0, 0.0}}, {});
+            const ChannelData model = channel_data(t, scheme, {{target, 1.0, 0.0, std::nullopt}}, {});
             // The element sum of the transmit at the target, at every frequency.
             std::vector<std::complex<double>> transmit(spectrum.f.size(), 0.0);
             for (std::size_t k = 0; k < spectrum.f.size(); ++k)
@@ -271,7 +271,7 @@ TEST(ChannelData, CompoundingNarrowsPointsAsTheSyntheticApertureDoes) {
     t.depth_mm = 40.0;
     const std::vector<double> depths{15.0, 25.0, 35.0};
     std::vector<ChannelEcho> echoes;
-    for (double z : depths) echoes.push_back({{0.0, z}, 1.0, 0.0});
+    for (double z : depths) echoes.push_back({{0.0, z}, 1.0, 0.0, std::nullopt});
     const probe::TransmitScheme scheme = probe::parse_transmit_scheme("plane:-16:16:75", "t", "");
     const ChannelData channels = channel_data(t, scheme, echoes, {});
     const int single = 37;  // 0 degrees

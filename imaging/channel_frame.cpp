@@ -1,0 +1,246 @@
+#include "imaging/channel_frame.h"
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
+
+#include "imaging/delay_and_sum.h"
+#include "imaging/electronic_noise.h"
+#include "probe/array_geometry.h"
+#include "tissue/base/hash.h"
+
+namespace sonotrace::imaging {
+namespace {
+
+
+// Particles per transmit: at least two per wavelength of the face (the secondary sources'
+// sum along a reflector must not alias), more with the quality.
+int particles_per_transmit(const SimulationSettings& settings) {
+    const probe::Transducer& t = settings.transducer;
+    const double per_wavelength =
+        std::max(2.0, quality_level(settings.quality).particles_per_line / 8.0);
+    return int(std::ceil(per_wavelength * t.array_length_mm() / t.wavelength_mm()));
+}
+
+// The transmit's intensity at each texel over its free-field value: the traced fluence,
+// smoothed, over the fluence of the same particles in a lossless medium (energy 1 spread
+// over the face's length, thinned by a diverging wave's spreading).
+class Illumination {
+  public:
+    Illumination(const tissue::Volume& fluence, double smoothing_mm, double face_mm)
+        : geometry_(fluence.geometry()), face_mm_(face_mm) {
+        const glm::ivec3 d = geometry_.dims;
+        cv::Mat values(d.y, d.x, CV_32F);
+        for (int j = 0; j < d.y; ++j)
+            for (int i = 0; i < d.x; ++i) values.at<float>(j, i) = fluence.at(i, j);
+        const double sx = smoothing_mm / geometry_.spacing.x, sy = smoothing_mm / geometry_.spacing.y;
+        cv::GaussianBlur(values, smoothed_, cv::Size(0, 0), sx, sy, cv::BORDER_REPLICATE);
+    }
+    // Amplitude factor at map-frame point p (mm), for a wave whose free-field spreading
+    // there is `spreading` (1: plane).
+    double amplitude(const glm::dvec2& p, double spreading) const {
+        const double x = p.x / geometry_.spacing.x, y = p.y / geometry_.spacing.y;
+        const int i = int(std::floor(x)), j = int(std::floor(y));
+        if (i < 0 || j < 0 || i + 1 >= smoothed_.cols || j + 1 >= smoothed_.rows) return 0.0;
+        const double fx = x - i, fy = y - j;
+        const double v = (1 - fx) * (1 - fy) * smoothed_.at<float>(j, i) +
+                         fx * (1 - fy) * smoothed_.at<float>(j, i + 1) +
+                         (1 - fx) * fy * smoothed_.at<float>(j + 1, i) +
+                         fx * fy * smoothed_.at<float>(j + 1, i + 1);
+        return std::sqrt(std::max(v, 0.0) * face_mm_ / std::max(spreading, 1e-6));
+    }
+
+  private:
+    tissue::VolumeGeometry geometry_;
+    double face_mm_;
+    cv::Mat smoothed_;
+};
+
+// A diverging wave's free-field spreading at r (probe plane): R2 / (R1 + R2) of
+// probe/transmit.h (the share of the face's width its particles still cover there).
+double spreading(const probe::TransmitWave& wave, const glm::dvec2& r) {
+    if (wave.kind == probe::TransmitWave::Kind::plane) return 1.0;
+    const glm::dvec2 v = wave.virtual_source();
+    const double to_r = glm::length(r - v);
+    const double behind = to_r * (-v.y) / std::max(r.y - v.y, 1e-9);
+    return behind / std::max(to_r, 1e-9);
+}
+
+}  // namespace
+
+Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
+                             const probe::Pose& pose, const SimulationSettings& settings,
+                             const FrameProgress& progress) {
+    using clock = std::chrono::steady_clock;
+    Frame frame;
+    auto stage = [&](const char* name, auto&& work) {
+        const auto start = clock::now();
+        work();
+        frame.timings[name] = frame.timings.value(name, 0.0) +
+                              std::chrono::duration<double>(clock::now() - start).count();
+    };
+    const probe::Transducer& t = settings.transducer;
+    const probe::TransmitScheme& scheme = *settings.transmit;
+    ChannelSettings channel_settings;
+    channel_settings.sampling_mhz = settings.imaging.sampling_mhz;
+    const ChannelData layout = channel_layout(t, scheme, channel_settings);
+    const int count = particles_per_transmit(settings);
+    const glm::dvec2 to_map = grid.to_map;
+    probe::Sources<2> sources;
+    stage("beams", [&] { sources = probe::transmit_sources(t, scheme, count, settings.seed, to_map); });
+
+    simulator::TraceSettings trace = frame_trace_settings(settings);
+    trace.record_scatter_echoes = false;
+    trace.deposition_maps = true;
+    trace.max_time_s = layout.time_s(layout.samples);
+    trace.diffuse_return_half_angle_rad = 0.0;  // the secondary sources radiate to every element
+
+    // The tissue's scatterers, once: they do not move between transmits.
+    const std::pair<glm::dvec2, glm::dvec2> bounds = probe::ScanGeometry(t).bounds();
+    std::vector<ChannelEcho> scatterers;
+    stage("scatterers", [&] {
+        if (!settings.imaging.speckle) return;
+        const double rate = trace.scattering_rate_per_mm * trace.scatter_echo_fraction * t.rx_f_number;
+        ScattererSettings s = settings.scatterers;
+        s.seed = settings.seed;
+        scatterers = channel_scatterers(t, bounds.first - glm::dvec2(2.0, 0.0),
+                                        bounds.second + glm::dvec2(2.0, 2.0), s,
+                                        [&](const glm::dvec2& r) {
+                                            return double(map.sample_backscatter(
+                                                       glm::vec2(r + to_map))) *
+                                                   std::sqrt(rate);
+                                        });
+    });
+    const std::vector<PointEcho> points =
+        point_echoes(settings.targets, map, grid, pose, t, settings.target_margin_mm);
+    const TargetCores cores(points);
+    const double lambda = t.wavelength_mm();
+    const double piece = t.array_length_mm() / count;  // mm of the wavefront per particle
+
+    auto echoes_of = [&](int w) {
+        const probe::TransmitWave& wave = scheme.waves[std::size_t(w)];
+        const probe::TransmitField field(t, wave);
+        const probe::Sources<2> own(sources.begin() + std::ptrdiff_t(w) * count,
+                                    sources.begin() + std::ptrdiff_t(w + 1) * count);
+        simulator::TraceSettings traced = trace;
+        traced.seed = base::mix64(settings.seed ^ (uint64_t(w) << 20));
+        simulator::TraceResult<2> result;
+        stage("trace", [&] { result = simulator::trace(map, own, traced, {}); });
+        frame.ledger += result.ledger;
+        frame.stats += result.stats;
+        std::vector<ChannelEcho> echoes;
+        stage("echoes", [&] {
+            // Reflections: secondary sources at their paths' image points.
+            for (const simulator::EchoEvent<2>& e : result.echoes) {
+                if (e.kind != simulator::EchoKind::specular && e.kind != simulator::EchoKind::diffuse)
+                    continue;
+                if (e.particle >= own.size() || cores.contains(glm::dvec2(e.position))) continue;
+                const probe::SourceParticle<2>& source = own[e.particle];
+                const glm::dvec2 launch = glm::dvec2(source.position) - to_map;
+                const double flight_mm = double(e.time_s - source.time_s) * kC0MmPerS;
+                const glm::dvec2 image = launch + flight_mm * glm::dvec2(source.direction);
+                if (!(image.y > 0.0)) continue;
+                const double loss = double(e.energy) / std::max(double(source.energy), 1e-30);
+                double amplitude = field.aperture_weight(launch.x) * loss *
+                                   std::sqrt(double(e.weight) * double(e.return_weight)) *
+                                   piece / t.pitch_mm;
+                std::complex<double> strength = amplitude;
+                if (e.kind == simulator::EchoKind::diffuse) {
+                    const double range = glm::length(image);
+                    const double half_angle =
+                        std::atan(0.5 * t.receive_aperture_mm(range) / std::max(range, 1e-3));
+                    amplitude *= std::sqrt(reflection_back_fraction(
+                        double(e.cos_incidence), double(e.lobe_exponent), half_angle));
+                    const uint64_t bits = base::mix64(settings.seed ^ base::mix64(
+                                                          (uint64_t(w) << 40) ^
+                                                          (uint64_t(e.particle) << 16) ^ e.bounces));
+                    strength = std::polar(amplitude, 2.0 * std::numbers::pi *
+                                                         double(bits >> 11) * 0x1.0p-53);
+                }
+                if (!(std::abs(strength) > 0.0)) continue;
+                echoes.push_back({image, strength, 0.0,
+                                  ChannelEcho::Lit{double(e.time_s), double(source.direction.x)}});
+            }
+            // Point targets through the transmit's wave.
+            for (const PointEcho& p : points)
+                echoes.push_back({p.position - to_map, p.amplitude / std::sqrt(lambda),
+                                  2.0 * p.delay_mm / kC0MmPerS, std::nullopt});
+            // Scatterers, lit by the traced intensity.
+            if (!scatterers.empty()) {
+                const Illumination light(result.fluence, 1.0, t.array_length_mm());
+                for (const ChannelEcho& s : scatterers) {
+                    const double a = light.amplitude(s.position + to_map, spreading(wave, s.position));
+                    if (a > 0.0) echoes.push_back({s.position, s.strength * a, 0.0, std::nullopt});
+                }
+            }
+        });
+        if (progress) progress(std::size_t(w + 1), scheme.waves.size());
+        return echoes;
+    };
+    ChannelData channels;
+    {
+        const auto start = clock::now();
+        channels = channel_data(t, scheme, echoes_of, channel_settings);
+        const double total = std::chrono::duration<double>(clock::now() - start).count();
+        frame.timings["channels"] =
+            total - frame.timings.value("trace", 0.0) - frame.timings.value("echoes", 0.0);
+    }
+    if (settings.imaging.noise_snr_db) {
+        // Receiver noise on every channel, as on the focused mode's lines.
+        stage("noise", [&] {
+            LineData rf;
+            rf.lines = channels.transmits * channels.elements;
+            rf.samples = channels.samples;
+            rf.fs_hz = channels.fs_hz;
+            rf.values = std::move(channels.values);
+            add_electronic_noise(rf, t, *settings.imaging.noise_snr_db, settings.seed);
+            channels.values = std::move(rf.values);
+        });
+    }
+
+    // The display: delay-and-sum at the focused mode's pixels.
+    const double pixel = settings.imaging.pixel_mm;
+    const glm::dvec2 lo = bounds.first, hi = bounds.second;
+    PixelGrid pixels;
+    pixels.x0_mm = lo.x, pixels.z0_mm = lo.y, pixels.dx_mm = pixels.dz_mm = pixel;
+    pixels.nx = int(std::floor((hi.x - lo.x) / pixel)) + 1;
+    pixels.nz = int(std::floor((hi.y - lo.y) / pixel)) + 1;
+    DasSettings das;
+    das.f_number = t.rx_f_number;
+    das.apodization = t.rx_apodization;
+    BeamformedImage beamformed;
+    stage("beamforming", [&] { beamformed = delay_and_sum(channels, t, pixels, das); });
+    stage("display", [&] {
+        const probe::ScanGeometry geometry(t);
+        const double fs = kC0MmPerS / (2.0 * pixel) ;  // one display row per "sample"
+        const int first_row = int(std::lround(lo.y / pixel));
+        const Compression compression(first_row + pixels.nz, fs, settings.imaging);
+        // A perpendicular reflector of R = 1: sqrt(lambda) / pitch at each element.
+        const double unit = std::sqrt(lambda) / t.pitch_mm;
+        ScanConverted& out = frame.image;
+        out.pixel_mm = pixel;
+        out.origin = lo;
+        out.image = cv::Mat(pixels.nz, pixels.nx, CV_32F, cv::Scalar(0.0f));
+        out.inside = cv::Mat(pixels.nz, pixels.nx, CV_8U, cv::Scalar(0));
+        tbb::parallel_for(0, pixels.nz, [&](int j) {
+            const double z = pixels.z(j);
+            for (int i = 0; i < pixels.nx; ++i) {
+                const glm::dvec2 ld = geometry.line_and_depth({pixels.x(i), z});
+                if (!(ld.x >= -0.5 && ld.x <= t.lines - 0.5 && ld.y >= 0.0 && ld.y <= t.depth_mm))
+                    continue;
+                const double weight = beamformed.weight_sum(i, j);
+                const float envelope =
+                    weight > 0.0 ? float(std::abs(beamformed.at(i, j)) / (weight * unit)) : 0.0f;
+                out.image.at<float>(j, i) = compression(envelope, compression.offset(first_row + j));
+                out.inside.at<uint8_t>(j, i) = 255;
+            }
+        });
+    });
+    frame.channels = std::move(channels);
+    return frame;
+}
+
+}  // namespace sonotrace::imaging

@@ -1,0 +1,42 @@
+#pragma once
+// A frame of unfocused transmits (probe/transmit.h): for each transmit the tracer carries
+// the transmit's particles through the map, and its echoes become the channel data of
+// every element (imaging/channel_data.h), which delay-and-sum beamforms and compounds into
+// the displayed image (imaging/delay_and_sum.h). Everything the tracer does to the wave
+// (reflection, refraction, shadowing, multiple bounces) is in the channels.
+//
+// The echoes of one transmit:
+//   - reflections the tracer recorded (EchoEvent, specular and diffuse): each particle is a
+//     piece of the wavefront, array length / particles wide as it left, and its reflection
+//     a secondary source (lit, imaging/channel_data.h) of strength
+//         a(s) (E / E_0) sqrt(R^2 w) ds / pitch
+//     at the image point of its path (the launch point plus its time of flight at c0 along
+//     its launch direction: a mirrored path images where the mirror puts it), arriving when
+//     the particle did: a(s) the transmit apodization where it left, E / E_0 its two-way
+//     loss (the way back repeats the way in, as in the focused mode), R^2 the reflected
+//     fraction and w the return weight of its stochastic choices. Their sum along a
+//     reflector is the reflected wave (R times the incident, mirrored: stationary phase).
+//     A rough interface's secondary sources take random phases (their sum is diffuse)
+//     and the share of the reflected lobe that heads back into the receive's half-angle;
+//   - point targets (point_echoes): the transmit's wave at each (probe/transmit.h) with the
+//     two-way losses of the straight path from the face;
+//   - the tissue's scatterers (imaging/channel_scatterers.h, the plane map's backscatter b
+//     at each), lit by the transmit's intensity there relative to its free-field value:
+//     the fluence the trace deposited, smoothed over a millimetre, over what the same
+//     particles deposit in a lossless medium. Their strength per unit area makes the
+//     focused mode's scattering: n |sigma|^2 = rate x fraction x b^2 x F_rx
+//     (TraceSettings::scattering_rate_per_mm, scatter_echo_fraction; the fraction returns
+//     into a receive of 1 / F_rx rad).
+// The image: |delay-and-sum| of all transmits at the display's pixels, over the sum of
+// the receive weights and sqrt(lambda) / pitch (so that a perpendicular reflector of R = 1
+// shows at 0 dB), then TGC and log compression as for focused frames.
+#include "imaging/simulation.h"
+
+namespace sonotrace::imaging {
+
+// The frame of `settings.transmit` on the plane's map (SimulationSettings: 2D traces).
+Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
+                             const probe::Pose& pose, const SimulationSettings& settings,
+                             const FrameProgress& progress);
+
+}  // namespace sonotrace::imaging
