@@ -16,15 +16,6 @@ namespace sonotrace::imaging {
 namespace {
 
 
-// Particles per transmit: at least two per wavelength of the face (the secondary sources'
-// sum along a reflector must not alias), more with the quality.
-int particles_per_transmit(const SimulationSettings& settings) {
-    const probe::Transducer& t = settings.transducer;
-    const double per_wavelength =
-        std::max(2.0, quality_level(settings.quality).particles_per_line / 8.0);
-    return int(std::ceil(per_wavelength * t.array_length_mm() / t.wavelength_mm()));
-}
-
 // The transmit's intensity at each texel over its free-field value: the traced fluence,
 // smoothed, over the fluence of the same particles in a lossless medium (energy 1 spread
 // over the face's length, thinned by a diverging wave's spreading).
@@ -70,6 +61,13 @@ double spreading(const probe::TransmitWave& wave, const glm::dvec2& r) {
 }
 
 }  // namespace
+
+int particles_per_transmit(const SimulationSettings& settings) {
+    const probe::Transducer& t = settings.transducer;
+    const double per_wavelength =
+        std::max(2.0, quality_level(settings.quality).particles_per_line / 8.0);
+    return int(std::ceil(per_wavelength * t.array_length_mm() / t.wavelength_mm()));
+}
 
 Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                              const probe::Pose& pose, const SimulationSettings& settings,

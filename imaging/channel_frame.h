@@ -34,6 +34,10 @@
 
 namespace sonotrace::imaging {
 
+// Particles per transmit: at least two per wavelength of the face (the secondary sources'
+// sum along a reflector must not alias), more with the quality.
+int particles_per_transmit(const SimulationSettings& settings);
+
 // The frame of `settings.transmit` on the plane's map (SimulationSettings: 2D traces).
 Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                              const probe::Pose& pose, const SimulationSettings& settings,

@@ -299,6 +299,13 @@ simulator::EchoEvent<2> on_the_plane(const simulator::EchoEvent<3>& e, const glm
 
 }  // namespace
 
+std::size_t frame_particles(const SimulationSettings& settings) {
+    if (settings.transmit)
+        return settings.transmit->waves.size() * std::size_t(particles_per_transmit(settings));
+    return std::size_t(settings.transducer.lines) *
+           std::size_t(quality_level(settings.quality).particles_per_line);
+}
+
 simulator::TraceSettings frame_trace_settings(const SimulationSettings& settings) {
     const probe::Transducer& t = settings.transducer;
     simulator::TraceSettings trace = settings.trace;

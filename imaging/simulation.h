@@ -170,6 +170,10 @@ void light_from_slab(tissue::PropertyMaps& plane, const PlaneGrid& plane_grid,
                      const tissue::PropertyMaps& slab, const PlaneGrid& slab_grid,
                      const probe::Transducer& t);
 
+// The particles a frame launches: lines x particles per line, or transmits x particles per
+// transmit (imaging/channel_frame.h).
+std::size_t frame_particles(const SimulationSettings& settings);
+
 // The tracer's settings of a frame, before what its mode adds: the settings' own with the
 // step of the quality, the probe's frequency, the roulette following the automatic TGC's
 // loss, and the seed.

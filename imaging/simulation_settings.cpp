@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "tissue/base/error.h"
+#include "tissue/base/memory.h"
 
 namespace sonotrace::imaging {
 
@@ -159,6 +160,22 @@ void SimulationSettings::validate(const std::string& source) const {
     within(imaging.dynamic_range_db, kDynamicRangeRange, "dynamic-range");
     within(imaging.pixel_mm, kPixelRange, "pixel");
     if (imaging.noise_snr_db) within(*imaging.noise_snr_db, kNoiseSnrRange, "noise-snr");
+    if (transmit) {
+        probe::validate_transmit_scheme(*transmit, transducer, source, "transmit");
+        if (trace_dimensions != 2)
+            throw base::InputError(source, "transmit",
+                                   "unfocused transmits are traced in 2D (--trace 2d)");
+        if (receive != ReceiveModel::monostatic)
+            throw base::InputError(source, "transmit",
+                                   "unfocused transmits receive on every element: --receive "
+                                   "monostatic");
+        ChannelSettings c;
+        c.sampling_mhz = imaging.sampling_mhz;
+        // The channels and, while they are beamformed, one transmit's analytic signals.
+        const ChannelData layout = channel_layout(transducer, *transmit, c);
+        base::check_allocation(channel_bytes(layout) * (1.0 + 2.0 / layout.transmits), source,
+                               "transmit");
+    }
     double previous = -1e300;
     for (const TgcPoint& p : imaging.tgc) {
         in_range(p.depth_mm, 0.0, 1000.0, "tgc.depth");

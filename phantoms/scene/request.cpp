@@ -1,5 +1,7 @@
 #include "phantoms/scene/request.h"
 
+#include "imaging/channel_frame.h"
+
 #include <algorithm>
 #include <sstream>
 #include <type_traits>
@@ -81,6 +83,17 @@ std::vector<RequestParameter> make_table() {
          "echo model: 'monostatic' (each reflection echoes at twice its time, two-way loss) or "
          "'capture' (only particles that reach the probe face; the face reflects part back)",
          &R::receive},
+        {"transmit", "",
+         "'focused' (line by line, the default) or unfocused transmits with per-element "
+         "channel data, beamformed by delay-and-sum and compounded (linear and phased "
+         "arrays): 'plane:A' (a plane wave steered A degrees), 'plane:A,B,...', "
+         "'plane:FROM:TO:N' (N angles), 'diverging:D' (a virtual source D mm behind the face), "
+         "'diverging:D:ANGLES' (its axis steered, angles as for plane)",
+         &R::transmit},
+        {"channels", "",
+         "write the channel data of an unfocused --transmit (transmit x element x sample, "
+         "float32) as HDF5 (docs/guide/channel-data.md)",
+         &R::channels},
         {"trace", "",
          "'2d': particles traced in the scan plane (fast); '3d': in the slab the elevation "
          "beam spans, launched over the element height through the lens and received through "
@@ -220,6 +233,12 @@ imaging::SimulationSettings settings_of(const FrameRequest& r, const std::string
     settings.imaging.pixel_mm = r.pixel_mm;
     settings.imaging.tgc = parse_tgc(r.tgc, settings.transducer);
     settings.imaging.noise_snr_db = r.noise_snr_db;
+    if (r.transmit != "focused")
+        settings.transmit = probe::parse_transmit_scheme(r.transmit, "--transmit", "");
+    else if (r.channels)
+        throw base::InputError("--channels", "",
+                               "channel data come from unfocused transmits: give --transmit "
+                               "plane:... or diverging:...");
     settings.validate(source);
     return settings;
 }
@@ -368,6 +387,17 @@ json frame_sidecar(const FrameRequest& request, const FrameSetup& setup,
           {"step_texels", settings.step_texels > 0.0 ? settings.step_texels : level.step_texels},
           {"refraction_smoothing_mm", imaging::refraction_smoothing_mm(settings)}}},
         {"receive", imaging::to_string(settings.receive)},
+        {"transmit",
+         frame.channels
+             ? json{{"scheme", request.transmit},
+                    {"transmits", frame.channels->transmits},
+                    {"particles_per_transmit", imaging::particles_per_transmit(settings)},
+                    {"channels",
+                     {{"elements", frame.channels->elements},
+                      {"samples", frame.channels->samples},
+                      {"sampling_hz", frame.channels->fs_hz},
+                      {"start_s", frame.channels->start_s}}}}
+             : json("focused")},
         {"trace", settings.trace_dimensions == 3 ? "3d" : "2d"},
         {"disabled_physics", off},
         {"craniotomy",

@@ -33,6 +33,8 @@ struct FrameRequest : VolumeOptions {
     std::map<std::string, std::optional<std::string>> transducer;
     std::string quality = "standard";
     std::string receive = "monostatic";
+    std::string transmit = "focused";  // or probe::parse_transmit_scheme's text
+    bool channels = false;             // write the channel data (transmit not focused)
     std::string trace = "2d";
     std::string disable;            // physics switched off (simulator::kPhysicsSwitches)
     std::optional<double> gain_db;  // unset: the scene's (Scene::gain_db)

@@ -31,6 +31,7 @@
 #include "tissue/image_io.h"
 #include "tissue/property_maps.h"
 #include "tissue/transfer_function.h"
+#include "ui/dataset/channel_file.h"
 
 namespace sonotrace::ui {
 
@@ -66,6 +67,7 @@ const std::map<std::string, std::string> kFilesWritten = {
      "NAME_echogenicity.exr (its backscatter, 0..1, with no attenuation or shadowing on the "
      "way) and NAME_instances.png (16 bits: a phantom's shape index from 1, 0 background)"},
     {"energy", "Written as NAME_energy.png"},
+    {"channels", "Written as NAME_channels.h5 (layout: docs/guide/channel-data.md)"},
     {"sweep", "Written as NAME_0000.png, ... and a video"},
 };
 
@@ -280,12 +282,15 @@ int run_simulate_command(const SimulateOptions& o) {
     const imaging::SimulationSettings& settings = setup.settings;
     const std::shared_ptr<const scene::Scene>& scene = setup.scene;
     const std::vector<scene::SweepPlacement>& placements = setup.placements;
+    if (settings.transmit && !o.quiet)
+        for (const std::string& warning : probe::validate_transmit_scheme(
+                 *settings.transmit, settings.transducer, "--transmit", ""))
+            std::cerr << "sonotrace: warning: " << warning << "\n";
 
     // ---- trace and form the frames; outputs staged and committed together ----
     const bool sweeping = !o.request.sweep.empty();
     const imaging::QualityLevel level = imaging::quality_level(settings.quality);
-    const std::size_t particles =
-        std::size_t(settings.transducer.lines) * std::size_t(level.particles_per_line);
+    const std::size_t particles = imaging::frame_particles(settings);
     base::OutputTransaction transaction;
     const std::filesystem::path out(o.out_dir);
     std::vector<std::string> written;
@@ -339,6 +344,7 @@ int run_simulate_command(const SimulateOptions& o) {
                 frame_paths.push_back((out / (stem + t.suffix)).string());
         }
         if (o.request.energy) frame_paths.push_back((out / (stem + "_energy.png")).string());
+        if (o.request.channels) frame_paths.push_back((out / (stem + "_channels.h5")).string());
         if (o.resume && f + 1 < placements.size() &&
             std::all_of(frame_paths.begin(), frame_paths.end(),
                         [](const std::string& p) { return std::filesystem::exists(p); })) {
@@ -426,6 +432,13 @@ int run_simulate_command(const SimulateOptions& o) {
             const std::string path = (out / (stem + "_energy.png")).string();
             imaging::write_png(imaging::render_field(frame.absorbed, style),
                                frame_files.stage(path));
+            written.push_back(path);
+        }
+        if (o.request.channels && frame.channels) {
+            const std::string path = (out / (stem + "_channels.h5")).string();
+            const std::string bytes = dataset::channel_file_bytes(
+                *frame.channels, settings.transducer, o.request.transmit, path);
+            base::write_file(frame_files.stage(path), bytes.data(), bytes.size());
             written.push_back(path);
         }
         if (sweeping && !video_suffix.empty())
