@@ -25,7 +25,7 @@ double sinc(double x) {
 // weights times the transmit's half-integration and (f / f0 - 1)^j.
 struct Waveforms {
     int half = 0;
-    std::array<std::vector<std::complex<float>>, 3> g;
+    std::array<std::vector<float>, 3> re, im;
 };
 
 Waveforms make_waveforms(const probe::Transducer& t, double fs, bool half_integrated) {
@@ -40,7 +40,8 @@ Waveforms make_waveforms(const probe::Transducer& t, double fs, bool half_integr
     const std::complex<double> quarter =
         half_integrated ? std::polar(1.0, -0.25 * std::numbers::pi) : 1.0;
     for (int j = 0; j < 3; ++j) {
-        w.g[std::size_t(j)].resize(std::size_t(2 * w.half + 1));
+        w.re[std::size_t(j)].resize(std::size_t(2 * w.half + 1));
+        w.im[std::size_t(j)].resize(std::size_t(2 * w.half + 1));
         for (int k = -w.half; k <= w.half; ++k) {
             std::complex<double> sum = 0.0;
             for (int m = 0; m < band->count(); ++m) {
@@ -49,7 +50,8 @@ Waveforms make_waveforms(const probe::Transducer& t, double fs, bool half_integr
                        quarter *
                        std::pow(f / f0 - 1.0, j) * std::polar(1.0, kTwoPi * f * k / fs);
             }
-            w.g[std::size_t(j)][std::size_t(k + w.half)] = std::complex<float>(sum);
+            w.re[std::size_t(j)][std::size_t(k + w.half)] = float(sum.real());
+            w.im[std::size_t(j)][std::size_t(k + w.half)] = float(sum.imag());
         }
     }
     return w;
@@ -61,47 +63,100 @@ std::array<double, 3> fit_points(const probe::Transducer& t) {
     return {-b, 0.0, b};
 }
 
-// Coefficients of the quadratic in nu = f / f0 - 1 through (nu_q, p_q).
-template <class Real>
-std::array<Real, 3> quadratic(const std::array<Real, 3>& p, Real b) {
-    return {p[1], (p[2] - p[0]) / (Real(2) * b), (p[2] + p[0] - Real(2) * p[1]) / (Real(2) * b * b)};
+// The echoes as one transmit lights them, a column per quantity (the pair loop reads them
+// eight at a time).
+struct LitEchoes {
+    std::vector<float> x, z;      // mm
+    std::vector<float> time;      // arrival of the transmit plus the extra delay, from start (s)
+    std::vector<float> re, im;    // sigma times the transmit's amplitude at r
+    std::array<std::vector<float>, 3> transmit;  // its directivity at the fit's frequencies
+    std::vector<uint8_t> family;  // 0: lit by the transmit's wave (half-integrated); 1: particles
+    std::size_t size() const { return x.size(); }
+};
+
+// Echoes per call of the pair loop, and the stride of its outputs.
+constexpr int kPairBlock = 256;
+
+// What the pair loop needs of an element and the fit.
+struct PairConstants {
+    float xe, inverse_c0, fs, turns_per_sample, step_re, step_im;
+    std::array<float, 3> directivity;  // pi w (1 + nu_q) / lambda0: sinc's argument per sin theta
+    float b;
+};
+
+// The terms of `count` echoes (their columns from x on) at one element: the sample n0 below each
+// arrival and its six contributions (trains j = 0..2 at n0 and n0 + 1, real and imaginary:
+// terms[(4 j + k) * kPairBlock + i], count <= kPairBlock, k = re n0, im n0, re n0+1, im n0+1). Plain float arithmetic
+// in one loop without branches, so that it vectorises; the same numbers whichever
+// instruction set runs it.
+[[gnu::target_clones("avx2", "default"), gnu::noinline]] void pair_terms(
+    int count, const float* __restrict x, const float* __restrict z,
+    const float* __restrict time, const float* __restrict re, const float* __restrict im,
+    const float* __restrict t0, const float* __restrict t1, const float* __restrict t2,
+    PairConstants k, int32_t* __restrict n0, float* __restrict terms) {
+    const float half_b = 0.5f / k.b, half_b2 = 0.5f / (k.b * k.b);
+    // The constants as locals: read through `k` they might alias the outputs.
+    const float xe = k.xe, inverse_c0 = k.inverse_c0, fs = k.fs;
+    const float turns_per_sample = k.turns_per_sample, step_re = k.step_re, step_im = k.step_im;
+    const float d0 = k.directivity[0], d1 = k.directivity[1], d2 = k.directivity[2];
+    for (int i = 0; i < count; ++i) {
+        const float dx = x[i] - xe;
+        const float R = std::sqrt(std::max(dx * dx + z[i] * z[i], 1e-12f));
+        const float inverse_R = 1.0f / R;
+        const float sin_back = dx * inverse_R;
+        // sinc(a) = sin |a| / |a|, |a| kept from 0 (sin 1e-6 / 1e-6 = 1 in float). Written
+        // out for each frequency: a loop inside this one would keep it from vectorising.
+        auto sinc_of = [](float a) {
+            a = std::max(std::abs(a), 1e-6f);
+            float sine, cosine;
+            base::sincos_turns(a * float(0.5 / std::numbers::pi), sine, cosine);
+            return sine / a;
+        };
+        const float back[3] = {sinc_of(d0 * sin_back), sinc_of(d1 * sin_back),
+                               sinc_of(d2 * sin_back)};
+        const float p0 = t0[i] * back[0], p1 = t1[i] * back[1], p2 = t2[i] * back[2];
+        // The quadratic in nu = f / f0 - 1 through (-b, p0), (0, p1), (b, p2).
+        const float c[3] = {p1, (p2 - p0) * half_b, (p2 + p0 - 2.0f * p1) * half_b2};
+        const float position = (time[i] + R * inverse_c0) * fs;
+        const int32_t n = base::floor_to_int(position);
+        const float u = position - float(n);
+        // The carrier at each of the two samples: exp(-i 2 pi f0 (arrival - t_n)).
+        float sine, cosine;
+        base::sincos_turns(-u * turns_per_sample, sine, cosine);
+        const float next_re = cosine * step_re - sine * step_im,
+                    next_im = cosine * step_im + sine * step_re;
+        const float scale = z[i] * inverse_R / std::sqrt(R);
+        const float ar = re[i] * scale, ai = im[i] * scale;
+        const float w0 = 1.0f - u;
+        const float a0r = (ar * cosine - ai * sine) * w0, a0i = (ar * sine + ai * cosine) * w0;
+        const float a1r = (ar * next_re - ai * next_im) * u, a1i = (ar * next_im + ai * next_re) * u;
+        n0[i] = n;
+        float* __restrict row = terms + i;
+#define SONOTRACE_TRAIN_TERMS(j)                             \
+    row[(4 * j + 0) * kPairBlock] = c[j] * a0r;              \
+    row[(4 * j + 1) * kPairBlock] = c[j] * a0i;              \
+    row[(4 * j + 2) * kPairBlock] = c[j] * a1r;              \
+    row[(4 * j + 3) * kPairBlock] = c[j] * a1i;
+        SONOTRACE_TRAIN_TERMS(0)
+        SONOTRACE_TRAIN_TERMS(1)
+        SONOTRACE_TRAIN_TERMS(2)
+#undef SONOTRACE_TRAIN_TERMS
+    }
 }
 
-// The element's directivity sinc(pi w f sin theta / c0) at the fit's frequencies, tabulated
-// over |sin theta| in [0, 1] and interpolated linearly (its second derivative is below
-// (pi w / lambda)^2 (1 + b)^2: at 1024 intervals the error is below 2e-5 for w <= lambda).
-class DirectivityTable {
-  public:
-    DirectivityTable(double scale, const std::array<double, 3>& nu) {
-        for (int k = 0; k <= kIntervals; ++k)
-            for (int q = 0; q < 3; ++q)
-                values_[std::size_t(k)][std::size_t(q)] =
-                    float(sinc(scale * (1.0 + nu[std::size_t(q)]) * k / double(kIntervals)));
+// out[n + k] += Re(a_n g_k) over a train's nonzero samples (g split into its parts).
+[[gnu::target_clones("avx2", "default")]] void convolve_train(const std::complex<float>* a, int S,
+                                                             const float* __restrict g_re,
+                                                             const float* __restrict g_im, int H,
+                                                             float* __restrict out) {
+    for (int n = 0; n < S; ++n) {
+        const float ar = a[n].real(), ai = a[n].imag();
+        if (ar == 0.0f && ai == 0.0f) continue;
+        const int lo = std::max(-H, -n), hi = std::min(H, S - 1 - n);
+        float* __restrict o = out + n;
+        for (int k = lo; k <= hi; ++k) o[k] += ar * g_re[k + H] - ai * g_im[k + H];
     }
-    std::array<float, 3> operator()(float sin_theta) const {
-        const float x = std::min(std::abs(sin_theta), 1.0f) * float(kIntervals);
-        const int k = std::min(int(x), kIntervals - 1);
-        const float f = x - float(k);
-        std::array<float, 3> out;
-        for (int q = 0; q < 3; ++q)
-            out[std::size_t(q)] = values_[std::size_t(k)][std::size_t(q)] * (1.0f - f) +
-                                  values_[std::size_t(k + 1)][std::size_t(q)] * f;
-        return out;
-    }
-
-  private:
-    static constexpr int kIntervals = 1024;
-    std::array<std::array<float, 3>, kIntervals + 1> values_;
-};
-
-// An echo as one transmit lights it.
-struct LitEcho {
-    float x, z;                      // mm
-    float time_s;                    // arrival of the transmit plus the extra delay, from start
-    std::complex<float> amplitude;   // sigma times the transmit's amplitude at r
-    std::array<float, 3> transmit_directivity;  // at the fit's frequencies
-    int family;  // 0: lit by the transmit's wave (half-integrated pulse); 1: lit by particles
-};
+}
 
 }  // namespace
 
@@ -147,14 +202,21 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
     const double b = nu[2];
     const double f0 = c.frequency_hz, fs = c.fs_hz;
     const double directivity_scale = std::numbers::pi * t.element_width_mm / t.wavelength_mm();
-    const DirectivityTable receive_directivity(directivity_scale, nu);
-    const std::complex<float> step_forward(std::polar(1.0, kTwoPi * f0 / fs));
+    const std::complex<double> step_forward = std::polar(1.0, kTwoPi * f0 / fs);
+    PairConstants constants{};
+    constants.inverse_c0 = float(1.0 / kC0MmPerS);
+    constants.fs = float(fs);
+    constants.turns_per_sample = float(f0 / fs);
+    constants.step_re = float(step_forward.real());
+    constants.step_im = float(step_forward.imag());
+    for (int q = 0; q < 3; ++q)
+        constants.directivity[std::size_t(q)] = float(directivity_scale * (1.0 + nu[std::size_t(q)]));
+    constants.b = float(b);
 
     for (int w = 0; w < c.transmits; ++w) {
         const probe::TransmitField field(t, scheme.waves[std::size_t(w)]);
         const std::vector<ChannelEcho> echoes = echoes_of(w);
-        std::vector<LitEcho> lit;
-        lit.reserve(echoes.size());
+        LitEchoes lit;
         bool particles = false;
         for (const ChannelEcho& echo : echoes) {
             probe::TransmitField::Arrival a;
@@ -165,66 +227,54 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
                 a = field.at(echo.position);
             }
             if (!(a.amplitude > 0.0)) continue;
-            LitEcho l{float(echo.position.x), float(echo.position.y),
-                      float(a.time_s + echo.extra_delay_s - c.start_s),
-                      std::complex<float>(echo.strength * a.amplitude), {}, echo.lit ? 1 : 0};
+            const std::complex<double> amplitude = echo.strength * a.amplitude;
+            lit.x.push_back(float(echo.position.x));
+            lit.z.push_back(float(echo.position.y));
+            lit.time.push_back(float(a.time_s + echo.extra_delay_s - c.start_s));
+            lit.re.push_back(float(amplitude.real()));
+            lit.im.push_back(float(amplitude.imag()));
             for (int q = 0; q < 3; ++q)
-                l.transmit_directivity[std::size_t(q)] =
-                    float(sinc(directivity_scale * (1.0 + nu[std::size_t(q)]) * a.sin_angle));
-            lit.push_back(l);
+                lit.transmit[std::size_t(q)].push_back(
+                    float(sinc(directivity_scale * (1.0 + nu[std::size_t(q)]) * a.sin_angle)));
+            lit.family.push_back(echo.lit ? 1 : 0);
         }
         tbb::parallel_for(0, c.elements, [&](int e) {
             // The three amplitude trains of this channel (header), per family.
             std::array<std::array<std::vector<std::complex<float>>, 3>, 2> trains;
             for (int family = 0; family < (particles ? 2 : 1); ++family)
                 for (auto& v : trains[std::size_t(family)]) v.assign(std::size_t(S), 0.0f);
-            const float xe = float(c.element_x_mm[std::size_t(e)]);
-            const float inverse_c0 = float(1.0 / kC0MmPerS);
-            const float turns_per_sample = float(f0 / fs);
-            for (const LitEcho& l : lit) {
-                const float dx = l.x - xe, R2 = dx * dx + l.z * l.z;
-                if (!(R2 > 0.0f)) continue;
-                const float R = std::sqrt(R2), inverse_R = 1.0f / R;
-                const std::array<float, 3> back = receive_directivity(dx * inverse_R);
-                std::array<float, 3> p;
-                for (int q = 0; q < 3; ++q)
-                    p[std::size_t(q)] = l.transmit_directivity[std::size_t(q)] * back[std::size_t(q)];
-                const std::array<float, 3> coefficient = quadratic(p, float(b));
-                const float position = (l.time_s + R * inverse_c0) * float(fs);
-                const int n0 = base::floor_to_int(position);
-                if (n0 < 0 || n0 + 1 >= S) continue;
-                const float u = position - float(n0);
-                // The carrier at each of the two samples: exp(-i 2 pi f0 (arrival - t_n)).
-                float sine, cosine;
-                base::sincos_turns(-u * turns_per_sample, sine, cosine);
-                const std::complex<float> at_n0(cosine, sine);
-                const std::complex<float> at_n1 = at_n0 * step_forward;
-                const std::complex<float> amplitude =
-                    l.amplitude * (l.z * inverse_R / std::sqrt(R));
-                auto& train = trains[std::size_t(l.family)];
-                for (int j = 0; j < 3; ++j) {
-                    const std::complex<float> a = amplitude * coefficient[std::size_t(j)];
-                    train[std::size_t(j)][std::size_t(n0)] += a * at_n0 * (1.0f - u);
-                    train[std::size_t(j)][std::size_t(n0 + 1)] += a * at_n1 * u;
+            PairConstants k = constants;
+            k.xe = float(c.element_x_mm[std::size_t(e)]);
+            std::array<int32_t, kPairBlock> n0;
+            std::array<float, 12 * kPairBlock> terms;
+            for (std::size_t from = 0; from < lit.size(); from += kPairBlock) {
+                const int count = int(std::min<std::size_t>(kPairBlock, lit.size() - from));
+                pair_terms(count, lit.x.data() + from, lit.z.data() + from,
+                           lit.time.data() + from, lit.re.data() + from, lit.im.data() + from,
+                           lit.transmit[0].data() + from, lit.transmit[1].data() + from,
+                           lit.transmit[2].data() + from, k, n0.data(), terms.data());
+                for (int i = 0; i < count; ++i) {
+                    const int n = n0[std::size_t(i)];
+                    if (n < 0 || n + 1 >= S) continue;
+                    auto& train = trains[lit.family[from + std::size_t(i)]];
+                    for (int j = 0; j < 3; ++j) {
+                        const float* v = terms.data() + std::size_t(4 * j * kPairBlock + i);
+                        train[std::size_t(j)][std::size_t(n)] +=
+                            std::complex<float>(v[0], v[kPairBlock]);
+                        train[std::size_t(j)][std::size_t(n + 1)] +=
+                            std::complex<float>(v[2 * kPairBlock], v[3 * kPairBlock]);
+                    }
                 }
             }
             // RF = Re sum_j train_j (*) g_j.
             float* out = c.channel(w, e);
             for (int family = 0; family < (particles ? 2 : 1); ++family)
-            for (int j = 0; j < 3; ++j) {
-                const int H = waveforms[std::size_t(family)].half;
-                const auto& g = waveforms[std::size_t(family)].g[std::size_t(j)];
-                const auto& a = trains[std::size_t(family)][std::size_t(j)];
-                for (int n = 0; n < S; ++n) {
-                    if (a[std::size_t(n)] == std::complex<float>(0.0f)) continue;
-                    const int lo = std::max(-H, -n), hi = std::min(H, S - 1 - n);
-                    const float ar = a[std::size_t(n)].real(), ai = a[std::size_t(n)].imag();
-                    for (int k = lo; k <= hi; ++k) {
-                        const std::complex<float> gk = g[std::size_t(k + H)];
-                        out[n + k] += ar * gk.real() - ai * gk.imag();
-                    }
+                for (int j = 0; j < 3; ++j) {
+                    const Waveforms& g = waveforms[std::size_t(family)];
+                    convolve_train(trains[std::size_t(family)][std::size_t(j)].data(), S,
+                                   g.re[std::size_t(j)].data(), g.im[std::size_t(j)].data(), g.half,
+                                   out);
                 }
-            }
         });
     }
     return c;
