@@ -142,9 +142,12 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 const glm::dvec2 image = launch + flight_mm * glm::dvec2(source.direction);
                 if (!(image.y > 0.0)) continue;
                 const double loss = double(e.energy) / std::max(double(source.energy), 1e-30);
+                // No return weight: a particle that took a stochastic choice of
+                // probability p stands for 1 / p of the wave that took it, whose amplitude
+                // the choice scaled by sqrt(p), and the way back scales it by sqrt(p) again
+                // (header): the product is 1.
                 double amplitude = field.aperture_weight(launch.x) * loss *
-                                   std::sqrt(double(e.weight) * double(e.return_weight)) *
-                                   piece / t.pitch_mm;
+                                   std::sqrt(double(e.weight)) * piece / t.pitch_mm;
                 std::complex<double> strength = amplitude;
                 if (e.kind == simulator::EchoKind::diffuse) {
                     const double range = glm::length(image);

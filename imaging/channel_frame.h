@@ -9,13 +9,18 @@
 //   - reflections the tracer recorded (EchoEvent, specular and diffuse): each particle is a
 //     piece of the wavefront, array length / particles wide as it left, and its reflection
 //     a secondary source (lit, imaging/channel_data.h) of strength
-//         a(s) (E / E_0) sqrt(R^2 w) ds / pitch
+//         a(s) (E / E_0) R ds / pitch
 //     at the image point of its path (the launch point plus its time of flight at c0 along
 //     its launch direction: a mirrored path images where the mirror puts it), arriving when
 //     the particle did: a(s) the transmit apodization where it left, E / E_0 its two-way
-//     loss (the way back repeats the way in, as in the focused mode), R^2 the reflected
-//     fraction and w the return weight of its stochastic choices. Their sum along a
-//     reflector is the reflected wave (R times the incident, mirrored: stationary phase).
+//     loss (the way back repeats the way in, as in the focused mode), R the reflection's
+//     amplitude (sqrt of its recorded R^2). Amplitudes add coherently, so the particles are
+//     an estimator of amplitude, not of intensity: one that took stochastic choices of
+//     probabilities p_i (reflect R_i^2, transmit 1 - R_i^2) stands for 1 / prod p_i of the
+//     wave whose amplitude they scaled by prod sqrt(p_i), and the way back scales it by
+//     prod sqrt(p_i) again; the three cancel (the focused mode's intensities keep the
+//     return weight prod p_i instead). The sum of the secondary sources along a reflector
+//     is the reflected wave (R times the incident, mirrored: stationary phase).
 //     A rough interface's secondary sources take random phases (their sum is diffuse)
 //     and the share of the reflected lobe that heads back into the receive's half-angle;
 //   - point targets (point_echoes): the transmit's wave at each (probe/transmit.h) with the
