@@ -132,9 +132,16 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
         std::vector<ChannelEcho> echoes;
         stage("echoes", [&] {
             // Reflections: secondary sources at their paths' image points.
+            // Events come by particle, then time: whether a particle has met a rough
+            // interface before this event (after which its echoes add incoherently).
+            uint32_t particle = UINT32_MAX;
+            bool roughened = false;
             for (const simulator::EchoEvent<2>& e : result.echoes) {
+                if (e.particle != particle) particle = e.particle, roughened = false;
                 if (e.kind != simulator::EchoKind::specular && e.kind != simulator::EchoKind::diffuse)
                     continue;
+                const bool coherent = e.kind == simulator::EchoKind::specular && !roughened;
+                if (e.kind == simulator::EchoKind::diffuse) roughened = true;
                 if (e.particle >= own.size() || cores.contains(glm::dvec2(e.position))) continue;
                 const probe::SourceParticle<2>& source = own[e.particle];
                 const glm::dvec2 launch = glm::dvec2(source.position) - to_map;
@@ -142,19 +149,27 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 const glm::dvec2 image = launch + flight_mm * glm::dvec2(source.direction);
                 if (!(image.y > 0.0)) continue;
                 const double loss = double(e.energy) / std::max(double(source.energy), 1e-30);
-                // No return weight: a particle that took a stochastic choice of
-                // probability p stands for 1 / p of the wave that took it, whose amplitude
-                // the choice scaled by sqrt(p), and the way back scales it by sqrt(p) again
-                // (header): the product is 1.
+                // Coherent echoes (specular, the particle's phase still the transmit's):
+                // an estimator of amplitude, without the return weight (header). Echoes
+                // through a rough interface add with random phases, so their intensities
+                // add: an estimator of intensity, with it, as the focused mode's.
                 double amplitude = field.aperture_weight(launch.x) * loss *
-                                   std::sqrt(double(e.weight)) * piece / t.pitch_mm;
-                std::complex<double> strength = amplitude;
-                if (e.kind == simulator::EchoKind::diffuse) {
-                    const double range = glm::length(image);
-                    const double half_angle =
-                        std::atan(0.5 * t.receive_aperture_mm(range) / std::max(range, 1e-3));
+                                   std::sqrt(double(e.weight) *
+                                             (coherent ? 1.0 : double(e.return_weight))) *
+                                   piece / t.pitch_mm;
+                // The share of the reflector's lobe that heads back the way the particle
+                // came, within the receive's half-angle: a rough interface's echo, and any
+                // echo after a reflection (as the focused mode takes them). A direct
+                // specular echo needs none: its secondary sources' sum makes the mirrored
+                // wave, and that picks its own direction.
+                const double range = glm::length(image);
+                const double half_angle =
+                    std::atan(0.5 * t.receive_aperture_mm(range) / std::max(range, 1e-3));
+                if (!coherent || e.bounces > 0)
                     amplitude *= std::sqrt(reflection_back_fraction(
                         double(e.cos_incidence), double(e.lobe_exponent), half_angle));
+                std::complex<double> strength = amplitude;
+                if (!coherent) {
                     const uint64_t bits = base::mix64(settings.seed ^ base::mix64(
                                                           (uint64_t(w) << 40) ^
                                                           (uint64_t(e.particle) << 16) ^ e.bounces));

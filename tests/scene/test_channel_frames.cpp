@@ -3,7 +3,7 @@
 // wave summed here element by element (the reflector mirrors every transmitting element;
 // each element's delay, directivity and 1 / sqrt(L) spreading at every frequency of the
 // pulse's spectrum, computed here from its waveform), and the artefacts of the focused mode
-// (reverberation between plates, a mirror's ghost) where the focused mode shows them.
+// (reverberation between plates) where the focused mode shows them.
 #include <gtest/gtest.h>
 
 #include <algorithm>
