@@ -129,6 +129,17 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
         // numbers in messages are short: not 301 digits
         {"--probe convex --fov 1e300", "field 'fov': must be in [0.001, 180] degrees, got 1e+300"},
         {"--name .hidden", "--name"},
+        // Unfocused transmits.
+        {"--probe linear --transmit plane:95", "angle 95 degrees"},
+        {"--probe linear --transmit plane:-90", "|angle| < 90"},
+        {"--probe linear --transmit plane:0:10:0", "zero transmits"},
+        {"--probe linear --transmit plane:", "zero transmits"},
+        {"--probe linear --transmit diverging:-3", "must lie behind the face"},
+        {"--probe linear --transmit sideways:3", "unknown transmit 'sideways'"},
+        {"--transmit plane:0", "need a flat array"},  // the default head's convex probe
+        {"--probe linear --transmit plane:0 --trace 3d", "traced in 2D"},
+        {"--probe linear --channels", "--channels"},
+        {"--probe picmus --depth 300 --transmit plane:-16:16:9999", "memory"},
         {"--name " + std::string(250, 'a'), "--name"}};
     ASSERT_EQ(::mkfifo((dir / "poses.fifo").c_str(), 0600), 0);
     std::ofstream(dir / "far_target.json") << R"({"name": "x", "size": [40, 40, 10],
@@ -221,6 +232,26 @@ TEST(CliSimulate, PhantomShowsEnhancementBehindTheCystAndShadowBehindTheStone) {
 // The point-target grid through the whole command with --disable: the sidecar records
 // the switches, and a 0.1 mm wire target images as the brightest spot of its depth, on its
 // own column (world x = 20 mm: the image's centre).
+// Unfocused transmits with --channels: the frame and its channel data are the same bytes
+// on one thread and on two, and the sidecar records the scheme and the channels' layout.
+TEST(CliSimulate, ChannelDataAreByteIdenticalOnOneAndTwoThreads) {
+    ScratchDir dir;
+    const std::string common = "simulate -q --quality interactive --phantom " +
+                               std::string(SONOTRACE_SOURCE_DIR) +
+                               "/phantoms/picmus.json --transmit plane:-4:4:3 --channels ";
+    ASSERT_EQ(run(dir, common + "--threads 1 --out " + (dir / "a")).exit_code, 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+    const auto r = run(dir, common + "--threads 2 --out " + (dir / "b"));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    for (const char* f : {"bmode.png", "bmode_channels.h5"})
+        EXPECT_TRUE(slurp(dir / ("a/" + std::string(f))) == slurp(dir / ("b/" + std::string(f))))
+            << f;
+    const auto record = nlohmann::json::parse(slurp(dir / "a/bmode.json"));
+    EXPECT_EQ(record["transmit"]["scheme"], "plane:-4:4:3");
+    EXPECT_EQ(record["transmit"]["transmits"], 3);
+    EXPECT_EQ(record["transmit"]["channels"]["elements"], 128);
+}
+
 TEST(CliSimulate, PointTargetsImageAndDisabledPhysicsAreRecorded) {
     ScratchDir dir;
     const auto r = run(dir,
