@@ -82,6 +82,9 @@ struct PairConstants {
     float xe, inverse_c0, fs, turns_per_sample, step_re, step_im;
     std::array<float, 3> directivity;  // pi w (1 + nu_q) / lambda0: sinc's argument per sin theta
     float b;
+    // The closest an echo is taken to be to an element (mm): the far-field 1 / sqrt(R) of
+    // the element's wave holds from about half a wavelength (nearer, it would diverge).
+    float nearest;
 };
 
 // The terms of `count` echoes (their columns from x on) at one element: the sample n0 below each
@@ -99,9 +102,10 @@ struct PairConstants {
     const float xe = k.xe, inverse_c0 = k.inverse_c0, fs = k.fs;
     const float turns_per_sample = k.turns_per_sample, step_re = k.step_re, step_im = k.step_im;
     const float d0 = k.directivity[0], d1 = k.directivity[1], d2 = k.directivity[2];
+    const float nearest2 = k.nearest * k.nearest;
     for (int i = 0; i < count; ++i) {
         const float dx = x[i] - xe;
-        const float R = std::sqrt(std::max(dx * dx + z[i] * z[i], 1e-12f));
+        const float R = std::sqrt(std::max(dx * dx + z[i] * z[i], nearest2));
         const float inverse_R = 1.0f / R;
         const float sin_back = dx * inverse_R;
         // sinc(a) = sin |a| / |a|, |a| kept from 0 (sin 1e-6 / 1e-6 = 1 in float). Written
@@ -212,6 +216,7 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
     for (int q = 0; q < 3; ++q)
         constants.directivity[std::size_t(q)] = float(directivity_scale * (1.0 + nu[std::size_t(q)]));
     constants.b = float(b);
+    constants.nearest = float(0.5 * t.wavelength_mm());
 
     for (int w = 0; w < c.transmits; ++w) {
         const probe::TransmitField field(t, scheme.waves[std::size_t(w)]);

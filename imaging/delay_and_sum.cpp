@@ -86,7 +86,9 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
         const probe::TransmitField field(t, c.waves[std::size_t(w)]);
         tbb::parallel_for(0, grid.nz, [&](int j) {
             const double z = grid.z(j);
-            const double half_width = std::max(0.5 * z / settings.f_number, 0.5 * t.pitch_mm);
+            // At least two pitches across: a narrower apodized aperture leaves pixels
+            // between elements with no weight (a comb along the face).
+            const double half_width = std::max(0.5 * z / settings.f_number, t.pitch_mm);
             for (int i = 0; i < grid.nx; ++i) {
                 const double x = grid.x(i);
                 const double transmit_time = field.at({x, z}).time_s;

@@ -6,7 +6,7 @@
 //
 // with s_we the analytic signal of element e's channel under transmit w, tau_w(r) the
 // transmit's arrival at r (probe/transmit.h) and a_e(r) the receive apodization over the
-// elements within z / (2 F) of x (F the receive F-number; at least one element). The
+// elements within z / (2 F) of x (F the receive F-number; at least a pitch). The
 // analytic signal is taken by the discrete Hilbert transform (the spectrum's negative
 // half removed), brought to baseband at f0 and interpolated there (Catmull-Rom), then
 // carried back to the carrier at the delay: the carrier's phase is exact at any delay.
