@@ -304,3 +304,22 @@ def test_a_volume_name_is_never_a_format(tmp_path):
     for name in ["a%s%s%s%s.png", "a%n.png", "x%99999999d.png"]:
         with pytest.raises(sonotrace.InputError, match="takes one index as %d"):
             sonotrace.simulate(volume=str(tmp_path / name), spacing="1,1")
+
+
+def test_a_frames_channels_are_the_clis_channel_file(tmp_path):
+    """transmit=...: Frame.channels holds the channel data `simulate --channels` writes, to
+    the bit, with the layout in the sidecar; a focused frame has none."""
+    import h5py
+    options = dict(phantom=SOURCE + "/phantoms/picmus.json", quality="interactive",
+                   transmit="plane:-4:4:3")
+    frame = sonotrace.simulate(**options)
+    run = subprocess.run([BINARY, "simulate", "-q", "--phantom", options["phantom"],
+                          "--quality", "interactive", "--transmit", options["transmit"],
+                          "--channels", "--out", str(tmp_path)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    with h5py.File(tmp_path / "bmode_channels.h5", "r") as f:
+        written = f["channels"][()]
+    assert frame.channels.dtype == np.float32 and frame.channels.shape == written.shape
+    assert np.array_equal(frame.channels, written)
+    assert frame.sidecar["transmit"]["transmits"] == 3
+    assert sonotrace.simulate(**FAST).channels is None

@@ -123,6 +123,11 @@ class Frame {
     }
     py::array_t<float> envelope() const { return lines(data_->simulated.frame.envelope); }
     py::array_t<float> rf() const { return lines(data_->simulated.frame.rf); }
+    py::object channels() const {
+        if (!data_->simulated.frame.channels) return py::none();
+        const imaging::ChannelData& c = *data_->simulated.frame.channels;
+        return view<float>(data_, c.values.data(), {c.transmits, c.elements, c.samples});
+    }
     py::object sidecar() const { return to_python(data_->sidecar); }
     const std::shared_ptr<FrameData>& data() const { return data_; }
 

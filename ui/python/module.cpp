@@ -122,6 +122,11 @@ PYBIND11_MODULE(_sonotrace, m) {
                                "a volume) (labels=True), else None")
         .def_property_readonly("envelope", &Frame::envelope, "float32 [lines, samples]")
         .def_property_readonly("rf", &Frame::rf, "float32 [lines, samples]")
+        .def_property_readonly("channels", &Frame::channels,
+                               "float32 [transmits, elements, samples]: each element's RF "
+                               "under each unfocused transmit (transmit='plane:...' or "
+                               "'diverging:...'; sampling and geometry in sidecar['transmit'] "
+                               "and docs/guide/channel-data.md), else None")
         .def_property_readonly("sidecar", &Frame::sidecar,
                                "dict: the frame's JSON sidecar (probe, pose, image geometry, ...)");
 
