@@ -173,6 +173,7 @@ ChannelData channel_layout(const probe::Transducer& t, const probe::TransmitSche
     c.fs_hz = settings.sampling_mhz > 0.0 ? settings.sampling_mhz * 1e6 : 4.0 * c.frequency_hz;
     c.start_s = settings.start_us * 1e-6;
     c.speed_m_s = tissue::kReferenceSpeed;
+    c.pitch_mm = t.pitch_mm;
     c.element_x_mm = probe::element_positions_mm(t);
     c.waves = scheme.waves;
     const double depth = settings.depth_mm > 0.0 ? settings.depth_mm : t.depth_mm;

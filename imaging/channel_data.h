@@ -81,6 +81,7 @@ struct ChannelData {
     double start_s = 0.0;       // time of sample 0 after the transmit's time zero
     double speed_m_s = 0.0;     // c0 the delays are computed with
     double frequency_hz = 0.0;  // centre frequency
+    double pitch_mm = 0.0;
     std::vector<double> element_x_mm;                  // elements at (x, 0), probe plane
     std::vector<probe::TransmitWave> waves;            // one per transmit
     std::vector<std::vector<double>> delays_s;         // [transmit][element]: firing times

@@ -141,3 +141,30 @@ def test_bad_specs_exit_1_naming_the_field_and_write_nothing(tmp_path, change, f
     assert run.returncode == 1, run.stderr
     assert "spec.json" in run.stderr and field in run.stderr, run.stderr
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_channel_data_in_shards(tmp_path):
+    """"transmit" and write "channels": each frame's channel data, [transmits, elements,
+    samples] float32, with its sampling and geometry as attributes; the frames' images as
+    without them. Asking for channels of focused frames is refused."""
+    s = spec(sources=[{"phantom": SOURCE + "/phantoms/picmus.json"}],
+             transducer={"depth": [28, 34]}, transmit="plane:-4:4:3", frames=2,
+             write=["bmode", "channels"])
+    run, out = make(tmp_path, s)
+    assert run.returncode == 0, run.stderr
+    with h5py.File(out / "shard_00000.h5", "r") as f:
+        assert sorted(f["channels"].keys()) == ["00000000", "00000001"]
+        for name, d in f["channels"].items():
+            assert d.dtype == np.float32 and d.shape[:2] == (3, 128)
+            assert d.attrs["pitch_mm"] == 0.30
+            assert d.attrs["sampling_frequency_hz"] == 4 * 5.208e6
+            assert d.attrs["speed_of_sound_m_s"] == 1540.0
+            # Samples enough for the frame's depth and back from every element.
+            depth = f["frames"][int(name)]["depth_mm"]
+            reach = (depth + np.hypot(depth, 38.4)) / 1540e3 * d.attrs["sampling_frequency_hz"]
+            assert d.shape[2] > reach
+            assert np.abs(d[()]).max() > 0
+    (tmp_path / "bad").mkdir()
+    bad, out = make(tmp_path / "bad", spec(write=["bmode", "channels"]))
+    assert bad.returncode == 1 and "needs unfocused transmits" in bad.stderr
+    assert not out.exists()

@@ -86,6 +86,7 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
         request.transducer[spec_.transducer[n].key] = base::exact_number_text(d.transducer[n]);
     request.quality = imaging::to_string(spec_.quality);
     request.trace = spec_.trace_dimensions == 3 ? "3d" : "2d";
+    request.transmit = spec_.transmit;
     request.seed = d.seed;
     request.disable = spec_.disable;
     request.energy = spec_.write_energy;
@@ -140,6 +141,7 @@ DatasetFrame FrameMaker::make(uint64_t index) const {
         out.instances = on_the_grid(scene::instance_map(scene, simulated), CV_16U);
     out.envelope = std::move(frame.envelope);
     out.rf = std::move(frame.rf);
+    if (spec_.write_channels) out.channels = std::move(frame.channels);
     out.energy = std::move(frame.absorbed);
     return out;
 }

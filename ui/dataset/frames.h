@@ -1,6 +1,7 @@
 #pragma once
 // Frames of a dataset: frame i of a spec made from its draw (spec.h), every frame on the
 // same W x H pixel grid so that a shard stacks them.
+#include <optional>
 #include <memory>
 #include <vector>
 
@@ -28,6 +29,7 @@ struct DatasetFrame {
     cv::Mat true_depth, echogenicity;  // CV_32F, H x W: of what each pixel shows (the same)
     cv::Mat instances;                 // CV_16U, H x W: a phantom's shape index, 0 background
     imaging::LineData envelope, rf;
+    std::optional<imaging::ChannelData> channels;  // spec "transmit" and write "channels"
     tissue::Volume energy;  // absorbed energy on the map grid
 };
 

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tissue/base/error.h"
@@ -81,9 +82,11 @@ class ImageWriter {
         check(a, "write an attribute of");
         check(H5Awrite(a, type, text.empty() ? "" : text.data()), "write an attribute of");
     }
-    void attribute(const char* name, double value) {
+    // On the file, or on the object `where` (a dataset, a group).
+    void attribute(const char* name, double value, hid_t where = -1) {
         Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-        Handle a(H5Acreate2(file_, name, H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT),
+        Handle a(H5Acreate2(where < 0 ? file_ : where, name, H5T_IEEE_F64LE, space,
+                            H5P_DEFAULT, H5P_DEFAULT),
                  H5Aclose);
         check(a, "write an attribute of");
         check(H5Awrite(a, H5T_NATIVE_DOUBLE, &value), "write an attribute of");
@@ -96,10 +99,11 @@ class ImageWriter {
     }
 
     // A dataset of `dims`, chunked as `chunk` (empty: contiguous), deflated when chunked
-    // and `deflate`.
+    // and `deflate`; `attributes` (name, value) on it.
     void dataset(hid_t where, const char* name, hid_t file_type, hid_t memory_type,
                  const std::vector<hsize_t>& dims, const std::vector<hsize_t>& chunk,
-                 const void* data, bool deflate = true) {
+                 const void* data, bool deflate = true,
+                 const std::vector<std::pair<const char*, double>>& attributes = {}) {
         Handle space(H5Screate_simple(int(dims.size()), dims.data(), nullptr), H5Sclose);
         Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
         H5Pset_obj_track_times(dcpl, false);
@@ -111,6 +115,7 @@ class ImageWriter {
                  H5Dclose);
         check(d, "create a dataset in");
         check(H5Dwrite(d, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "write");
+        for (const auto& [key, value] : attributes) attribute(key, value, d);
     }
 
     hid_t group(const char* name) {

@@ -170,6 +170,26 @@ void write_shard(const std::string& path, const std::string& output_name, const 
         per_frame("rf", [](const DatasetFrame& f) {
             return Array{f.rf.values.data(), f.rf.lines, f.rf.samples};
         });
+    if (spec.write_channels) {
+        // Each frame's channels with what beamforming them needs beyond the frame table
+        // (its probe and frequency) and the spec's "transmit" (docs/guide/channel-data.md).
+        Handle g(w.group("channels"), H5Gclose);
+        for (const DatasetFrame& fr : frames) {
+            const imaging::ChannelData& c = *fr.channels;
+            char name[32];
+            std::snprintf(name, sizeof name, "%08llu",
+                          static_cast<unsigned long long>(fr.draw.index));
+            const std::vector<hsize_t> dims = {hsize_t(c.transmits), hsize_t(c.elements),
+                                               hsize_t(c.samples)};
+            w.dataset(g, name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims,
+                      {1, dims[1], dims[2]}, c.values.data(), true,
+                      {{"sampling_frequency_hz", c.fs_hz},
+                       {"start_time_s", c.start_s},
+                       {"speed_of_sound_m_s", c.speed_m_s},
+                       {"centre_frequency_hz", c.frequency_hz},
+                       {"pitch_mm", c.pitch_mm}});
+        }
+    }
     if (spec.write_energy)
         per_frame("energy", [](const DatasetFrame& f) {
             return Array{f.energy.voxels().data(), f.energy.dims().y, f.energy.dims().x};

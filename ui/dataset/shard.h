@@ -12,6 +12,10 @@
 //                                "tgc.slope", "noise_snr_db", "tissues.brain.attenuation")
 //   /envelope/NNNNNNNN, /rf/NNNNNNNN    float32 [lines, samples] per frame (on request)
 //   /energy/NNNNNNNN                    float32 [rows, cols] per frame (on request)
+//   /channels/NNNNNNNN  float32 [transmits, elements, samples] per frame (on request, with
+//                       the spec's "transmit"): each element's RF; attributes
+//                       sampling_frequency_hz, start_time_s, speed_of_sound_m_s,
+//                       centre_frequency_hz, pitch_mm (elements at (e - (E - 1) / 2) pitch)
 //   attributes: spec (the spec, canonical JSON), spec_digest, shard, first_frame,
 //               frame_count, version
 //

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <variant>
 
+#include "probe/transmit.h"
 #include "tissue/base/error.h"
 #include "tissue/base/file_read.h"
 #include "tissue/base/file_status.h"
@@ -181,7 +182,7 @@ Spec parse_spec(const json& j, const std::string& source) {
         j,
         {"comment", "frames", "frames_per_shard", "seed", "image", "sources", "probes",
          "transducer", "gain_db", "dynamic_range_db", "tgc", "noise_snr_db", "tissues", "pose",
-         "disable", "quality", "trace", "write"},
+         "disable", "quality", "trace", "transmit", "write"},
         source, "");
     Spec spec;
     spec.path = source;
@@ -351,6 +352,10 @@ Spec parse_spec(const json& j, const std::string& source) {
             throw InputError(source, "trace", "must be 2d or 3d, got '" + trace + "'");
         spec.trace_dimensions = trace == "3d" ? 3 : 2;
     }
+    if (j.contains("transmit")) {
+        spec.transmit = jsonio::get_string(j, "transmit", source, "");
+        if (spec.transmit != "focused") probe::parse_transmit_scheme(spec.transmit, source, "transmit");
+    }
     if (j.contains("quality")) {
         spec.quality =
             imaging::parse_quality(jsonio::get_string(j, "quality", source, ""), source, "quality");
@@ -371,13 +376,17 @@ Spec parse_spec(const json& j, const std::string& source) {
                          : name == "envelope"     ? &spec.write_envelope
                          : name == "rf"           ? &spec.write_rf
                          : name == "energy"       ? &spec.write_energy
+                         : name == "channels"     ? &spec.write_channels
                                                   : nullptr;
             if (!flag)
                 throw InputError(source, "write[" + std::to_string(n) + "]",
                                  "must be bmode, labels, labels_echo, depth, echogenicity, "
-                                 "instances, envelope, rf or energy");
+                                 "instances, envelope, rf, energy or channels");
             *flag = true;
         }
+        if (spec.write_channels && spec.transmit == "focused")
+            throw InputError(source, "write", "\"channels\" needs unfocused transmits: give "
+                                              "\"transmit\": \"plane:...\" or \"diverging:...\"");
     }
     return spec;
 }

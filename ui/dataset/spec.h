@@ -52,12 +52,15 @@
 //   "quality": "interactive",        interactive, standard or high (default standard)
 //   "trace": "3d",                   2d (default) or 3d: the slab of the elevation beam
 //                                    (simulate --trace)
+//   "transmit": "plane:-16:16:75",   unfocused transmits (simulate --transmit, flat
+//                                    arrays); default focused
 //   "write": ["bmode", "labels"]     also "labels_echo" (the labels where the echoes show
 //                                    them, simulate's NAME_labels_echo.png), "depth" (the
 //                                    true depth of what each pixel shows, mm),
 //                                    "echogenicity" (its backscatter with nothing in the
 //                                    way), "instances" (a phantom's shape index per pixel),
-//                                    "envelope", "rf", "energy"
+//                                    "envelope", "rf", "energy", "channels" (each
+//                                    element's RF under each transmit: needs "transmit")
 // }
 #include <algorithm>
 #include <cstdint>
@@ -129,6 +132,8 @@ struct Spec {
     std::string disable;  // comma list
     imaging::Quality quality = imaging::Quality::standard;
     int trace_dimensions = 2;
+    std::string transmit = "focused";  // simulate --transmit
+    bool write_channels = false;
     bool write_depth = false, write_echogenicity = false, write_instances = false;
     bool write_bmode = true, write_labels = true, write_echo_labels = false, write_envelope = false,
          write_rf = false, write_energy = false;
