@@ -47,8 +47,7 @@ Waveforms make_waveforms(const probe::Transducer& t, double fs, bool half_integr
             for (int m = 0; m < band->count(); ++m) {
                 const double f = band->frequency_hz(m);
                 sum += band->weight[std::size_t(m)] * (half_integrated ? std::sqrt(f0 / f) : 1.0) *
-                       quarter *
-                       std::pow(f / f0 - 1.0, j) * std::polar(1.0, kTwoPi * f * k / fs);
+                       quarter * std::pow(f / f0 - 1.0, j) * std::polar(1.0, kTwoPi * f * k / fs);
             }
             w.re[std::size_t(j)][std::size_t(k + w.half)] = float(sum.real());
             w.im[std::size_t(j)][std::size_t(k + w.half)] = float(sum.imag());
@@ -66,9 +65,9 @@ std::array<double, 3> fit_points(const probe::Transducer& t) {
 // The echoes as one transmit lights them, a column per quantity (the pair loop reads them
 // eight at a time).
 struct LitEchoes {
-    std::vector<float> x, z;      // mm
-    std::vector<float> time;      // arrival of the transmit plus the extra delay, from start (s)
-    std::vector<float> re, im;    // sigma times the transmit's amplitude at r
+    std::vector<float> x, z;    // mm
+    std::vector<float> time;    // arrival of the transmit plus the extra delay, from start (s)
+    std::vector<float> re, im;  // sigma times the transmit's amplitude at r
     std::array<std::vector<float>, 3> transmit;  // its directivity at the fit's frequencies
     std::vector<uint8_t> family;  // 0: lit by the transmit's wave (half-integrated); 1: particles
     std::size_t size() const { return x.size(); }
@@ -89,14 +88,14 @@ struct PairConstants {
 
 // The terms of `count` echoes (their columns from x on) at one element: the sample n0 below each
 // arrival and its six contributions (trains j = 0..2 at n0 and n0 + 1, real and imaginary:
-// terms[(4 j + k) * kPairBlock + i], count <= kPairBlock, k = re n0, im n0, re n0+1, im n0+1). Plain float arithmetic
-// in one loop without branches, so that it vectorises; the same numbers whichever
-// instruction set runs it.
+// terms[(4 j + k) * kPairBlock + i], count <= kPairBlock, k = re n0, im n0, re n0+1, im n0+1).
+// Plain float arithmetic in one loop without branches, so that it vectorises; the same numbers
+// whichever instruction set runs it.
 [[gnu::target_clones("avx2", "default"), gnu::noinline]] void pair_terms(
-    int count, const float* __restrict x, const float* __restrict z,
-    const float* __restrict time, const float* __restrict re, const float* __restrict im,
-    const float* __restrict t0, const float* __restrict t1, const float* __restrict t2,
-    PairConstants k, int32_t* __restrict n0, float* __restrict terms) {
+    int count, const float* __restrict x, const float* __restrict z, const float* __restrict time,
+    const float* __restrict re, const float* __restrict im, const float* __restrict t0,
+    const float* __restrict t1, const float* __restrict t2, PairConstants k, int32_t* __restrict n0,
+    float* __restrict terms) {
     const float half_b = 0.5f / k.b, half_b2 = 0.5f / (k.b * k.b);
     // The constants as locals: read through `k` they might alias the outputs.
     const float xe = k.xe, inverse_c0 = k.inverse_c0, fs = k.fs;
@@ -133,13 +132,14 @@ struct PairConstants {
         const float ar = re[i] * scale, ai = im[i] * scale;
         const float w0 = 1.0f - u;
         const float a0r = (ar * cosine - ai * sine) * w0, a0i = (ar * sine + ai * cosine) * w0;
-        const float a1r = (ar * next_re - ai * next_im) * u, a1i = (ar * next_im + ai * next_re) * u;
+        const float a1r = (ar * next_re - ai * next_im) * u,
+                    a1i = (ar * next_im + ai * next_re) * u;
         n0[i] = n;
         float* __restrict row = terms + i;
-#define SONOTRACE_TRAIN_TERMS(j)                             \
-    row[(4 * j + 0) * kPairBlock] = c[j] * a0r;              \
-    row[(4 * j + 1) * kPairBlock] = c[j] * a0i;              \
-    row[(4 * j + 2) * kPairBlock] = c[j] * a1r;              \
+#define SONOTRACE_TRAIN_TERMS(j)                \
+    row[(4 * j + 0) * kPairBlock] = c[j] * a0r; \
+    row[(4 * j + 1) * kPairBlock] = c[j] * a0i; \
+    row[(4 * j + 2) * kPairBlock] = c[j] * a1r; \
     row[(4 * j + 3) * kPairBlock] = c[j] * a1i;
         SONOTRACE_TRAIN_TERMS(0)
         SONOTRACE_TRAIN_TERMS(1)
@@ -150,9 +150,9 @@ struct PairConstants {
 
 // out[n + k] += Re(a_n g_k) over a train's nonzero samples (g split into its parts).
 [[gnu::target_clones("avx2", "default")]] void convolve_train(const std::complex<float>* a, int S,
-                                                             const float* __restrict g_re,
-                                                             const float* __restrict g_im, int H,
-                                                             float* __restrict out) {
+                                                              const float* __restrict g_re,
+                                                              const float* __restrict g_im, int H,
+                                                              float* __restrict out) {
     for (int n = 0; n < S; ++n) {
         const float ar = a[n].real(), ai = a[n].imag();
         if (ar == 0.0f && ai == 0.0f) continue;
@@ -193,7 +193,8 @@ ChannelData channel_layout(const probe::Transducer& t, const probe::TransmitSche
 
 ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme& scheme,
                          const std::vector<ChannelEcho>& echoes, const ChannelSettings& settings) {
-    return channel_data(t, scheme, [&](int) { return echoes; }, settings);
+    return channel_data(
+        t, scheme, [&](int) { return echoes; }, settings);
 }
 
 ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme& scheme,
@@ -215,7 +216,8 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
     constants.step_re = float(step_forward.real());
     constants.step_im = float(step_forward.imag());
     for (int q = 0; q < 3; ++q)
-        constants.directivity[std::size_t(q)] = float(directivity_scale * (1.0 + nu[std::size_t(q)]));
+        constants.directivity[std::size_t(q)] =
+            float(directivity_scale * (1.0 + nu[std::size_t(q)]));
     constants.b = float(b);
     constants.nearest = float(0.5 * t.wavelength_mm());
 
@@ -255,8 +257,8 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
             std::array<float, 12 * kPairBlock> terms;
             for (std::size_t from = 0; from < lit.size(); from += kPairBlock) {
                 const int count = int(std::min<std::size_t>(kPairBlock, lit.size() - from));
-                pair_terms(count, lit.x.data() + from, lit.z.data() + from,
-                           lit.time.data() + from, lit.re.data() + from, lit.im.data() + from,
+                pair_terms(count, lit.x.data() + from, lit.z.data() + from, lit.time.data() + from,
+                           lit.re.data() + from, lit.im.data() + from,
                            lit.transmit[0].data() + from, lit.transmit[1].data() + from,
                            lit.transmit[2].data() + from, k, n0.data(), terms.data());
                 for (int i = 0; i < count; ++i) {

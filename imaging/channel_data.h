@@ -58,7 +58,7 @@ struct ChannelEcho {
     std::complex<double> strength = 1.0;
     double extra_delay_s = 0.0;
     struct Lit {
-        double arrival_s = 0.0;          // after the transmit's time zero
+        double arrival_s = 0.0;           // after the transmit's time zero
         double transmit_sin_angle = 0.0;  // of the particle's launch, from the normal
     };
     std::optional<Lit> lit;
@@ -82,10 +82,10 @@ struct ChannelData {
     double speed_m_s = 0.0;     // c0 the delays are computed with
     double frequency_hz = 0.0;  // centre frequency
     double pitch_mm = 0.0;
-    std::vector<double> element_x_mm;                  // elements at (x, 0), probe plane
-    std::vector<probe::TransmitWave> waves;            // one per transmit
-    std::vector<std::vector<double>> delays_s;         // [transmit][element]: firing times
-    std::vector<float> values;                         // [(w * elements + e) * samples + n]
+    std::vector<double> element_x_mm;           // elements at (x, 0), probe plane
+    std::vector<probe::TransmitWave> waves;     // one per transmit
+    std::vector<std::vector<double>> delays_s;  // [transmit][element]: firing times
+    std::vector<float> values;                  // [(w * elements + e) * samples + n]
     float at(int w, int e, int n) const { return values[index(w, e, n)]; }
     const float* channel(int w, int e) const { return values.data() + index(w, e, 0); }
     float* channel(int w, int e) { return values.data() + index(w, e, 0); }

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <numbers>
 
-#include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
+#include <opencv2/imgproc.hpp>
 
 #include "imaging/delay_and_sum.h"
 #include "imaging/electronic_noise.h"
@@ -14,7 +14,6 @@
 
 namespace sonotrace::imaging {
 namespace {
-
 
 // The transmit's intensity at each texel over its free-field value: the traced fluence,
 // smoothed, over the fluence of the same particles in a lossless medium (energy 1 spread
@@ -27,7 +26,8 @@ class Illumination {
         cv::Mat values(d.y, d.x, CV_32F);
         for (int j = 0; j < d.y; ++j)
             for (int i = 0; i < d.x; ++i) values.at<float>(j, i) = fluence.at(i, j);
-        const double sx = smoothing_mm / geometry_.spacing.x, sy = smoothing_mm / geometry_.spacing.y;
+        const double sx = smoothing_mm / geometry_.spacing.x,
+                     sy = smoothing_mm / geometry_.spacing.y;
         cv::GaussianBlur(values, smoothed_, cv::Size(0, 0), sx, sy, cv::BORDER_REPLICATE);
     }
     // Amplitude factor at map-frame point p (mm), for a wave whose free-field spreading
@@ -88,7 +88,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
     const int count = particles_per_transmit(settings);
     const glm::dvec2 to_map = grid.to_map;
     probe::Sources<2> sources;
-    stage("beams", [&] { sources = probe::transmit_sources(t, scheme, count, settings.seed, to_map); });
+    stage("beams",
+          [&] { sources = probe::transmit_sources(t, scheme, count, settings.seed, to_map); });
 
     simulator::TraceSettings trace = frame_trace_settings(settings);
     trace.record_scatter_echoes = false;
@@ -101,16 +102,15 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
     std::vector<ChannelEcho> scatterers;
     stage("scatterers", [&] {
         if (!settings.imaging.speckle) return;
-        const double rate = trace.scattering_rate_per_mm * trace.scatter_echo_fraction * t.rx_f_number;
+        const double rate =
+            trace.scattering_rate_per_mm * trace.scatter_echo_fraction * t.rx_f_number;
         ScattererSettings s = settings.scatterers;
         s.seed = settings.seed;
-        scatterers = channel_scatterers(t, bounds.first - glm::dvec2(2.0, 0.0),
-                                        bounds.second + glm::dvec2(2.0, 2.0), s,
-                                        [&](const glm::dvec2& r) {
-                                            return double(map.sample_backscatter(
-                                                       glm::vec2(r + to_map))) *
-                                                   std::sqrt(rate);
-                                        });
+        scatterers = channel_scatterers(
+            t, bounds.first - glm::dvec2(2.0, 0.0), bounds.second + glm::dvec2(2.0, 2.0), s,
+            [&](const glm::dvec2& r) {
+                return double(map.sample_backscatter(glm::vec2(r + to_map))) * std::sqrt(rate);
+            });
     });
     const std::vector<PointEcho> points =
         point_echoes(settings.targets, map, grid, pose, t, settings.target_margin_mm);
@@ -138,7 +138,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
             bool roughened = false;
             for (const simulator::EchoEvent<2>& e : result.echoes) {
                 if (e.particle != particle) particle = e.particle, roughened = false;
-                if (e.kind != simulator::EchoKind::specular && e.kind != simulator::EchoKind::diffuse)
+                if (e.kind != simulator::EchoKind::specular &&
+                    e.kind != simulator::EchoKind::diffuse)
                     continue;
                 const bool coherent = e.kind == simulator::EchoKind::specular && !roughened;
                 if (e.kind == simulator::EchoKind::diffuse) roughened = true;
@@ -153,10 +154,10 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 // an estimator of amplitude, without the return weight (header). Echoes
                 // through a rough interface add with random phases, so their intensities
                 // add: an estimator of intensity, with it, as the focused mode's.
-                double amplitude = field.aperture_weight(launch.x) * loss *
-                                   std::sqrt(double(e.weight) *
-                                             (coherent ? 1.0 : double(e.return_weight))) *
-                                   piece / t.pitch_mm;
+                double amplitude =
+                    field.aperture_weight(launch.x) * loss *
+                    std::sqrt(double(e.weight) * (coherent ? 1.0 : double(e.return_weight))) *
+                    piece / t.pitch_mm;
                 // The share of the reflector's lobe that heads back the way the particle
                 // came, within the receive's half-angle: a rough interface's echo, and any
                 // echo after a reflection (as the focused mode takes them). A direct
@@ -170,11 +171,11 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                         double(e.cos_incidence), double(e.lobe_exponent), half_angle));
                 std::complex<double> strength = amplitude;
                 if (!coherent) {
-                    const uint64_t bits = base::mix64(settings.seed ^ base::mix64(
-                                                          (uint64_t(w) << 40) ^
-                                                          (uint64_t(e.particle) << 16) ^ e.bounces));
-                    strength = std::polar(amplitude, 2.0 * std::numbers::pi *
-                                                         double(bits >> 11) * 0x1.0p-53);
+                    const uint64_t bits = base::mix64(
+                        settings.seed ^ base::mix64((uint64_t(w) << 40) ^
+                                                    (uint64_t(e.particle) << 16) ^ e.bounces));
+                    strength = std::polar(amplitude,
+                                          2.0 * std::numbers::pi * double(bits >> 11) * 0x1.0p-53);
                 }
                 if (!(std::abs(strength) > 0.0)) continue;
                 echoes.push_back({image, strength, 0.0,
@@ -188,7 +189,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
             if (!scatterers.empty()) {
                 const Illumination light(result.fluence, 1.0, t.array_length_mm());
                 for (const ChannelEcho& s : scatterers) {
-                    const double a = light.amplitude(s.position + to_map, spreading(wave, s.position));
+                    const double a =
+                        light.amplitude(s.position + to_map, spreading(wave, s.position));
                     if (a > 0.0) echoes.push_back({s.position, s.strength * a, 0.0, std::nullopt});
                 }
             }
@@ -231,7 +233,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
     stage("beamforming", [&] { beamformed = delay_and_sum(channels, t, pixels, das); });
     stage("display", [&] {
         const probe::ScanGeometry geometry(t);
-        const double fs = kC0MmPerS / (2.0 * pixel) ;  // one display row per "sample"
+        const double fs = kC0MmPerS / (2.0 * pixel);  // one display row per "sample"
         const int first_row = int(std::lround(lo.y / pixel));
         const Compression compression(first_row + pixels.nz, fs, settings.imaging);
         // A perpendicular reflector of R = 1: sqrt(lambda) / pitch at each element.
@@ -250,7 +252,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 const double weight = beamformed.weight_sum(i, j);
                 const float envelope =
                     weight > 0.0 ? float(std::abs(beamformed.at(i, j)) / (weight * unit)) : 0.0f;
-                out.image.at<float>(j, i) = compression(envelope, compression.offset(first_row + j));
+                out.image.at<float>(j, i) =
+                    compression(envelope, compression.offset(first_row + j));
                 out.inside.at<uint8_t>(j, i) = 255;
             }
         });

@@ -16,9 +16,10 @@ double unit(uint64_t bits) {
 
 }  // namespace
 
-std::vector<ChannelEcho> channel_scatterers(const probe::Transducer& t, const glm::dvec2& lo,
-                                            const glm::dvec2& hi, const ScattererSettings& settings,
-                                            const std::function<double(const glm::dvec2&)>& backscatter) {
+std::vector<ChannelEcho> channel_scatterers(
+    const probe::Transducer& t, const glm::dvec2& lo, const glm::dvec2& hi,
+    const ScattererSettings& settings,
+    const std::function<double(const glm::dvec2&)>& backscatter) {
     const double cell_area = t.wavelength_mm() * probe::PulseEcho(t).axial_fwhm_mm();
     const double density = settings.per_resolution_cell / cell_area;  // per mm^2
     // Grid cells of about 16 scatterers each: their number is a whole one, so a cell's
@@ -32,8 +33,8 @@ std::vector<ChannelEcho> channel_scatterers(const probe::Transducer& t, const gl
     const uint64_t seed = base::mix64(settings.seed ^ 0x5ca77e75ull);
     for (long j = j0; j <= j1; ++j)
         for (long i = i0; i <= i1; ++i) {
-            const uint64_t key = base::mix64(seed ^ base::mix64(uint64_t(i) * 0x9e3779b97f4a7c15ull ^
-                                                                uint64_t(j)));
+            const uint64_t key =
+                base::mix64(seed ^ base::mix64(uint64_t(i) * 0x9e3779b97f4a7c15ull ^ uint64_t(j)));
             for (int k = 0; k < per_cell; ++k) {
                 const uint64_t a = base::mix64(key + 4 * uint64_t(k)),
                                b = base::mix64(key + 4 * uint64_t(k) + 1),

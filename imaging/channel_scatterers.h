@@ -31,8 +31,8 @@ struct ScattererSettings {
 
 // The scatterers in the rectangle [lo, hi] (mm, the plane the cells are fixed in) whose
 // backscatter `backscatter(r)` is positive.
-std::vector<ChannelEcho> channel_scatterers(const probe::Transducer& t, const glm::dvec2& lo,
-                                            const glm::dvec2& hi, const ScattererSettings& settings,
-                                            const std::function<double(const glm::dvec2&)>& backscatter);
+std::vector<ChannelEcho> channel_scatterers(
+    const probe::Transducer& t, const glm::dvec2& lo, const glm::dvec2& hi,
+    const ScattererSettings& settings, const std::function<double(const glm::dvec2&)>& backscatter);
 
 }  // namespace sonotrace::imaging

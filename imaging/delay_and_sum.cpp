@@ -4,8 +4,8 @@
 #include <cmath>
 #include <numbers>
 
-#include <opencv2/core.hpp>
 #include <tbb/parallel_for.h>
+#include <opencv2/core.hpp>
 
 #include "probe/transmit.h"
 
@@ -92,23 +92,22 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
             for (int i = 0; i < grid.nx; ++i) {
                 const double x = grid.x(i);
                 const double transmit_time = field.at({x, z}).time_s;
-                const auto lo = std::lower_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
-                                                 x - half_width);
-                const auto hi = std::upper_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
-                                                 x + half_width);
+                const auto lo =
+                    std::lower_bound(c.element_x_mm.begin(), c.element_x_mm.end(), x - half_width);
+                const auto hi =
+                    std::upper_bound(c.element_x_mm.begin(), c.element_x_mm.end(), x + half_width);
                 std::complex<double> sum = 0.0;
                 double weights = 0.0;
                 for (auto it = lo; it < hi; ++it) {
                     const int e = int(it - c.element_x_mm.begin());
-                    const double weight =
-                        probe::apodization_weight(settings.apodization,
-                                                  0.5 + (*it - x) / (2.0 * half_width));
+                    const double weight = probe::apodization_weight(
+                        settings.apodization, 0.5 + (*it - x) / (2.0 * half_width));
                     if (!(weight > 0.0)) continue;
                     weights += weight;
                     const double delay = transmit_time + std::hypot(x - *it, z) / c0;
                     const double position = (delay - c.start_s) * fs;
-                    const std::complex<float> v = interpolate(
-                        baseband.data() + std::size_t(e) * std::size_t(S), S, position);
+                    const std::complex<float> v =
+                        interpolate(baseband.data() + std::size_t(e) * std::size_t(S), S, position);
                     sum += weight * std::complex<double>(v) * std::polar(1.0, kTurn * f0 * delay);
                 }
                 const std::size_t at = std::size_t(j) * std::size_t(grid.nx) + std::size_t(i);

@@ -41,31 +41,29 @@ std::vector<double> parse_angles(const std::vector<std::string>& parts, const st
                                    "FROM:TO:N needs numbers for FROM and TO (degrees), got '" +
                                        parts[0] + "' and '" + parts[1] + "'");
         if (base::not_a_whole_number(parts[2]))
-            throw base::InputError(source, field,
-                                   "FROM:TO:N needs a whole number N of transmits, got '" +
-                                       parts[2] + "'");
+            throw base::InputError(
+                source, field,
+                "FROM:TO:N needs a whole number N of transmits, got '" + parts[2] + "'");
         const auto n = base::finite_number(parts[2]);
         if (!(*n >= 1.0))
             throw base::InputError(source, field, "zero transmits: N must be at least 1");
         if (*n > kMostTransmits)
-            throw base::InputError(source, field,
-                                   "N = " + parts[2] + " transmits; at most " +
-                                       std::to_string(kMostTransmits));
+            throw base::InputError(
+                source, field,
+                "N = " + parts[2] + " transmits; at most " + std::to_string(kMostTransmits));
         const int count = int(*n);
         for (int k = 0; k < count; ++k)
             angles.push_back(count == 1 ? *from : *from + (*to - *from) * k / (count - 1));
     } else {
-        throw base::InputError(source, field,
-                               "angles are A, A,B,... or FROM:TO:N (degrees), got '" +
-                                   [&] {
-                                       std::string joined;
-                                       for (std::size_t i = 0; i < parts.size(); ++i) {
-                                           if (i) joined += ':';
-                                           joined += parts[i];
-                                       }
-                                       return joined;
-                                   }() +
-                                   "'");
+        throw base::InputError(
+            source, field, "angles are A, A,B,... or FROM:TO:N (degrees), got '" + [&] {
+                std::string joined;
+                for (std::size_t i = 0; i < parts.size(); ++i) {
+                    if (i) joined += ':';
+                    joined += parts[i];
+                }
+                return joined;
+            }() + "'");
     }
     if (angles.empty()) throw base::InputError(source, field, "zero transmits: no angle given");
     if (angles.size() > std::size_t(kMostTransmits))
@@ -128,9 +126,9 @@ TransmitScheme parse_transmit_scheme(const std::string& text, const std::string&
                                    "face: diverging:D or diverging:D:ANGLES (mm, degrees)");
         const auto distance = base::finite_number(parts[1]);
         if (!distance)
-            throw base::InputError(source, field,
-                                   "the virtual source's distance must be a number (mm), got '" +
-                                       parts[1] + "'");
+            throw base::InputError(
+                source, field,
+                "the virtual source's distance must be a number (mm), got '" + parts[1] + "'");
         if (!(*distance > 0.0))
             throw base::InputError(source, field,
                                    "the virtual source must lie behind the face (distance > 0 "
@@ -144,15 +142,15 @@ TransmitScheme parse_transmit_scheme(const std::string& text, const std::string&
         for (double a : angles)
             scheme.waves.push_back({TransmitWave::Kind::diverging, a * kDegree, *distance});
     } else {
-        throw base::InputError(source, field,
-                               "unknown transmit '" + kind +
-                                   "' (plane:ANGLES or diverging:DISTANCE[:ANGLES])");
+        throw base::InputError(
+            source, field,
+            "unknown transmit '" + kind + "' (plane:ANGLES or diverging:DISTANCE[:ANGLES])");
     }
     return scheme;
 }
 
-std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme,
-                                                  const Transducer& t, const std::string& source,
+std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme, const Transducer& t,
+                                                  const std::string& source,
                                                   const std::string& field) {
     if (scheme.empty()) throw base::InputError(source, field, "zero transmits");
     if (t.type != TransducerType::linear && t.type != TransducerType::phased)
@@ -185,7 +183,8 @@ std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme,
 
 std::vector<double> element_positions_mm(const Transducer& t) {
     std::vector<double> x(std::size_t(t.elements));
-    for (int i = 0; i < t.elements; ++i) x[std::size_t(i)] = (i - 0.5 * (t.elements - 1)) * t.pitch_mm;
+    for (int i = 0; i < t.elements; ++i)
+        x[std::size_t(i)] = (i - 0.5 * (t.elements - 1)) * t.pitch_mm;
     return x;
 }
 
@@ -255,7 +254,8 @@ Sources<2> transmit_sources(const Transducer& t, const TransmitScheme& scheme, i
         const TransmitWave& wave = scheme.waves[w];
         const TransmitField field(t, wave);
         for (int i = 0; i < n; ++i) {
-            const uint64_t bits = base::mix64(seed ^ base::mix64((uint64_t(w) << 32) ^ uint64_t(i)));
+            const uint64_t bits =
+                base::mix64(seed ^ base::mix64((uint64_t(w) << 32) ^ uint64_t(i)));
             const double s = -half + 2.0 * half * (i + double(bits >> 11) * 0x1.0p-53) / n;
             const glm::dvec2 at(s, 0.0);
             const glm::dvec2 heading =

@@ -72,8 +72,8 @@ TransmitScheme parse_transmit_scheme(const std::string& text, const std::string&
 // The checks that need the array: only flat arrays (linear, phased) take these transmits;
 // throws base::InputError(source, field). Returns warnings (angles past the grating-lobe
 // limit of the array at the band's upper -6 dB frequency: sin theta > lambda / pitch - 1).
-std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme,
-                                                  const Transducer& t, const std::string& source,
+std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme, const Transducer& t,
+                                                  const std::string& source,
                                                   const std::string& field);
 
 // Element positions of a flat array along x (mm), centred on the face.

@@ -6,8 +6,8 @@
 // stationary phase, quadratic directivity or sample splitting is in that reference.
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <array>
+#include <cmath>
 #include <complex>
 #include <limits>
 #include <numbers>
@@ -56,7 +56,8 @@ Spectrum pulse_spectrum(const probe::Transducer& t, double df) {
     }
     Spectrum kept;
     for (std::size_t k = 0; k < all.f.size(); ++k)
-        if (std::abs(all.s[k]) > 1e-5 * peak) kept.f.push_back(all.f[k]), kept.s.push_back(all.s[k]);
+        if (std::abs(all.s[k]) > 1e-5 * peak)
+            kept.f.push_back(all.f[k]), kept.s.push_back(all.s[k]);
     return kept;
 }
 
@@ -108,13 +109,15 @@ TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
         for (const glm::dvec2& target : targets) {
             SCOPED_TRACE(scheme_text + " target (" + std::to_string(target.x) + ", " +
                          std::to_string(target.y) + ")");
-            const ChannelData model = channel_data(t, scheme, {{target, 1.0, 0.0, std::nullopt}}, {});
+            const ChannelData model =
+                channel_data(t, scheme, {{target, 1.0, 0.0, std::nullopt}}, {});
             // The element sum of the transmit at the target, at every frequency.
             std::vector<std::complex<double>> transmit(spectrum.f.size(), 0.0);
             for (std::size_t k = 0; k < spectrum.f.size(); ++k)
                 for (double xi : x)
-                    transmit[k] += element_wave(t, xi, target, spectrum.f[k]) *
-                                   std::polar(1.0, -2.0 * kPi * spectrum.f[k] * firing_time(wave, xi));
+                    transmit[k] +=
+                        element_wave(t, xi, target, spectrum.f[k]) *
+                        std::polar(1.0, -2.0 * kPi * spectrum.f[k] * firing_time(wave, xi));
             // Each element's echo at the samples around its arrival.
             struct Measured {
                 Peak reference, simulated;
@@ -146,8 +149,8 @@ TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
                 ASSERT_LT(centre + window, model.samples);
                 std::vector<std::complex<double>> receive(spectrum.f.size());
                 for (std::size_t k = 0; k < spectrum.f.size(); ++k)
-                    receive[k] = spectrum.s[k] * transmit[k] *
-                                 element_wave(t, xe, target, spectrum.f[k]);
+                    receive[k] =
+                        spectrum.s[k] * transmit[k] * element_wave(t, xe, target, spectrum.f[k]);
                 std::vector<float> reference(2 * window + 1), simulated(2 * window + 1);
                 for (int n = 0; n <= 2 * window; ++n) {
                     const double time = model.time_s(from + n);
@@ -174,13 +177,14 @@ TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
             for (const Measured& m : measured) {
                 if (m.reference.height < 0.25 * strongest) continue;
                 ++compared;
-                worst_time = std::max(worst_time,
-                                      std::abs(m.simulated.position - m.reference.position));
+                worst_time =
+                    std::max(worst_time, std::abs(m.simulated.position - m.reference.position));
                 worst_db = std::max(
                     worst_db, std::abs(20.0 * std::log10(m.simulated.height / m.reference.height)));
                 worst_residual = std::max(worst_residual, m.residual);
-                worst_phase = std::max(worst_phase, std::abs(std::arg(std::polar(
-                                                        1.0, m.simulated.phase - m.reference.phase))));
+                worst_phase = std::max(
+                    worst_phase,
+                    std::abs(std::arg(std::polar(1.0, m.simulated.phase - m.reference.phase))));
             }
             EXPECT_GE(compared, 32);
             EXPECT_LT(worst_time, 0.1) << "samples";
@@ -199,10 +203,11 @@ TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
             }
             // The carrier too: a tenth of a sample's worth of its phase.
             EXPECT_LT(worst_phase, 2.0 * kPi * t.frequency_mhz * 1e6 * 0.1 / model.fs_hz) << "rad";
-            std::printf("%-13s (%5.1f, %5.1f): %3d elements, worst arrival %.3f samples, "
-                        "worst level %.2f dB, worst phase %.3f rad, worst residual %.3f\n",
-                        scheme_text.c_str(), target.x, target.y, compared, worst_time, worst_db,
-                        worst_phase, worst_residual);
+            std::printf(
+                "%-13s (%5.1f, %5.1f): %3d elements, worst arrival %.3f samples, "
+                "worst level %.2f dB, worst phase %.3f rad, worst residual %.3f\n",
+                scheme_text.c_str(), target.x, target.y, compared, worst_time, worst_db,
+                worst_phase, worst_residual);
         }
     }
 }
@@ -216,24 +221,23 @@ TEST(ChannelData, TransmitSchemesParseAndRefuseBadInput) {
     const auto diverging = probe::parse_transmit_scheme("diverging:15:-10:10:3", "--transmit", "");
     ASSERT_EQ(diverging.waves.size(), 3u);
     EXPECT_EQ(diverging.waves[2].source_distance_mm, 15.0);
-    for (const char* bad : {"plane", "plane:", "plane:95", "plane:-90", "plane:0:10:0",
-                            "plane:0:10:2.5", "plane:nan", "plane:1,,2", "diverging:-5",
-                            "diverging:0", "diverging:x", "focused:3", "plane:0:1",
-                            "plane:0:10:1e9"}) {
+    for (const char* bad :
+         {"plane", "plane:", "plane:95", "plane:-90", "plane:0:10:0", "plane:0:10:2.5", "plane:nan",
+          "plane:1,,2", "diverging:-5", "diverging:0", "diverging:x", "focused:3", "plane:0:1",
+          "plane:0:10:1e9"}) {
         SCOPED_TRACE(bad);
         EXPECT_THROW(probe::parse_transmit_scheme(bad, "--transmit", ""), base::InputError);
     }
     const probe::Transducer picmus = probe::find_transducer("picmus", "test");
     EXPECT_TRUE(probe::validate_transmit_scheme(plane, picmus, "--transmit", "").empty());
-    EXPECT_FALSE(probe::validate_transmit_scheme(
-                     probe::parse_transmit_scheme("plane:30", "--transmit", ""), picmus,
-                     "--transmit", "")
-                     .empty());
+    EXPECT_FALSE(
+        probe::validate_transmit_scheme(probe::parse_transmit_scheme("plane:30", "--transmit", ""),
+                                        picmus, "--transmit", "")
+            .empty());
     EXPECT_THROW(probe::validate_transmit_scheme(plane, probe::find_transducer("convex", "test"),
                                                  "--transmit", ""),
                  base::InputError);
 }
-
 
 // Point targets under 1 plane wave and under 75 compounded over +-16 degrees: the lateral
 // FWHM of the beamformer's image against an independent delay-and-sum written here (the
@@ -330,7 +334,8 @@ TEST(ChannelData, CompoundingNarrowsPointsAsTheSyntheticApertureDoes) {
                 const double kx = 2.0 * kPi * spectrum.f[k] / kC0 * x;
                 std::complex<double> transmit = 0.0, receive = 0.0;
                 for (int w = first; w < last; ++w)
-                    transmit += std::polar(1.0, kx * std::sin(scheme.waves[std::size_t(w)].angle_rad));
+                    transmit +=
+                        std::polar(1.0, kx * std::sin(scheme.waves[std::size_t(w)].angle_rad));
                 for (double xe : channels.element_x_mm)
                     if (std::abs(xe) <= 0.5 * z / das.f_number)
                         receive += std::polar(1.0, kx * -xe / std::hypot(xe, z));
@@ -390,11 +395,12 @@ TEST(ChannelData, CompoundingNarrowsPointsAsTheSyntheticApertureDoes) {
         }
         const double ratio = width[d][1] / width[d][0],
                      predicted_ratio = prediction[d][1] / prediction[d][0];
-        std::printf("z %.0f mm: FWHM 1 wave %.3f mm (independent %.3f, predicted %.3f), 75 "
-                    "waves %.3f mm (independent %.3f, predicted %.3f); ratio %.3f, predicted "
-                    "%.3f\n",
-                    z, width[d][0], independent[0], prediction[d][0], width[d][1], independent[1],
-                    prediction[d][1], ratio, predicted_ratio);
+        std::printf(
+            "z %.0f mm: FWHM 1 wave %.3f mm (independent %.3f, predicted %.3f), 75 "
+            "waves %.3f mm (independent %.3f, predicted %.3f); ratio %.3f, predicted "
+            "%.3f\n",
+            z, width[d][0], independent[0], prediction[d][0], width[d][1], independent[1],
+            prediction[d][1], ratio, predicted_ratio);
         EXPECT_NEAR(ratio, predicted_ratio, 0.15 * predicted_ratio) << "z " << z;
         EXPECT_LT(ratio, 0.9);
     }
@@ -454,18 +460,22 @@ TEST(ChannelData, CompoundingRaisesCystContrastAndKeepsSpeckleRayleigh) {
         const double top = std::max(*std::max_element(inside.begin(), inside.end()),
                                     *std::max_element(outside.begin(), outside.end()));
         std::vector<double> hi(100, 0.0), ho(100, 0.0);
-        for (double v : inside) hi[std::min(std::size_t(99), std::size_t(v / top * 100.0))] += 1.0 / double(inside.size());
-        for (double v : outside) ho[std::min(std::size_t(99), std::size_t(v / top * 100.0))] += 1.0 / double(outside.size());
+        for (double v : inside)
+            hi[std::min(std::size_t(99), std::size_t(v / top * 100.0))] +=
+                1.0 / double(inside.size());
+        for (double v : outside)
+            ho[std::min(std::size_t(99), std::size_t(v / top * 100.0))] +=
+                1.0 / double(outside.size());
         double overlap = 0.0;
         for (int k = 0; k < 100; ++k) overlap += std::min(hi[std::size_t(k)], ho[std::size_t(k)]);
         return Measures{20.0 * std::log10(mean(inside) / mean(outside)), 1.0 - overlap,
                         snr / weight};
     };
     const Measures one = measure(37, 38), all = measure(0, 75);
-    std::printf("1 wave: contrast %.1f dB, gCNR %.3f, speckle SNR %.3f; 75 waves: contrast %.1f "
-                "dB, gCNR %.3f, speckle SNR %.3f (%zu scatterers)\n",
-                one.contrast_db, one.gcnr, one.snr, all.contrast_db, all.gcnr, all.snr,
-                echoes.size());
+    std::printf(
+        "1 wave: contrast %.1f dB, gCNR %.3f, speckle SNR %.3f; 75 waves: contrast %.1f "
+        "dB, gCNR %.3f, speckle SNR %.3f (%zu scatterers)\n",
+        one.contrast_db, one.gcnr, one.snr, all.contrast_db, all.gcnr, all.snr, echoes.size());
     EXPECT_LT(all.contrast_db, one.contrast_db - 3.0);
     EXPECT_GT(all.gcnr, one.gcnr + 0.02);
     EXPECT_NEAR(all.snr, 1.91, 0.15);

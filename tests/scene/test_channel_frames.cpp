@@ -46,7 +46,7 @@ nlohmann::json reflector_phantom(double depth, double R) {
     below["point"] = {25, depth, 0};
     below["normal"] = {0, 1, 0};
     return {{"name", "reflector"}, {"size", {50, 40, 10}}, {"smoothing", 0.1},
-            {"background", water},  {"shapes", {below}},   {"probe", {{"preset", "picmus"}}}};
+            {"background", water}, {"shapes", {below}},    {"probe", {{"preset", "picmus"}}}};
 }
 
 struct Imaged {
@@ -57,15 +57,16 @@ Imaged image(const nlohmann::json& phantom, const std::string& transmit, double 
              bool tgc = false) {
     const phantoms::Phantom ph = phantoms::parse_phantom(phantom, "test");
     imaging::SimulationSettings s;
-    s.transducer = probe::find_transducer(ph.probe_preset.empty() ? "linear" : ph.probe_preset, "t");
+    s.transducer =
+        probe::find_transducer(ph.probe_preset.empty() ? "linear" : ph.probe_preset, "t");
     s.imaging.speckle = false;
     s.imaging.gain_db = gain_db;
     if (!tgc) s.imaging.tgc.clear();
     s.seed = 3;
     if (transmit != "focused") s.transmit = probe::parse_transmit_scheme(transmit, "test", "");
     s.validate("test");
-    const imaging::PlaneGrid grid = imaging::plane_grid(
-        s.transducer, ph.pose, imaging::quality_level(s.quality).map_pixel_mm);
+    const imaging::PlaneGrid grid =
+        imaging::plane_grid(s.transducer, ph.pose, imaging::quality_level(s.quality).map_pixel_mm);
     const auto map = imaging::frame_map(phantoms::rasterise(ph, grid.geometry), s);
     return {imaging::simulate_frame(map, grid, ph.pose, s), s.transducer};
 }
@@ -92,7 +93,8 @@ Spectrum pulse_spectrum(const probe::Transducer& t, double df) {
     }
     Spectrum kept;
     for (std::size_t k = 0; k < out.f.size(); ++k)
-        if (std::abs(out.s[k]) > 1e-5 * peak) kept.f.push_back(out.f[k]), kept.s.push_back(out.s[k]);
+        if (std::abs(out.s[k]) > 1e-5 * peak)
+            kept.f.push_back(out.f[k]), kept.s.push_back(out.s[k]);
     return kept;
 }
 
@@ -120,8 +122,7 @@ TEST(ChannelFrames, AFlatReflectorEchoesAsItsImageSources) {
     const double depth = 20.0, R = 0.3;
     const Spectrum spectrum = pulse_spectrum(probe::find_transducer("picmus", "t"), 1e4);
     for (const double angle : {0.0, 10.0}) {
-        const Imaged imaged =
-            image(reflector_phantom(depth, R), "plane:" + std::to_string(angle));
+        const Imaged imaged = image(reflector_phantom(depth, R), "plane:" + std::to_string(angle));
         const probe::Transducer& t = imaged.transducer;
         ASSERT_TRUE(imaged.frame.channels);
         const imaging::ChannelData& c = *imaged.frame.channels;
@@ -142,9 +143,9 @@ TEST(ChannelFrames, AFlatReflectorEchoesAsItsImageSources) {
                     const double dx = xe - xi, L = std::hypot(dx, 2.0 * depth);
                     const double sin_path = dx / L, cos_path = 2.0 * depth / L;
                     const double D = sinc(kPi * t.element_width_mm * f * sin_path / kC0) * cos_path;
-                    received[k] += D * D *
-                                   std::polar(1.0 / std::sqrt(L),
-                                              -2.0 * kPi * f * (xi * s / kC0 + L / kC0));
+                    received[k] +=
+                        D * D *
+                        std::polar(1.0 / std::sqrt(L), -2.0 * kPi * f * (xi * s / kC0 + L / kC0));
                 }
                 received[k] *= R * spectrum.s[k];
             }
@@ -164,9 +165,10 @@ TEST(ChannelFrames, AFlatReflectorEchoesAsItsImageSources) {
             earliest = std::min(earliest, at_simulated - at_reference);
             latest = std::max(latest, at_simulated - at_reference);
         }
-        std::printf("plane wave at %.0f degrees on R = %.1f: worst level %.2f dB, arrivals "
-                    "%.3f to %.3f samples\n",
-                    angle, R, worst_db, earliest, latest);
+        std::printf(
+            "plane wave at %.0f degrees on R = %.1f: worst level %.2f dB, arrivals "
+            "%.3f to %.3f samples\n",
+            angle, R, worst_db, earliest, latest);
         EXPECT_LT(worst_db, 1.0);
         // The tracer finds the interface within its map's texel (0.25 mm at standard
         // quality): all arrivals together within a fifth of one, two ways (1.35 samples at
@@ -225,9 +227,8 @@ std::string read_text(const std::string& path) {
 // reverberations show at the depths the focused mode shows them, within 0.5 mm, under
 // compounded plane waves and under a diverging wave.
 TEST(ChannelFrames, ReverberationShowsWhereTheFocusedModeShowsIt) {
-    const nlohmann::json plates =
-        nlohmann::json::parse(read_text(std::string(SONOTRACE_SOURCE_DIR) +
-                                        "/phantoms/parallel_plates.json"));
+    const nlohmann::json plates = nlohmann::json::parse(
+        read_text(std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/parallel_plates.json"));
     const std::vector<double> focused = echo_depths(image(plates, "focused", 0.0).frame, 5.0, 0.05);
     std::printf("focused:");
     for (double d : focused) std::printf(" %.2f", d);

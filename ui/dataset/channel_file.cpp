@@ -36,8 +36,7 @@ std::string channel_file_bytes(const imaging::ChannelData& c, const probe::Trans
     hdf5::Handle g(w.group("transmit"), H5Gclose);
     w.dataset(g, "kind", H5T_STD_U8LE, H5T_NATIVE_UINT8, {W}, {}, kind.data());
     w.dataset(g, "angle_rad", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {W}, {}, angle.data());
-    w.dataset(g, "virtual_source_mm", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {W, 2}, {},
-              source.data());
+    w.dataset(g, "virtual_source_mm", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {W, 2}, {}, source.data());
     w.dataset(g, "delays_s", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {W, E}, {}, delays.data());
     w.attribute("sampling_frequency_hz", c.fs_hz);
     w.attribute("start_time_s", c.start_s);

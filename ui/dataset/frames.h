@@ -1,8 +1,8 @@
 #pragma once
 // Frames of a dataset: frame i of a spec made from its draw (spec.h), every frame on the
 // same W x H pixel grid so that a shard stacks them.
-#include <optional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -30,7 +30,7 @@ struct DatasetFrame {
     cv::Mat instances;                 // CV_16U, H x W: a phantom's shape index, 0 background
     imaging::LineData envelope, rf;
     std::optional<imaging::ChannelData> channels;  // spec "transmit" and write "channels"
-    tissue::Volume energy;  // absorbed energy on the map grid
+    tissue::Volume energy;                         // absorbed energy on the map grid
 };
 
 // Loads every source of a spec once, then makes frames from their draws, one at a time,

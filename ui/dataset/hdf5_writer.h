@@ -85,8 +85,8 @@ class ImageWriter {
     // On the file, or on the object `where` (a dataset, a group).
     void attribute(const char* name, double value, hid_t where = -1) {
         Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-        Handle a(H5Acreate2(where < 0 ? file_ : where, name, H5T_IEEE_F64LE, space,
-                            H5P_DEFAULT, H5P_DEFAULT),
+        Handle a(H5Acreate2(where < 0 ? file_ : where, name, H5T_IEEE_F64LE, space, H5P_DEFAULT,
+                            H5P_DEFAULT),
                  H5Aclose);
         check(a, "write an attribute of");
         check(H5Awrite(a, H5T_NATIVE_DOUBLE, &value), "write an attribute of");

@@ -181,8 +181,8 @@ void write_shard(const std::string& path, const std::string& output_name, const 
                           static_cast<unsigned long long>(fr.draw.index));
             const std::vector<hsize_t> dims = {hsize_t(c.transmits), hsize_t(c.elements),
                                                hsize_t(c.samples)};
-            w.dataset(g, name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims,
-                      {1, dims[1], dims[2]}, c.values.data(), true,
+            w.dataset(g, name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims, {1, dims[1], dims[2]},
+                      c.values.data(), true,
                       {{"sampling_frequency_hz", c.fs_hz},
                        {"start_time_s", c.start_s},
                        {"speed_of_sound_m_s", c.speed_m_s},

@@ -354,7 +354,8 @@ Spec parse_spec(const json& j, const std::string& source) {
     }
     if (j.contains("transmit")) {
         spec.transmit = jsonio::get_string(j, "transmit", source, "");
-        if (spec.transmit != "focused") probe::parse_transmit_scheme(spec.transmit, source, "transmit");
+        if (spec.transmit != "focused")
+            probe::parse_transmit_scheme(spec.transmit, source, "transmit");
     }
     if (j.contains("quality")) {
         spec.quality =
@@ -385,8 +386,9 @@ Spec parse_spec(const json& j, const std::string& source) {
             *flag = true;
         }
         if (spec.write_channels && spec.transmit == "focused")
-            throw InputError(source, "write", "\"channels\" needs unfocused transmits: give "
-                                              "\"transmit\": \"plane:...\" or \"diverging:...\"");
+            throw InputError(source, "write",
+                             "\"channels\" needs unfocused transmits: give "
+                             "\"transmit\": \"plane:...\" or \"diverging:...\"");
     }
     return spec;
 }
