@@ -26,7 +26,9 @@
 //   - point targets (point_echoes): the transmit's wave at each (probe/transmit.h) with the
 //     two-way losses of the straight path from the face;
 //   - the tissue's scatterers (imaging/channel_scatterers.h, the plane map's backscatter b
-//     at each), lit by the transmit's intensity there relative to its free-field value:
+//     at each; their cells lie in the probe plane, so a probe that moves draws new
+//     speckle, where the focused mode's field is fixed in the world), lit by the
+//     transmit's intensity there relative to its free-field value:
 //     the fluence the trace deposited, smoothed over a millimetre, over what the same
 //     particles deposit in a lossless medium. Their strength per unit area makes the
 //     focused mode's scattering: n |sigma|^2 = rate x fraction x b^2 x F_rx

@@ -1,9 +1,9 @@
 #pragma once
 // The sub-resolution scatterers of channel data (imaging/channel_data.h): tissue's
 // speckle as discrete points, a fixed number in each cell of a square grid fixed in the
-// tissue, at uniform positions within the cell with independent Gaussian strengths, all
-// drawn from a counter hash of (seed, cell, index): the same tissue gives the same
-// scatterers whatever region, order or thread count asks for them.
+// plane they are laid in, at uniform positions within the cell with independent Gaussian
+// strengths, all drawn from a counter hash of (seed, cell, index): the same plane gives
+// the same scatterers whatever region, order or thread count asks for them.
 //
 // A strength is N(0, 1) b(r) / sqrt(density): b the tissue's backscatter amplitude at the
 // scatterer (the map's backscatter, whose square the focused mode's speckle takes as the
