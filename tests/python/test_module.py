@@ -207,6 +207,27 @@ def test_read_shard_gives_the_arrays_of_a_dataset(tmp_path):
     assert shard["attributes"]["frame_count"] == 2
 
 
+def test_read_shard_gives_the_truth_maps_and_the_channels(tmp_path):
+    """Every array a shard can hold: the truth maps (frame-stacked) and the channel data
+    (per frame), equal to what h5py reads from the file."""
+    import h5py
+    spec = {"frames": 2, "frames_per_shard": 2, "seed": 2, "image": {"width": 32, "height": 24},
+            "sources": [{"phantom": SOURCE + "/phantoms/picmus.json"}],
+            "transducer": {"depth": 28}, "quality": "interactive", "transmit": "plane:-2:2:2",
+            "write": ["bmode", "depth", "echogenicity", "instances", "channels"]}
+    (tmp_path / "spec.json").write_text(json.dumps(spec))
+    subprocess.run([BINARY, "dataset", str(tmp_path / "spec.json"), "--out",
+                    str(tmp_path / "out"), "-q"], check=True)
+    path = tmp_path / "out" / "shard_00000.h5"
+    shard = sonotrace.read_shard(str(path))
+    with h5py.File(path, "r") as f:
+        for name in ("depth", "echogenicity", "instances"):
+            assert np.array_equal(shard[name], f[name][()]), name
+        assert sorted(shard["channels"]) == [0, 1]
+        assert np.array_equal(shard["channels"][1], f["channels/00000001"][()])
+        assert shard["channels"][0].shape[:2] == (2, 128)
+
+
 def test_read_shard_refuses_what_is_not_a_shard_with_input_error(tmp_path):
     # A FIFO used to block h5py's open() for ever; damaged files raised ValueError, OSError,
     # IndexError ... without naming the file.

@@ -159,10 +159,11 @@ PYBIND11_MODULE(_sonotrace, m) {
                 py::dict out, attributes;
                 // Sizes and layouts were checked, and every part read, by the child.
                 auto read_all = [](const py::object& dataset) { return dataset[py::tuple()]; };
-                for (const char* name : {"bmode", "labels", "labels_echo", "frames"})
+                for (const char* name : {"bmode", "labels", "labels_echo", "depth",
+                                         "echogenicity", "instances", "frames"})
                     if (file.attr("__contains__")(name).cast<bool>())
                         out[name] = read_all(file[name]);
-                for (const char* name : {"envelope", "rf", "energy"}) {
+                for (const char* name : {"envelope", "rf", "energy", "channels"}) {
                     if (!file.attr("__contains__")(name).cast<bool>()) continue;
                     py::dict per_frame;
                     const py::object group = file[name];
@@ -188,8 +189,10 @@ PYBIND11_MODULE(_sonotrace, m) {
             }
         },
         "read_shard(path) -> dict: a dataset shard (`sonotrace dataset`) as NumPy arrays: "
-        "bmode, labels, frames (a record array), envelope / rf / energy ({frame index: "
-        "array}) when written, and the shard's attributes (spec, spec_digest, ...).");
+        "bmode, labels, frames (a record array), labels_echo / depth / echogenicity / "
+        "instances and envelope / rf / energy / channels ({frame index: array}) when "
+        "written, and the shard's attributes (spec, spec_digest, ...). The channels' "
+        "sampling and pitch are attributes of their datasets (h5py).");
 
     py::class_<Sweep>(m, "Sweep", "Frames of a sweep, simulated as they are asked for.")
         .def("__iter__", [](Sweep& s) -> Sweep& { return s; })
