@@ -159,8 +159,8 @@ PYBIND11_MODULE(_sonotrace, m) {
                 py::dict out, attributes;
                 // Sizes and layouts were checked, and every part read, by the child.
                 auto read_all = [](const py::object& dataset) { return dataset[py::tuple()]; };
-                for (const char* name : {"bmode", "labels", "labels_echo", "depth",
-                                         "echogenicity", "instances", "frames"})
+                for (const char* name : {"bmode", "labels", "labels_echo", "depth", "echogenicity",
+                                         "instances", "frames"})
                     if (file.attr("__contains__")(name).cast<bool>())
                         out[name] = read_all(file[name]);
                 for (const char* name : {"envelope", "rf", "energy", "channels"}) {
