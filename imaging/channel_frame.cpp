@@ -243,6 +243,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
         out.origin = lo;
         out.image = cv::Mat(pixels.nz, pixels.nx, CV_32F, cv::Scalar(0.0f));
         out.inside = cv::Mat(pixels.nz, pixels.nx, CV_8U, cv::Scalar(0));
+        frame.beamformed = cv::Mat(pixels.nz, pixels.nx, CV_32F, cv::Scalar(0.0f));
         tbb::parallel_for(0, pixels.nz, [&](int j) {
             const double z = pixels.z(j);
             for (int i = 0; i < pixels.nx; ++i) {
@@ -254,6 +255,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                     weight > 0.0 ? float(std::abs(beamformed.at(i, j)) / (weight * unit)) : 0.0f;
                 out.image.at<float>(j, i) =
                     compression(envelope, compression.offset(first_row + j));
+                frame.beamformed.at<float>(j, i) = envelope;
                 out.inside.at<uint8_t>(j, i) = 255;
             }
         });

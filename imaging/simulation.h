@@ -193,6 +193,9 @@ struct Frame {
     std::vector<simulator::Path<2>> paths;        // SimulationSettings::trace.record_paths per line
     std::vector<simulator::EchoEvent<2>> echoes;  // SimulationSettings::keep_echoes
     std::optional<ChannelData> channels;          // SimulationSettings::transmit
+    // With `channels`: the beamformed envelope on the image's pixels (CV_32F, linear, before
+    // TGC and compression; 1 = a perpendicular reflector of R = 1 at each element).
+    cv::Mat beamformed;
     nlohmann::json timings = nlohmann::json::object();  // seconds per stage
 };
 

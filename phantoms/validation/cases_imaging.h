@@ -19,5 +19,7 @@ CaseResult resolution(const CaseContext& ctx);
 CaseResult speckle_and_cysts(const CaseContext& ctx);
 CaseResult per_line_means(const CaseContext& ctx);
 CaseResult speckle_depth(const CaseContext& ctx);
+// cases_picmus.cpp
+CaseResult picmus(const CaseContext& ctx);
 
 }  // namespace sonotrace::validation

@@ -13,7 +13,8 @@
 
 namespace sonotrace::validation {
 
-PhantomFrame image_phantom(phantoms::Phantom phantom, const FrameOptions& o, uint64_t seed) {
+PhantomFrame image_phantom(phantoms::Phantom phantom, const FrameOptions& o, uint64_t seed,
+                           const std::string& transmit) {
     PhantomFrame out;
     const auto scene = scene::phantom_scene(std::move(phantom));
     const phantoms::Phantom& ph = *scene->phantom;
@@ -34,6 +35,7 @@ PhantomFrame image_phantom(phantoms::Phantom phantom, const FrameOptions& o, uin
                      {depth, 2.0 * alpha * out.transducer.frequency_mhz * depth / 10.0}};
     s.imaging.gain_db = 56.0;
     scene->apply_to(s);
+    if (!transmit.empty()) s.transmit = probe::parse_transmit_scheme(transmit, ph.source, "");
     s.validate(ph.source);
     out.frame = imaging::simulate_plane(scene->mapper, scene->start, s, false).frame;
     out.phantom = ph;

@@ -39,7 +39,9 @@ struct FrameOptions {
     double focus_mm = 0.0;  // 0 = the preset's
 };
 
-PhantomFrame image_phantom(phantoms::Phantom phantom, const FrameOptions& o, uint64_t seed);
+// `transmit`: empty for focused lines, else as simulate --transmit.
+PhantomFrame image_phantom(phantoms::Phantom phantom, const FrameOptions& o, uint64_t seed,
+                           const std::string& transmit = "");
 
 phantoms::Phantom catalogue(const CaseContext& ctx, const std::string& name);
 
