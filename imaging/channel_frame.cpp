@@ -72,14 +72,8 @@ int particles_per_transmit(const SimulationSettings& settings) {
 Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid& grid,
                              const probe::Pose& pose, const SimulationSettings& settings,
                              const FrameProgress& progress) {
-    using clock = std::chrono::steady_clock;
     Frame frame;
-    auto stage = [&](const char* name, auto&& work) {
-        const auto start = clock::now();
-        work();
-        frame.timings[name] = frame.timings.value(name, 0.0) +
-                              std::chrono::duration<double>(clock::now() - start).count();
-    };
+    auto stage = [&](const char* name, auto&& work) { timed_stage(frame, name, work); };
     const probe::Transducer& t = settings.transducer;
     const probe::TransmitScheme& scheme = *settings.transmit;
     ChannelSettings channel_settings;
@@ -200,9 +194,10 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
     };
     ChannelData channels;
     {
-        const auto start = clock::now();
+        const auto start = std::chrono::steady_clock::now();
         channels = channel_data(t, scheme, echoes_of, channel_settings);
-        const double total = std::chrono::duration<double>(clock::now() - start).count();
+        const double total =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         frame.timings["channels"] =
             total - frame.timings.value("trace", 0.0) - frame.timings.value("echoes", 0.0);
     }

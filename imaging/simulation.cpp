@@ -330,13 +330,8 @@ Frame trace_and_image(const tissue::AcousticMap<Dim>& map, const PlaneGrid& trac
                       const tissue::AcousticMap<2>& plane, const PlaneGrid& grid,
                       const probe::Pose& pose, const SimulationSettings& settings,
                       const FrameProgress& progress) {
-    using clock = std::chrono::steady_clock;
     Frame frame;
-    auto stage = [&](const char* name, auto&& work) {
-        const auto start = clock::now();
-        work();
-        frame.timings[name] = std::chrono::duration<double>(clock::now() - start).count();
-    };
+    auto stage = [&](const char* name, auto&& work) { timed_stage(frame, name, work); };
     const probe::Transducer& t = settings.transducer;
     const LineData layout = rf_layout(t, settings.imaging);
     const probe::BeamSettings beam{quality_level(settings.quality).particles_per_line,

@@ -2,6 +2,7 @@
 // One B-mode frame from a volume and a probe: the grid under the probe, the acoustic
 // map, beams, tracing and image formation (imaging/bmode.h). The default head's views
 // and membranes are in imaging/colin27.h.
+#include <chrono>
 #include <functional>
 #include <optional>
 #include <string>
@@ -200,6 +201,17 @@ struct Frame {
 };
 
 using FrameProgress = std::function<void(std::size_t done, std::size_t total)>;
+
+// Runs `work` and adds its seconds to frame.timings[name] (a stage run more than once, as
+// per transmit, sums).
+template <class Work>
+void timed_stage(Frame& frame, const char* name, Work&& work) {
+    const auto start = std::chrono::steady_clock::now();
+    work();
+    frame.timings[name] =
+        frame.timings.value(name, 0.0) +
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
 // Whether a point of the map frame lies in a target's core (within its core radius), by
 // cells as wide as the largest radius: a tilted wire is thousands of pieces, and every

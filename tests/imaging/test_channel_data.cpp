@@ -20,6 +20,7 @@
 #include "probe/pulse.h"
 #include "probe/transducer.h"
 #include "probe/transmit.h"
+#include "tests/pulse_spectrum_reference.h"
 #include "tissue/base/error.h"
 
 namespace sonotrace::imaging {
@@ -32,34 +33,8 @@ double sinc(double x) {
     return std::abs(x) < 1e-12 ? 1.0 : std::sin(x) / x;
 }
 
-// The pulse-echo waveform's spectrum S(f) (analytic: positive frequencies) on f_k = k df,
-// by a Riemann sum of its finely sampled waveform (probe/pulse.h: p(t) = in_phase + i
-// quadrature), keeping frequencies where |S| exceeds 1e-5 of its peak.
-struct Spectrum {
-    std::vector<double> f;
-    std::vector<std::complex<double>> s;  // S(f_k) df
-};
-Spectrum pulse_spectrum(const probe::Transducer& t, double df) {
-    const probe::PulseEcho pulse(t);
-    const double dt = 1.0 / (64.0 * t.frequency_mhz * 1e6), reach = pulse.half_length_s();
-    std::vector<std::pair<double, std::complex<double>>> samples;
-    for (double time = -reach; time <= reach; time += dt)
-        samples.push_back({time, pulse.analytic(time)});
-    Spectrum all;
-    double peak = 0.0;
-    for (double f = df; f < 3.0 * t.frequency_mhz * 1e6; f += df) {
-        std::complex<double> sum = 0.0;
-        for (const auto& [time, p] : samples) sum += p * std::polar(1.0, -2.0 * kPi * f * time);
-        all.f.push_back(f);
-        all.s.push_back(sum * dt * df);
-        peak = std::max(peak, std::abs(all.s.back()));
-    }
-    Spectrum kept;
-    for (std::size_t k = 0; k < all.f.size(); ++k)
-        if (std::abs(all.s[k]) > 1e-5 * peak)
-            kept.f.push_back(all.f[k]), kept.s.push_back(all.s[k]);
-    return kept;
-}
+using test::pulse_spectrum;
+using test::Spectrum;
 
 // One element's radiation at frequency f towards r from (x, 0): D exp(-i k R) / sqrt(R).
 std::complex<double> element_wave(const probe::Transducer& t, double x, const glm::dvec2& r,

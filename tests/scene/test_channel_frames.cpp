@@ -23,6 +23,7 @@
 #include "probe/pulse.h"
 #include "probe/transducer.h"
 #include "probe/transmit.h"
+#include "tests/pulse_spectrum_reference.h"
 
 namespace sonotrace {
 namespace {
@@ -72,32 +73,8 @@ Imaged image(const nlohmann::json& phantom, const std::string& transmit, double 
     return {imaging::simulate_frame(map, grid, ph.pose, s), s.transducer};
 }
 
-// The pulse-echo spectrum S(f) df on f = k df (the pulse's analytic waveform by a Riemann
-// sum), where |S| exceeds 1e-5 of its peak.
-struct Spectrum {
-    std::vector<double> f;
-    std::vector<std::complex<double>> s;
-};
-Spectrum pulse_spectrum(const probe::Transducer& t, double df) {
-    const probe::PulseEcho pulse(t);
-    const double dt = 1.0 / (64.0 * t.frequency_mhz * 1e6), reach = pulse.half_length_s();
-    Spectrum out;
-    double peak = 0.0;
-    std::vector<std::complex<double>> all;
-    for (double f = df; f < 3.0 * t.frequency_mhz * 1e6; f += df) {
-        std::complex<double> sum = 0.0;
-        for (double time = -reach; time <= reach; time += dt)
-            sum += pulse.analytic(time) * std::polar(1.0, -2.0 * kPi * f * time);
-        out.f.push_back(f);
-        out.s.push_back(sum * dt * df);
-        peak = std::max(peak, std::abs(out.s.back()));
-    }
-    Spectrum kept;
-    for (std::size_t k = 0; k < out.f.size(); ++k)
-        if (std::abs(out.s[k]) > 1e-5 * peak)
-            kept.f.push_back(out.f[k]), kept.s.push_back(out.s[k]);
-    return kept;
-}
+using test::pulse_spectrum;
+using test::Spectrum;
 
 // The largest envelope of samples [from, to) of a real signal (by its analytic signal) and
 // where it lies (samples from `from`, a parabola through the largest and its neighbours).
