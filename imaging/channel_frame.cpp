@@ -95,10 +95,13 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
     const std::pair<glm::dvec2, glm::dvec2> bounds = probe::ScanGeometry(t).bounds();
     std::vector<ChannelEcho> scatterers;
     stage("scatterers", [&] {
-        if (!settings.imaging.speckle) return;
+        // Without scattering the tissue is dark, as in the focused mode; without speckle
+        // there is nothing of it a channel could hold.
+        if (!settings.imaging.speckle || !trace.physics.on(simulator::Physics::scattering)) return;
         const double rate =
             trace.scattering_rate_per_mm * trace.scatter_echo_fraction * t.rx_f_number;
-        ScattererSettings s = settings.scatterers;
+        ScattererSettings s;
+        s.per_resolution_cell = quality_level(settings.quality).scatterers_per_cell;
         s.seed = settings.seed;
         scatterers = channel_scatterers(
             t, bounds.first - glm::dvec2(2.0, 0.0), bounds.second + glm::dvec2(2.0, 2.0), s,
@@ -123,7 +126,16 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
         stage("trace", [&] { result = simulator::trace(map, own, traced, {}); });
         frame.ledger += result.ledger;
         frame.stats += result.stats;
+        // The energy map and the paths drawn: the whole acquisition's.
+        if (frame.absorbed.size() == 0)
+            frame.absorbed = result.absorbed;
+        else
+            for (std::size_t k = 0; k < result.absorbed.size(); ++k)
+                frame.absorbed.voxels()[k] += result.absorbed.voxels()[k];
+        frame.paths.insert(frame.paths.end(), std::make_move_iterator(result.paths.begin()),
+                           std::make_move_iterator(result.paths.end()));
         std::vector<ChannelEcho> echoes;
+        echoes.reserve(result.echoes.size() + points.size() + scatterers.size());
         stage("echoes", [&] {
             // Reflections: secondary sources at their paths' image points.
             // Events come by particle, then time: whether a particle has met a rough

@@ -74,6 +74,7 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
     const int S = c.samples, E = c.elements;
     const double f0 = c.frequency_hz, fs = c.fs_hz, c0 = c.speed_m_s * 1e3;  // mm/s
     std::vector<std::complex<float>> baseband(std::size_t(E) * std::size_t(S));
+    const probe::ScanGeometry geometry(t);
     for (int w = first; w < last; ++w) {
         // Each channel's analytic signal at baseband.
         tbb::parallel_for(0, E, [&](int e) {
@@ -86,22 +87,26 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
         const probe::TransmitField field(t, c.waves[std::size_t(w)]);
         tbb::parallel_for(0, grid.nz, [&](int j) {
             const double z = grid.z(j);
-            // At least two pitches across: a narrower apodized aperture leaves pixels
-            // between elements with no weight (a comb along the face).
-            const double half_width = std::max(0.5 * z / settings.f_number, t.pitch_mm);
             for (int i = 0; i < grid.nx; ++i) {
                 const double x = grid.x(i);
+                // The receive aperture of the pixel's scan line (header), at least two
+                // pitches across: a narrower apodized aperture leaves pixels between
+                // elements with no weight (a comb along the face).
+                const glm::dvec2 line = geometry.line_and_depth({x, z});
+                const double centre = geometry.point(line.x, 0.0).x;
+                const double half_width =
+                    std::max(0.5 * std::abs(line.y) / settings.f_number, t.pitch_mm);
                 const double transmit_time = field.at({x, z}).time_s;
-                const auto lo =
-                    std::lower_bound(c.element_x_mm.begin(), c.element_x_mm.end(), x - half_width);
-                const auto hi =
-                    std::upper_bound(c.element_x_mm.begin(), c.element_x_mm.end(), x + half_width);
+                const auto lo = std::lower_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
+                                                 centre - half_width);
+                const auto hi = std::upper_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
+                                                 centre + half_width);
                 std::complex<double> sum = 0.0;
                 double weights = 0.0;
                 for (auto it = lo; it < hi; ++it) {
                     const int e = int(it - c.element_x_mm.begin());
                     const double weight = probe::apodization_weight(
-                        settings.apodization, 0.5 + (*it - x) / (2.0 * half_width));
+                        settings.apodization, 0.5 + (*it - centre) / (2.0 * half_width));
                     if (!(weight > 0.0)) continue;
                     weights += weight;
                     const double delay = transmit_time + std::hypot(x - *it, z) / c0;

@@ -6,7 +6,9 @@
 //
 // with s_we the analytic signal of element e's channel under transmit w, tau_w(r) the
 // transmit's arrival at r (probe/transmit.h) and a_e(r) the receive apodization over the
-// elements within z / (2 F) of x (F the receive F-number; at least a pitch). The
+// elements within d / (2 F) of o (F the receive F-number; at least a pitch), where o is
+// where r's scan line leaves the face and d the depth along it: the focused mode's
+// receive aperture (a linear array: o = x, d = z; a phased one: o = 0, d = |r|). The
 // analytic signal is taken by the discrete Hilbert transform (the spectrum's negative
 // half removed), brought to baseband at f0 and interpolated there (Catmull-Rom), then
 // carried back to the carrier at the delay: the carrier's phase is exact at any delay.
@@ -31,7 +33,7 @@ struct PixelGrid {
 PixelGrid pixel_grid(const probe::Transducer& t, double from_mm, double to_mm, double pixel_mm);
 
 // Receive of the beamformer:
-//   f_number     (default 1.75): receive aperture width z / f_number, centred on the pixel
+//   f_number     (default 1.75): receive aperture width d / f_number about o (above)
 //   apodization  (default hann): weighting across that aperture
 struct DasSettings {
     double f_number = 1.75;

@@ -51,6 +51,9 @@ struct QualityLevel {
     int particles_per_line;  // particles each scan line emits
     double step_texels;      // the tracer's step length, in map texels
     double sub_line_sigmas;  // speckle sub-line spacing (ImagingSettings::sub_line_sigmas)
+    // Channel frames' scatterers per resolution cell (ScattererSettings): their cost is
+    // scatterers x elements per transmit.
+    double scatterers_per_cell;
 };
 QualityLevel quality_level(Quality quality);
 
@@ -115,9 +118,9 @@ struct SimulationSettings {
     bool keep_echoes = false;
     // Unfocused transmits (plane or diverging waves) with each element's channel data,
     // beamformed by delay-and-sum (imaging/channel_frame.h); unset: focused line by line.
-    // The channels are sampled at imaging.sampling_mhz; their scatterers as `scatterers`.
+    // The channels are sampled at imaging.sampling_mhz; their scatterers' density is the
+    // quality's (QualityLevel::scatterers_per_cell).
     std::optional<probe::TransmitScheme> transmit;
-    ScattererSettings scatterers;
 
     // Throws base::InputError naming the first bad parameter.
     void validate(const std::string& source) const;

@@ -9,15 +9,15 @@ namespace sonotrace::probe {
 
 const std::vector<ArrayType>& array_types() {
     // The registration of every array type: its name (CLI, sidecars, GUI), what the CLI's
-    // --type help says of it, and whether --fov sets its lines' angle.
+    // --type help says of it, whether --fov sets its lines' angle, whether it is flat.
     static const std::vector<ArrayType> types = {
-        {TransducerType::linear, "linear", "parallel lines", false, arrays::no_fov,
+        {TransducerType::linear, "linear", "parallel lines", false, true, arrays::no_fov,
          arrays::whole_array, arrays::make_linear, arrays::validate_linear},
-        {TransducerType::convex, "convex", "a fan of lines from a curved array", true,
+        {TransducerType::convex, "convex", "a fan of lines from a curved array", true, false,
          arrays::max_fov_convex, arrays::whole_array, arrays::make_convex, arrays::validate_convex},
-        {TransducerType::phased, "phased", "a fan of lines steered from a flat array", true,
+        {TransducerType::phased, "phased", "a fan of lines steered from a flat array", true, true,
          arrays::max_fov_phased, arrays::whole_array, arrays::make_phased, arrays::validate_phased},
-        {TransducerType::radial, "radial", "lines all around a ring of elements", false,
+        {TransducerType::radial, "radial", "lines all around a ring of elements", false, false,
          arrays::max_fov_radial, arrays::half_ring, arrays::make_radial, arrays::validate_radial},
     };
     return types;

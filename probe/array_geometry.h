@@ -65,6 +65,8 @@ struct ArrayType {
     const char* name;
     const char* description;
     bool fov_adjustable;
+    // Elements on a line (x_i, 0): plane and diverging waves (probe/transmit.h) apply.
+    bool flat;
     double (*max_fov_deg)(const Transducer&);  // the widest --fov its arrays allow
     // The widest active aperture (mm of the array) a line can use: apertures asked wider
     // are clipped to it (Transducer::active_aperture_mm, receive_aperture_mm).

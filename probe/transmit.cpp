@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "probe/array_geometry.h"
 #include "tissue/acoustic_map.h"
 #include "tissue/base/error.h"
 #include "tissue/base/hash.h"
@@ -153,7 +154,7 @@ std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme, 
                                                   const std::string& source,
                                                   const std::string& field) {
     if (scheme.empty()) throw base::InputError(source, field, "zero transmits");
-    if (t.type != TransducerType::linear && t.type != TransducerType::phased)
+    if (!array_type(t.type).flat)
         throw base::InputError(source, field,
                                "plane and diverging waves need a flat array (linear or phased); "
                                "the probe is " +

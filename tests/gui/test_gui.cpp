@@ -93,6 +93,31 @@ TEST(Gui, ScreenshotsShowEveryViewAndTheBmodeFollowsTheProbe) {
     EXPECT_GT(cv::mean(cv::abs(pa - pb))[0], 10.0);
 }
 
+// The transmit panel's plane waves: the frame shows (speckle and the cyst), the panel's
+// scheme is --transmit's text, and a curved probe falls back to focused with a message.
+TEST(Gui, PlaneWavesShowAFrameAndCurvedProbesStayFocused) {
+    const std::string scene = "--scene phantom:cyst_and_stone --no-context --frames 1 ";
+    ASSERT_EQ(
+        run_gui(scene + "--probe linear --transmit plane --transmits 3 --span 6 --screenshot " +
+                    (kDir / "plane.png").string(),
+                "plane.log"),
+        0)
+        << read_text(kDir / "plane.log");
+    const Screenshot plane = load("plane");
+    EXPECT_EQ(plane.layout.at("transmit"), "plane:-6:6:3");
+    EXPECT_EQ(plane.layout.at("error"), "");
+    EXPECT_GT(stddev(plane.region("bmode")), 10.0);
+    ASSERT_EQ(run_gui(scene + "--probe convex --transmit diverging --screenshot " +
+                          (kDir / "convex.png").string(),
+                      "convex.log"),
+              0)
+        << read_text(kDir / "convex.log");
+    const Screenshot convex = load("convex");
+    EXPECT_EQ(convex.layout.at("transmit"), "focused");
+    EXPECT_NE(convex.layout.at("message").get<std::string>().find("focused"), std::string::npos);
+    EXPECT_GT(stddev(convex.region("bmode")), 10.0);
+}
+
 // The 3D context drawn in OpenGL (--context-renderer gpu) shows what the CPU renderer
 // shows: the same particles (test_gl_pbvr compares the two renderers exactly); here the
 // whole program's view, whose repetitions at the moment of the screenshot may differ by
@@ -206,6 +231,12 @@ TEST(Gui, BadOptionsFailWithAMessage) {
     EXPECT_EQ(run_gui("--context-renderer fast", "renderer.log"), 1);
     EXPECT_NE(read_text(kDir / "renderer.log").find("--context-renderer"), std::string::npos);
     EXPECT_EQ(run_gui("--max-fps 0", "fps.log"), 1);
+    EXPECT_EQ(run_gui("--transmit sideways", "transmit.log"), 1);
+    EXPECT_NE(read_text(kDir / "transmit.log").find("--transmit"), std::string::npos);
+    EXPECT_EQ(run_gui("--transmit plane --transmits 0", "transmits.log"), 1);
+    EXPECT_NE(read_text(kDir / "transmits.log").find("--transmits"), std::string::npos);
+    EXPECT_EQ(run_gui("--transmit plane --span 45", "span.log"), 1);
+    EXPECT_NE(read_text(kDir / "span.log").find("--span"), std::string::npos);
     EXPECT_NE(read_text(kDir / "quality.log").find("--quality"), std::string::npos);
     EXPECT_NE(run_gui("--scene phantom:cyst_and_stone --explain bogus", "explain.log"), 0);
     EXPECT_NE(read_text(kDir / "explain.log").find("acoustic shadowing"), std::string::npos)

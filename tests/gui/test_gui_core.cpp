@@ -271,6 +271,94 @@ TEST(GuiScanner, ThreeDimensionalFramesAreSimulatesToo) {
     EXPECT_FALSE(gui.slice.empty());
 }
 
+TEST(GuiScanner, UnfocusedTransmitsMakeSimulatesChannelFrames) {
+    // The transmit panel's plane and diverging waves are `simulate --transmit`'s frames:
+    // the same channel data and image bytes, the scheme's text as the CLI would take it,
+    // the energy map and the paths of the whole acquisition, and the wire at 20 mm shows.
+    const auto scene = load_scene("phantom:point_grid", kPhantoms);
+    ScanRequest r = request_for(scene);
+    r.parameters.transmit.kind = TransmitControls::Kind::plane;
+    r.parameters.transmit.count = 5;
+    r.parameters.transmit.span_deg = 8.0;
+    r.paths_per_line = 4;
+    const ScanFrame gui = simulate(r);
+    ASSERT_TRUE(gui.settings.transmit.has_value());
+    EXPECT_EQ(gui.settings.transmit->text, "plane:-8:8:5");
+    ASSERT_TRUE(gui.frame.channels.has_value());
+    EXPECT_EQ(gui.frame.channels->transmits, 5);
+    imaging::SimulationSettings cli_settings = gui.settings;
+    cli_settings.trace.record_paths = 0;  // drawing only: the frame's bytes do not depend on it
+    const imaging::Frame cli =
+        imaging::simulate_plane(scene->mapper, scene->start, cli_settings, false).frame;
+    ASSERT_TRUE(cli.channels.has_value());
+    ASSERT_EQ(gui.frame.channels->values.size(), cli.channels->values.size());
+    EXPECT_EQ(0, std::memcmp(gui.frame.channels->values.data(), cli.channels->values.data(),
+                             cli.channels->values.size() * sizeof(float)));
+    ASSERT_EQ(gui.frame.image.image.size(), cli.image.image.size());
+    EXPECT_EQ(cv::norm(gui.frame.image.image, cli.image.image, cv::NORM_INF), 0.0);
+    // Paths on the transmits 0, 1, ... (the line stride applies to transmits), 4 each.
+    EXPECT_EQ(gui.frame.paths.size(), 5u * 4u);
+    ASSERT_GT(gui.frame.absorbed.size(), 0u);
+    EXPECT_GT(cv::sum(cv::Mat(1, int(gui.frame.absorbed.size()), CV_32F,
+                              const_cast<float*>(gui.frame.absorbed.voxels().data())))[0],
+              0.0);
+    // The wire under the probe at 20 mm against the gel beside it, as focused (above).
+    const imaging::ScanConverted& img = gui.frame.image;
+    auto pixel = [&](double x, double depth) {
+        return img.image.at<float>(int(std::lround((depth - img.origin.y) / img.pixel_mm)),
+                                   int(std::lround((x - img.origin.x) / img.pixel_mm)));
+    };
+    float wire = 0.0f;
+    for (double x = -0.5; x <= 0.5; x += 0.05)
+        for (double d = 19.5; d <= 20.5; d += 0.05) wire = std::max(wire, pixel(x, d));
+    double gel = 0.0;
+    int n = 0;
+    for (double x = 3.0; x <= 8.0; x += 0.2)
+        for (double d = 25.0; d <= 35.0; d += 0.2) gel += pixel(x, d), ++n;
+    gel /= n;
+    EXPECT_GT(wire, gel + 20.0 / 60.0) << "wire " << wire << ", gel " << gel;
+
+    // The panel's other texts, as parse_transmit_scheme reads them.
+    TransmitControls tx;
+    const probe::Transducer linear = probe::find_transducer("linear", "test");
+    EXPECT_EQ(tx.text(linear), "focused");
+    tx.kind = TransmitControls::Kind::plane;
+    tx.count = 1;
+    EXPECT_EQ(tx.text(linear), "plane:0");
+    tx.kind = TransmitControls::Kind::diverging;
+    tx.count = 3;
+    tx.span_deg = 10.0;
+    const probe::TransmitScheme diverging = probe::parse_transmit_scheme(tx.text(linear), "", "");
+    ASSERT_EQ(diverging.waves.size(), 3u);
+    EXPECT_NEAR(diverging.waves[0].angle_rad, glm::radians(-10.0), 1e-12);
+    EXPECT_NEAR(diverging.waves[0].source_distance_mm, 0.5 * linear.array_length_mm(), 1e-9);
+}
+
+TEST(GuiControls, UnfocusedTransmitsOnlyWhereTheArrayIsFlat) {
+    // The panel offers plane waves on every flat preset (linear, phased, picmus) and on no
+    // curved one, where the settings refuse them naming the field.
+    const auto scene = cyst_scene();
+    int flat = 0;
+    for (const probe::Transducer& preset : probe::transducer_presets()) {
+        ScanParameters p;
+        p.transducer = preset;
+        p.transmit.kind = TransmitControls::Kind::plane;
+        SCOPED_TRACE(preset.name);
+        if (offers_unfocused_transmits(preset)) {
+            ++flat;
+            EXPECT_NO_THROW(p.settings(*scene));
+            continue;
+        }
+        try {
+            p.settings(*scene);
+            ADD_FAILURE() << "a curved array took plane waves";
+        } catch (const base::InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("transmit"), std::string::npos) << e.what();
+        }
+    }
+    EXPECT_EQ(flat, 3);
+}
+
 TEST(GuiScanner, MirrorImageNeedsAReflectedBeam) {
     // Beyond the mirror phantom's air interface (y = 32 + tan(20 deg) x mm under the
     // probe; air has no scatterers) the frame shows the liver seen by the reflected
@@ -375,9 +463,14 @@ TEST(GuiControls, EverySliderExtremeGivesAFrame) {
             // The panel shows the fov slider only where the type's fov is adjustable.
             if (spec.control == Control::fov && !probe::array_type(preset.type).fov_adjustable)
                 continue;
+            // ... and the transmits' sliders for unfocused transmits, which flat arrays take.
+            const bool unfocused =
+                spec.control == Control::transmits || spec.control == Control::span;
+            if (unfocused && !offers_unfocused_transmits(preset)) continue;
             for (double value : {spec.min, slider_max(spec.control, preset)}) {
                 ScanRequest r = request_for(scene);
                 r.parameters.transducer = preset;
+                if (unfocused) r.parameters.transmit.kind = TransmitControls::Kind::plane;
                 probe::Transducer& t = r.parameters.transducer;
                 switch (spec.control) {
                     case Control::depth:
@@ -404,6 +497,12 @@ TEST(GuiControls, EverySliderExtremeGivesAFrame) {
                     case Control::tgc:
                         r.parameters.tgc_db.fill(value);
                         break;
+                    case Control::transmits:
+                        r.parameters.transmit.count = int(value);
+                        break;
+                    case Control::span:
+                        r.parameters.transmit.span_deg = value;
+                        break;
                     default:
                         FAIL() << spec.label;
                 }
@@ -414,6 +513,12 @@ TEST(GuiControls, EverySliderExtremeGivesAFrame) {
                 SCOPED_TRACE(preset.name + " " + spec.label + " = " + std::to_string(value));
                 ASSERT_NO_THROW(r.parameters.settings(*scene));
                 if (preset.name != scene->probe_preset) continue;  // frames: the scene's probe
+                // 75 transmits of speckle on 128 elements take seconds: the tissue's
+                // scatterers off (the traced echoes kept) and 20 mm deep.
+                if (unfocused) {
+                    r.parameters.physics.set(imaging::Physics::scattering, false);
+                    t.depth_mm = 20.0;
+                }
                 const ScanFrame f = simulate(r);
                 ASSERT_FALSE(f.frame.image.image.empty());
                 EXPECT_TRUE(cv::checkRange(f.frame.image.image, true, nullptr, 0.0, 1.0 + 1e-6));
@@ -464,6 +569,14 @@ TEST(GuiExplain, ArtifactsFollowTheMaterialsAndSwitches) {
     EXPECT_FALSE(names(explain(*cyst_scene(), p)).count("speckle"));
     p.receive = imaging::ReceiveModel::capture;
     EXPECT_TRUE(names(explain(*cyst_scene(), p)).count("reverberation"));
+    // Plane waves: the unfocused transmit explained; no face reverberation (channel frames
+    // receive monostatically).
+    ScanParameters plane;
+    plane.transmit.kind = TransmitControls::Kind::plane;
+    const auto unfocused = names(explain(*cyst_scene(), plane));
+    EXPECT_TRUE(unfocused.count("unfocused transmit"));
+    EXPECT_FALSE(unfocused.count("reverberation (off)"));
+    EXPECT_FALSE(names(explain(*cyst_scene(), ScanParameters{})).count("unfocused transmit"));
     // Every physics switch has its control, and its help is its row's description.
     for (const simulator::PhysicsSwitch& sw : simulator::kPhysicsSwitches) {
         EXPECT_EQ(physics_of(physics_control(sw.id)), sw.id);

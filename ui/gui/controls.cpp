@@ -83,6 +83,14 @@ const std::vector<SliderSpec>& slider_specs() {
         transducer_slider(Control::frequency, "frequency", "frequency", 1.0, 12.0),
         request_slider(Control::gain, "gain", "gain", -20.0, 80.0),
         request_slider(Control::dynamic_range, "dynamic range", "dynamic-range", 20.0, 100.0),
+        {Control::transmits, "transmits", "", 1.0, 75.0,
+         "unfocused transmits, their steering angles evenly over +-span, each traced and its "
+         "channel data (every element's RF) beamformed by delay-and-sum; coherent compounding "
+         "of more angles focuses the transmit synthetically. Each costs about as much as a "
+         "whole focused frame"},
+        {Control::span, "span", "degrees", 0.0, 20.0,
+         "the outermost steering angle of the unfocused transmits (plane waves: the wave's "
+         "angle; diverging waves: the virtual source's axis)"},
         {Control::tgc, "TGC", "dB", -30.0, 30.0,
          "time-gain compensation at this depth, added to the automatic curve (2 x 0.6 "
          "dB/(cm MHz) x f x depth, brain attenuation)"},
@@ -115,7 +123,12 @@ std::string switch_help(Control control) {
         return std::string(simulator::physics_switch(*p).description);
     if (control == Control::receive) return scene::request_parameter("receive").description;
     if (control == Control::trace) return scene::request_parameter("trace").description;
+    if (control == Control::transmit) return scene::request_parameter("transmit").description;
     return {};
+}
+
+bool offers_unfocused_transmits(const probe::Transducer& t) {
+    return probe::array_type(t.type).flat;
 }
 
 std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
@@ -179,13 +192,26 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
                        "copies repeat at multiples of their spacing, fading.",
                        physics_control(Physics::bounces), "switch multiple bounces off: they go"});
     }
-    if (p.receive == imaging::ReceiveModel::capture && s.on(Physics::face))
+    const bool focused = p.transmit.kind == TransmitControls::Kind::focused;
+    if (!focused)
+        out.push_back(
+            {"unfocused transmit",
+             "Each " +
+                 std::string(p.transmit.kind == TransmitControls::Kind::plane ? "plane"
+                                                                              : "diverging") +
+                 " wave lights the whole field at once, so one transmit makes a frame with a "
+                 "receive focus only: points are wider and cysts fill with clutter. Adding the "
+                 "beamformed images of waves steered at several angles, in phase, focuses the "
+                 "transmit synthetically.",
+             Control::transmits, "compare 1 transmit with 15: points narrow, cysts darken"});
+    // Face reverberation needs the capture receive, which channel frames do not model.
+    if (focused && p.receive == imaging::ReceiveModel::capture && s.on(Physics::face))
         out.push_back({"reverberation",
                        "The probe face reflects part of each strong echo back into the tissue: "
                        "copies of the reflector repeat at multiples of its depth.",
                        physics_control(Physics::face),
                        "switch face reflection off: the copies go"});
-    else
+    else if (focused)
         out.push_back({"reverberation (off)",
                        "Repeated echoes between the probe face and a strong reflector need the "
                        "capture receive model with face reflection.",

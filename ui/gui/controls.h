@@ -24,6 +24,9 @@ enum class Control {
     depth,
     lines,
     fov,
+    transmit,   // focused, plane or diverging waves
+    transmits,  // their number
+    span,       // their outermost steering angle
     // The physics switches follow, one per row of simulator::kPhysicsSwitches, in its
     // order (physics_control): a new switch needs no entry here.
     physics,
@@ -50,9 +53,13 @@ const SliderSpec& slider(Control control);
 // field of view at most its arc (elements x pitch / radius).
 double slider_max(Control control, const probe::Transducer& t);
 
-// Help text of a physics switch (its row's description) or of the receive and trace
-// choices (the frame request's).
+// Help text of a physics switch (its row's description) or of the receive, trace and
+// transmit choices (the frame request's).
 std::string switch_help(Control control);
+
+// Whether the probe takes unfocused transmits (a flat array); the panel offers them only
+// then, and only traced in 2D with the monostatic receive (what channel frames support).
+bool offers_unfocused_transmits(const probe::Transducer& t);
 
 struct Artifact {
     std::string name;

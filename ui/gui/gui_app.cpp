@@ -49,6 +49,24 @@ App::App(const AppOptions& options)
     : options_(options), catalogue_(scene_catalogue(base::phantom_catalogue_dir())) {
     parameters_.quality = imaging::parse_quality(options.quality, "--quality", "");
     if (!options.probe.empty()) probe::find_transducer(options.probe, "--probe");  // validates
+    {
+        TransmitControls& tx = parameters_.transmit;
+        const char* kinds[] = {"focused", "plane", "diverging"};
+        const auto kind = std::find(std::begin(kinds), std::end(kinds), options.transmit);
+        if (kind == std::end(kinds))
+            throw base::InputError("--transmit", options.transmit,
+                                   "must be focused, plane or diverging");
+        tx.kind = TransmitControls::Kind(kind - std::begin(kinds));
+        const SliderSpec &count = slider(Control::transmits), &span = slider(Control::span);
+        if (!(options.transmits >= count.min && options.transmits <= count.max))
+            throw base::InputError("--transmits", std::to_string(options.transmits),
+                                   "must be 1 to " + base::number_text(count.max));
+        if (!(options.span_deg >= span.min && options.span_deg <= span.max))
+            throw base::InputError("--span", base::number_text(options.span_deg),
+                                   "must be 0 to " + base::number_text(span.max) + " degrees");
+        tx.count = options.transmits;
+        tx.span_deg = options.span_deg;
+    }
     view_.enabled = options.context;
     if (options.context_renderer != "auto" && options.context_renderer != "gpu" &&
         options.context_renderer != "cpu")
@@ -91,6 +109,11 @@ void App::apply_scene(std::shared_ptr<const Scene> scene) {
         !options_.probe.empty() && probe_preset_.empty() ? options_.probe : scene_->probe_preset;
     probe_preset_ = preset;
     parameters_.transducer = probe::find_transducer(preset, "probe");
+    if (!offers_unfocused_transmits(parameters_.transducer) &&
+        parameters_.transmit.kind != TransmitControls::Kind::focused) {
+        parameters_.transmit.kind = TransmitControls::Kind::focused;
+        message_ = "the " + preset + " probe is not flat: it transmits focused beams only";
+    }
     pose_ = scene_->start.pose;
     parameters_.gain_db = scene_->gain_db;  // as `sonotrace simulate`
     pose_text_.clear();
@@ -185,8 +208,9 @@ void App::poll() {
     if (loading_.valid() &&
         loading_.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
         try {
+            message_.clear();
             apply_scene(loading_.get());
-            message_ = "scene " + scene_->title;
+            message_ = "scene " + scene_->title + (message_.empty() ? "" : "; " + message_);
             error_.clear();
         } catch (const std::exception& e) {
             // The previous scene stays.
@@ -340,6 +364,8 @@ void App::draw_controls(float x, float y, float w, float h) {
             if (ImGui::Selectable(t.name.c_str(), t.name == probe_preset_)) {
                 probe_preset_ = t.name;
                 parameters_.transducer = t;
+                if (!offers_unfocused_transmits(t))
+                    parameters_.transmit.kind = TransmitControls::Kind::focused;
                 changed = true;
             }
             tooltip(t.description);
@@ -361,19 +387,55 @@ void App::draw_controls(float x, float y, float w, float h) {
     };
     const SliderSpec& depth = slider(Control::depth);
     slider_double(Control::depth, &t.depth_mm, depth.min, depth.max, "%.0f");
+    // Unfocused transmits have no transmit focus and no scan lines: those sliders rest.
+    const bool focused = parameters_.transmit.kind == TransmitControls::Kind::focused;
+    ImGui::BeginDisabled(!focused);
     const SliderSpec& focus = slider(Control::focus);
     slider_double(Control::focus, &t.focus_mm, focus.min, slider_max(Control::focus, t), "%.0f");
+    ImGui::EndDisabled();
     const SliderSpec& frequency = slider(Control::frequency);
     slider_double(Control::frequency, &t.frequency_mhz, frequency.min, frequency.max, "%.1f");
     {
+        ImGui::BeginDisabled(!focused);
         const SliderSpec& lines = slider(Control::lines);
         double value = t.lines;
         slider_double(Control::lines, &value, lines.min, lines.max, "%.0f");
         t.lines = int(std::lround(value));
+        ImGui::EndDisabled();
     }
     if (probe::array_type(t.type).fov_adjustable) {
         const SliderSpec& fov = slider(Control::fov);
         slider_double(Control::fov, &t.fov_deg, fov.min, slider_max(Control::fov, t), "%.0f");
+    }
+    {
+        // Focused line by line, or unfocused waves (flat arrays, 2D, monostatic receive).
+        TransmitControls& tx = parameters_.transmit;
+        int kind = int(tx.kind);
+        const char* kinds[] = {"focused (line by line)", "plane waves", "diverging waves"};
+        const bool pushed = highlight_begin(Control::transmit);
+        ImGui::BeginDisabled(!offers_unfocused_transmits(t));
+        if (ImGui::Combo("transmit", &kind, kinds, 3)) {
+            tx.kind = TransmitControls::Kind(kind);
+            if (tx.kind != TransmitControls::Kind::focused) {
+                parameters_.trace_dimensions = 2;
+                parameters_.receive = imaging::ReceiveModel::monostatic;
+            }
+            changed = true;
+        }
+        ImGui::EndDisabled();
+        highlight_end(pushed);
+        tooltip(offers_unfocused_transmits(t)
+                    ? switch_help(Control::transmit)
+                    : "plane and diverging waves need a flat array: choose the linear, phased "
+                      "or picmus probe");
+        if (tx.kind != TransmitControls::Kind::focused) {
+            const SliderSpec& count = slider(Control::transmits);
+            double value = tx.count;
+            slider_double(Control::transmits, &value, count.min, count.max, "%.0f");
+            tx.count = int(std::lround(value));
+            const SliderSpec& span = slider(Control::span);
+            slider_double(Control::span, &tx.span_deg, span.min, span.max, "%.1f");
+        }
     }
 
     // -- image
@@ -439,20 +501,26 @@ void App::draw_controls(float x, float y, float w, float h) {
         int receive = int(parameters_.receive);
         const bool pushed = highlight_begin(Control::receive);
         const char* receive_names[] = {"monostatic", "capture (probe face)"};
+        const bool unfocused = parameters_.transmit.kind != TransmitControls::Kind::focused;
+        ImGui::BeginDisabled(unfocused);  // channel frames receive monostatically
         if (ImGui::Combo("receive", &receive, receive_names, 2)) {
             parameters_.receive = imaging::ReceiveModel(receive);
             changed = true;
         }
+        ImGui::EndDisabled();
         highlight_end(pushed);
         tooltip(switch_help(Control::receive));
     }
     {
         bool slab = parameters_.trace_dimensions == 3;
         const bool pushed = highlight_begin(Control::trace);
+        // Channel frames are traced in the plane.
+        ImGui::BeginDisabled(parameters_.transmit.kind != TransmitControls::Kind::focused);
         if (ImGui::Checkbox("trace in 3D (slice thickness)", &slab)) {
             parameters_.trace_dimensions = slab ? 3 : 2;
             changed = true;
         }
+        ImGui::EndDisabled();
         highlight_end(pushed);
         tooltip(switch_help(Control::trace));
     }
@@ -567,6 +635,7 @@ void App::save_frame() {
             {"pose", scene::pose_json(frame_->pose)},
             {"quality", imaging::to_string(frame_->quality)},
             {"trace", frame_->settings.trace_dimensions == 3 ? "3d" : "2d"},
+            {"transmit", frame_->settings.transmit ? frame_->settings.transmit->text : "focused"},
             {"transfer_function",
              scene_->volume ? scene_->volume->tf->describe() : nlohmann::json(nullptr)},
             {"image",

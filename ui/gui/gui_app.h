@@ -20,6 +20,11 @@ struct AppOptions {
     std::string scene = "head-craniotomy";
     std::string probe;  // preset; empty = the scene's
     std::string quality = "interactive";
+    // The transmit panel at start: focused, plane or diverging (flat probes), with the
+    // transmits' number and outermost angle (degrees).
+    std::string transmit = "focused";
+    int transmits = 5;
+    double span_deg = 8.0;
     double slide_mm = 0.0;  // start this far along the surface (lateral)
     std::string out_dir = "out/gui";
     bool animate = false;  // slide the probe back and forth by itself (benchmarks, demos)
@@ -73,11 +78,14 @@ class App {
     uint64_t frames_shown() const { return frames_shown_; }  // B-mode frames displayed
     int context_repetitions() const { return context_repetitions_; }
     bool context_on_gpu() const { return view_.gpu; }
+    // --transmit's text of the transmit panel ("focused", "plane:-8:8:5", ...).
+    std::string transmit_text() const { return parameters_.transmit.text(parameters_.transducer); }
     // True while a scene loads, or until --open's file has been tried.
     bool loading() const {
         return loading_.valid() || (!options_.open_later.empty() && !opened_later_);
     }
     const std::string& last_error() const { return error_; }
+    const std::string& last_message() const { return message_; }
     Rect bmode_rect() const { return bmode_rect_; }
     Rect slice_rect() const { return slice_rect_; }
     Rect context_rect() const { return context_rect_; }

@@ -190,7 +190,9 @@ int run(const Options& o) {
                     {"frames_shown", app.frames_shown()},
                     {"context_repetitions", app.context_repetitions()},
                     {"context_renderer", app.context_on_gpu() ? "gpu" : "cpu"},
-                    {"error", app.last_error()}};
+                    {"transmit", app.transmit_text()},
+                    {"error", app.last_error()},
+                    {"message", app.last_message()}};
                 std::filesystem::path sidecar(o.screenshot);
                 sidecar.replace_extension(".json");
                 base::jsonio::write_json(layout, transaction.stage(sidecar.string()));
@@ -259,6 +261,17 @@ int main(int argc, char** argv) {
     cli.add_option("--probe", o.app.probe, "probe preset (" + presets + "); empty = the scene's");
     cli.add_option("--quality", o.app.quality,
                    "quality while the probe moves: interactive, standard or high")
+        ->capture_default_str();
+    cli.add_option("--transmit", o.app.transmit,
+                   "transmit at start: focused (line by line), plane or diverging waves (flat "
+                   "probes: linear, phased, picmus), beamformed from every element's channel "
+                   "data")
+        ->capture_default_str();
+    cli.add_option("--transmits", o.app.transmits,
+                   "unfocused transmits, their angles evenly over +-span (1 to 75)")
+        ->capture_default_str();
+    cli.add_option("--span", o.app.span_deg,
+                   "outermost steering angle of the unfocused transmits (0 to 20) [degrees]")
         ->capture_default_str();
     cli.add_option("--slide", o.app.slide_mm,
                    "start this far along the surface from the scene's pose, laterally [mm]")

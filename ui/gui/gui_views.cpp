@@ -17,7 +17,11 @@
 namespace sonotrace::gui {
 
 void App::draw_slice(float x, float y, float w, float h) {
-    begin_panel("Tissue under the probe (beams of a few scan lines)", x, y, w, h, kViewFlags);
+    // ImGui keys a window by its title up to "###": the title changes, the panel stays.
+    begin_panel(frame_ && frame_->settings.transmit
+                    ? "Tissue under the probe (particles of a few transmits)###slice"
+                    : "Tissue under the probe (beams of a few scan lines)###slice",
+                x, y, w, h, kViewFlags);
     if (frame_ && !slice_texture_.empty()) {
         const Fit fit = show_image(slice_texture_, &slice_rect_);
         const ImVec2 size = fit.size;

@@ -60,6 +60,17 @@ std::vector<std::pair<int, double>> tissues_present(const tissue::Volume& labels
 
 }  // namespace
 
+std::string TransmitControls::text(const probe::Transducer& t) const {
+    using base::exact_number_text;
+    if (kind == Kind::focused) return "focused";
+    const std::string angles = count == 1
+                                   ? std::string("0")
+                                   : exact_number_text(-span_deg) + ":" +
+                                         exact_number_text(span_deg) + ":" + std::to_string(count);
+    if (kind == Kind::plane) return "plane:" + angles;
+    return "diverging:" + exact_number_text(0.5 * t.array_length_mm()) + ":" + angles;
+}
+
 scene::FrameRequest ScanParameters::request() const {
     using base::exact_number_text;
     scene::FrameRequest r;
@@ -69,6 +80,7 @@ scene::FrameRequest ScanParameters::request() const {
     r.quality = imaging::to_string(quality);
     r.receive = imaging::to_string(receive);
     r.trace = trace_dimensions == 3 ? "3d" : "2d";
+    r.transmit = transmit.text(transducer);
     r.seed = seed;
     r.gain_db = gain_db;
     r.dynamic_range_db = dynamic_range_db;

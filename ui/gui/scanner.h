@@ -32,6 +32,19 @@ using PhysicsSwitches = imaging::PhysicsSwitches;
 
 inline constexpr int kTgcSliders = 8;  // evenly spaced over the imaging depth
 
+// The transmit: focused line by line, or unfocused waves whose channel data are
+// beamformed by delay-and-sum and compounded (flat arrays only: probe/transmit.h).
+struct TransmitControls {
+    enum class Kind { focused, plane, diverging };
+    Kind kind = Kind::focused;
+    int count = 5;          // transmits, their steering angles evenly over +-span_deg
+    double span_deg = 8.0;  // the outermost steering angle (degrees)
+    // --transmit's text for this probe: "focused", "plane:0", "plane:-8:8:5",
+    // "diverging:D:-8:8:5" with the virtual source D = half the array's length behind the
+    // face (a wave that opens 90 degrees).
+    std::string text(const probe::Transducer& t) const;
+};
+
 // Everything the control panel sets. One validated conversion to the simulator's
 // settings (settings()); ranges for the sliders live in controls.h.
 struct ScanParameters {
@@ -39,6 +52,7 @@ struct ScanParameters {
     imaging::Quality quality = imaging::Quality::interactive;
     imaging::ReceiveModel receive = imaging::ReceiveModel::monostatic;
     int trace_dimensions = 2;  // 3: the slab of the elevation beam (slower)
+    TransmitControls transmit;
     double gain_db = 0.0;
     double dynamic_range_db = 60.0;
     std::array<double, kTgcSliders> tgc_db{};  // added to the automatic TGC (0.6 dB/(cm MHz))
