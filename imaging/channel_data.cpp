@@ -70,6 +70,9 @@ struct LitEchoes {
     std::vector<float> re, im;  // sigma times the transmit's amplitude at r
     std::array<std::vector<float>, 3> transmit;  // its directivity at the fit's frequencies
     std::vector<uint8_t> family;  // 0: lit by the transmit's wave (half-integrated); 1: particles
+    // Facets (ChannelEcho::Lit): pi f0 w / c0 (s), d . t, and t; facets come first.
+    std::vector<float> facet_scale, facet_dt, facet_tx, facet_tz;
+    std::size_t facets = 0;
     std::size_t size() const { return x.size(); }
 };
 
@@ -84,6 +87,12 @@ struct PairConstants {
     // The closest an echo is taken to be to an element (mm): the far-field 1 / sqrt(R) of
     // the element's wave holds from about half a wavelength (nearer, it would diverge).
     float nearest;
+    std::array<float, 3> frequency;  // 1 + nu_q: the fit's frequencies over f0
+};
+
+// A facet's columns for the pair loop (null: points).
+struct FacetColumns {
+    const float *scale = nullptr, *dt = nullptr, *tx = nullptr, *tz = nullptr;
 };
 
 // The terms of `count` echoes (their columns from x on) at one element: the sample n0 below each
@@ -91,16 +100,20 @@ struct PairConstants {
 // terms[(4 j + k) * kPairBlock + i], count <= kPairBlock, k = re n0, im n0, re n0+1, im n0+1).
 // Plain float arithmetic in one loop without branches, so that it vectorises; the same numbers
 // whichever instruction set runs it.
-[[gnu::target_clones("avx2", "default"), gnu::noinline]] void pair_terms(
+// Facets multiply each frequency's directivity by their Kirchhoff factor (ChannelEcho::Lit);
+// the loop is written once and instantiated with and without them.
+template <bool Facets>
+[[gnu::always_inline]] inline void pair_terms_body(
     int count, const float* __restrict x, const float* __restrict z, const float* __restrict time,
     const float* __restrict re, const float* __restrict im, const float* __restrict t0,
-    const float* __restrict t1, const float* __restrict t2, PairConstants k, int32_t* __restrict n0,
-    float* __restrict terms) {
+    const float* __restrict t1, const float* __restrict t2, const FacetColumns& facets,
+    const PairConstants& k, int32_t* __restrict n0, float* __restrict terms) {
     const float half_b = 0.5f / k.b, half_b2 = 0.5f / (k.b * k.b);
     // The constants as locals: read through `k` they might alias the outputs.
     const float xe = k.xe, inverse_c0 = k.inverse_c0, fs = k.fs;
     const float turns_per_sample = k.turns_per_sample, step_re = k.step_re, step_im = k.step_im;
     const float d0 = k.directivity[0], d1 = k.directivity[1], d2 = k.directivity[2];
+    const float f0 = k.frequency[0], f1 = k.frequency[1], f2 = k.frequency[2];
     const float nearest2 = k.nearest * k.nearest;
     for (int i = 0; i < count; ++i) {
         const float dx = x[i] - xe;
@@ -115,8 +128,14 @@ struct PairConstants {
             base::sincos_turns(a * float(0.5 / std::numbers::pi), sine, cosine);
             return sine / a;
         };
-        const float back[3] = {sinc_of(d0 * sin_back), sinc_of(d1 * sin_back),
-                               sinc_of(d2 * sin_back)};
+        float back[3] = {sinc_of(d0 * sin_back), sinc_of(d1 * sin_back), sinc_of(d2 * sin_back)};
+        if constexpr (Facets) {
+            // (d - u_e) . t, u_e = (xe - x, -z) / R.
+            const float across =
+                facets.dt[i] + (dx * facets.tx[i] + z[i] * facets.tz[i]) * inverse_R;
+            const float a = facets.scale[i] * across;
+            back[0] *= sinc_of(a * f0), back[1] *= sinc_of(a * f1), back[2] *= sinc_of(a * f2);
+        }
         const float p0 = t0[i] * back[0], p1 = t1[i] * back[1], p2 = t2[i] * back[2];
         // The quadratic in nu = f / f0 - 1 through (-b, p0), (0, p1), (b, p2).
         const float c[3] = {p1, (p2 - p0) * half_b, (p2 + p0 - 2.0f * p1) * half_b2};
@@ -146,6 +165,22 @@ struct PairConstants {
         SONOTRACE_TRAIN_TERMS(2)
 #undef SONOTRACE_TRAIN_TERMS
     }
+}
+
+[[gnu::target_clones("avx2", "default"), gnu::noinline]] void pair_terms(
+    int count, const float* __restrict x, const float* __restrict z, const float* __restrict time,
+    const float* __restrict re, const float* __restrict im, const float* __restrict t0,
+    const float* __restrict t1, const float* __restrict t2, PairConstants k, int32_t* __restrict n0,
+    float* __restrict terms) {
+    pair_terms_body<false>(count, x, z, time, re, im, t0, t1, t2, {}, k, n0, terms);
+}
+
+[[gnu::target_clones("avx2", "default"), gnu::noinline]] void facet_pair_terms(
+    int count, const float* __restrict x, const float* __restrict z, const float* __restrict time,
+    const float* __restrict re, const float* __restrict im, const float* __restrict t0,
+    const float* __restrict t1, const float* __restrict t2, FacetColumns facets, PairConstants k,
+    int32_t* __restrict n0, float* __restrict terms) {
+    pair_terms_body<true>(count, x, z, time, re, im, t0, t1, t2, facets, k, n0, terms);
 }
 
 // out[n + k] += Re(a_n g_k) over a train's nonzero samples (g split into its parts).
@@ -219,6 +254,8 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
         constants.directivity[std::size_t(q)] =
             float(directivity_scale * (1.0 + nu[std::size_t(q)]));
     constants.b = float(b);
+    for (int q = 0; q < 3; ++q)
+        constants.frequency[std::size_t(q)] = float(1.0 + nu[std::size_t(q)]);
     constants.nearest = float(0.5 * t.wavelength_mm());
 
     for (int w = 0; w < c.transmits; ++w) {
@@ -226,7 +263,15 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
         const std::vector<ChannelEcho> echoes = echoes_of(w);
         LitEchoes lit;
         bool particles = false;
-        for (const ChannelEcho& echo : echoes) {
+        // Facets first (their own pair loop), then the rest, each in the order given.
+        std::vector<const ChannelEcho*> ordered;
+        ordered.reserve(echoes.size());
+        for (const ChannelEcho& echo : echoes)
+            if (echo.lit && echo.lit->facet_mm > 0.0) ordered.push_back(&echo);
+        for (const ChannelEcho& echo : echoes)
+            if (!(echo.lit && echo.lit->facet_mm > 0.0)) ordered.push_back(&echo);
+        for (const ChannelEcho* from : ordered) {
+            const ChannelEcho& echo = *from;
             probe::TransmitField::Arrival a;
             if (echo.lit) {
                 a = {echo.lit->arrival_s, 1.0, echo.lit->transmit_sin_angle};
@@ -245,6 +290,14 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
                 lit.transmit[std::size_t(q)].push_back(
                     float(sinc(directivity_scale * (1.0 + nu[std::size_t(q)]) * a.sin_angle)));
             lit.family.push_back(echo.lit ? 1 : 0);
+            if (echo.lit && echo.lit->facet_mm > 0.0) {
+                const ChannelEcho::Lit& f = *echo.lit;
+                lit.facet_scale.push_back(float(std::numbers::pi * f0 * f.facet_mm / kC0MmPerS));
+                lit.facet_dt.push_back(float(glm::dot(f.incident, f.tangent)));
+                lit.facet_tx.push_back(float(f.tangent.x));
+                lit.facet_tz.push_back(float(f.tangent.y));
+                ++lit.facets;
+            }
         }
         tbb::parallel_for(0, c.elements, [&](int e) {
             // The three amplitude trains of this channel (header), per family.
@@ -255,12 +308,25 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
             k.xe = float(c.element_x_mm[std::size_t(e)]);
             std::array<int32_t, kPairBlock> n0;
             std::array<float, 12 * kPairBlock> terms;
-            for (std::size_t from = 0; from < lit.size(); from += kPairBlock) {
-                const int count = int(std::min<std::size_t>(kPairBlock, lit.size() - from));
-                pair_terms(count, lit.x.data() + from, lit.z.data() + from, lit.time.data() + from,
-                           lit.re.data() + from, lit.im.data() + from,
-                           lit.transmit[0].data() + from, lit.transmit[1].data() + from,
-                           lit.transmit[2].data() + from, k, n0.data(), terms.data());
+            // Blocks of facets, then of points (a block never mixes them).
+            for (std::size_t from = 0; from < lit.size();) {
+                const std::size_t end = from < lit.facets ? lit.facets : lit.size();
+                const int count = int(std::min<std::size_t>(kPairBlock, end - from));
+                if (from < lit.facets) {
+                    const FacetColumns facets{
+                        lit.facet_scale.data() + from, lit.facet_dt.data() + from,
+                        lit.facet_tx.data() + from, lit.facet_tz.data() + from};
+                    facet_pair_terms(count, lit.x.data() + from, lit.z.data() + from,
+                                     lit.time.data() + from, lit.re.data() + from,
+                                     lit.im.data() + from, lit.transmit[0].data() + from,
+                                     lit.transmit[1].data() + from, lit.transmit[2].data() + from,
+                                     facets, k, n0.data(), terms.data());
+                } else {
+                    pair_terms(count, lit.x.data() + from, lit.z.data() + from,
+                               lit.time.data() + from, lit.re.data() + from, lit.im.data() + from,
+                               lit.transmit[0].data() + from, lit.transmit[1].data() + from,
+                               lit.transmit[2].data() + from, k, n0.data(), terms.data());
+                }
                 for (int i = 0; i < count; ++i) {
                     const int n = n0[std::size_t(i)];
                     if (n < 0 || n + 1 >= S) continue;
@@ -273,6 +339,7 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
                             std::complex<float>(v[2 * kPairBlock], v[3 * kPairBlock]);
                     }
                 }
+                from += std::size_t(count);
             }
             // RF = Re sum_j train_j (*) g_j.
             float* out = c.channel(w, e);

@@ -60,6 +60,13 @@ struct ChannelEcho {
     struct Lit {
         double arrival_s = 0.0;           // after the transmit's time zero
         double transmit_sin_angle = 0.0;  // of the particle's launch, from the normal
+        // A facet: the piece of a smooth surface the echo stands for
+        // (imaging/coherent_surfaces.h), whose Kirchhoff integral sends element e
+        // sinc(pi f w (d - u_e) . t / c0) times a point's echo: d the incident direction,
+        // u_e the unit way to the element, t the tangent. Width 0: a point.
+        double facet_mm = 0.0;
+        glm::dvec2 tangent{1.0, 0.0};
+        glm::dvec2 incident{0.0, 1.0};
     };
     std::optional<Lit> lit;
 };

@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 #include <opencv2/imgproc.hpp>
 
+#include "imaging/coherent_surfaces.h"
 #include "imaging/delay_and_sum.h"
 #include "imaging/electronic_noise.h"
 #include "probe/array_geometry.h"
@@ -82,8 +83,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
     const int count = particles_per_transmit(settings);
     const glm::dvec2 to_map = grid.to_map;
     probe::Sources<2> sources;
-    stage("beams",
-          [&] { sources = probe::transmit_sources(t, scheme, count, settings.seed, to_map); });
+    stage("beams", [&] { sources = probe::transmit_sources(t, scheme, count, to_map); });
 
     simulator::TraceSettings trace = frame_trace_settings(settings);
     trace.record_scatter_echoes = false;
@@ -114,6 +114,11 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
     const TargetCores cores(points);
     const double lambda = t.wavelength_mm();
     const double piece = t.array_length_mm() / count;  // mm of the wavefront per particle
+    // The staircase's steps are the map's texels: a fit over 16 of them, links of 4.
+    const double texel = map.geometry().spacing.x;
+    SurfaceSmoothing smoothing;
+    smoothing.link_mm = 4.0 * texel;
+    smoothing.window_mm = 16.0 * texel;
 
     auto echoes_of = [&](int w) {
         const probe::TransmitWave& wave = scheme.waves[std::size_t(w)];
@@ -136,6 +141,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                            std::make_move_iterator(result.paths.end()));
         std::vector<ChannelEcho> echoes;
         echoes.reserve(result.echoes.size() + points.size() + scatterers.size());
+        std::vector<SurfaceEcho> surface;  // the coherent echoes, for surface_patches
+        std::vector<std::size_t> surface_index;
         stage("echoes", [&] {
             // Reflections: secondary sources at their paths' image points.
             // Events come by particle, then time: whether a particle has met a rough
@@ -164,6 +171,10 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                     field.aperture_weight(launch.x) * loss *
                     std::sqrt(double(e.weight) * (coherent ? 1.0 : double(e.return_weight))) *
                     piece / t.pitch_mm;
+                // A diverging wave's particles part as it spreads: each then stands for
+                // piece / G of the wavefront, where the wave's amplitude is sqrt(G) of a
+                // plane wave's (G: spreading()), so a coherent source carries 1 / sqrt(G).
+                if (coherent) amplitude /= std::sqrt(std::max(spreading(wave, image), 1e-6));
                 // The share of the reflector's lobe that heads back the way the particle
                 // came, within the receive's half-angle: a rough interface's echo, and any
                 // echo after a reflection (as the focused mode takes them). A direct
@@ -184,8 +195,48 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                                           2.0 * std::numbers::pi * double(bits >> 11) * 0x1.0p-53);
                 }
                 if (!(std::abs(strength) > 0.0)) continue;
-                echoes.push_back({image, strength, 0.0,
-                                  ChannelEcho::Lit{double(e.time_s), double(source.direction.x)}});
+                if (coherent) {
+                    surface.push_back(
+                        {e.particle, int(e.bounces), image, glm::dvec2(source.direction)});
+                    surface_index.push_back(echoes.size());
+                }
+                ChannelEcho::Lit lit;
+                lit.arrival_s = double(e.time_s);
+                lit.transmit_sin_angle = double(source.direction.x);
+                lit.incident = glm::dvec2(source.direction);
+                echoes.push_back({image, strength, 0.0, lit});
+            }
+            // The coherent sources onto their surfaces, below the map's staircase.
+            const std::vector<SurfacePatch> patches = surface_patches(surface, smoothing);
+            for (std::size_t k = 0; k < patches.size(); ++k) {
+                ChannelEcho& echo = echoes[surface_index[k]];
+                echo.position += patches[k].move_mm * surface[k].direction;
+                echo.lit->arrival_s += patches[k].move_mm / kC0MmPerS;
+                // A first reflection radiates as its facet; after a bounce the unfolded
+                // surface is not the one the echo leaves, and the lobe share stands.
+                if (surface[k].bounces == 0) {
+                    echo.lit->facet_mm = patches[k].width_mm;
+                    echo.lit->tangent = patches[k].tangent;
+                }
+            }
+            // The particles a chain skipped, between its neighbours on the fitted surface.
+            for (std::size_t k = 0; k < patches.size(); ++k) {
+                if (patches[k].next < 0) continue;
+                const std::size_t j = std::size_t(patches[k].next);
+                const uint32_t gap = surface[j].particle - surface[k].particle;
+                const ChannelEcho a = echoes[surface_index[k]], b = echoes[surface_index[j]];
+                for (uint32_t m = 1; m < gap; ++m) {
+                    const double f = double(m) / double(gap);
+                    ChannelEcho filled = a;
+                    filled.position = glm::mix(a.position, b.position, f);
+                    filled.strength = (1.0 - f) * a.strength + f * b.strength;
+                    filled.lit->arrival_s = (1.0 - f) * a.lit->arrival_s + f * b.lit->arrival_s;
+                    filled.lit->incident =
+                        glm::normalize(glm::mix(a.lit->incident, b.lit->incident, f));
+                    filled.lit->tangent =
+                        glm::normalize(glm::mix(a.lit->tangent, b.lit->tangent, f));
+                    echoes.push_back(filled);
+                }
             }
             // Point targets through the transmit's wave.
             for (const PointEcho& p : points)

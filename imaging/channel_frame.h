@@ -20,7 +20,14 @@
 //     wave whose amplitude they scaled by prod sqrt(p_i), and the way back scales it by
 //     prod sqrt(p_i) again; the three cancel (the focused mode's intensities keep the
 //     return weight prod p_i instead). The sum of the secondary sources along a reflector
-//     is the reflected wave (R times the incident, mirrored: stationary phase).
+//     is the reflected wave (R times the incident, mirrored: stationary phase). For it to
+//     cancel away from the mirror direction (or delay-and-sum draws the whole reflector):
+//     under a diverging wave each carries 1 / sqrt(G) (spreading G: it stands for ds / G
+//     of the wavefront, whose amplitude is sqrt(G) of a plane wave's); the coherent ones
+//     move onto the surface their neighbours describe, below the map's staircase, the
+//     particles the tracer let through without an echo are filled in between their
+//     neighbours, and first reflections radiate as facets of that surface
+//     (imaging/coherent_surfaces.h, ChannelEcho::Lit).
 //     A rough interface's secondary sources take random phases (their sum is diffuse)
 //     and the share of the reflected lobe that heads back into the receive's half-angle;
 //   - point targets (point_echoes): the transmit's wave at each (probe/transmit.h) with the

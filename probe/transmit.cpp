@@ -246,7 +246,7 @@ TransmitField::Arrival TransmitField::at(const glm::dvec2& r) const {
 }
 
 Sources<2> transmit_sources(const Transducer& t, const TransmitScheme& scheme, int count,
-                            uint64_t seed, const glm::dvec2& to_map) {
+                            const glm::dvec2& to_map) {
     Sources<2> sources;
     const int n = std::max(1, count);
     sources.reserve(scheme.waves.size() * std::size_t(n));
@@ -255,9 +255,7 @@ Sources<2> transmit_sources(const Transducer& t, const TransmitScheme& scheme, i
         const TransmitWave& wave = scheme.waves[w];
         const TransmitField field(t, wave);
         for (int i = 0; i < n; ++i) {
-            const uint64_t bits =
-                base::mix64(seed ^ base::mix64((uint64_t(w) << 32) ^ uint64_t(i)));
-            const double s = -half + 2.0 * half * (i + double(bits >> 11) * 0x1.0p-53) / n;
+            const double s = -half + 2.0 * half * (i + 0.5) / n;
             const glm::dvec2 at(s, 0.0);
             const glm::dvec2 heading =
                 wave.kind == TransmitWave::Kind::plane
