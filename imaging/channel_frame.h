@@ -30,6 +30,8 @@
 //     (imaging/coherent_surfaces.h, ChannelEcho::Lit).
 //     A rough interface's secondary sources take random phases (their sum is diffuse)
 //     and the share of the reflected lobe that heads back into the receive's half-angle;
+//   - scattering a particle met after a reflection (the tracer's scatter events): an
+//     echo at the path's image point with a random phase (the speckle behind a mirror);
 //   - point targets (point_echoes): the transmit's wave at each (probe/transmit.h) with the
 //     two-way losses of the straight path from the face;
 //   - the tissue's scatterers (imaging/channel_scatterers.h, the plane map's backscatter b
