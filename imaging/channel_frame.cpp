@@ -153,7 +153,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
             // Scattering a particle met after a reflection: its echo returns the way the
             // particle came and shows at the path's image point (the speckle and the
             // scatterers behind a mirror). By random phases, an estimator of intensity:
-            // E / E_0 times the event's weight w (scatter fraction x b) and return weight,
+            // (E / E_0)^2 (both ways) times the event's weight w (scatter fraction x b) and
+            // return weight,
             // over the particle's piece of wavefront and the receive's 1 / F, so that the
             // events' mean intensity per area is the scatterers' n |sigma|^2 = rate x
             // fraction x b^2 x F (header) where they light the same tissue; sqrt(lambda) /
@@ -169,8 +170,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 const glm::dvec2 image = launch + double(e.time_s - source.time_s) * kC0MmPerS *
                                                       glm::dvec2(source.direction);
                 if (!(image.y > 0.0)) return;
-                const double intensity = double(e.energy) / std::max(double(source.energy), 1e-30) *
-                                         double(e.weight) * double(e.return_weight) *
+                const double loss = double(e.energy) / std::max(double(source.energy), 1e-30);
+                const double intensity = loss * loss * double(e.weight) * double(e.return_weight) *
                                          t.rx_f_number * piece * lambda;
                 const uint64_t bits =
                     base::mix64(settings.seed ^
@@ -290,9 +291,12 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
             if (!scatterers.empty()) {
                 const Illumination light(result.fluence, 1.0, t.array_length_mm());
                 for (const ChannelEcho& s : scatterers) {
+                    // The transmit's loss on the way in, and again on the way out (the
+                    // way back repeats the way in, as in the focused mode).
                     const double a =
                         light.amplitude(s.position + to_map, spreading(wave, s.position));
-                    if (a > 0.0) echoes.push_back({s.position, s.strength * a, 0.0, std::nullopt});
+                    if (a > 0.0)
+                        echoes.push_back({s.position, s.strength * a * a, 0.0, std::nullopt});
                 }
             }
         });

@@ -39,7 +39,8 @@
 //     speckle, where the focused mode's field is fixed in the world), lit by the
 //     transmit's intensity there relative to its free-field value:
 //     the fluence the trace deposited, smoothed over a millimetre, over what the same
-//     particles deposit in a lossless medium. Their strength per unit area makes the
+//     particles deposit in a lossless medium, L: the echo's amplitude takes L (sqrt(L)
+//     on the way in, again on the way back). Their strength per unit area makes the
 //     focused mode's scattering: n |sigma|^2 = rate x fraction x b^2 x F_rx
 //     (TraceSettings::scattering_rate_per_mm, scatter_echo_fraction; the fraction returns
 //     into a receive of 1 / F_rx rad).
