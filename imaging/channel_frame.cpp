@@ -147,15 +147,20 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
         std::vector<SurfaceEcho> surface;  // the coherent echoes, for surface_patches
         std::vector<std::size_t> surface_index;
         stage("echoes", [&] {
-            // Reflections: secondary sources at their paths' image points.
-            // Events come by particle, then time: whether a particle has met a rough
-            // interface before this event (after which its echoes add incoherently).
+            // The image point of an event's path: the launch point plus its time of
+            // flight at c0 along its launch direction (a mirrored path images where the
+            // mirror puts it).
+            auto image_of = [&](const simulator::EchoEvent<2>& e) {
+                const probe::SourceParticle<2>& source = own[e.particle];
+                return glm::dvec2(source.position) - to_map +
+                       double(e.time_s - source.time_s) * kC0MmPerS * glm::dvec2(source.direction);
+            };
             // Scattering a particle met after a reflection: its echo returns the way the
             // particle came and shows at the path's image point (the speckle and the
             // scatterers behind a mirror). By random phases, an estimator of intensity:
             // (E / E_0)^2 (both ways) times the event's weight w (scatter fraction x b) and
-            // return weight,
-            // over the particle's piece of wavefront and the receive's 1 / F, so that the
+            // return weight, over the particle's piece of wavefront and the receive's 1 / F,
+            // so that the
             // events' mean intensity per area is the scatterers' n |sigma|^2 = rate x
             // fraction x b^2 x F (header) where they light the same tissue; sqrt(lambda) /
             // pitch is a lit source's scale (a perpendicular reflector's sum). Each transmit
@@ -166,9 +171,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
             auto mirrored_scattering = [&](const simulator::EchoEvent<2>& e) {
                 if (e.particle >= own.size() || cores.contains(glm::dvec2(e.position))) return;
                 const probe::SourceParticle<2>& source = own[e.particle];
-                const glm::dvec2 launch = glm::dvec2(source.position) - to_map;
-                const glm::dvec2 image = launch + double(e.time_s - source.time_s) * kC0MmPerS *
-                                                      glm::dvec2(source.direction);
+                const glm::dvec2 image = image_of(e);
                 if (!(image.y > 0.0)) return;
                 const double loss = double(e.energy) / std::max(double(source.energy), 1e-30);
                 const double intensity = loss * loss * double(e.weight) * double(e.return_weight) *
@@ -188,6 +191,9 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 lit.incident = glm::dvec2(source.direction);
                 echoes.push_back({image, strength, 0.0, lit});
             };
+            // Reflections: secondary sources at their paths' image points.
+            // Events come by particle, then time: whether a particle has met a rough
+            // interface before this event (after which its echoes add incoherently).
             uint32_t particle = UINT32_MAX;
             bool roughened = false;
             for (const simulator::EchoEvent<2>& e : result.echoes) {
@@ -204,8 +210,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 if (e.particle >= own.size() || cores.contains(glm::dvec2(e.position))) continue;
                 const probe::SourceParticle<2>& source = own[e.particle];
                 const glm::dvec2 launch = glm::dvec2(source.position) - to_map;
-                const double flight_mm = double(e.time_s - source.time_s) * kC0MmPerS;
-                const glm::dvec2 image = launch + flight_mm * glm::dvec2(source.direction);
+                const glm::dvec2 image = image_of(e);
                 if (!(image.y > 0.0)) continue;
                 const double loss = double(e.energy) / std::max(double(source.energy), 1e-30);
                 // Coherent echoes (specular, the particle's phase still the transmit's):
