@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 
+#include <opencv2/core.hpp>
+
 namespace sonotrace::imaging {
 namespace {
 
@@ -34,30 +36,17 @@ std::vector<std::vector<std::size_t>> surface_chains(const std::vector<SurfaceEc
     return chains;
 }
 
-// v = c0 + c1 u + c2 u^2 through points (u, v) by least squares (normal equations, by
-// Cramer's rule); false when they do not determine it.
+// v = c0 + c1 u + c2 u^2 through points (u, v) by least squares (OpenCV's QR); false
+// when they do not determine it.
 bool fit_quadratic(const std::vector<glm::dvec2>& points, std::array<double, 3>& coef) {
-    double m[3][3] = {}, r[3] = {};
-    for (const glm::dvec2& q : points) {
-        const double basis[3] = {1.0, q.x, q.x * q.x};
-        for (int a = 0; a < 3; ++a) {
-            r[a] += basis[a] * q.y;
-            for (int b = 0; b < 3; ++b) m[a][b] += basis[a] * basis[b];
-        }
+    cv::Mat a(int(points.size()), 3, CV_64F), b(int(points.size()), 1, CV_64F), x;
+    for (int i = 0; i < a.rows; ++i) {
+        const glm::dvec2& q = points[std::size_t(i)];
+        a.at<double>(i, 0) = 1.0, a.at<double>(i, 1) = q.x, a.at<double>(i, 2) = q.x * q.x;
+        b.at<double>(i, 0) = q.y;
     }
-    auto det3 = [](const double(&q)[3][3]) {
-        return q[0][0] * (q[1][1] * q[2][2] - q[1][2] * q[2][1]) -
-               q[0][1] * (q[1][0] * q[2][2] - q[1][2] * q[2][0]) +
-               q[0][2] * (q[1][0] * q[2][1] - q[1][1] * q[2][0]);
-    };
-    const double det = det3(m);
-    if (!(std::abs(det) > 1e-18)) return false;
-    for (int a = 0; a < 3; ++a) {
-        double q[3][3];
-        for (int row = 0; row < 3; ++row)
-            for (int col = 0; col < 3; ++col) q[row][col] = col == a ? r[row] : m[row][col];
-        coef[std::size_t(a)] = det3(q) / det;
-    }
+    if (!cv::solve(a, b, x, cv::DECOMP_QR) || !cv::checkRange(x)) return false;
+    for (int k = 0; k < 3; ++k) coef[std::size_t(k)] = x.at<double>(k, 0);
     return true;
 }
 
