@@ -92,101 +92,6 @@ double envelope_peak(const float* v, int from, int to, double* at) {
     return m - 0.25 * (l - r) * shift;
 }
 
-// A plane wave on a flat reflector of R = 0.3 at 20 mm, level or tilted: each element's
-// echo against R times the image sources' wave, sum_i D_i D_e exp(-i 2 pi f (d_i + L_ie /
-// c0)) / sqrt(L_ie) S(f), L_ie from element i mirrored in the plane to element e (each
-// directivity at its own leg's angle). Level within 1 dB (the secondary sources' sum
-// against the element sum), arrival within a fifth of the traced map's texel and the same
-// across the elements, for 0 and 10 degrees on the level reflector and 0 and 5 degrees on
-// one tilted 10 degrees. On the tilted one the tracer finds the interface on a staircase
-// of the map's texels; the secondary sources must still add up to the mirrored wave.
-TEST(ChannelFrames, AFlatReflectorEchoesAsItsImageSources) {
-    const double depth = 20.0, R = 0.3;
-    const Spectrum spectrum = pulse_spectrum(probe::find_transducer("picmus", "t"), 1e4);
-    struct Case {
-        double angle, tilt;
-    };
-    for (const Case& k : {Case{0.0, 0.0}, Case{10.0, 0.0}, Case{0.0, 10.0}, Case{5.0, 10.0}}) {
-        const Imaged imaged =
-            image(reflector_phantom(depth, R, k.tilt), "plane:" + std::to_string(k.angle));
-        const probe::Transducer& t = imaged.transducer;
-        ASSERT_TRUE(imaged.frame.channels);
-        const imaging::ChannelData& c = *imaged.frame.channels;
-        const double s = std::sin(k.angle * kPi / 180.0);
-        const glm::dvec2 n(-std::sin(k.tilt * kPi / 180.0), std::cos(k.tilt * kPi / 180.0));
-        const glm::dvec2 p0(0.0, depth);
-        auto mirrored = [&](double xi) {
-            const glm::dvec2 p(xi, 0.0);
-            return p - 2.0 * glm::dot(p - p0, n) * n;
-        };
-        const double half = 0.5 * t.array_length_mm();
-        double worst_db = 0.0, worst_samples = 0.0;
-        double earliest = 1e9, latest = -1e9;  // arrival offsets (samples)
-        int checked = 0;
-        for (int e = 24; e < 104; e += 4) {
-            const double xe = c.element_x_mm[std::size_t(e)];
-            // The arrival by Fermat (the earliest image-source path) and the element it
-            // comes from: elements whose echo comes from the aperture's ends are skipped.
-            double expected = 1e9, from_x = 0.0;
-            for (double xi : c.element_x_mm) {
-                const double arrival =
-                    (xi * s + glm::length(glm::dvec2(xe, 0.0) - mirrored(xi))) / kC0;
-                if (arrival < expected) expected = arrival, from_x = xi;
-            }
-            if (std::abs(from_x) > half - 6.0) continue;
-            ++checked;
-            const int centre = int(std::lround((expected - c.start_s) * c.fs_hz));
-            const int from = centre - 48, to = centre + 48;
-            std::vector<std::complex<double>> received(spectrum.f.size(), 0.0);
-            for (std::size_t q = 0; q < spectrum.f.size(); ++q) {
-                const double f = spectrum.f[q];
-                for (double xi : c.element_x_mm) {
-                    const glm::dvec2 v = glm::dvec2(xe, 0.0) - mirrored(xi);
-                    const glm::dvec2 out = v - 2.0 * glm::dot(v, n) * n;  // leaving element i
-                    const double L = glm::length(v);
-                    auto D = [&](const glm::dvec2& leg) {
-                        return sinc(kPi * t.element_width_mm * f * leg.x / L / kC0) *
-                               std::abs(leg.y) / L;
-                    };
-                    received[q] +=
-                        D(v) * D(out) *
-                        std::polar(1.0 / std::sqrt(L), -2.0 * kPi * f * (xi * s / kC0 + L / kC0));
-                }
-                received[q] *= R * spectrum.s[q];
-            }
-            std::vector<float> reference(std::size_t(to - from));
-            for (int m = from; m < to; ++m) {
-                std::complex<double> sum = 0.0;
-                for (std::size_t q = 0; q < spectrum.f.size(); ++q)
-                    sum += received[q] * std::polar(1.0, 2.0 * kPi * spectrum.f[q] * c.time_s(m));
-                reference[std::size_t(m - from)] = float(sum.real());
-            }
-            double at_reference = 0.0, at_simulated = 0.0;
-            const double level_reference =
-                envelope_peak(reference.data(), 0, to - from, &at_reference);
-            const double level = envelope_peak(c.channel(0, e), from, to, &at_simulated);
-            worst_db = std::max(worst_db, std::abs(20.0 * std::log10(level / level_reference)));
-            worst_samples = std::max(worst_samples, std::abs(at_simulated - at_reference));
-            earliest = std::min(earliest, at_simulated - at_reference);
-            latest = std::max(latest, at_simulated - at_reference);
-        }
-        std::printf(
-            "plane wave at %.0f degrees on R = %.1f tilted %.0f degrees (%d elements): worst "
-            "level %.2f dB, arrivals %.3f to %.3f samples\n",
-            k.angle, R, k.tilt, checked, worst_db, earliest, latest);
-        EXPECT_GE(checked, 8);
-        EXPECT_LT(worst_db, 1.0);
-        // The tracer finds the interface within its map's texel (0.25 mm at standard
-        // quality): all arrivals together within a fifth of one, two ways (1.35 samples at
-        // 20.8 MHz; measured: 0.55 early, 0.02 mm of depth); from element to element (the
-        // channel model's geometry, with the particles' jitter along the reflector) within
-        // 0.4 samples (measured: 0.26).
-        const double texel_samples = 2.0 * 0.2 * 0.25 / kC0 * c.fs_hz;
-        EXPECT_LT(worst_samples, texel_samples);
-        EXPECT_LT(latest - earliest, 0.4);
-    }
-}
-
 // Every element's channel under transmit 0 of `layout` from the image sources of a
 // reflector of R through (0, depth) with normal n (the sum of the flat-reflector test
 // above, for every element and every sample, element i firing at its delay d_i): S(f) on
@@ -228,6 +133,77 @@ imaging::ChannelData image_source_channels(const imaging::ChannelData& layout,
         for (int m = 0; m < c.samples; ++m) out[m] = float(bins.at<cv::Vec2d>(0, m)[0]);
     }
     return c;
+}
+
+// A plane wave on a flat reflector of R = 0.3 at 20 mm, level or tilted: each element's
+// echo against R times the image sources' wave, sum_i D_i D_e exp(-i 2 pi f (d_i + L_ie /
+// c0)) / sqrt(L_ie) S(f), L_ie from element i mirrored in the plane to element e (each
+// directivity at its own leg's angle). Level within 1 dB (the secondary sources' sum
+// against the element sum), arrival within a fifth of the traced map's texel and the same
+// across the elements, for 0 and 10 degrees on the level reflector and 0 and 5 degrees on
+// one tilted 10 degrees. On the tilted one the tracer finds the interface on a staircase
+// of the map's texels; the secondary sources must still add up to the mirrored wave.
+TEST(ChannelFrames, AFlatReflectorEchoesAsItsImageSources) {
+    const double depth = 20.0, R = 0.3;
+    struct Case {
+        double angle, tilt;
+    };
+    for (const Case& k : {Case{0.0, 0.0}, Case{10.0, 0.0}, Case{0.0, 10.0}, Case{5.0, 10.0}}) {
+        const Imaged imaged =
+            image(reflector_phantom(depth, R, k.tilt), "plane:" + std::to_string(k.angle));
+        const probe::Transducer& t = imaged.transducer;
+        ASSERT_TRUE(imaged.frame.channels);
+        const imaging::ChannelData& c = *imaged.frame.channels;
+        const double s = std::sin(k.angle * kPi / 180.0);
+        const glm::dvec2 n(-std::sin(k.tilt * kPi / 180.0), std::cos(k.tilt * kPi / 180.0));
+        const imaging::ChannelData reference = image_source_channels(c, t, depth, n, R);
+        const glm::dvec2 p0(0.0, depth);
+        auto mirrored = [&](double xi) {
+            const glm::dvec2 p(xi, 0.0);
+            return p - 2.0 * glm::dot(p - p0, n) * n;
+        };
+        const double half = 0.5 * t.array_length_mm();
+        double worst_db = 0.0, worst_samples = 0.0;
+        double earliest = 1e9, latest = -1e9;  // arrival offsets (samples)
+        int checked = 0;
+        for (int e = 24; e < 104; e += 4) {
+            const double xe = c.element_x_mm[std::size_t(e)];
+            // The arrival by Fermat (the earliest image-source path) and the element it
+            // comes from: elements whose echo comes from the aperture's ends are skipped.
+            double expected = 1e9, from_x = 0.0;
+            for (double xi : c.element_x_mm) {
+                const double arrival =
+                    (xi * s + glm::length(glm::dvec2(xe, 0.0) - mirrored(xi))) / kC0;
+                if (arrival < expected) expected = arrival, from_x = xi;
+            }
+            if (std::abs(from_x) > half - 6.0) continue;
+            ++checked;
+            const int centre = int(std::lround((expected - c.start_s) * c.fs_hz));
+            const int from = centre - 48, to = centre + 48;
+            double at_reference = 0.0, at_simulated = 0.0;
+            const double level_reference =
+                envelope_peak(reference.channel(0, e), from, to, &at_reference);
+            const double level = envelope_peak(c.channel(0, e), from, to, &at_simulated);
+            worst_db = std::max(worst_db, std::abs(20.0 * std::log10(level / level_reference)));
+            worst_samples = std::max(worst_samples, std::abs(at_simulated - at_reference));
+            earliest = std::min(earliest, at_simulated - at_reference);
+            latest = std::max(latest, at_simulated - at_reference);
+        }
+        std::printf(
+            "plane wave at %.0f degrees on R = %.1f tilted %.0f degrees (%d elements): worst "
+            "level %.2f dB, arrivals %.3f to %.3f samples\n",
+            k.angle, R, k.tilt, checked, worst_db, earliest, latest);
+        EXPECT_GE(checked, 8);
+        EXPECT_LT(worst_db, 1.0);
+        // The tracer finds the interface within its map's texel (0.25 mm at standard
+        // quality): all arrivals together within a fifth of one, two ways (1.35 samples at
+        // 20.8 MHz; measured: 0.55 early, 0.02 mm of depth); from element to element (the
+        // channel model's geometry, with the particles' jitter along the reflector) within
+        // 0.4 samples (measured: 0.26).
+        const double texel_samples = 2.0 * 0.2 * 0.25 / kC0 * c.fs_hz;
+        EXPECT_LT(worst_samples, texel_samples);
+        EXPECT_LT(latest - earliest, 0.4);
+    }
 }
 
 // A reflector tilted 20 degrees under one plane wave at 0 degrees sends its mirrored wave
