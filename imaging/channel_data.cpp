@@ -81,7 +81,8 @@ constexpr int kPairBlock = 256;
 
 // What the pair loop needs of an element and the fit.
 struct PairConstants {
-    float xe, inverse_c0, fs, turns_per_sample, step_re, step_im;
+    float xe, ze, nx, nz;  // the element's place and normal
+    float inverse_c0, fs, turns_per_sample, step_re, step_im;
     std::array<float, 3> directivity;  // pi w (1 + nu_q) / lambda0: sinc's argument per sin theta
     float b;
     // The closest an echo is taken to be to an element (mm): the far-field 1 / sqrt(R) of
@@ -110,16 +111,18 @@ template <bool Facets>
     const PairConstants& k, int32_t* __restrict n0, float* __restrict terms) {
     const float half_b = 0.5f / k.b, half_b2 = 0.5f / (k.b * k.b);
     // The constants as locals: read through `k` they might alias the outputs.
-    const float xe = k.xe, inverse_c0 = k.inverse_c0, fs = k.fs;
+    const float xe = k.xe, ze = k.ze, nx = k.nx, nz = k.nz, inverse_c0 = k.inverse_c0, fs = k.fs;
     const float turns_per_sample = k.turns_per_sample, step_re = k.step_re, step_im = k.step_im;
     const float d0 = k.directivity[0], d1 = k.directivity[1], d2 = k.directivity[2];
     const float f0 = k.frequency[0], f1 = k.frequency[1], f2 = k.frequency[2];
     const float nearest2 = k.nearest * k.nearest;
     for (int i = 0; i < count; ++i) {
-        const float dx = x[i] - xe;
-        const float R = std::sqrt(std::max(dx * dx + z[i] * z[i], nearest2));
+        const float dx = x[i] - xe, dz = z[i] - ze;
+        const float R = std::sqrt(std::max(dx * dx + dz * dz, nearest2));
         const float inverse_R = 1.0f / R;
-        const float sin_back = dx * inverse_R;
+        // The way back's angle from the element's normal (a flat array's: dx / R, z / R).
+        const float sin_back = (dx * nz - dz * nx) * inverse_R;
+        const float cos_back = std::max(dx * nx + dz * nz, 0.0f) * inverse_R;
         // sinc(a) = sin |a| / |a|, |a| kept from 0 (sin 1e-6 / 1e-6 = 1 in float). Written
         // out for each frequency: a loop inside this one would keep it from vectorising.
         auto sinc_of = [](float a) {
@@ -130,9 +133,9 @@ template <bool Facets>
         };
         float back[3] = {sinc_of(d0 * sin_back), sinc_of(d1 * sin_back), sinc_of(d2 * sin_back)};
         if constexpr (Facets) {
-            // (d - u_e) . t, u_e = (xe - x, -z) / R.
+            // (d - u_e) . t, u_e = (p_e - r) / R.
             const float across =
-                facets.dt[i] + (dx * facets.tx[i] + z[i] * facets.tz[i]) * inverse_R;
+                facets.dt[i] + (dx * facets.tx[i] + dz * facets.tz[i]) * inverse_R;
             const float a = facets.scale[i] * across;
             back[0] *= sinc_of(a * f0), back[1] *= sinc_of(a * f1), back[2] *= sinc_of(a * f2);
         }
@@ -147,7 +150,7 @@ template <bool Facets>
         base::sincos_turns(-u * turns_per_sample, sine, cosine);
         const float next_re = cosine * step_re - sine * step_im,
                     next_im = cosine * step_im + sine * step_re;
-        const float scale = z[i] * inverse_R / std::sqrt(R);
+        const float scale = cos_back / std::sqrt(R);
         const float ar = re[i] * scale, ai = im[i] * scale;
         const float w0 = 1.0f - u;
         const float a0r = (ar * cosine - ai * sine) * w0, a0i = (ar * sine + ai * cosine) * w0;
@@ -209,19 +212,28 @@ ChannelData channel_layout(const probe::Transducer& t, const probe::TransmitSche
     c.start_s = settings.start_us * 1e-6;
     c.speed_m_s = tissue::kReferenceSpeed;
     c.pitch_mm = t.pitch_mm;
-    c.element_x_mm = probe::element_positions_mm(t);
+    c.element_s_mm = probe::element_arc_mm(t);
+    c.element_points = probe::element_points(t);
     c.waves = scheme.waves;
     const double depth = settings.depth_mm > 0.0 ? settings.depth_mm : t.depth_mm;
     const double span = t.array_length_mm();
     const probe::PulseEcho pulse(t);
-    double latest = 0.0;
+    // The deepest points: `depth` below the face's ends and centre, and the scanned
+    // region's deepest corners and middle; the latest arrival there plus the longest way
+    // back from any of them to any element.
+    const probe::ScanGeometry scan(t);
+    std::vector<glm::dvec2> deepest{{-0.5 * span, depth}, {0.0, depth}, {0.5 * span, depth}};
+    for (double l : {-0.5, 0.5 * (t.lines - 1), t.lines - 0.5}) deepest.push_back(scan.point(l, depth));
+    double latest = 0.0, longest_way_back = 0.0;
     for (const probe::TransmitWave& wave : scheme.waves) {
         const probe::TransmitField field(t, wave);
         c.delays_s.push_back(field.delays_s());
-        for (double x : {-0.5 * span, 0.0, 0.5 * span})
-            latest = std::max(latest, field.at({x, depth}).time_s);
+        for (const glm::dvec2& r : deepest) latest = std::max(latest, field.at(r).time_s);
     }
-    latest += std::hypot(depth, span) / kC0MmPerS + 1.5 * pulse.half_length_s();
+    for (const glm::dvec2& r : deepest)
+        for (const probe::ArrayPoint& e : c.element_points)
+            longest_way_back = std::max(longest_way_back, glm::length(r - e.position));
+    latest += longest_way_back / kC0MmPerS + 1.5 * pulse.half_length_s();
     c.samples = std::max(1, int(std::ceil((latest - c.start_s) * c.fs_hz)) + 1);
     return c;
 }
@@ -305,7 +317,11 @@ ChannelData channel_data(const probe::Transducer& t, const probe::TransmitScheme
             for (int family = 0; family < (particles ? 2 : 1); ++family)
                 for (auto& v : trains[std::size_t(family)]) v.assign(std::size_t(S), 0.0f);
             PairConstants k = constants;
-            k.xe = float(c.element_x_mm[std::size_t(e)]);
+            const probe::ArrayPoint& element = c.element_points[std::size_t(e)];
+            k.xe = float(element.position.x);
+            k.ze = float(element.position.y);
+            k.nx = float(element.normal.x);
+            k.nz = float(element.normal.y);
             std::array<int32_t, kPairBlock> n0;
             std::array<float, 12 * kPairBlock> terms;
             // Blocks of facets, then of points (a block never mixes them).

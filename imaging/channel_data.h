@@ -1,17 +1,17 @@
 #pragma once
-// Channel data: the RF each element of a flat array receives after each unfocused
+// Channel data: the RF each element of an open array receives after each unfocused
 // transmit (probe/transmit.h), transmit x element x sample, float32, as a scanner's
 // ultrafast mode records it before any beamforming.
 //
 // An echo source at r (probe plane, mm) of strength sigma (mm: the echo it sends back per
 // unit pressure arriving, as an element's own radiation) lit by transmit w gives element
-// e at x_e, at frequency f of the pulse-echo spectrum S(f) (probe/pulse.h),
+// e at p_e, at frequency f of the pulse-echo spectrum S(f) (probe/pulse.h),
 //
 //   E_e(f) = S(f) sigma T_w(r, f) D(theta_e, f) exp(-i 2 pi f R_e / c0) / sqrt(R_e)
 //
 // with T_w the transmit's wave at r (its element sum by stationary phase,
-// probe/transmit.h), R_e = |r - x_e|, theta_e the angle of the way back from the element's
-// normal and D = sinc(pi w f sin theta / c0) cos theta the element's directivity
+// probe/transmit.h), R_e = |r - p_e| (element e at p_e facing n_e), theta_e the angle of
+// the way back from n_e (no echo where it is 90 degrees or more) and D = sinc(pi w f sin theta / c0) cos theta the element's directivity
 // (probe/aperture.h): the aperture model's element, applied element by element. The
 // channel's RF is Re sum_f E_e(f) exp(i 2 pi f t).
 //
@@ -89,7 +89,8 @@ struct ChannelData {
     double speed_m_s = 0.0;     // c0 the delays are computed with
     double frequency_hz = 0.0;  // centre frequency
     double pitch_mm = 0.0;
-    std::vector<double> element_x_mm;           // elements at (x, 0), probe plane
+    std::vector<double> element_s_mm;           // arc length along the face (a flat array's x)
+    std::vector<probe::ArrayPoint> element_points;  // place and normal, probe plane (mm)
     std::vector<probe::TransmitWave> waves;     // one per transmit
     std::vector<std::vector<double>> delays_s;  // [transmit][element]: firing times
     std::vector<float> values;                  // [(w * elements + e) * samples + n]

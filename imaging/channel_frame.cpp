@@ -52,16 +52,6 @@ class Illumination {
     cv::Mat smoothed_;
 };
 
-// A diverging wave's free-field spreading at r (probe plane): R2 / (R1 + R2) of
-// probe/transmit.h (the share of the face's width its particles still cover there).
-double spreading(const probe::TransmitWave& wave, const glm::dvec2& r) {
-    if (wave.kind == probe::TransmitWave::Kind::plane) return 1.0;
-    const glm::dvec2 v = wave.virtual_source();
-    const double to_r = glm::length(r - v);
-    const double behind = to_r * (-v.y) / std::max(r.y - v.y, 1e-9);
-    return behind / std::max(to_r, 1e-9);
-}
-
 }  // namespace
 
 int particles_per_transmit(const SimulationSettings& settings) {
@@ -155,6 +145,18 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 return glm::dvec2(source.position) - to_map +
                        double(e.time_s - source.time_s) * kC0MmPerS * glm::dvec2(source.direction);
             };
+            // How the event's particle left the face: its ray (where the transmit's
+            // directivity is taken) and its apodization.
+            auto launch_of = [&](const simulator::EchoEvent<2>& e) {
+                return probe::launch_arc_mm(t, count, int(e.particle));
+            };
+            auto lit_by = [&](const simulator::EchoEvent<2>& e) {
+                ChannelEcho::Lit lit;
+                lit.arrival_s = double(e.time_s);
+                lit.transmit_sin_angle = field.ray_from(launch_of(e)).sin_angle;
+                lit.incident = glm::dvec2(own[e.particle].direction);
+                return lit;
+            };
             // Scattering a particle met after a reflection: its echo returns the way the
             // particle came and shows at the path's image point (the speckle and the
             // scatterers behind a mirror). By random phases, an estimator of intensity:
@@ -172,7 +174,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 if (e.particle >= own.size() || cores.contains(glm::dvec2(e.position))) return;
                 const probe::SourceParticle<2>& source = own[e.particle];
                 const glm::dvec2 image = image_of(e);
-                if (!(image.y > 0.0)) return;
+                if (!field.geometry().in_front(image)) return;
                 const double loss = double(e.energy) / std::max(double(source.energy), 1e-30);
                 const double intensity = loss * loss * double(e.weight) * double(e.return_weight) *
                                          t.rx_f_number * piece * lambda;
@@ -185,11 +187,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                     std::polar(std::sqrt(intensity * double(scheme.waves.size())) / t.pitch_mm,
                                2.0 * std::numbers::pi * double(bits >> 11) * 0x1.0p-53);
                 if (!(std::abs(strength) > 0.0)) return;
-                ChannelEcho::Lit lit;
-                lit.arrival_s = double(e.time_s);
-                lit.transmit_sin_angle = double(source.direction.x);
-                lit.incident = glm::dvec2(source.direction);
-                echoes.push_back({image, strength, 0.0, lit});
+                echoes.push_back({image, strength, 0.0, lit_by(e)});
             };
             // Reflections: secondary sources at their paths' image points.
             // Events come by particle, then time: whether a particle has met a rough
@@ -209,22 +207,21 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 if (e.kind == simulator::EchoKind::diffuse) roughened = true;
                 if (e.particle >= own.size() || cores.contains(glm::dvec2(e.position))) continue;
                 const probe::SourceParticle<2>& source = own[e.particle];
-                const glm::dvec2 launch = glm::dvec2(source.position) - to_map;
                 const glm::dvec2 image = image_of(e);
-                if (!(image.y > 0.0)) continue;
+                if (!field.geometry().in_front(image)) continue;
                 const double loss = double(e.energy) / std::max(double(source.energy), 1e-30);
                 // Coherent echoes (specular, the particle's phase still the transmit's):
                 // an estimator of amplitude, without the return weight (header). Echoes
                 // through a rough interface add with random phases, so their intensities
                 // add: an estimator of intensity, with it, as the focused mode's.
                 double amplitude =
-                    field.aperture_weight(launch.x) * loss *
+                    field.aperture_weight(launch_of(e)) * loss *
                     std::sqrt(double(e.weight) * (coherent ? 1.0 : double(e.return_weight))) *
                     piece / t.pitch_mm;
                 // A diverging wave's particles part as it spreads: each then stands for
                 // piece / G of the wavefront, where the wave's amplitude is sqrt(G) of a
-                // plane wave's (G: spreading()), so a coherent source carries 1 / sqrt(G).
-                if (coherent) amplitude /= std::sqrt(std::max(spreading(wave, image), 1e-6));
+                // plane wave's (G: TransmitField's spreading), so a coherent source carries 1 / sqrt(G).
+                if (coherent) amplitude /= std::sqrt(std::max(field.at(image).spreading, 1e-6));
                 // The share of the reflector's lobe that heads back the way the particle
                 // came, within the receive's half-angle: a rough interface's echo, and any
                 // echo after a reflection (as the focused mode takes them). A direct
@@ -250,11 +247,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                         {e.particle, int(e.bounces), image, glm::dvec2(source.direction)});
                     surface_index.push_back(echoes.size());
                 }
-                ChannelEcho::Lit lit;
-                lit.arrival_s = double(e.time_s);
-                lit.transmit_sin_angle = double(source.direction.x);
-                lit.incident = glm::dvec2(source.direction);
-                echoes.push_back({image, strength, 0.0, lit});
+                echoes.push_back({image, strength, 0.0, lit_by(e)});
             }
             // The coherent sources onto their surfaces, below the map's staircase.
             const std::vector<SurfacePatch> patches = surface_patches(surface, smoothing);
@@ -299,7 +292,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                     // The transmit's loss on the way in, and again on the way out (the
                     // way back repeats the way in, as in the focused mode).
                     const double a =
-                        light.amplitude(s.position + to_map, spreading(wave, s.position));
+                        light.amplitude(s.position + to_map, field.at(s.position).spreading);
                     if (a > 0.0)
                         echoes.push_back({s.position, s.strength * a * a, 0.0, std::nullopt});
                 }

@@ -93,23 +93,25 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
                 // pitches across: a narrower apodized aperture leaves pixels between
                 // elements with no weight (a comb along the face).
                 const glm::dvec2 line = geometry.line_and_depth({x, z});
-                const double centre = geometry.point(line.x, 0.0).x;
+                const double centre = geometry.array().arc_length(geometry.point(line.x, 0.0));
                 const double half_width =
                     std::max(0.5 * std::abs(line.y) / settings.f_number, t.pitch_mm);
                 const double transmit_time = field.at({x, z}).time_s;
-                const auto lo = std::lower_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
+                const auto lo = std::lower_bound(c.element_s_mm.begin(), c.element_s_mm.end(),
                                                  centre - half_width);
-                const auto hi = std::upper_bound(c.element_x_mm.begin(), c.element_x_mm.end(),
+                const auto hi = std::upper_bound(c.element_s_mm.begin(), c.element_s_mm.end(),
                                                  centre + half_width);
                 std::complex<double> sum = 0.0;
                 double weights = 0.0;
                 for (auto it = lo; it < hi; ++it) {
-                    const int e = int(it - c.element_x_mm.begin());
+                    const int e = int(it - c.element_s_mm.begin());
                     const double weight = probe::apodization_weight(
                         settings.apodization, 0.5 + (*it - centre) / (2.0 * half_width));
                     if (!(weight > 0.0)) continue;
                     weights += weight;
-                    const double delay = transmit_time + std::hypot(x - *it, z) / c0;
+                    const glm::dvec2 element = c.element_points[std::size_t(e)].position;
+                    const double delay =
+                        transmit_time + std::hypot(x - element.x, z - element.y) / c0;
                     const double position = (delay - c.start_s) * fs;
                     const std::complex<float> v =
                         interpolate(baseband.data() + std::size_t(e) * std::size_t(S), S, position);

@@ -2,13 +2,14 @@
 // Delay-and-sum beamforming of channel data (imaging/channel_data.h) on a grid of pixels,
 // coherently compounded over the transmits:
 //
-//   b(r) = sum_w sum_e a_e(r) s_we(tau_w(r) + |r - x_e| / c0)
+//   b(r) = sum_w sum_e a_e(r) s_we(tau_w(r) + |r - p_e| / c0)
 //
 // with s_we the analytic signal of element e's channel under transmit w, tau_w(r) the
-// transmit's arrival at r (probe/transmit.h) and a_e(r) the receive apodization over the
-// elements within d / (2 F) of o (F the receive F-number; at least a pitch), where o is
-// where r's scan line leaves the face and d the depth along it: the focused mode's
-// receive aperture (a linear array: o = x, d = z; a phased one: o = 0, d = |r|). The
+// transmit's arrival at r (probe/transmit.h), p_e element e's place and a_e(r) the
+// receive apodization over the elements within d / (2 F) of o along the face (F the
+// receive F-number; at least a pitch), where o is where r's scan line leaves the face and
+// d the depth along it: the focused mode's receive aperture (a linear array: o = x, d =
+// z; a phased one: o = 0, d = |r|; a convex one: the foot of the normal through r). The
 // analytic signal is taken by the discrete Hilbert transform (the spectrum's negative
 // half removed), brought to baseband at f0 and interpolated there (Catmull-Rom), then
 // carried back to the carrier at the delay: the carrier's phase is exact at any delay.

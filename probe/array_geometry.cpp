@@ -9,11 +9,11 @@ namespace sonotrace::probe {
 
 const std::vector<ArrayType>& array_types() {
     // The registration of every array type: its name (CLI, sidecars, GUI), what the CLI's
-    // --type help says of it, whether --fov sets its lines' angle, whether it is flat.
+    // --type help says of it, whether --fov sets its lines' angle, whether it takes unfocused transmits.
     static const std::vector<ArrayType> types = {
         {TransducerType::linear, "linear", "parallel lines", false, true, arrays::no_fov,
          arrays::whole_array, arrays::make_linear, arrays::validate_linear},
-        {TransducerType::convex, "convex", "a fan of lines from a curved array", true, false,
+        {TransducerType::convex, "convex", "a fan of lines from a curved array", true, true,
          arrays::max_fov_convex, arrays::whole_array, arrays::make_convex, arrays::validate_convex},
         {TransducerType::phased, "phased", "a fan of lines steered from a flat array", true, true,
          arrays::max_fov_phased, arrays::whole_array, arrays::make_phased, arrays::validate_phased},
@@ -70,6 +70,33 @@ glm::dvec2 FanLines::line_and_depth(const glm::dvec2& p) const {
     const glm::dvec2 v(p.x, p.y + radius);
     const double u = std::atan2(v.x, v.y);
     return {(u + 0.5 * span) * lines / span - 0.5, glm::length(v) - radius};
+}
+
+std::optional<double> ArrayGeometry::face_crossing(const glm::dvec2& p, const glm::dvec2& u) const {
+    if (!(u.y > 0.0)) return std::nullopt;
+    return p.x - p.y * u.x / u.y;
+}
+
+double ArcArray::arc_length(const glm::dvec2& on_face) const {
+    return radius_ * std::atan2(on_face.x, on_face.y + radius_);
+}
+
+// p - t u on the circle: t^2 - 2 b t + c = 0 with b = u . (p - centre), c = |p - centre|^2
+// - R^2; the smaller root that is not negative.
+std::optional<double> ArcArray::face_crossing(const glm::dvec2& p, const glm::dvec2& u) const {
+    const glm::dvec2 from_centre = p - glm::dvec2(0.0, -radius_);
+    const double b = glm::dot(u, from_centre);
+    const double c = glm::dot(from_centre, from_centre) - radius_ * radius_;
+    const double discriminant = b * b - c;
+    if (!(discriminant >= 0.0)) return std::nullopt;
+    const double root = std::sqrt(discriminant);
+    const double t = b - root >= 0.0 ? b - root : b + root;
+    if (!(t >= 0.0)) return std::nullopt;
+    return arc_length(p - t * u);
+}
+
+bool ArcArray::in_front(const glm::dvec2& p) const {
+    return glm::length(p - glm::dvec2(0.0, -radius_)) > radius_;
 }
 
 ArrayPoint ArcArray::face(double s) const {

@@ -52,6 +52,16 @@ class ArrayGeometry {
     virtual bool closed() const { return false; }
     // Radius of the face's arc (0: flat), for the capture model's face.
     virtual double face_radius_mm() const { return 0.0; }
+
+    // The face's shape, for waves that leave the whole array (probe/transmit.h). These
+    // defaults are the flat face y = 0 (s = x), facing +y.
+    // Arc length of a point on the face.
+    virtual double arc_length(const glm::dvec2& on_face) const { return on_face.x; }
+    // Where the ray that reaches p heading along u (unit) crossed the face: the first
+    // crossing going back from p, as arc length; nullopt if going back never meets it.
+    virtual std::optional<double> face_crossing(const glm::dvec2& p, const glm::dvec2& u) const;
+    // True if p lies in front of the face (on the tissue's side).
+    virtual bool in_front(const glm::dvec2& p) const { return p.y > 0.0; }
 };
 
 // The geometry of `t` (its type's class, built from its parameters).
@@ -65,8 +75,9 @@ struct ArrayType {
     const char* name;
     const char* description;
     bool fov_adjustable;
-    // Elements on a line (x_i, 0): plane and diverging waves (probe/transmit.h) apply.
-    bool flat;
+    // Plane and diverging waves (probe/transmit.h) apply: an open face, every element on
+    // one side of it (not a ring).
+    bool unfocused_transmits;
     double (*max_fov_deg)(const Transducer&);  // the widest --fov its arrays allow
     // The widest active aperture (mm of the array) a line can use: apertures asked wider
     // are clipped to it (Transducer::active_aperture_mm, receive_aperture_mm).
@@ -114,6 +125,10 @@ class ArcArray : public ArrayGeometry {
         return face(along);
     }
     double face_radius_mm() const override { return radius_; }
+    // The face's circle, |p - (0, -R)| = R; arc length R atan2(x, y + R).
+    double arc_length(const glm::dvec2& on_face) const override;
+    std::optional<double> face_crossing(const glm::dvec2& p, const glm::dvec2& u) const override;
+    bool in_front(const glm::dvec2& p) const override;
 
   private:
     double radius_;

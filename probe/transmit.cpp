@@ -154,21 +154,34 @@ std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme, 
                                                   const std::string& source,
                                                   const std::string& field) {
     if (scheme.empty()) throw base::InputError(source, field, "zero transmits");
-    if (!array_type(t.type).flat)
+    if (!array_type(t.type).unfocused_transmits)
         throw base::InputError(source, field,
-                               "plane and diverging waves need a flat array (linear or phased); "
-                               "the probe is " +
+                               "plane and diverging waves need an open array (linear, phased or "
+                               "convex); the probe is " +
                                    to_string(t.type));
+    // Every element's ray, from its normal: forwards, and within the grating-lobe limit.
+    const std::vector<double> elements = element_arc_mm(t);
+    double worst = 0.0;
+    for (std::size_t k = 0; k < scheme.waves.size(); ++k) {
+        const TransmitField wave(t, scheme.waves[k]);
+        for (double s : elements) {
+            const TransmitField::Ray ray = wave.ray_from(s);
+            if (!(ray.cos_angle > 1e-6))
+                throw base::InputError(
+                    source, field,
+                    "transmit " + std::to_string(k + 1) + " (" + scheme.waves[k].label() +
+                        ") would leave the element " + base::number_text(s) +
+                        " mm along the face at " +
+                        base::number_text(std::atan2(ray.sin_angle, ray.cos_angle) / kDegree) +
+                        " degrees from its normal: every element's ray must head into the "
+                        "tissue (a virtual source behind each element, a plane wave within 90 "
+                        "degrees of each normal)");
+            worst = std::max(worst, std::abs(std::asin(std::clamp(ray.sin_angle, -1.0, 1.0))));
+        }
+    }
     // The first grating lobe at f0 lies at sin theta - lambda / pitch; past the limit it
     // comes within the element's -6 dB directivity.
     const double ratio = t.wavelength_mm() / t.pitch_mm;
-    double worst = 0.0;
-    for (const TransmitWave& w : scheme.waves) {
-        double angle = std::abs(w.angle_rad);
-        if (w.kind == TransmitWave::Kind::diverging)
-            angle += std::atan(0.5 * t.array_length_mm() / w.source_distance_mm);
-        worst = std::max(worst, std::min(angle, 0.5 * std::numbers::pi));
-    }
     std::vector<std::string> warnings;
     const double lobe = std::sin(worst) - ratio;
     if (lobe > -1.0 && element_directivity(t, lobe) > 0.5) {
@@ -182,25 +195,38 @@ std::vector<std::string> validate_transmit_scheme(const TransmitScheme& scheme, 
     return warnings;
 }
 
-std::vector<double> element_positions_mm(const Transducer& t) {
-    std::vector<double> x(std::size_t(t.elements));
+std::vector<double> element_arc_mm(const Transducer& t) {
+    std::vector<double> s(std::size_t(t.elements));
     for (int i = 0; i < t.elements; ++i)
-        x[std::size_t(i)] = (i - 0.5 * (t.elements - 1)) * t.pitch_mm;
-    return x;
+        s[std::size_t(i)] = (i - 0.5 * (t.elements - 1)) * t.pitch_mm;
+    return s;
+}
+
+std::vector<ArrayPoint> element_points(const Transducer& t) {
+    const std::unique_ptr<const ArrayGeometry> geometry = array_geometry(t);
+    std::vector<ArrayPoint> points;
+    for (double s : element_arc_mm(t)) points.push_back(geometry->face(s));
+    return points;
+}
+
+double launch_arc_mm(const Transducer& t, int count, int i) {
+    const double half = 0.5 * t.array_length_mm();
+    return -half + 2.0 * half * (i + 0.5) / std::max(1, count);
 }
 
 TransmitField::TransmitField(const Transducer& t, const TransmitWave& wave)
     : wave_(wave),
-      x_(element_positions_mm(t)),
+      geometry_(array_geometry(t)),
       apodization_(t.tx_apodization),
       half_span_(0.5 * t.array_length_mm()),
       pitch_(t.pitch_mm),
       lambda0_(t.wavelength_mm()) {
-    delays_.resize(x_.size());
-    weights_.resize(x_.size());
-    for (std::size_t i = 0; i < x_.size(); ++i) {
-        delays_[i] = at({x_[i], 0.0}).time_s;
-        weights_[i] = apodization_weight(apodization_, (double(i) + 0.5) / double(x_.size()));
+    const std::vector<double> s = element_arc_mm(t);
+    delays_.resize(s.size());
+    weights_.resize(s.size());
+    for (std::size_t i = 0; i < s.size(); ++i) {
+        delays_[i] = at(geometry_->face(s[i]).position).time_s;
+        weights_[i] = apodization_weight(apodization_, (double(i) + 0.5) / double(s.size()));
     }
 }
 
@@ -208,40 +234,58 @@ double TransmitField::aperture_weight(double s) const {
     return apodization_weight(apodization_, (s + half_span_) / (2.0 * half_span_));
 }
 
+TransmitField::Ray TransmitField::ray_from(double s) const {
+    const ArrayPoint f = geometry_->face(s);
+    Ray ray;
+    ray.origin = f.position;
+    ray.direction = wave_.kind == TransmitWave::Kind::plane
+                        ? glm::dvec2(std::sin(wave_.angle_rad), std::cos(wave_.angle_rad))
+                        : glm::normalize(f.position - wave_.virtual_source());
+    ray.sin_angle = ray.direction.x * f.normal.y - ray.direction.y * f.normal.x;
+    ray.cos_angle = glm::dot(ray.direction, f.normal);
+    return ray;
+}
+
 TransmitField::Arrival TransmitField::at(const glm::dvec2& r) const {
     constexpr double c0_mm_per_s = tissue::kReferenceSpeed * 1e3;
     Arrival a;
-    double s = 0.0, cos_angle = 1.0, effective_range = 0.0, geometry = 1.0;
+    glm::dvec2 heading;
+    glm::dvec2 v(0.0);
     if (wave_.kind == TransmitWave::Kind::plane) {
-        const double sn = std::sin(wave_.angle_rad), cs = std::cos(wave_.angle_rad);
-        a.time_s = (r.x * sn + r.y * cs) / c0_mm_per_s;
-        a.sin_angle = sn;
-        cos_angle = cs;
-        s = r.x - r.y * sn / cs;
-        effective_range = r.y / cs;
+        heading = {std::sin(wave_.angle_rad), std::cos(wave_.angle_rad)};
+        a.time_s = glm::dot(r, heading) / c0_mm_per_s;
     } else {
-        const glm::dvec2 v = wave_.virtual_source();
+        v = wave_.virtual_source();
         const double to_r = glm::length(r - v);
         a.time_s = (to_r - glm::length(v)) / c0_mm_per_s;
-        if (!(r.y > 0.0) || to_r <= 0.0) return a;
-        s = v.x + (r.x - v.x) * (-v.y) / (r.y - v.y);
-        a.sin_angle = (r.x - v.x) / to_r;
-        cos_angle = (r.y - v.y) / to_r;
-        const double behind = glm::length(glm::dvec2(s, 0.0) - v), in_front = to_r - behind;
-        geometry = behind / to_r;
-        effective_range = behind * in_front / to_r;
+        if (!(to_r > 0.0)) return a;
+        heading = (r - v) / to_r;
     }
-    if (!(r.y > 0.0) || !(effective_range > 0.0)) return a;
+    // The ray through r, back to the face (header: s*, theta*).
+    const std::optional<double> crossing = geometry_->face_crossing(r, heading);
+    if (!crossing) return a;
+    const double s = *crossing;
+    const Ray ray = ray_from(s);
+    const double in_front = glm::dot(r - ray.origin, heading);
+    if (!(in_front > 0.0) || !(ray.cos_angle > 0.0)) return a;
+    a.sin_angle = ray.sin_angle;
+    double effective_range = in_front;
+    if (wave_.kind == TransmitWave::Kind::diverging) {
+        const double behind = glm::dot(ray.origin - v, heading);
+        if (!(behind > 0.0)) return a;
+        a.spreading = behind / (behind + in_front);
+        effective_range = behind * in_front / (behind + in_front);
+    }
     // The apodization at the nearer end continues past it, where the edge step fades.
     const double u = std::clamp((s + half_span_) / (2.0 * half_span_), 0.0, 1.0);
     const double weight = apodization_weight(apodization_, u);
     if (!(weight > 0.0)) return a;
     // The aperture's ends: a step over a Fresnel zone, in the Fresnel parameter of the
     // distance inside the nearer end (header).
-    const double fresnel = cos_angle * std::sqrt(2.0 / (lambda0_ * effective_range));
+    const double fresnel = ray.cos_angle * std::sqrt(2.0 / (lambda0_ * effective_range));
     const double inside = std::min(s + half_span_, half_span_ - s) * fresnel;
     const double edge = 0.5 * std::erfc(-std::sqrt(std::numbers::pi) * inside);
-    a.amplitude = weight * edge * std::sqrt(lambda0_ * geometry) / pitch_;
+    a.amplitude = weight * edge * std::sqrt(lambda0_ * a.spreading) / pitch_;
     return a;
 }
 
@@ -250,23 +294,16 @@ Sources<2> transmit_sources(const Transducer& t, const TransmitScheme& scheme, i
     Sources<2> sources;
     const int n = std::max(1, count);
     sources.reserve(scheme.waves.size() * std::size_t(n));
-    const double half = 0.5 * t.array_length_mm();
     for (std::size_t w = 0; w < scheme.waves.size(); ++w) {
-        const TransmitWave& wave = scheme.waves[w];
-        const TransmitField field(t, wave);
+        const TransmitField field(t, scheme.waves[w]);
         for (int i = 0; i < n; ++i) {
-            const double s = -half + 2.0 * half * (i + 0.5) / n;
-            const glm::dvec2 at(s, 0.0);
-            const glm::dvec2 heading =
-                wave.kind == TransmitWave::Kind::plane
-                    ? glm::dvec2(std::sin(wave.angle_rad), std::cos(wave.angle_rad))
-                    : glm::normalize(at - wave.virtual_source());
+            const TransmitField::Ray ray = field.ray_from(launch_arc_mm(t, n, i));
             SourceParticle<2> p;
-            p.position = glm::vec2(at + to_map);
-            p.direction = glm::vec2(heading);
+            p.position = glm::vec2(ray.origin + to_map);
+            p.direction = glm::vec2(ray.direction);
             p.energy = 1.0f / float(n);
             p.line = uint32_t(w);
-            p.time_s = float(field.at(at).time_s);
+            p.time_s = float(field.at(ray.origin).time_s);
             sources.push_back(p);
         }
     }

@@ -85,10 +85,11 @@ std::vector<RequestParameter> make_table() {
          &R::receive},
         {"transmit", "",
          "'focused' (line by line, the default) or unfocused transmits with per-element "
-         "channel data, beamformed by delay-and-sum and compounded (linear and phased "
-         "arrays): 'plane:A' (a plane wave steered A degrees), 'plane:A,B,...', "
+         "channel data, beamformed by delay-and-sum and compounded (linear, phased and "
+         "convex arrays): 'plane:A' (a plane wave steered A degrees), 'plane:A,B,...', "
          "'plane:FROM:TO:N' (N angles), 'diverging:D' (a virtual source D mm behind the face), "
-         "'diverging:D:ANGLES' (its axis steered, angles as for plane)",
+         "'diverging:D:ANGLES' (its axis steered, angles as for plane); on a convex array "
+         "diverging:RADIUS puts the source at the arc's centre of curvature",
          &R::transmit},
         {"channels", "",
          "write the channel data of an unfocused --transmit (transmit x element x sample, "

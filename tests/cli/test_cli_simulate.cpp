@@ -136,7 +136,9 @@ TEST(CliSimulate, BadInputFailsWithoutPartialOutput) {
         {"--probe linear --transmit plane:", "zero transmits"},
         {"--probe linear --transmit diverging:-3", "must lie behind the face"},
         {"--probe linear --transmit sideways:3", "unknown transmit 'sideways'"},
-        {"--transmit plane:0", "need a flat array"},  // the default head's convex probe
+        {"--probe radial --transmit plane:0", "need an open array"},
+        // The default head's convex probe: the arc's end faces 37.5 degrees off the axis.
+        {"--transmit plane:60", "from its normal"},
         {"--probe linear --transmit plane:0 --trace 3d", "traced in 2D"},
         {"--probe linear --channels", "--channels"},
         {"--probe picmus --depth 300 --transmit plane:-16:16:9999", "memory"},

@@ -93,9 +93,11 @@ TEST(Gui, ScreenshotsShowEveryViewAndTheBmodeFollowsTheProbe) {
     EXPECT_GT(cv::mean(cv::abs(pa - pb))[0], 10.0);
 }
 
-// The transmit panel's plane waves: the frame shows (speckle and the cyst), the panel's
-// scheme is --transmit's text, and a curved probe falls back to focused with a message.
-TEST(Gui, PlaneWavesShowAFrameAndCurvedProbesStayFocused) {
+// The transmit panel's plane waves and a convex probe's diverging waves: the frame shows
+// (speckle and the cyst), the panel's scheme is --transmit's text (the convex array's
+// virtual source at its centre of curvature), and the radial ring falls back to focused
+// with a message.
+TEST(Gui, UnfocusedWavesShowAFrameAndTheRingStaysFocused) {
     const std::string scene = "--scene phantom:cyst_and_stone --no-context --frames 1 ";
     ASSERT_EQ(
         run_gui(scene + "--probe linear --transmit plane --transmits 3 --span 6 --screenshot " +
@@ -113,9 +115,17 @@ TEST(Gui, PlaneWavesShowAFrameAndCurvedProbesStayFocused) {
               0)
         << read_text(kDir / "convex.log");
     const Screenshot convex = load("convex");
-    EXPECT_EQ(convex.layout.at("transmit"), "focused");
-    EXPECT_NE(convex.layout.at("message").get<std::string>().find("focused"), std::string::npos);
+    EXPECT_EQ(convex.layout.at("transmit"), "diverging:49.57:-8:8:5");
+    EXPECT_EQ(convex.layout.at("error"), "");
     EXPECT_GT(stddev(convex.region("bmode")), 10.0);
+    ASSERT_EQ(run_gui(scene + "--probe radial --transmit diverging --screenshot " +
+                          (kDir / "radial.png").string(),
+                      "radial.log"),
+              0)
+        << read_text(kDir / "radial.log");
+    const Screenshot radial = load("radial");
+    EXPECT_EQ(radial.layout.at("transmit"), "focused");
+    EXPECT_NE(radial.layout.at("message").get<std::string>().find("focused"), std::string::npos);
 }
 
 // The 3D context drawn in OpenGL (--context-renderer gpu) shows what the CPU renderer

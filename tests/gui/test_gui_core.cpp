@@ -324,29 +324,32 @@ TEST(GuiScanner, UnfocusedTransmitsMakeSimulatesChannelFrames) {
     EXPECT_NEAR(diverging.waves[0].source_distance_mm, 0.5 * linear.array_length_mm(), 1e-9);
 }
 
-TEST(GuiControls, UnfocusedTransmitsOnlyWhereTheArrayIsFlat) {
-    // The panel offers plane waves on every flat preset (linear, phased, picmus) and on no
-    // curved one, where the settings refuse them naming the field.
+TEST(GuiControls, UnfocusedTransmitsOnlyWhereTheArrayIsOpen) {
+    // The panel offers plane and diverging waves on every open preset (linear, convex,
+    // phased, picmus) and not on the radial ring, where the settings refuse them naming
+    // the field.
     const auto scene = cyst_scene();
-    int flat = 0;
+    int open = 0;
     for (const probe::Transducer& preset : probe::transducer_presets()) {
         ScanParameters p;
         p.transducer = preset;
-        p.transmit.kind = TransmitControls::Kind::plane;
+        p.transmit.kind = TransmitControls::Kind::diverging;
         SCOPED_TRACE(preset.name);
         if (offers_unfocused_transmits(preset)) {
-            ++flat;
+            ++open;
+            EXPECT_NO_THROW(p.settings(*scene));
+            p.transmit.kind = TransmitControls::Kind::plane;
             EXPECT_NO_THROW(p.settings(*scene));
             continue;
         }
         try {
             p.settings(*scene);
-            ADD_FAILURE() << "a curved array took plane waves";
+            ADD_FAILURE() << "a ring took diverging waves";
         } catch (const base::InputError& e) {
             EXPECT_NE(std::string(e.what()).find("transmit"), std::string::npos) << e.what();
         }
     }
-    EXPECT_EQ(flat, 3);
+    EXPECT_EQ(open, 4);
 }
 
 TEST(GuiScanner, MirrorImageNeedsAReflectedBeam) {

@@ -36,20 +36,48 @@ double sinc(double x) {
 using test::pulse_spectrum;
 using test::Spectrum;
 
-// One element's radiation at frequency f towards r from (x, 0): D exp(-i k R) / sqrt(R).
-std::complex<double> element_wave(const probe::Transducer& t, double x, const glm::dvec2& r,
-                                  double f) {
-    const double R = std::hypot(r.x - x, r.y), sin_theta = (r.x - x) / R;
-    const double directivity = sinc(kPi * t.element_width_mm * f * sin_theta / kC0) * (r.y / R);
+// An element: its centre and the unit normal of its face, written here from the arrays'
+// definitions (a flat array's elements at (s, 0) facing +y; a convex one's on the arc of
+// radius R about (0, -R), at angle s / R: (R sin, R (cos - 1)), facing (sin, cos)).
+struct Element {
+    glm::dvec2 position, normal;
+};
+std::vector<Element> elements_of(const probe::Transducer& t) {
+    std::vector<Element> out;
+    for (int i = 0; i < t.elements; ++i) {
+        const double s = (i - 0.5 * (t.elements - 1)) * t.pitch_mm;
+        if (t.type == probe::TransducerType::convex) {
+            const double phi = s / t.radius_mm;
+            out.push_back({{t.radius_mm * std::sin(phi), t.radius_mm * (std::cos(phi) - 1.0)},
+                           {std::sin(phi), std::cos(phi)}});
+        } else {
+            out.push_back({{s, 0.0}, {0.0, 1.0}});
+        }
+    }
+    return out;
+}
+
+// One element's radiation at frequency f towards r: D exp(-i k R) / sqrt(R), D = sinc(pi w
+// f sin theta / c0) cos theta from its normal (nothing behind it).
+std::complex<double> element_wave(const probe::Transducer& t, const Element& e,
+                                  const glm::dvec2& r, double f) {
+    const glm::dvec2 d = r - e.position;
+    const double R = glm::length(d);
+    const double sin_theta = (d.x * e.normal.y - d.y * e.normal.x) / R,
+                 cos_theta = glm::dot(d, e.normal) / R;
+    if (!(cos_theta > 0.0)) return 0.0;
+    const double directivity = sinc(kPi * t.element_width_mm * f * sin_theta / kC0) * cos_theta;
     return directivity * std::polar(1.0 / std::sqrt(R), -2.0 * kPi * f * R / kC0);
 }
 
-// The transmit's firing times, written from the wave's definition (not TransmitField's).
-double firing_time(const probe::TransmitWave& w, double x) {
-    if (w.kind == probe::TransmitWave::Kind::plane) return x * std::sin(w.angle_rad) / kC0;
+// The transmit's wave (the ideal one) reaches p at this time, written from the wave's
+// definition (not TransmitField's): the firing times, and the arrivals at targets.
+double wave_time(const probe::TransmitWave& w, const glm::dvec2& p) {
+    if (w.kind == probe::TransmitWave::Kind::plane)
+        return (p.x * std::sin(w.angle_rad) + p.y * std::cos(w.angle_rad)) / kC0;
     const double b = w.source_distance_mm;
     const glm::dvec2 v(-b * std::sin(w.angle_rad), -b * std::cos(w.angle_rad));
-    return (std::hypot(x - v.x, v.y) - b) / kC0;
+    return (glm::length(p - v) - b) / kC0;
 }
 
 // The analytic signal's envelope peak of samples [from, from + count): position (samples,
@@ -70,29 +98,46 @@ Peak envelope_peak(const std::vector<float>& rf) {
 }
 
 TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
-    probe::Transducer t = probe::find_transducer("picmus", "test");
-    t.depth_mm = 40.0;
-    const std::vector<double> x = probe::element_positions_mm(t);
+    // The PICMUS probe (flat) and the convex preset (an arc of radius 49.57 mm spanning 75
+    // degrees): its diverging wave from the centre of curvature, one steered from a source
+    // nearer the face, and a plane wave, which only the strip in front of the arc's chord
+    // receives.
+    struct Case {
+        const char* probe;
+        std::vector<std::string> schemes;
+        std::vector<glm::dvec2> targets;
+    };
+    const std::vector<Case> cases{
+        {"picmus",
+         {"plane:0", "plane:10", "diverging:15", "diverging:50"},
+         {{0.0, 20.0}, {-6.0, 30.0}, {4.0, 12.0}}},
+        {"convex",
+         {"diverging:49.57", "diverging:30:8", "plane:0"},
+         {{0.0, 30.0}, {-12.0, 40.0}, {10.0, 20.0}}},
+    };
+    for (const Case& test_case : cases) {
+    probe::Transducer t = probe::find_transducer(test_case.probe, "test");
+    t.depth_mm = 45.0;
+    const std::vector<Element> elements = elements_of(t);
     // df: the reference repeats every 1 / df = 100 us, longer than any channel here, so
     // the transmit's edge waves (not modelled) cannot fold onto the echo compared.
     const Spectrum spectrum = pulse_spectrum(t, 1e4);
-    const std::vector<glm::dvec2> targets{{0.0, 20.0}, {-6.0, 30.0}, {4.0, 12.0}};
-    for (const std::string scheme_text : {"plane:0", "plane:10", "diverging:15", "diverging:50"}) {
+    for (const std::string& scheme_text : test_case.schemes) {
         const probe::TransmitScheme scheme =
             probe::parse_transmit_scheme(scheme_text, "test", "transmit");
         const probe::TransmitWave& wave = scheme.waves[0];
-        for (const glm::dvec2& target : targets) {
-            SCOPED_TRACE(scheme_text + " target (" + std::to_string(target.x) + ", " +
-                         std::to_string(target.y) + ")");
+        for (const glm::dvec2& target : test_case.targets) {
+            SCOPED_TRACE(std::string(test_case.probe) + " " + scheme_text + " target (" +
+                         std::to_string(target.x) + ", " + std::to_string(target.y) + ")");
             const ChannelData model =
                 channel_data(t, scheme, {{target, 1.0, 0.0, std::nullopt}}, {});
             // The element sum of the transmit at the target, at every frequency.
             std::vector<std::complex<double>> transmit(spectrum.f.size(), 0.0);
             for (std::size_t k = 0; k < spectrum.f.size(); ++k)
-                for (double xi : x)
-                    transmit[k] +=
-                        element_wave(t, xi, target, spectrum.f[k]) *
-                        std::polar(1.0, -2.0 * kPi * spectrum.f[k] * firing_time(wave, xi));
+                for (const Element& element : elements)
+                    transmit[k] += element_wave(t, element, target, spectrum.f[k]) *
+                                   std::polar(1.0, -2.0 * kPi * spectrum.f[k] *
+                                                       wave_time(wave, element.position));
             // Each element's echo at the samples around its arrival.
             struct Measured {
                 Peak reference, simulated;
@@ -104,28 +149,18 @@ TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
             const int pulse_reach =
                 int(std::ceil(probe::PulseEcho(t).half_length_s() * model.fs_hz));
             for (int e = 0; e < t.elements; ++e) {
-                const double xe = x[std::size_t(e)];
-                double arrival = 0.0;
-                {
-                    // Expected from geometry, only to place the window.
-                    if (wave.kind == probe::TransmitWave::Kind::plane)
-                        arrival = (target.x * std::sin(wave.angle_rad) +
-                                   target.y * std::cos(wave.angle_rad)) /
-                                  kC0;
-                    else
-                        arrival = (std::hypot(target.x, target.y + wave.source_distance_mm) -
-                                   wave.source_distance_mm) /
-                                  kC0;
-                    arrival += std::hypot(target.x - xe, target.y) / kC0;
-                }
+                const Element& element = elements[std::size_t(e)];
+                // Expected from geometry, only to place the window.
+                const double arrival =
+                    wave_time(wave, target) + glm::length(target - element.position) / kC0;
                 const int centre = int(std::lround((arrival - model.start_s) * model.fs_hz));
                 const int from = centre - window;
                 ASSERT_GE(from, 0);
                 ASSERT_LT(centre + window, model.samples);
                 std::vector<std::complex<double>> receive(spectrum.f.size());
                 for (std::size_t k = 0; k < spectrum.f.size(); ++k)
-                    receive[k] =
-                        spectrum.s[k] * transmit[k] * element_wave(t, xe, target, spectrum.f[k]);
+                    receive[k] = spectrum.s[k] * transmit[k] *
+                                 element_wave(t, element, target, spectrum.f[k]);
                 std::vector<float> reference(2 * window + 1), simulated(2 * window + 1);
                 for (int n = 0; n <= 2 * window; ++n) {
                     const double time = model.time_s(from + n);
@@ -179,11 +214,12 @@ TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
             // The carrier too: a tenth of a sample's worth of its phase.
             EXPECT_LT(worst_phase, 2.0 * kPi * t.frequency_mhz * 1e6 * 0.1 / model.fs_hz) << "rad";
             std::printf(
-                "%-13s (%5.1f, %5.1f): %3d elements, worst arrival %.3f samples, "
+                "%-7s %-16s (%5.1f, %5.1f): %3d elements, worst arrival %.3f samples, "
                 "worst level %.2f dB, worst phase %.3f rad, worst residual %.3f\n",
-                scheme_text.c_str(), target.x, target.y, compared, worst_time, worst_db,
-                worst_phase, worst_residual);
+                test_case.probe, scheme_text.c_str(), target.x, target.y, compared, worst_time,
+                worst_db, worst_phase, worst_residual);
         }
+    }
     }
 }
 
@@ -209,7 +245,24 @@ TEST(ChannelData, TransmitSchemesParseAndRefuseBadInput) {
         probe::validate_transmit_scheme(probe::parse_transmit_scheme("plane:30", "--transmit", ""),
                                         picmus, "--transmit", "")
             .empty());
-    EXPECT_THROW(probe::validate_transmit_scheme(plane, probe::find_transducer("convex", "test"),
+    // A convex array takes them where every element's ray heads into the tissue: not a
+    // plane wave 60 degrees from the axis (97.5 degrees from the normal of the arc's end),
+    // nor a source beside the array, in front of its end elements' faces.
+    const probe::Transducer convex = probe::find_transducer("convex", "test");
+    for (const char* good : {"plane:0", "diverging:49.57:-10:10:5", "diverging:5:85"}) {
+        SCOPED_TRACE(good);
+        EXPECT_NO_THROW(probe::validate_transmit_scheme(
+            probe::parse_transmit_scheme(good, "--transmit", ""), convex, "--transmit", ""));
+    }
+    for (const char* bad : {"plane:60", "plane:-60", "diverging:40.3:83"}) {
+        SCOPED_TRACE(bad);
+        EXPECT_THROW(probe::validate_transmit_scheme(
+                         probe::parse_transmit_scheme(bad, "--transmit", ""), convex, "--transmit",
+                         ""),
+                     base::InputError);
+    }
+    // A ring has no side to send a wave from.
+    EXPECT_THROW(probe::validate_transmit_scheme(plane, probe::find_transducer("radial", "test"),
                                                  "--transmit", ""),
                  base::InputError);
 }
@@ -290,7 +343,7 @@ TEST(ChannelData, CompoundingNarrowsPointsAsTheSyntheticApertureDoes) {
         for (std::size_t i = 0; i < xs.size(); ++i) {
             const double transmit = (xs[i] * std::sin(a) + z * std::cos(a)) / kC0;
             for (int e = 0; e < channels.elements; ++e) {
-                const double xe = channels.element_x_mm[std::size_t(e)];
+                const double xe = channels.element_s_mm[std::size_t(e)];
                 if (std::abs(xe - xs[i]) > 0.5 * z / das.f_number) continue;
                 const double delay = transmit + std::hypot(xs[i] - xe, z) / kC0;
                 const long n = std::lround((delay - channels.start_s) * channels.fs_hz * up);
@@ -311,7 +364,7 @@ TEST(ChannelData, CompoundingNarrowsPointsAsTheSyntheticApertureDoes) {
                 for (int w = first; w < last; ++w)
                     transmit +=
                         std::polar(1.0, kx * std::sin(scheme.waves[std::size_t(w)].angle_rad));
-                for (double xe : channels.element_x_mm)
+                for (double xe : channels.element_s_mm)
                     if (std::abs(xe) <= 0.5 * z / das.f_number)
                         receive += std::polar(1.0, kx * -xe / std::hypot(xe, z));
                 sum += std::abs(spectrum.s[k]) * transmit * receive;

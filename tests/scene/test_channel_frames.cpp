@@ -106,15 +106,15 @@ imaging::ChannelData image_source_channels(const imaging::ChannelData& layout,
     const std::vector<double>& delays = c.delays_s[0];
     const glm::dvec2 p0(0.0, depth);
     for (int e = 0; e < c.elements; ++e) {
-        const glm::dvec2 xe(c.element_x_mm[std::size_t(e)], 0.0);
+        const glm::dvec2 xe(c.element_s_mm[std::size_t(e)], 0.0);
         cv::Mat bins(1, N, CV_64FC2, cv::Scalar::all(0.0));
         for (std::size_t q = 0; q < spectrum.f.size(); ++q) {
             const double f = spectrum.f[q];
             const int k = int(std::lround(f * N / c.fs_hz));
             if (k <= 0 || k >= N / 2) continue;
             std::complex<double> sum = 0.0;
-            for (std::size_t i = 0; i < c.element_x_mm.size(); ++i) {
-                const glm::dvec2 p(c.element_x_mm[i], 0.0);
+            for (std::size_t i = 0; i < c.element_s_mm.size(); ++i) {
+                const glm::dvec2 p(c.element_s_mm[i], 0.0);
                 const glm::dvec2 v = xe - (p - 2.0 * glm::dot(p - p0, n) * n);
                 const glm::dvec2 out = v - 2.0 * glm::dot(v, n) * n;
                 const double L = glm::length(v);
@@ -167,11 +167,11 @@ TEST(ChannelFrames, AFlatReflectorEchoesAsItsImageSources) {
         double earliest = 1e9, latest = -1e9;  // arrival offsets (samples)
         int checked = 0;
         for (int e = 24; e < 104; e += 4) {
-            const double xe = c.element_x_mm[std::size_t(e)];
+            const double xe = c.element_s_mm[std::size_t(e)];
             // The arrival by Fermat (the earliest image-source path) and the element it
             // comes from: elements whose echo comes from the aperture's ends are skipped.
             double expected = 1e9, from_x = 0.0;
-            for (double xi : c.element_x_mm) {
+            for (double xi : c.element_s_mm) {
                 const double arrival =
                     (xi * s + glm::length(glm::dvec2(xe, 0.0) - mirrored(xi))) / kC0;
                 if (arrival < expected) expected = arrival, from_x = xi;

@@ -16,10 +16,15 @@ std::string channel_file_bytes(const imaging::ChannelData& c, const probe::Trans
     // A chunk per transmit: a reader takes one transmit at a time without the rest.
     w.dataset(w.file(), "channels", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, {W, E, S}, {1, E, S},
               c.values.data(), false);
-    std::vector<double> elements;
-    for (double x : c.element_x_mm) elements.insert(elements.end(), {x, 0.0});
+    std::vector<double> elements, normals;
+    for (const probe::ArrayPoint& e : c.element_points) {
+        elements.insert(elements.end(), {e.position.x, e.position.y});
+        normals.insert(normals.end(), {e.normal.x, e.normal.y});
+    }
     w.dataset(w.file(), "elements_mm", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {E, 2}, {},
               elements.data());
+    w.dataset(w.file(), "element_normals", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {E, 2}, {},
+              normals.data());
     std::vector<uint8_t> kind;
     std::vector<double> angle, source, delays;
     for (int k = 0; k < c.transmits; ++k) {

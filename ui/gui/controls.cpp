@@ -128,7 +128,7 @@ std::string switch_help(Control control) {
 }
 
 bool offers_unfocused_transmits(const probe::Transducer& t) {
-    return probe::array_type(t.type).flat;
+    return probe::array_type(t.type).unfocused_transmits;
 }
 
 std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {

@@ -57,7 +57,7 @@ double slider_max(Control control, const probe::Transducer& t);
 // transmit choices (the frame request's).
 std::string switch_help(Control control);
 
-// Whether the probe takes unfocused transmits (a flat array); the panel offers them only
+// Whether the probe takes unfocused transmits (an open array); the panel offers them only
 // then, and only traced in 2D with the monostatic receive (what channel frames support).
 bool offers_unfocused_transmits(const probe::Transducer& t);
 

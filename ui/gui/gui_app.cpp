@@ -112,7 +112,7 @@ void App::apply_scene(std::shared_ptr<const Scene> scene) {
     if (!offers_unfocused_transmits(parameters_.transducer) &&
         parameters_.transmit.kind != TransmitControls::Kind::focused) {
         parameters_.transmit.kind = TransmitControls::Kind::focused;
-        message_ = "the " + preset + " probe is not flat: it transmits focused beams only";
+        message_ = "the " + preset + " probe is a closed ring: it transmits focused beams only";
     }
     pose_ = scene_->start.pose;
     parameters_.gain_db = scene_->gain_db;  // as `sonotrace simulate`
@@ -408,7 +408,7 @@ void App::draw_controls(float x, float y, float w, float h) {
         slider_double(Control::fov, &t.fov_deg, fov.min, slider_max(Control::fov, t), "%.0f");
     }
     {
-        // Focused line by line, or unfocused waves (flat arrays, 2D, monostatic receive).
+        // Focused line by line, or unfocused waves (open arrays, 2D, monostatic receive).
         TransmitControls& tx = parameters_.transmit;
         int kind = int(tx.kind);
         const char* kinds[] = {"focused (line by line)", "plane waves", "diverging waves"};
@@ -426,8 +426,8 @@ void App::draw_controls(float x, float y, float w, float h) {
         highlight_end(pushed);
         tooltip(offers_unfocused_transmits(t)
                     ? switch_help(Control::transmit)
-                    : "plane and diverging waves need a flat array: choose the linear, phased "
-                      "or picmus probe");
+                    : "plane and diverging waves need an open array: choose a linear, "
+                      "phased, convex or picmus probe");
         if (tx.kind != TransmitControls::Kind::focused) {
             const SliderSpec& count = slider(Control::transmits);
             double value = tx.count;

@@ -20,7 +20,7 @@ struct AppOptions {
     std::string scene = "head-craniotomy";
     std::string probe;  // preset; empty = the scene's
     std::string quality = "interactive";
-    // The transmit panel at start: focused, plane or diverging (flat probes), with the
+    // The transmit panel at start: focused, plane or diverging (open arrays), with the
     // transmits' number and outermost angle (degrees).
     std::string transmit = "focused";
     int transmits = 5;

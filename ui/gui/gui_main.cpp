@@ -263,8 +263,8 @@ int main(int argc, char** argv) {
                    "quality while the probe moves: interactive, standard or high")
         ->capture_default_str();
     cli.add_option("--transmit", o.app.transmit,
-                   "transmit at start: focused (line by line), plane or diverging waves (flat "
-                   "probes: linear, phased, picmus), beamformed from every element's channel "
+                   "transmit at start: focused (line by line), plane or diverging waves (open "
+                   "arrays: not the radial ring), beamformed from every element's channel "
                    "data")
         ->capture_default_str();
     cli.add_option("--transmits", o.app.transmits,

@@ -7,6 +7,7 @@
 
 #include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
+#include "probe/array_geometry.h"
 #include "tissue/base/error.h"
 #include "tissue/base/number_list.h"
 
@@ -68,7 +69,10 @@ std::string TransmitControls::text(const probe::Transducer& t) const {
                                    : exact_number_text(-span_deg) + ":" +
                                          exact_number_text(span_deg) + ":" + std::to_string(count);
     if (kind == Kind::plane) return "plane:" + angles;
-    return "diverging:" + exact_number_text(0.5 * t.array_length_mm()) + ":" + angles;
+    const double curvature = probe::array_geometry(t)->face_radius_mm();
+    return "diverging:" +
+           exact_number_text(curvature > 0.0 ? curvature : 0.5 * t.array_length_mm()) + ":" +
+           angles;
 }
 
 scene::FrameRequest ScanParameters::request() const {

@@ -33,15 +33,16 @@ using PhysicsSwitches = imaging::PhysicsSwitches;
 inline constexpr int kTgcSliders = 8;  // evenly spaced over the imaging depth
 
 // The transmit: focused line by line, or unfocused waves whose channel data are
-// beamformed by delay-and-sum and compounded (flat arrays only: probe/transmit.h).
+// beamformed by delay-and-sum and compounded (open arrays: probe/transmit.h).
 struct TransmitControls {
     enum class Kind { focused, plane, diverging };
     Kind kind = Kind::focused;
     int count = 5;          // transmits, their steering angles evenly over +-span_deg
     double span_deg = 8.0;  // the outermost steering angle (degrees)
     // --transmit's text for this probe: "focused", "plane:0", "plane:-8:8:5",
-    // "diverging:D:-8:8:5" with the virtual source D = half the array's length behind the
-    // face (a wave that opens 90 degrees).
+    // "diverging:D:-8:8:5" with the virtual source D behind the face: half a flat array's
+    // length (a wave that opens 90 degrees), a curved array's radius (its centre of
+    // curvature: the wave opens as its arc).
     std::string text(const probe::Transducer& t) const;
 };
 
