@@ -337,9 +337,11 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
     stage("beamforming", [&] { beamformed = delay_and_sum(channels, t, pixels, das); });
     stage("display", [&] {
         const probe::ScanGeometry geometry(t);
-        const double fs = kC0MmPerS / (2.0 * pixel);  // one display row per "sample"
-        const int first_row = int(std::lround(lo.y / pixel));
-        const Compression compression(first_row + pixels.nz, fs, settings.imaging);
+        // TGC by depth along the pixel's scan line, as the focused mode's: one step per
+        // pixel of depth ("sample" of 2 pixel / c0).
+        const double fs = kC0MmPerS / (2.0 * pixel);
+        const int depth_steps = int(std::ceil(t.depth_mm / pixel)) + 1;
+        const Compression compression(depth_steps, fs, settings.imaging);
         // A perpendicular reflector of R = 1: sqrt(lambda) / pitch at each element.
         const double unit = std::sqrt(lambda) / t.pitch_mm;
         ScanConverted& out = frame.image;
@@ -357,8 +359,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 const double weight = beamformed.weight_sum(i, j);
                 const float envelope =
                     weight > 0.0 ? float(std::abs(beamformed.at(i, j)) / (weight * unit)) : 0.0f;
-                out.image.at<float>(j, i) =
-                    compression(envelope, compression.offset(first_row + j));
+                const int step = std::min(int(std::lround(ld.y / pixel)), depth_steps - 1);
+                out.image.at<float>(j, i) = compression(envelope, compression.offset(step));
                 frame.beamformed.at<float>(j, i) = envelope;
                 out.inside.at<uint8_t>(j, i) = 255;
             }
