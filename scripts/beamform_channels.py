@@ -2,13 +2,14 @@
 """Delay-and-sum of a sonotrace channel-data file with NumPy and h5py alone.
 
 The example of docs/guide/channel-data.md: everything it needs is in the file (element
-positions, each transmit's kind, angle and virtual source, the sampling rate, the start
-time, the speed of sound, the centre frequency).
+positions and normals, each transmit's kind, angle and virtual source, the sampling rate,
+the start time, the speed of sound, the centre frequency). Flat and convex arrays alike.
 
     python3 scripts/beamform_channels.py bmode_channels.h5 image.npy [--f-number 1.75]
 
 writes the compounded envelope (rows = depth, columns = lateral, 0.1 mm pixels over the
 array's width) as a NumPy array, and prints where its brightest pixel lies.
+Coordinates: x lateral, z depth from the face's centre (a convex array's apex), mm.
 """
 import argparse
 
@@ -22,6 +23,7 @@ def read(path):
         return {
             "channels": f["channels"][()],
             "elements_mm": f["elements_mm"][()],
+            "normals": f["element_normals"][()],
             "kind": f["transmit/kind"][()],
             "angle": f["transmit/angle_rad"][()],
             "source_mm": f["transmit/virtual_source_mm"][()],
@@ -58,9 +60,13 @@ def beamform(data, x, z, f_number=1.75):
     samples = np.arange(n)
     for k in range(channels.shape[0]):
         tx = transmit_delay(data, k, X, Z)
-        for e, (xe, _) in enumerate(data["elements_mm"]):
-            inside = np.abs(X - xe) <= Z / (2.0 * f_number)  # receive aperture
-            delay = tx + np.hypot(X - xe, Z) / data["c"]
+        for e, ((xe, ze), (nx, nz)) in enumerate(zip(data["elements_mm"], data["normals"])):
+            # The receive aperture: the pixels an element sees within the F-number's cone,
+            # in its own frame (across and along its normal).
+            across = (X - xe) * nz - (Z - ze) * nx
+            along = (X - xe) * nx + (Z - ze) * nz
+            inside = (along > 0) & (np.abs(across) <= along / (2.0 * f_number))
+            delay = tx + np.hypot(X - xe, Z - ze) / data["c"]
             position = (delay - data["t0"]) * data["fs"]
             # Interpolate the signal at baseband, then restore the carrier at the delay.
             baseband = analytic[k, e] * np.exp(-2j * np.pi * data["f0"] * (data["t0"] + samples / data["fs"]))

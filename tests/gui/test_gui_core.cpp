@@ -456,7 +456,7 @@ TEST(GuiControls, EverySliderExtremeGivesAFrame) {
             // The panel shows the fov slider only where the type's fov is adjustable.
             if (spec.control == Control::fov && !probe::array_type(preset.type).fov_adjustable)
                 continue;
-            // ... and the transmits' sliders for unfocused transmits, which flat arrays take.
+            // ... and the transmits' sliders for unfocused transmits, which open arrays take.
             const bool unfocused =
                 spec.control == Control::transmits || spec.control == Control::span;
             if (unfocused && !offers_unfocused_transmits(preset)) continue;
