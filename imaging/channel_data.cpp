@@ -134,8 +134,7 @@ template <bool Facets>
         float back[3] = {sinc_of(d0 * sin_back), sinc_of(d1 * sin_back), sinc_of(d2 * sin_back)};
         if constexpr (Facets) {
             // (d - u_e) . t, u_e = (p_e - r) / R.
-            const float across =
-                facets.dt[i] + (dx * facets.tx[i] + dz * facets.tz[i]) * inverse_R;
+            const float across = facets.dt[i] + (dx * facets.tx[i] + dz * facets.tz[i]) * inverse_R;
             const float a = facets.scale[i] * across;
             back[0] *= sinc_of(a * f0), back[1] *= sinc_of(a * f1), back[2] *= sinc_of(a * f2);
         }
@@ -223,7 +222,8 @@ ChannelData channel_layout(const probe::Transducer& t, const probe::TransmitSche
     // back from any of them to any element.
     const probe::ScanGeometry scan(t);
     std::vector<glm::dvec2> deepest{{-0.5 * span, depth}, {0.0, depth}, {0.5 * span, depth}};
-    for (double l : {-0.5, 0.5 * (t.lines - 1), t.lines - 0.5}) deepest.push_back(scan.point(l, depth));
+    for (double l : {-0.5, 0.5 * (t.lines - 1), t.lines - 0.5})
+        deepest.push_back(scan.point(l, depth));
     double latest = 0.0, longest_way_back = 0.0;
     for (const probe::TransmitWave& wave : scheme.waves) {
         const probe::TransmitField field(t, wave);

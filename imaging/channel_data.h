@@ -11,9 +11,9 @@
 //
 // with T_w the transmit's wave at r (its element sum by stationary phase,
 // probe/transmit.h), R_e = |r - p_e| (element e at p_e facing n_e), theta_e the angle of
-// the way back from n_e (no echo where it is 90 degrees or more) and D = sinc(pi w f sin theta / c0) cos theta the element's directivity
-// (probe/aperture.h): the aperture model's element, applied element by element. The
-// channel's RF is Re sum_f E_e(f) exp(i 2 pi f t).
+// the way back from n_e (no echo where it is 90 degrees or more) and D = sinc(pi w f sin theta /
+// c0) cos theta the element's directivity (probe/aperture.h): the aperture model's element, applied
+// element by element. The channel's RF is Re sum_f E_e(f) exp(i 2 pi f t).
 //
 // How it is computed, and what that approximates:
 //   - the two directivities' product is a quadratic in f / f0 - 1 through its values at
@@ -89,11 +89,11 @@ struct ChannelData {
     double speed_m_s = 0.0;     // c0 the delays are computed with
     double frequency_hz = 0.0;  // centre frequency
     double pitch_mm = 0.0;
-    std::vector<double> element_s_mm;           // arc length along the face (a flat array's x)
+    std::vector<double> element_s_mm;               // arc length along the face (a flat array's x)
     std::vector<probe::ArrayPoint> element_points;  // place and normal, probe plane (mm)
-    std::vector<probe::TransmitWave> waves;     // one per transmit
-    std::vector<std::vector<double>> delays_s;  // [transmit][element]: firing times
-    std::vector<float> values;                  // [(w * elements + e) * samples + n]
+    std::vector<probe::TransmitWave> waves;         // one per transmit
+    std::vector<std::vector<double>> delays_s;      // [transmit][element]: firing times
+    std::vector<float> values;                      // [(w * elements + e) * samples + n]
     float at(int w, int e, int n) const { return values[index(w, e, n)]; }
     const float* channel(int w, int e) const { return values.data() + index(w, e, 0); }
     float* channel(int w, int e) { return values.data() + index(w, e, 0); }

@@ -220,7 +220,8 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                     piece / t.pitch_mm;
                 // A diverging wave's particles part as it spreads: each then stands for
                 // piece / G of the wavefront, where the wave's amplitude is sqrt(G) of a
-                // plane wave's (G: TransmitField's spreading), so a coherent source carries 1 / sqrt(G).
+                // plane wave's (G: TransmitField's spreading), so a coherent source carries 1 /
+                // sqrt(G).
                 if (coherent) amplitude /= std::sqrt(std::max(field.at(image).spreading, 1e-6));
                 // The share of the reflector's lobe that heads back the way the particle
                 // came, within the receive's half-angle: a rough interface's echo, and any

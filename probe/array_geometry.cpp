@@ -9,7 +9,8 @@ namespace sonotrace::probe {
 
 const std::vector<ArrayType>& array_types() {
     // The registration of every array type: its name (CLI, sidecars, GUI), what the CLI's
-    // --type help says of it, whether --fov sets its lines' angle, whether it takes unfocused transmits.
+    // --type help says of it, whether --fov sets its lines' angle, whether it takes unfocused
+    // transmits.
     static const std::vector<ArrayType> types = {
         {TransducerType::linear, "linear", "parallel lines", false, true, arrays::no_fov,
          arrays::whole_array, arrays::make_linear, arrays::validate_linear},

@@ -59,8 +59,8 @@ std::vector<Element> elements_of(const probe::Transducer& t) {
 
 // One element's radiation at frequency f towards r: D exp(-i k R) / sqrt(R), D = sinc(pi w
 // f sin theta / c0) cos theta from its normal (nothing behind it).
-std::complex<double> element_wave(const probe::Transducer& t, const Element& e,
-                                  const glm::dvec2& r, double f) {
+std::complex<double> element_wave(const probe::Transducer& t, const Element& e, const glm::dvec2& r,
+                                  double f) {
     const glm::dvec2 d = r - e.position;
     const double R = glm::length(d);
     const double sin_theta = (d.x * e.normal.y - d.y * e.normal.x) / R,
@@ -116,110 +116,111 @@ TEST(ChannelData, PointEchoesMatchTheElementByElementSum) {
          {{0.0, 30.0}, {-12.0, 40.0}, {10.0, 20.0}}},
     };
     for (const Case& test_case : cases) {
-    probe::Transducer t = probe::find_transducer(test_case.probe, "test");
-    t.depth_mm = 45.0;
-    const std::vector<Element> elements = elements_of(t);
-    // df: the reference repeats every 1 / df = 100 us, longer than any channel here, so
-    // the transmit's edge waves (not modelled) cannot fold onto the echo compared.
-    const Spectrum spectrum = pulse_spectrum(t, 1e4);
-    for (const std::string& scheme_text : test_case.schemes) {
-        const probe::TransmitScheme scheme =
-            probe::parse_transmit_scheme(scheme_text, "test", "transmit");
-        const probe::TransmitWave& wave = scheme.waves[0];
-        for (const glm::dvec2& target : test_case.targets) {
-            SCOPED_TRACE(std::string(test_case.probe) + " " + scheme_text + " target (" +
-                         std::to_string(target.x) + ", " + std::to_string(target.y) + ")");
-            const ChannelData model =
-                channel_data(t, scheme, {{target, 1.0, 0.0, std::nullopt}}, {});
-            // The element sum of the transmit at the target, at every frequency.
-            std::vector<std::complex<double>> transmit(spectrum.f.size(), 0.0);
-            for (std::size_t k = 0; k < spectrum.f.size(); ++k)
-                for (const Element& element : elements)
-                    transmit[k] += element_wave(t, element, target, spectrum.f[k]) *
-                                   std::polar(1.0, -2.0 * kPi * spectrum.f[k] *
-                                                       wave_time(wave, element.position));
-            // Each element's echo at the samples around its arrival.
-            struct Measured {
-                Peak reference, simulated;
-                double residual;  // rms(simulated - reference) / rms(reference)
-            };
-            std::vector<Measured> measured;
-            double strongest = 0.0;
-            const int window = 64;
-            const int pulse_reach =
-                int(std::ceil(probe::PulseEcho(t).half_length_s() * model.fs_hz));
-            for (int e = 0; e < t.elements; ++e) {
-                const Element& element = elements[std::size_t(e)];
-                // Expected from geometry, only to place the window.
-                const double arrival =
-                    wave_time(wave, target) + glm::length(target - element.position) / kC0;
-                const int centre = int(std::lround((arrival - model.start_s) * model.fs_hz));
-                const int from = centre - window;
-                ASSERT_GE(from, 0);
-                ASSERT_LT(centre + window, model.samples);
-                std::vector<std::complex<double>> receive(spectrum.f.size());
+        probe::Transducer t = probe::find_transducer(test_case.probe, "test");
+        t.depth_mm = 45.0;
+        const std::vector<Element> elements = elements_of(t);
+        // df: the reference repeats every 1 / df = 100 us, longer than any channel here, so
+        // the transmit's edge waves (not modelled) cannot fold onto the echo compared.
+        const Spectrum spectrum = pulse_spectrum(t, 1e4);
+        for (const std::string& scheme_text : test_case.schemes) {
+            const probe::TransmitScheme scheme =
+                probe::parse_transmit_scheme(scheme_text, "test", "transmit");
+            const probe::TransmitWave& wave = scheme.waves[0];
+            for (const glm::dvec2& target : test_case.targets) {
+                SCOPED_TRACE(std::string(test_case.probe) + " " + scheme_text + " target (" +
+                             std::to_string(target.x) + ", " + std::to_string(target.y) + ")");
+                const ChannelData model =
+                    channel_data(t, scheme, {{target, 1.0, 0.0, std::nullopt}}, {});
+                // The element sum of the transmit at the target, at every frequency.
+                std::vector<std::complex<double>> transmit(spectrum.f.size(), 0.0);
                 for (std::size_t k = 0; k < spectrum.f.size(); ++k)
-                    receive[k] = spectrum.s[k] * transmit[k] *
-                                 element_wave(t, element, target, spectrum.f[k]);
-                std::vector<float> reference(2 * window + 1), simulated(2 * window + 1);
-                for (int n = 0; n <= 2 * window; ++n) {
-                    const double time = model.time_s(from + n);
-                    std::complex<double> sum = 0.0;
+                    for (const Element& element : elements)
+                        transmit[k] += element_wave(t, element, target, spectrum.f[k]) *
+                                       std::polar(1.0, -2.0 * kPi * spectrum.f[k] *
+                                                           wave_time(wave, element.position));
+                // Each element's echo at the samples around its arrival.
+                struct Measured {
+                    Peak reference, simulated;
+                    double residual;  // rms(simulated - reference) / rms(reference)
+                };
+                std::vector<Measured> measured;
+                double strongest = 0.0;
+                const int window = 64;
+                const int pulse_reach =
+                    int(std::ceil(probe::PulseEcho(t).half_length_s() * model.fs_hz));
+                for (int e = 0; e < t.elements; ++e) {
+                    const Element& element = elements[std::size_t(e)];
+                    // Expected from geometry, only to place the window.
+                    const double arrival =
+                        wave_time(wave, target) + glm::length(target - element.position) / kC0;
+                    const int centre = int(std::lround((arrival - model.start_s) * model.fs_hz));
+                    const int from = centre - window;
+                    ASSERT_GE(from, 0);
+                    ASSERT_LT(centre + window, model.samples);
+                    std::vector<std::complex<double>> receive(spectrum.f.size());
                     for (std::size_t k = 0; k < spectrum.f.size(); ++k)
-                        sum += receive[k] * std::polar(1.0, 2.0 * kPi * spectrum.f[k] * time);
-                    reference[std::size_t(n)] = float(sum.real());
-                    simulated[std::size_t(n)] = model.at(0, e, from + n);
+                        receive[k] = spectrum.s[k] * transmit[k] *
+                                     element_wave(t, element, target, spectrum.f[k]);
+                    std::vector<float> reference(2 * window + 1), simulated(2 * window + 1);
+                    for (int n = 0; n <= 2 * window; ++n) {
+                        const double time = model.time_s(from + n);
+                        std::complex<double> sum = 0.0;
+                        for (std::size_t k = 0; k < spectrum.f.size(); ++k)
+                            sum += receive[k] * std::polar(1.0, 2.0 * kPi * spectrum.f[k] * time);
+                        reference[std::size_t(n)] = float(sum.real());
+                        simulated[std::size_t(n)] = model.at(0, e, from + n);
+                    }
+                    double difference = 0.0, power = 0.0;
+                    for (std::size_t n = std::size_t(window - pulse_reach);
+                         n <= std::size_t(window + pulse_reach); ++n) {
+                        difference += std::pow(double(simulated[n]) - reference[n], 2);
+                        power += std::pow(double(reference[n]), 2);
+                    }
+                    measured.push_back({envelope_peak(reference), envelope_peak(simulated),
+                                        std::sqrt(difference / power)});
+                    strongest = std::max(strongest, measured.back().reference.height);
                 }
-                double difference = 0.0, power = 0.0;
-                for (std::size_t n = std::size_t(window - pulse_reach);
-                     n <= std::size_t(window + pulse_reach); ++n) {
-                    difference += std::pow(double(simulated[n]) - reference[n], 2);
-                    power += std::pow(double(reference[n]), 2);
+                // Elements whose echo is within 12 dB of the strongest (beyond, the
+                // directivity's nulls make a level in dB meaningless).
+                int compared = 0;
+                double worst_time = 0.0, worst_db = 0.0, worst_phase = 0.0, worst_residual = 0.0;
+                for (const Measured& m : measured) {
+                    if (m.reference.height < 0.25 * strongest) continue;
+                    ++compared;
+                    worst_time =
+                        std::max(worst_time, std::abs(m.simulated.position - m.reference.position));
+                    worst_db = std::max(worst_db, std::abs(20.0 * std::log10(m.simulated.height /
+                                                                             m.reference.height)));
+                    worst_residual = std::max(worst_residual, m.residual);
+                    worst_phase = std::max(
+                        worst_phase,
+                        std::abs(std::arg(std::polar(1.0, m.simulated.phase - m.reference.phase))));
                 }
-                measured.push_back({envelope_peak(reference), envelope_peak(simulated),
-                                    std::sqrt(difference / power)});
-                strongest = std::max(strongest, measured.back().reference.height);
+                EXPECT_GE(compared, 32);
+                EXPECT_LT(worst_time, 0.1) << "samples";
+                EXPECT_LT(worst_db, 1.0) << "dB";
+                // The waveform, sample by sample over the pulse's support (its shape, not only
+                // its peak). The model leaves out the transmit's grating lobes (pitch 0.30 mm
+                // against a wavelength of 0.296 mm at f0): their echo comes a few samples
+                // after the main one where the scheme steers rays past the grating-lobe limit,
+                // which validate_transmit_scheme warns of (diverging:15: residual up to 0.66
+                // over 64 samples either side, 0.08 over the pulse); within the limit the
+                // upper band's lobes still leave up to 0.06 (plane:10 at (-6, 30)).
+                const bool past_limit =
+                    !probe::validate_transmit_scheme(scheme, t, "test", "transmit").empty();
+                if (!past_limit) {
+                    EXPECT_LT(worst_residual, 0.1);
+                }
+                // The carrier too: a tenth of a sample's worth of its phase.
+                EXPECT_LT(worst_phase, 2.0 * kPi * t.frequency_mhz * 1e6 * 0.1 / model.fs_hz)
+                    << "rad";
+                std::printf(
+                    "%-7s %-16s (%5.1f, %5.1f): %3d elements, worst arrival %.3f samples, "
+                    "worst level %.2f dB, worst phase %.3f rad, worst residual %.3f\n",
+                    test_case.probe, scheme_text.c_str(), target.x, target.y, compared, worst_time,
+                    worst_db, worst_phase, worst_residual);
             }
-            // Elements whose echo is within 12 dB of the strongest (beyond, the
-            // directivity's nulls make a level in dB meaningless).
-            int compared = 0;
-            double worst_time = 0.0, worst_db = 0.0, worst_phase = 0.0, worst_residual = 0.0;
-            for (const Measured& m : measured) {
-                if (m.reference.height < 0.25 * strongest) continue;
-                ++compared;
-                worst_time =
-                    std::max(worst_time, std::abs(m.simulated.position - m.reference.position));
-                worst_db = std::max(
-                    worst_db, std::abs(20.0 * std::log10(m.simulated.height / m.reference.height)));
-                worst_residual = std::max(worst_residual, m.residual);
-                worst_phase = std::max(
-                    worst_phase,
-                    std::abs(std::arg(std::polar(1.0, m.simulated.phase - m.reference.phase))));
-            }
-            EXPECT_GE(compared, 32);
-            EXPECT_LT(worst_time, 0.1) << "samples";
-            EXPECT_LT(worst_db, 1.0) << "dB";
-            // The waveform, sample by sample over the pulse's support (its shape, not only
-            // its peak). The model leaves out the transmit's grating lobes (pitch 0.30 mm
-            // against a wavelength of 0.296 mm at f0): their echo comes a few samples
-            // after the main one where the scheme steers rays past the grating-lobe limit,
-            // which validate_transmit_scheme warns of (diverging:15: residual up to 0.66
-            // over 64 samples either side, 0.08 over the pulse); within the limit the
-            // upper band's lobes still leave up to 0.06 (plane:10 at (-6, 30)).
-            const bool past_limit =
-                !probe::validate_transmit_scheme(scheme, t, "test", "transmit").empty();
-            if (!past_limit) {
-                EXPECT_LT(worst_residual, 0.1);
-            }
-            // The carrier too: a tenth of a sample's worth of its phase.
-            EXPECT_LT(worst_phase, 2.0 * kPi * t.frequency_mhz * 1e6 * 0.1 / model.fs_hz) << "rad";
-            std::printf(
-                "%-7s %-16s (%5.1f, %5.1f): %3d elements, worst arrival %.3f samples, "
-                "worst level %.2f dB, worst phase %.3f rad, worst residual %.3f\n",
-                test_case.probe, scheme_text.c_str(), target.x, target.y, compared, worst_time,
-                worst_db, worst_phase, worst_residual);
         }
-    }
     }
 }
 
@@ -256,10 +257,10 @@ TEST(ChannelData, TransmitSchemesParseAndRefuseBadInput) {
     }
     for (const char* bad : {"plane:60", "plane:-60", "diverging:40.3:83"}) {
         SCOPED_TRACE(bad);
-        EXPECT_THROW(probe::validate_transmit_scheme(
-                         probe::parse_transmit_scheme(bad, "--transmit", ""), convex, "--transmit",
-                         ""),
-                     base::InputError);
+        EXPECT_THROW(
+            probe::validate_transmit_scheme(probe::parse_transmit_scheme(bad, "--transmit", ""),
+                                            convex, "--transmit", ""),
+            base::InputError);
     }
     // A ring has no side to send a wave from.
     EXPECT_THROW(probe::validate_transmit_scheme(plane, probe::find_transducer("radial", "test"),
