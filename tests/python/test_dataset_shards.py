@@ -164,6 +164,11 @@ def test_channel_data_in_shards(tmp_path):
             reach = (depth + np.hypot(depth, 38.4)) / 1540e3 * d.attrs["sampling_frequency_hz"]
             assert d.shape[2] > reach
             assert np.abs(d[()]).max() > 0
+            # The PICMUS probe's elements: 0.30 mm apart on z = 0, facing +z.
+            elements = f["channel_elements"][name][()]
+            assert elements.shape == (128, 4)
+            assert np.allclose(np.diff(elements[:, 0]), 0.30) and np.all(elements[:, 1] == 0)
+            assert np.all(elements[:, 2:] == [0.0, 1.0])
     (tmp_path / "bad").mkdir()
     bad, out = make(tmp_path / "bad", spec(write=["bmode", "channels"]))
     assert bad.returncode == 1 and "needs unfocused transmits" in bad.stderr

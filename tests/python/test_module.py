@@ -225,6 +225,7 @@ def test_read_shard_gives_the_truth_maps_and_the_channels(tmp_path):
             assert np.array_equal(shard[name], f[name][()]), name
         assert sorted(shard["channels"]) == [0, 1]
         assert np.array_equal(shard["channels"][1], f["channels/00000001"][()])
+        assert np.array_equal(shard["channel_elements"][1], f["channel_elements/00000001"][()])
         assert shard["channels"][0].shape[:2] == (2, 128)
 
 
@@ -329,7 +330,7 @@ def test_a_volume_name_is_never_a_format(tmp_path):
 
 def test_a_frames_channels_are_the_clis_channel_file(tmp_path):
     """transmit=...: Frame.channels holds the channel data `simulate --channels` writes, to
-    the bit, with the layout in the sidecar; a focused frame has none."""
+    the bit, its elements the file's, with the layout in the sidecar; a focused frame has none."""
     import h5py
     options = dict(phantom=SOURCE + "/phantoms/picmus.json", quality="interactive",
                    transmit="plane:-4:4:3")
@@ -340,7 +341,10 @@ def test_a_frames_channels_are_the_clis_channel_file(tmp_path):
     assert run.returncode == 0, run.stderr
     with h5py.File(tmp_path / "bmode_channels.h5", "r") as f:
         written = f["channels"][()]
+        elements = np.hstack([f["elements_mm"][()], f["element_normals"][()]])
     assert frame.channels.dtype == np.float32 and frame.channels.shape == written.shape
     assert np.array_equal(frame.channels, written)
+    assert np.array_equal(frame.channel_elements, elements)
     assert frame.sidecar["transmit"]["transmits"] == 3
     assert sonotrace.simulate(**FAST).channels is None
+    assert sonotrace.simulate(**FAST).channel_elements is None

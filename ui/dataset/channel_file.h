@@ -4,7 +4,9 @@
 // NumPy):
 //
 //   /channels           float32 [transmits, elements, samples]  each element's RF
-//   /elements_mm        float64 [elements, 2]   element centres (x lateral, z depth; z = 0)
+//   /elements_mm        float64 [elements, 2]   element centres (x lateral, z depth: 0 on a
+//                                               flat array, below 0 along a convex arc)
+//   /element_normals    float64 [elements, 2]   each element's unit normal into the tissue
 //   /transmit/kind      uint8 [transmits]       0 plane wave, 1 diverging wave
 //   /transmit/angle_rad float64 [transmits]     steering angle from the normal (towards +x)
 //   /transmit/virtual_source_mm  float64 [transmits, 2]  (x, z) of a diverging wave's

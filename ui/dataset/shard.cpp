@@ -172,8 +172,10 @@ void write_shard(const std::string& path, const std::string& output_name, const 
         });
     if (spec.write_channels) {
         // Each frame's channels with what beamforming them needs beyond the frame table
-        // (its probe and frequency) and the spec's "transmit" (docs/guide/channel-data.md).
+        // (its probe and frequency) and the spec's "transmit" (docs/guide/channel-data.md),
+        // and its elements' places and normals (a convex array's lie on its arc).
         Handle g(w.group("channels"), H5Gclose);
+        Handle elements(w.group("channel_elements"), H5Gclose);
         for (const DatasetFrame& fr : frames) {
             const imaging::ChannelData& c = *fr.channels;
             char name[32];
@@ -188,6 +190,11 @@ void write_shard(const std::string& path, const std::string& output_name, const 
                        {"speed_of_sound_m_s", c.speed_m_s},
                        {"centre_frequency_hz", c.frequency_hz},
                        {"pitch_mm", c.pitch_mm}});
+            std::vector<double> places;
+            for (const probe::ArrayPoint& e : c.element_points)
+                places.insert(places.end(), {e.position.x, e.position.y, e.normal.x, e.normal.y});
+            w.dataset(elements, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, {hsize_t(c.elements), 4},
+                      {}, places.data());
         }
     }
     if (spec.write_energy)

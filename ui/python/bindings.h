@@ -128,6 +128,19 @@ class Frame {
         const imaging::ChannelData& c = *data_->simulated.frame.channels;
         return view<float>(data_, c.values.data(), {c.transmits, c.elements, c.samples});
     }
+    // Each element's x, z (mm) and unit normal (x, z), as the shards' channel_elements.
+    py::object channel_elements() const {
+        if (!data_->simulated.frame.channels) return py::none();
+        const imaging::ChannelData& c = *data_->simulated.frame.channels;
+        py::array_t<double> out({py::ssize_t(c.elements), py::ssize_t(4)});
+        auto v = out.mutable_unchecked<2>();
+        for (int e = 0; e < c.elements; ++e) {
+            const probe::ArrayPoint& p = c.element_points[std::size_t(e)];
+            v(e, 0) = p.position.x, v(e, 1) = p.position.y;
+            v(e, 2) = p.normal.x, v(e, 3) = p.normal.y;
+        }
+        return out;
+    }
     py::object sidecar() const { return to_python(data_->sidecar); }
     const std::shared_ptr<FrameData>& data() const { return data_; }
 

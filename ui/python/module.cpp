@@ -127,6 +127,9 @@ PYBIND11_MODULE(_sonotrace, m) {
                                "under each unfocused transmit (transmit='plane:...' or "
                                "'diverging:...'; sampling and geometry in sidecar['transmit'] "
                                "and docs/guide/channel-data.md), else None")
+        .def_property_readonly("channel_elements", &Frame::channel_elements,
+                               "float64 [elements, 4]: each element's x, z (mm, z below 0 along "
+                               "a convex arc) and unit normal x, z, with channels; else None")
         .def_property_readonly("sidecar", &Frame::sidecar,
                                "dict: the frame's JSON sidecar (probe, pose, image geometry, ...)");
 
@@ -163,7 +166,8 @@ PYBIND11_MODULE(_sonotrace, m) {
                                          "instances", "frames"})
                     if (file.attr("__contains__")(name).cast<bool>())
                         out[name] = read_all(file[name]);
-                for (const char* name : {"envelope", "rf", "energy", "channels"}) {
+                for (const char* name :
+                     {"envelope", "rf", "energy", "channels", "channel_elements"}) {
                     if (!file.attr("__contains__")(name).cast<bool>()) continue;
                     py::dict per_frame;
                     const py::object group = file[name];
@@ -190,9 +194,10 @@ PYBIND11_MODULE(_sonotrace, m) {
         },
         "read_shard(path) -> dict: a dataset shard (`sonotrace dataset`) as NumPy arrays: "
         "bmode, labels, frames (a record array), labels_echo / depth / echogenicity / "
-        "instances and envelope / rf / energy / channels ({frame index: array}) when "
-        "written, and the shard's attributes (spec, spec_digest, ...). The channels' "
-        "sampling and pitch are attributes of their datasets (h5py).");
+        "instances and envelope / rf / energy / channels / channel_elements ({frame index: "
+        "array}; channel_elements: each element's x, z, normal x, normal z) when written, "
+        "and the shard's attributes (spec, spec_digest, ...). The channels' sampling and "
+        "pitch are attributes of their datasets (h5py).");
 
     py::class_<Sweep>(m, "Sweep", "Frames of a sweep, simulated as they are asked for.")
         .def("__iter__", [](Sweep& s) -> Sweep& { return s; })
