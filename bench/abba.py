@@ -9,8 +9,17 @@ median. Slow drifts of the machine's speed then cancel within a pair.
 
 `--counter time` compares the benchmark's own time per iteration instead (as a rate,
 iterations per second: a ratio above 1 is faster).
+
+Bench commands that print a JSON line instead (bench_pbvr): `--json FIELD` takes FIELD of
+the last JSON line the binary prints, run with the arguments `--args` gives; a field in
+milliseconds or seconds (`ms_...`, `..._s`) is a time and compared as its inverse.
+
+    bench/abba.py OLD/bench_pbvr NEW/bench_pbvr 8 --json ms_per_repetition_median \\
+        --args "repetitions 12"
 """
 import argparse
+import json
+import shlex
 import re
 import statistics
 import subprocess
@@ -26,11 +35,26 @@ def main():
                         help="--benchmark_filter (one benchmark)")
     parser.add_argument("--counter", default="steps/s", help="rate counter to compare")
     parser.add_argument("--min-time", default="0.3", help="--benchmark_min_time, seconds")
+    parser.add_argument("--json", metavar="FIELD",
+                        help="compare FIELD of the last JSON line of a bench command")
+    parser.add_argument("--args", default="", help="with --json: the bench command's arguments")
     args = parser.parse_args()
     pattern = re.compile(re.escape(args.counter) + r"=([0-9.]+)([kMG]?)")
     scale = {"": 1.0, "k": 1e3, "M": 1e6, "G": 1e9}
 
+    def json_rate(binary):
+        out = subprocess.run([binary] + shlex.split(args.args), capture_output=True, text=True,
+                             check=True).stdout
+        lines = [line for line in out.splitlines() if line.startswith("{")]
+        if not lines or args.json not in json.loads(lines[-1]):
+            raise SystemExit(f"{binary}: no JSON line with '{args.json}'")
+        value = float(json.loads(lines[-1])[args.json])
+        is_time = args.json.startswith("ms_") or args.json.endswith("_s")
+        return 1.0 / value if is_time else value
+
     def rate(binary):
+        if args.json:
+            return json_rate(binary)
         out = subprocess.run([binary, "--benchmark_filter=" + args.filter,
                               "--benchmark_min_time=" + args.min_time],
                              capture_output=True, text=True, check=True).stdout
@@ -47,6 +71,9 @@ def main():
         return float(match.group(1)) * scale[match.group(2)]
 
     def shown(value):  # with the counter's own prefix: 43.2 M steps/s, 15.3 frames/s
+        if args.json:  # the field as printed (a time, not its inverse)
+            is_time = args.json.startswith("ms_") or args.json.endswith("_s")
+            return f"{1.0 / value if is_time else value:11.4g}"
         for prefix, factor in (("G", 1e9), ("M", 1e6), ("k", 1e3)):
             if value >= factor:
                 return f"{value / factor:9.2f} {prefix}"

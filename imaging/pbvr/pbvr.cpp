@@ -85,6 +85,22 @@ CutAway facing_octant(const tissue::VolumeGeometry& geometry, const OrbitCamera&
 
 // ---- settings, shading, images -----------------------------------------------------
 
+bool RenderSettings::removes_box(const glm::vec3& low, const glm::vec3& high,
+                                 float margin) const {
+    if (cut_away && cut_away->contains(low - margin) && cut_away->contains(high + margin))
+        return true;
+    if (!clip_plane) return false;
+    // A half-space holds the box if it holds every corner, each `margin` inside.
+    const glm::vec3 normal(*clip_plane);
+    const float inside = margin * glm::length(normal);
+    for (int v = 0; v < 8; ++v) {
+        const glm::vec3 corner(v & 1 ? high.x : low.x, v & 2 ? high.y : low.y,
+                               v & 4 ? high.z : low.z);
+        if (!(glm::dot(normal, corner) + clip_plane->w > inside)) return false;
+    }
+    return true;
+}
+
 void RenderSettings::validate() const {
     using base::require_in_range;
     const std::string source = "render settings";
@@ -273,8 +289,17 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
     const glm::ivec3 bricks = (n + kBrick - 1) / kBrick;
     std::vector<uint8_t> brick_skipped(std::size_t(bricks.x) * std::size_t(bricks.y) *
                                        std::size_t(bricks.z));
-    std::vector<std::size_t> culled(std::size_t(n.z), 0);
-    if (settings.brick_culling)
+    std::vector<std::size_t> culled(std::size_t(n.z), 0), removed(std::size_t(n.z), 0);
+    // A box removed whole, with a margin far above the rounding of the particles'
+    // positions, which are computed from the cell's corner.
+    const glm::vec3 spacing = volume.spacing();
+    const float margin = 1e-3f * std::max({spacing.x, spacing.y, spacing.z});
+    auto removed_whole = [&](const glm::ivec3& first, const glm::ivec3& last) {
+        return settings.early_culling &&
+               settings.removes_box(glm::vec3(first) * spacing, glm::vec3(last + 1) * spacing,
+                                    margin);
+    };
+    if (settings.early_culling)
         tbb::parallel_for(0, bricks.z, [&](int bz) {
             for (int by = 0; by < bricks.y; ++by) {
                 for (int bx = 0; bx < bricks.x; ++bx) {
@@ -288,10 +313,14 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
                                 lo = std::min(lo, s), hi = std::max(hi, s);
                             }
                     bool skipped = !(generation_tf_.max_extinction(lo, hi) > 0.0f);
-                    if (!skipped && cull && brick_hidden(first, last, occlusion)) {
+                    const glm::ivec3 size = last - first + 1;
+                    const std::size_t cells = std::size_t(size.x * size.y * size.z);
+                    if (!skipped && removed_whole(first, last)) {
                         skipped = true;
-                        const glm::ivec3 size = last - first + 1;
-                        culled[std::size_t(first.z)] += std::size_t(size.x * size.y * size.z);
+                        removed[std::size_t(first.z)] += cells;
+                    } else if (!skipped && cull && brick_hidden(first, last, occlusion)) {
+                        skipped = true;
+                        culled[std::size_t(first.z)] += cells;
                     }
                     brick_skipped[(std::size_t(bz) * std::size_t(bricks.y) + std::size_t(by)) *
                                       std::size_t(bricks.x) +
@@ -318,7 +347,9 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
                     lo = std::min(lo, s), hi = std::max(hi, s);
                 }
                 const float majorant = generation_tf_.max_extinction(lo, hi);
-                if (majorant > 0.0f && cull && cell_hidden(i, j, k, occlusion)) {
+                if (majorant > 0.0f && removed_whole({i, j, k}, {i, j, k})) {
+                    removed[std::size_t(k)]++;
+                } else if (majorant > 0.0f && cull && cell_hidden(i, j, k, occlusion)) {
                     culled[std::size_t(k)]++;
                 } else if (majorant > 0.0f) {
                     const uint32_t index = uint32_t(
@@ -346,6 +377,7 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
         slabs[k] = {};
     });
     for (const std::size_t c : culled) culled_cells_ += c;
+    for (const std::size_t c : removed) removed_cells_ += c;
     occluded_beyond_ = {};
     accumulated_.assign(std::size_t(camera.width) * std::size_t(camera.height), glm::dvec3(0.0));
 }

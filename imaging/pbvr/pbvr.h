@@ -197,14 +197,19 @@ struct RenderSettings {
         return (cut_away && cut_away->contains(q)) ||
                (clip_plane && glm::dot(glm::vec3(*clip_plane), q) + clip_plane->w > 0.0f);
     }
+    // True if every point within `margin` mm of the box [low, high] is removed (by the
+    // cut-away, or by the clip plane): nothing generated in the box can be drawn.
+    bool removes_box(const glm::vec3& low, const glm::vec3& high, float margin) const;
     // Skip cells hidden behind an optical depth of 5 (transmittance < 0.7 %) along every
     // ray of a grid 4 pixels apart around their projection (cells off the image or behind
     // the eye are always skipped).
     bool occlusion_culling = true;
-    // Bricks of 4^3 cells that are transparent or hidden as a whole are skipped before
-    // their cells are classified (the same cells are kept, at half the set-up time; off:
-    // every cell is classified, for the test that checks this).
-    bool brick_culling = true;
+    // Before cells are classified one by one, bricks of 4^3 cells that are transparent or
+    // hidden as a whole are skipped, and bricks and cells that the cut-away or the clip
+    // plane removes whole (their particles were generated and dropped: a third of the
+    // head view's candidates) are not kept. The same particles are drawn, at a fraction of
+    // the work; off: every cell is classified and kept, for the test that checks this.
+    bool early_culling = true;
 
     // Throws base::InputError("render settings", field).
     void validate() const;
@@ -317,6 +322,8 @@ class PbvrRenderer {
     // non-transparent cells hidden one by one.
     std::size_t culled_cells() const { return culled_cells_; }
     std::size_t skipped_bricks() const { return skipped_bricks_; }  // transparent or hidden
+    // Cells not kept because the cut-away or the clip plane removes them whole.
+    std::size_t removed_cells() const { return removed_cells_; }
 
   private:
     // A generated particle, projected: what a renderer needs to draw it.
@@ -381,6 +388,7 @@ class PbvrRenderer {
     std::vector<Cell, base::UninitializedHugePageAllocator<Cell>> cells_;  // filled in parallel
     std::size_t culled_cells_ = 0;
     std::size_t skipped_bricks_ = 0;
+    std::size_t removed_cells_ = 0;
     std::vector<float> occluded_beyond_;  // the occlusion map while cells are listed
     int occlusion_tiles_x_ = 0, occlusion_tiles_y_ = 0;
     std::vector<glm::dvec3, base::HugePageAllocator<glm::dvec3>>

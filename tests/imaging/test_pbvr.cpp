@@ -334,7 +334,7 @@ TEST(Pbvr, BrickCullingKeepsExactlyTheCellsThatCellCullingKeeps) {
         camera.target = view.target;
         auto render = [&](bool bricks) {
             RenderSettings settings = scene.settings;
-            settings.brick_culling = bricks;
+            settings.early_culling = bricks;
             PbvrRenderer renderer(volume, scene.tf, camera, settings);
             for (int r = 0; r < 2; ++r) renderer.add_repetition();
             return std::tuple{renderer.occupied_cells(), renderer.image(),
@@ -352,6 +352,41 @@ TEST(Pbvr, BrickCullingKeepsExactlyTheCellsThatCellCullingKeeps) {
         skipped += bricks_with;
     }
     EXPECT_GT(skipped, 0u);  // the bound is not vacuous here
+}
+
+// Cells that the cut-away or the clip plane removes whole are not kept (their particles
+// were generated and dropped one by one): the same image to the bit, with and without,
+// from a view that looks into the cut (a box over a corner of the blob) past a clip plane
+// through it.
+TEST(Pbvr, CellsRemovedWholeAreNotGeneratedAndTheImageStaysTheSame) {
+    BlobScene scene;
+    const RenderVolume volume(scene.data, scene.tf);
+    OrbitCamera camera = scene.camera;
+    camera.distance_mm = 90.0, camera.azimuth_deg = 30.0, camera.elevation_deg = 20.0;
+    camera.target = {23.5, 23.5, 23.5};
+    auto render = [&](bool early) {
+        RenderSettings settings = scene.settings;
+        settings.early_culling = early;
+        settings.cut_away = CutAway{{20.0f, 20.0f, 20.0f}, {60.0f, 60.0f, 60.0f}};
+        settings.clip_plane = glm::vec4(1.0f, 0.0f, 0.0f, -38.3f);  // x > 38.3 mm removed
+        PbvrRenderer renderer(volume, scene.tf, camera, settings);
+        for (int r = 0; r < 3; ++r) renderer.add_repetition();
+        return std::tuple{renderer.occupied_cells(), renderer.removed_cells(), renderer.image(),
+                          renderer.particles_drawn()};
+    };
+    const auto [cells_with, removed_with, image_with, drawn_with] = render(true);
+    const auto [cells_without, removed_without, image_without, drawn_without] = render(false);
+    EXPECT_GT(removed_with, 0u);
+    EXPECT_EQ(removed_without, 0u);
+    // Fewer cells kept; the removed ones include some that the occlusion map would have
+    // culled as hidden.
+    EXPECT_LT(cells_with, cells_without);
+    EXPECT_GE(cells_with + removed_with, cells_without);
+    EXPECT_EQ(drawn_with, drawn_without);
+    ASSERT_EQ(image_with.pixels.size(), image_without.pixels.size());
+    EXPECT_EQ(std::memcmp(image_with.pixels.data(), image_without.pixels.data(),
+                          image_with.pixels.size() * sizeof(glm::vec3)),
+              0);
 }
 
 TEST(Pbvr, SpecularPowerIsThePower) {
