@@ -85,8 +85,7 @@ CutAway facing_octant(const tissue::VolumeGeometry& geometry, const OrbitCamera&
 
 // ---- settings, shading, images -----------------------------------------------------
 
-bool RenderSettings::removes_box(const glm::vec3& low, const glm::vec3& high,
-                                 float margin) const {
+bool RenderSettings::removes_box(const glm::vec3& low, const glm::vec3& high, float margin) const {
     if (cut_away && cut_away->contains(low - margin) && cut_away->contains(high + margin))
         return true;
     if (!clip_plane) return false;
@@ -366,9 +365,28 @@ PbvrRenderer::PbvrRenderer(const RenderVolume& volume, const ColourTransferFunct
             }
         }
     });
-    // One list in slab order, copied on both threads into calloc's memory (fresh pages
-    // are not touched until then), so that its pages fault in on both (page faults are
-    // slow in a virtual machine, and a quarter of the set-up when one thread took them).
+    // Front to back along each axis (slabs, rows, cells in a row each taken from the
+    // side nearer the eye): most particles behind what is already drawn then fail the
+    // Z-buffer's first test, before their shading and its compare-and-swap (13 % less per
+    // repetition on the head view; a sort by each cell's depth lost more in locality).
+    // The Z-buffer's content does not depend on the order.
+    const bool i_down = depth_row_.x < 0.0f, j_down = depth_row_.y < 0.0f,
+               k_down = depth_row_.z < 0.0f;
+    tbb::parallel_for(std::size_t(0), slabs.size(), [&](std::size_t k) {
+        std::vector<Cell>& slab = slabs[k];  // rows of ascending j, each of ascending i
+        if (j_down) std::reverse(slab.begin(), slab.end());
+        if (i_down != j_down)
+            for (auto row = slab.begin(); row != slab.end();) {
+                const auto end =
+                    std::find_if(row, slab.end(), [&](const Cell& c) { return c.j != row->j; });
+                std::reverse(row, end);
+                row = end;
+            }
+    });
+    if (k_down) std::reverse(slabs.begin(), slabs.end());
+    // One list, copied on both threads into calloc's memory (fresh pages are not touched
+    // until then), so that its pages fault in on both (page faults are slow in a virtual
+    // machine, and a quarter of the set-up when one thread took them).
     std::vector<std::size_t> first(slabs.size() + 1, 0);
     for (std::size_t k = 0; k < slabs.size(); ++k) first[k + 1] = first[k] + slabs[k].size();
     cells_.resize(first.back());
