@@ -196,9 +196,7 @@ std::vector<Artifact> explain(const Scene& scene, const ScanParameters& p) {
     if (!focused)
         out.push_back(
             {"unfocused transmit",
-             "Each " +
-                 std::string(p.transmit.kind == TransmitControls::Kind::plane ? "plane"
-                                                                              : "diverging") +
+             "Each " + std::string(TransmitControls::name_of(p.transmit.kind).name) +
                  " wave lights the whole field at once, so one transmit makes a frame with a "
                  "receive focus only: points are wider and cysts fill with clutter. Adding the "
                  "beamformed images of waves steered at several angles, in phase, focuses the "

@@ -51,12 +51,15 @@ App::App(const AppOptions& options)
     if (!options.probe.empty()) probe::find_transducer(options.probe, "--probe");  // validates
     {
         TransmitControls& tx = parameters_.transmit;
-        const char* kinds[] = {"focused", "plane", "diverging"};
-        const auto kind = std::find(std::begin(kinds), std::end(kinds), options.transmit);
-        if (kind == std::end(kinds))
-            throw base::InputError("--transmit", options.transmit,
-                                   "must be focused, plane or diverging");
-        tx.kind = TransmitControls::Kind(kind - std::begin(kinds));
+        const auto& kinds = TransmitControls::kKinds;
+        const auto kind = std::find_if(kinds.begin(), kinds.end(),
+                                       [&](const auto& k) { return options.transmit == k.name; });
+        if (kind == kinds.end()) {
+            std::string names;
+            for (const auto& k : kinds) names += (names.empty() ? "" : ", ") + std::string(k.name);
+            throw base::InputError("--transmit", options.transmit, "must be one of " + names);
+        }
+        tx.kind = kind->kind;
         const SliderSpec &count = slider(Control::transmits), &span = slider(Control::span);
         if (!(options.transmits >= count.min && options.transmits <= count.max))
             throw base::InputError("--transmits", std::to_string(options.transmits),
@@ -411,10 +414,11 @@ void App::draw_controls(float x, float y, float w, float h) {
         // Focused line by line, or unfocused waves (open arrays, 2D, monostatic receive).
         TransmitControls& tx = parameters_.transmit;
         int kind = int(tx.kind);
-        const char* kinds[] = {"focused (line by line)", "plane waves", "diverging waves"};
+        std::array<const char*, TransmitControls::kKinds.size()> kinds;
+        for (std::size_t k = 0; k < kinds.size(); ++k) kinds[k] = TransmitControls::kKinds[k].label;
         const bool pushed = highlight_begin(Control::transmit);
         ImGui::BeginDisabled(!offers_unfocused_transmits(t));
-        if (ImGui::Combo("transmit", &kind, kinds, 3)) {
+        if (ImGui::Combo("transmit", &kind, kinds.data(), int(kinds.size()))) {
             tx.kind = TransmitControls::Kind(kind);
             if (tx.kind != TransmitControls::Kind::focused) {
                 parameters_.trace_dimensions = 2;

@@ -63,16 +63,16 @@ std::vector<std::pair<int, double>> tissues_present(const tissue::Volume& labels
 
 std::string TransmitControls::text(const probe::Transducer& t) const {
     using base::exact_number_text;
-    if (kind == Kind::focused) return "focused";
+    const std::string name = name_of(kind).name;
+    if (kind == Kind::focused) return name;
     const std::string angles = count == 1
                                    ? std::string("0")
                                    : exact_number_text(-span_deg) + ":" +
                                          exact_number_text(span_deg) + ":" + std::to_string(count);
-    if (kind == Kind::plane) return "plane:" + angles;
+    if (kind == Kind::plane) return name + ":" + angles;
     const double curvature = probe::array_geometry(t)->face_radius_mm();
-    return "diverging:" +
-           exact_number_text(curvature > 0.0 ? curvature : 0.5 * t.array_length_mm()) + ":" +
-           angles;
+    return name + ":" + exact_number_text(curvature > 0.0 ? curvature : 0.5 * t.array_length_mm()) +
+           ":" + angles;
 }
 
 scene::FrameRequest ScanParameters::request() const {

@@ -36,6 +36,19 @@ inline constexpr int kTgcSliders = 8;  // evenly spaced over the imaging depth
 // beamformed by delay-and-sum and compounded (open arrays: probe/transmit.h).
 struct TransmitControls {
     enum class Kind { focused, plane, diverging };
+    // Each kind's --transmit name (the GUI's option, the scheme's prefix) and its label on
+    // the panel, in Kind's order.
+    struct KindName {
+        Kind kind;
+        const char* name;
+        const char* label;
+    };
+    static constexpr std::array<KindName, 3> kKinds{{
+        {Kind::focused, "focused", "focused (line by line)"},
+        {Kind::plane, "plane", "plane waves"},
+        {Kind::diverging, "diverging", "diverging waves"},
+    }};
+    static const KindName& name_of(Kind k) { return kKinds[std::size_t(k)]; }
     Kind kind = Kind::focused;
     int count = 5;          // transmits, their steering angles evenly over +-span_deg
     double span_deg = 8.0;  // the outermost steering angle (degrees)
