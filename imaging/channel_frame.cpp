@@ -222,7 +222,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                 // piece / G of the wavefront, where the wave's amplitude is sqrt(G) of a
                 // plane wave's (G: TransmitField's spreading), so a coherent source carries 1 /
                 // sqrt(G).
-                if (coherent) amplitude /= std::sqrt(std::max(field.at(image).spreading, 1e-6));
+                if (coherent) amplitude /= std::sqrt(std::max(field.spreading(image), 1e-6));
                 // The share of the reflector's lobe that heads back the way the particle
                 // came, within the receive's half-angle: a rough interface's echo, and any
                 // echo after a reflection (as the focused mode takes them). A direct
@@ -293,7 +293,7 @@ Frame simulate_channel_frame(const tissue::AcousticMap<2>& map, const PlaneGrid&
                     // The transmit's loss on the way in, and again on the way out (the
                     // way back repeats the way in, as in the focused mode).
                     const double a =
-                        light.amplitude(s.position + to_map, field.at(s.position).spreading);
+                        light.amplitude(s.position + to_map, field.spreading(s.position));
                     if (a > 0.0)
                         echoes.push_back({s.position, s.strength * a * a, 0.0, std::nullopt});
                 }

@@ -217,6 +217,7 @@ double launch_arc_mm(const Transducer& t, int count, int i) {
 TransmitField::TransmitField(const Transducer& t, const TransmitWave& wave)
     : wave_(wave),
       geometry_(array_geometry(t)),
+      plane_heading_(std::sin(wave.angle_rad), std::cos(wave.angle_rad)),
       apodization_(t.tx_apodization),
       half_span_(0.5 * t.array_length_mm()),
       pitch_(t.pitch_mm),
@@ -239,7 +240,7 @@ TransmitField::Ray TransmitField::ray_from(double s) const {
     Ray ray;
     ray.origin = f.position;
     ray.direction = wave_.kind == TransmitWave::Kind::plane
-                        ? glm::dvec2(std::sin(wave_.angle_rad), std::cos(wave_.angle_rad))
+                        ? plane_heading_
                         : glm::normalize(f.position - wave_.virtual_source());
     ray.sin_angle = ray.direction.x * f.normal.y - ray.direction.y * f.normal.x;
     ray.cos_angle = glm::dot(ray.direction, f.normal);
@@ -252,7 +253,7 @@ TransmitField::Arrival TransmitField::at(const glm::dvec2& r) const {
     glm::dvec2 heading;
     glm::dvec2 v(0.0);
     if (wave_.kind == TransmitWave::Kind::plane) {
-        heading = {std::sin(wave_.angle_rad), std::cos(wave_.angle_rad)};
+        heading = plane_heading_;
         a.time_s = glm::dot(r, heading) / c0_mm_per_s;
     } else {
         v = wave_.virtual_source();

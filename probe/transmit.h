@@ -112,6 +112,10 @@ class TransmitField {
         double spreading = 1.0;
     };
     Arrival at(const glm::dvec2& r) const;
+    // at(r).spreading alone (1 for a plane wave, without tracing its ray back).
+    double spreading(const glm::dvec2& r) const {
+        return wave_.kind == TransmitWave::Kind::plane ? 1.0 : at(r).spreading;
+    }
     // The ray that leaves the face at arc length s: its origin, direction, and the sine
     // of its angle from the face's normal there (positive turning from the normal
     // towards +x, as a plane wave's steering angle).
@@ -128,6 +132,7 @@ class TransmitField {
   private:
     TransmitWave wave_;
     std::shared_ptr<const ArrayGeometry> geometry_;
+    glm::dvec2 plane_heading_{0.0, 1.0};  // a plane wave's direction (sin, cos of its angle)
     std::vector<double> delays_, weights_;
     Apodization apodization_;
     double half_span_ = 0.0, pitch_ = 0.0, lambda0_ = 0.0;
