@@ -1,5 +1,5 @@
 #pragma once
-// What the particle renderer's files share (pbvr.cpp: particles, occlusion, images;
+// What the particle renderer's files share (pbvr.cpp: particles, images; occlusion.cpp;
 // pbvr_mesh.cpp: tetrahedral meshes): the sub-pixels a footprint covers and a mesh
 // layer's data. Private to imaging/pbvr.
 #include <algorithm>

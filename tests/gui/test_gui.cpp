@@ -99,31 +99,23 @@ TEST(Gui, ScreenshotsShowEveryViewAndTheBmodeFollowsTheProbe) {
 // with a message.
 TEST(Gui, UnfocusedWavesShowAFrameAndTheRingStaysFocused) {
     const std::string scene = "--scene phantom:cyst_and_stone --no-context --frames 1 ";
-    ASSERT_EQ(
-        run_gui(scene + "--probe linear --transmit plane --transmits 3 --span 6 --screenshot " +
-                    (kDir / "plane.png").string(),
-                "plane.log"),
-        0)
-        << read_text(kDir / "plane.log");
-    const Screenshot plane = load("plane");
+    // The GUI with `options`, its screenshot NAME.png; fails the test if it exits nonzero.
+    auto shot = [&](const std::string& name, const std::string& options) {
+        const int status = run_gui(
+            scene + options + " --screenshot " + (kDir / (name + ".png")).string(), name + ".log");
+        EXPECT_EQ(status, 0) << read_text(kDir / (name + ".log"));
+        return load(name);
+    };
+    const Screenshot plane =
+        shot("plane", "--probe linear --transmit plane --transmits 3 --span 6");
     EXPECT_EQ(plane.layout.at("transmit"), "plane:-6:6:3");
     EXPECT_EQ(plane.layout.at("error"), "");
     EXPECT_GT(stddev(plane.region("bmode")), 10.0);
-    ASSERT_EQ(run_gui(scene + "--probe convex --transmit diverging --screenshot " +
-                          (kDir / "convex.png").string(),
-                      "convex.log"),
-              0)
-        << read_text(kDir / "convex.log");
-    const Screenshot convex = load("convex");
+    const Screenshot convex = shot("convex", "--probe convex --transmit diverging");
     EXPECT_EQ(convex.layout.at("transmit"), "diverging:49.57:-8:8:5");
     EXPECT_EQ(convex.layout.at("error"), "");
     EXPECT_GT(stddev(convex.region("bmode")), 10.0);
-    ASSERT_EQ(run_gui(scene + "--probe radial --transmit diverging --screenshot " +
-                          (kDir / "radial.png").string(),
-                      "radial.log"),
-              0)
-        << read_text(kDir / "radial.log");
-    const Screenshot radial = load("radial");
+    const Screenshot radial = shot("radial", "--probe radial --transmit diverging");
     EXPECT_EQ(radial.layout.at("transmit"), "focused");
     EXPECT_NE(radial.layout.at("message").get<std::string>().find("focused"), std::string::npos);
 }

@@ -1,5 +1,6 @@
 // The application's views: the tissue slice, the B-mode frame, the 3D context, the
-// energy map and the status line (App's panels of controls are in gui_app.cpp).
+// energy map and the status line (its panels of controls are in gui_app.cpp, its saved
+// frames and clips in gui_output.cpp).
 #include <GL/gl.h>
 #include <imgui.h>
 
