@@ -74,7 +74,26 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
     const int S = c.samples, E = c.elements;
     const double f0 = c.frequency_hz, fs = c.fs_hz, c0 = c.speed_m_s * 1e3;  // mm/s
     std::vector<std::complex<float>> baseband(std::size_t(E) * std::size_t(S));
+    // Each pixel's receive aperture (header), the same under every transmit: at least two
+    // pitches across (a narrower apodized aperture leaves pixels between elements with no
+    // weight: a comb along the face).
+    struct Aperture {
+        double centre, half_width;
+        int lo, hi;  // the elements within it, [lo, hi)
+    };
+    std::vector<Aperture> apertures(image.values.size());
     const probe::ScanGeometry geometry(t);
+    tbb::parallel_for(0, grid.nz, [&](int j) {
+        for (int i = 0; i < grid.nx; ++i) {
+            const glm::dvec2 line = geometry.line_and_depth({grid.x(i), grid.z(j)});
+            Aperture& a = apertures[std::size_t(j) * std::size_t(grid.nx) + std::size_t(i)];
+            a.centre = geometry.array().arc_length(geometry.point(line.x, 0.0));
+            a.half_width = std::max(0.5 * std::abs(line.y) / settings.f_number, t.pitch_mm);
+            const auto& s = c.element_s_mm;
+            a.lo = int(std::lower_bound(s.begin(), s.end(), a.centre - a.half_width) - s.begin());
+            a.hi = int(std::upper_bound(s.begin(), s.end(), a.centre + a.half_width) - s.begin());
+        }
+    });
     for (int w = first; w < last; ++w) {
         // Each channel's analytic signal at baseband.
         tbb::parallel_for(0, E, [&](int e) {
@@ -89,24 +108,16 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
             const double z = grid.z(j);
             for (int i = 0; i < grid.nx; ++i) {
                 const double x = grid.x(i);
-                // The receive aperture of the pixel's scan line (header), at least two
-                // pitches across: a narrower apodized aperture leaves pixels between
-                // elements with no weight (a comb along the face).
-                const glm::dvec2 line = geometry.line_and_depth({x, z});
-                const double centre = geometry.array().arc_length(geometry.point(line.x, 0.0));
-                const double half_width =
-                    std::max(0.5 * std::abs(line.y) / settings.f_number, t.pitch_mm);
+                const std::size_t at = std::size_t(j) * std::size_t(grid.nx) + std::size_t(i);
+                const Aperture& aperture = apertures[at];
                 const double transmit_time = field.at({x, z}).time_s;
-                const auto lo = std::lower_bound(c.element_s_mm.begin(), c.element_s_mm.end(),
-                                                 centre - half_width);
-                const auto hi = std::upper_bound(c.element_s_mm.begin(), c.element_s_mm.end(),
-                                                 centre + half_width);
                 std::complex<double> sum = 0.0;
                 double weights = 0.0;
-                for (auto it = lo; it < hi; ++it) {
-                    const int e = int(it - c.element_s_mm.begin());
+                for (int e = aperture.lo; e < aperture.hi; ++e) {
                     const double weight = probe::apodization_weight(
-                        settings.apodization, 0.5 + (*it - centre) / (2.0 * half_width));
+                        settings.apodization,
+                        0.5 + (c.element_s_mm[std::size_t(e)] - aperture.centre) /
+                                  (2.0 * aperture.half_width));
                     if (!(weight > 0.0)) continue;
                     weights += weight;
                     const glm::dvec2 element = c.element_points[std::size_t(e)].position;
@@ -117,7 +128,6 @@ BeamformedImage delay_and_sum(const ChannelData& c, const probe::Transducer& t,
                         interpolate(baseband.data() + std::size_t(e) * std::size_t(S), S, position);
                     sum += weight * std::complex<double>(v) * std::polar(1.0, kTurn * f0 * delay);
                 }
-                const std::size_t at = std::size_t(j) * std::size_t(grid.nx) + std::size_t(i);
                 image.values[at] += std::complex<float>(sum);
                 image.weights[at] += float(weights);
             }
