@@ -121,7 +121,7 @@ def main():
     group = None
     for k in range(args.seeds):
         seed = args.first_seed + k
-        frame = sonotrace.simulate(view=args.view, labels=True, seed=seed, quiet=True, **options)
+        frame = sonotrace.simulate(view=args.view, labels=True, seed=seed, **options)
         image = frame.sidecar["image"]
         m = measure(frame, image["dynamic_range_db"], image["pixel_spacing_mm"][0],
                     args.labels == "echo")

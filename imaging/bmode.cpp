@@ -15,6 +15,7 @@
 #include <optional>
 #include <unordered_map>
 
+#include "imaging/incoherent_echoes.h"
 #include "imaging/psf.h"
 #include "imaging/receive_weights.h"
 #include "probe/aperture.h"
@@ -185,11 +186,6 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     if (!receive && !event_order.empty())
         receive = receive_weights(t, sources, to_world.face_in_map);
     const std::size_t size = std::size_t(L) * std::size_t(N);
-    const auto speckle_i = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
-    const auto speckle_q = std::make_unique_for_overwrite<float[]>(with_speckle ? size : 0);
-    if (with_speckle)
-        detail::speckle_lines(t, *psf, profile, to_world, settings, rf, map, speckle_i.get(),
-                              speckle_q.get());
 
     // -- RF per line: speckle (*) pulse, plus a pulse at each reflection bin's echo time
     // and at each point target's. Convolution taps: kernel[m + half] = p(-m / fs).
@@ -202,6 +198,144 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     const double depth_to_samples = 2.0 * 1e-3 / kC0 * fs;
     const int echo_half_width = std::max(1, int(std::lround(0.5 * pulse.envelope_fwhm_s() * fs)));
     rf.values.resize(size);
+    // One reflection event as line l receives it: where its pulse goes (samples), its
+    // intensity and the plane response (its phase); nothing if it makes no echo.
+    // `untilted`: the line's echo of an untilted plane by depth row, as diffuse echoes ask
+    // it (NaN: not yet): most of a line's echoes, and few rows.
+    struct LineEcho {
+        double position, intensity;
+        std::complex<double> response;
+    };
+    auto line_echo = [&](int l, const ScanLine& axis, const simulator::EchoEvent<2>& e,
+                         std::vector<std::complex<double>>& untilted) -> std::optional<LineEcho> {
+        const auto& line = of_line[std::size_t(l)];
+        if (e.particle >= line.size()) return std::nullopt;
+        const auto& source = sources[line[e.particle]];
+        double intensity = double(e.energy) * e.weight;
+        double echo_time = e.time_s;  // the particle came back itself: the full round trip
+        std::complex<double> response = 1.0;
+        if (e.kind != simulator::EchoKind::returned_to_probe) {
+            intensity *=
+                double(e.energy) / std::max(double(source.energy), 1e-30) * double(e.return_weight);
+            // The apparent reflector: where the particle's path, unfolded at every
+            // mirror and timed at c0, puts the event, measured along the line (the
+            // depth of its image point: a mirrored path images at the mirror position;
+            // a direct one at the event's own depth, whatever the particle's slant),
+            // tilted from the line by the interface's normal (the image's receive sees
+            // the echo come back the way the particle left, by reciprocity). The
+            // aperture's plane echo there is the echo of every particle of the beam
+            // that meets the plane: one pulse at 2 range / c0, not one per slant path
+            // (which would smear the focusing delays over the echo). A rough
+            // interface scatters its lobe, of which the receive aperture takes its
+            // share.
+            const glm::dvec2 launch =
+                glm::dvec2(source.position) - to_world.face_in_map - axis.origin;
+            const double flight_mm = double(e.time_s - source.time_s) * kC0 * 1e3;
+            const double range_mm =
+                std::max(glm::dot(launch, axis.direction) +
+                             flight_mm * glm::dot(glm::dvec2(source.direction), axis.direction),
+                         1e-3);
+            echo_time = 2.0 * range_mm * 1e-3 / kC0;
+            // The plane's tilt as the aperture sees it. A direct echo (no reflection
+            // before it): the plane's normal against the way the particle arrives,
+            // carried to the line's frame by the angle it was launched at; the plane
+            // sends the particle's piece of the wavefront back the way it came, and by
+            // reciprocity to the aperture, only if it faces it. For an unturned beam
+            // this is the plane's tilt from the line; a piece turned by refraction
+            // (the skull) echoes from the planes that face it, not from those that
+            // face the probe. Echoes after reflections keep the plane's tilt from the
+            // line: judged in the particle's frame, paths between a mirror and a wire
+            // outshone the mirror image (mirror_image, seed 3: 6.7 mm off).
+            const bool direct = e.bounces == 0 && glm::dot(e.direction, e.direction) > 0.0f;
+            const glm::dvec2 arriving = direct ? glm::dvec2(e.direction) : axis.direction;
+            glm::dvec2 away = -glm::dvec2(e.normal);
+            if (glm::dot(away, arriving) < 0.0) away = -away;
+            auto angle_from = [](const glm::dvec2& v, const glm::dvec2& from) {
+                return std::atan2(glm::dot(v, glm::dvec2(from.y, -from.x)), glm::dot(v, from));
+            };
+            // Only where it is used (not by a direct diffuse echo, most of them).
+            auto tilt = [&] {
+                return glm::dot(away, away) > 0.0
+                           ? angle_from(away, arriving) +
+                                 (direct ? angle_from(glm::dvec2(source.direction), axis.direction)
+                                         : 0.0)
+                           : 0.0;
+            };
+            // The amplitude share of the reflector's lobe that heads back the way the
+            // particle came, within the receive's half-angle at this range.
+            auto heads_back = [&] {
+                const double half_angle =
+                    std::atan(0.5 * t.receive_aperture_mm(range_mm) / range_mm);
+                return std::sqrt(
+                    reflection_back_fraction(double(e.cos_incidence), e.lobe_exponent, half_angle));
+            };
+            if (e.kind == simulator::EchoKind::diffuse) {
+                // The share of the lobe that heads back the way the particle came (by
+                // reciprocity, to the aperture), by the particle's own incidence, so a
+                // piece of the beam meeting a rough surface at grazing incidence sends
+                // next to nothing back, whatever the plane's tilt to the line; after
+                // reflections too (bone met at grazing incidence after a bounce lit the
+                // temporal view's ventricles 37 dB above the brain).
+                std::complex<double>& plane = untilted[std::size_t(psf->depth_index(range_mm))];
+                if (std::isnan(plane.real())) plane = psf->plane_echo(l, range_mm, 0.0);
+                response = plane * heads_back();
+            } else {
+                response = psf->plane_echo(l, range_mm, std::sin(tilt()));
+                // After reflections the plane is judged from the line (above), but the
+                // echo still returns along the particle's path reversed only if the
+                // mirror sends it back the way it came: a mirror met obliquely sends
+                // it on (gel or bone met at 30 degrees after a bounce lit a far line
+                // 47 dB above the brain at 100 mm).
+                if (!direct) response *= heads_back();
+            }
+            // Receive, once (receive_weights): a reflector across the whole beam
+            // averages it to 1, so its plane echo above stays exact; a target smaller
+            // than the beam echoes on the lines whose receive sees it.
+            if (receive) intensity *= receive->at(uint32_t(l), e.particle, e.time_s);
+        }
+        const double position = echo_time * fs;
+        if (!(position >= 0.0) || position >= double(N - 1)) return std::nullopt;
+        return LineEcho{position, intensity, response};
+    };
+    auto no_plane_echoes = [&] {
+        return std::vector<std::complex<double>>(
+            psf ? std::size_t(psf->depths()) : 0,
+            std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0));
+    };
+    // Echoes after a rough reflection are incoherent: gathered over the image and drawn
+    // as speckle of their mean (incoherent_echoes.h), not as a pulse each.
+    auto incoherent = [](const simulator::EchoEvent<2>& e) { return e.rough_bounces > 0; };
+    std::vector<std::vector<IncoherentEcho>> incoherent_of(static_cast<std::size_t>(L));
+    tbb::parallel_for(0, L, [&](int l) {
+        const ScanLine axis = geometry.line(l);
+        std::vector<std::complex<double>> untilted = no_plane_echoes();
+        for (uint32_t n = event_start[std::size_t(l)]; n < event_start[std::size_t(l) + 1]; ++n) {
+            const auto& e = events[event_order[n]];
+            if (!incoherent(e)) continue;
+            if (const auto echo = line_echo(l, axis, e, untilted)) {
+                const double weighted = echo->intensity * std::norm(echo->response);
+                if (weighted > 0.0)
+                    incoherent_of[std::size_t(l)].push_back(
+                        {l, echo->position / depth_to_samples, weighted, e.particle});
+            }
+        }
+    });
+    std::vector<IncoherentEcho> incoherent_echoes;
+    for (const auto& echoes_of_line : incoherent_of)
+        incoherent_echoes.insert(incoherent_echoes.end(), echoes_of_line.begin(),
+                                 echoes_of_line.end());
+    const bool with_sums = with_speckle || !incoherent_echoes.empty();
+    const auto speckle_i = std::make_unique_for_overwrite<float[]>(with_sums ? size : 0);
+    const auto speckle_q = std::make_unique_for_overwrite<float[]>(with_sums ? size : 0);
+    if (with_speckle)
+        detail::speckle_lines(t, *psf, profile, to_world, settings, rf, map, speckle_i.get(),
+                              speckle_q.get());
+    else if (with_sums)
+        std::fill_n(speckle_i.get(), size, 0.0f), std::fill_n(speckle_q.get(), size, 0.0f);
+    if (!incoherent_echoes.empty())
+        add_incoherent_speckle(incoherent_intensity(geometry, rf, incoherent_echoes), rf, t,
+                               geometry, settings.seed, speckle_i.get(), speckle_q.get());
+
     tbb::parallel_for(0, L, [&](int l) {
         // Reflections: per sample bin, the intensity that reached an interface and came
         // back (energy x R^2 x two-way loss) times the squared plane response of the line
@@ -210,14 +344,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         // pulses a quarter period out of phase) and the phase of the plane response.
         std::vector<double> reflected(std::size_t(N), 0.0), reflected_time(std::size_t(N), 0.0);
         std::vector<std::complex<double>> phase(std::size_t(N), 0.0);
-        const auto& line = of_line[std::size_t(l)];
         const ScanLine axis = geometry.line(l);
-        const glm::dvec2 across(axis.direction.y, -axis.direction.x);
-        // The line's echo of an untilted plane by depth row, as diffuse echoes ask it
-        // (NaN: not yet): most of a line's echoes, and few rows.
-        std::vector<std::complex<double>> untilted(
-            psf ? std::size_t(psf->depths()) : 0,
-            std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0));
+        std::vector<std::complex<double>> untilted = no_plane_echoes();
         const uint32_t events_end = event_start[std::size_t(l) + 1];
         for (uint32_t n = event_start[std::size_t(l)]; n < events_end; ++n) {
             // The receive weight of an event a few ahead, fetched now: the weights are
@@ -228,93 +356,11 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                     __builtin_prefetch(w + receive->column(ahead.time_s));
             }
             const auto& e = events[event_order[n]];
-            if (e.particle >= line.size()) continue;
-            const auto& source = sources[line[e.particle]];
-            double intensity = double(e.energy) * e.weight;
-            double echo_time = e.time_s;  // the particle came back itself: the full round trip
-            std::complex<double> response = 1.0;
-            if (e.kind != simulator::EchoKind::returned_to_probe) {
-                intensity *= double(e.energy) / std::max(double(source.energy), 1e-30) *
-                             double(e.return_weight);
-                // The apparent reflector: where the particle's path, unfolded at every
-                // mirror and timed at c0, puts the event, measured along the line (the
-                // depth of its image point: a mirrored path images at the mirror position;
-                // a direct one at the event's own depth, whatever the particle's slant),
-                // tilted from the line by the interface's normal (the image's receive sees
-                // the echo come back the way the particle left, by reciprocity). The
-                // aperture's plane echo there is the echo of every particle of the beam
-                // that meets the plane: one pulse at 2 range / c0, not one per slant path
-                // (which would smear the focusing delays over the echo). A rough
-                // interface scatters its lobe, of which the receive aperture takes its
-                // share.
-                const glm::dvec2 launch =
-                    glm::dvec2(source.position) - to_world.face_in_map - axis.origin;
-                const double flight_mm = double(e.time_s - source.time_s) * kC0 * 1e3;
-                const double range_mm =
-                    std::max(glm::dot(launch, axis.direction) +
-                                 flight_mm * glm::dot(glm::dvec2(source.direction), axis.direction),
-                             1e-3);
-                echo_time = 2.0 * range_mm * 1e-3 / kC0;
-                // The plane's tilt as the aperture sees it. A direct echo (no reflection
-                // before it): the plane's normal against the way the particle arrives,
-                // carried to the line's frame by the angle it was launched at; the plane
-                // sends the particle's piece of the wavefront back the way it came, and by
-                // reciprocity to the aperture, only if it faces it. For an unturned beam
-                // this is the plane's tilt from the line; a piece turned by refraction
-                // (the skull) echoes from the planes that face it, not from those that
-                // face the probe. Echoes after reflections keep the plane's tilt from the
-                // line: judged in the particle's frame, paths between a mirror and a wire
-                // outshone the mirror image (mirror_image, seed 3: 6.7 mm off).
-                const bool direct = e.bounces == 0 && glm::dot(e.direction, e.direction) > 0.0f;
-                const glm::dvec2 arriving = direct ? glm::dvec2(e.direction) : axis.direction;
-                glm::dvec2 away = -glm::dvec2(e.normal);
-                if (glm::dot(away, arriving) < 0.0) away = -away;
-                auto angle_from = [](const glm::dvec2& v, const glm::dvec2& from) {
-                    return std::atan2(glm::dot(v, glm::dvec2(from.y, -from.x)), glm::dot(v, from));
-                };
-                // Only where it is used (not by a direct diffuse echo, most of them).
-                auto tilt = [&] {
-                    return glm::dot(away, away) > 0.0
-                               ? angle_from(away, arriving) +
-                                     (direct
-                                          ? angle_from(glm::dvec2(source.direction), axis.direction)
-                                          : 0.0)
-                               : 0.0;
-                };
-                // The amplitude share of the reflector's lobe that heads back the way the
-                // particle came, within the receive's half-angle at this range.
-                auto heads_back = [&] {
-                    const double half_angle =
-                        std::atan(0.5 * t.receive_aperture_mm(range_mm) / range_mm);
-                    return std::sqrt(reflection_back_fraction(double(e.cos_incidence),
-                                                              e.lobe_exponent, half_angle));
-                };
-                if (e.kind == simulator::EchoKind::diffuse) {
-                    // The share of the lobe that heads back the way the particle came (by
-                    // reciprocity, to the aperture), by the particle's own incidence, so a
-                    // piece of the beam meeting a rough surface at grazing incidence sends
-                    // next to nothing back, whatever the plane's tilt to the line; after
-                    // reflections too (bone met at grazing incidence after a bounce lit the
-                    // temporal view's ventricles 37 dB above the brain).
-                    std::complex<double>& plane = untilted[std::size_t(psf->depth_index(range_mm))];
-                    if (std::isnan(plane.real())) plane = psf->plane_echo(l, range_mm, 0.0);
-                    response = plane * heads_back();
-                } else {
-                    response = psf->plane_echo(l, range_mm, std::sin(tilt()));
-                    // After reflections the plane is judged from the line (above), but the
-                    // echo still returns along the particle's path reversed only if the
-                    // mirror sends it back the way it came: a mirror met obliquely sends
-                    // it on (gel or bone met at 30 degrees after a bounce lit a far line
-                    // 47 dB above the brain at 100 mm).
-                    if (!direct) response *= heads_back();
-                }
-                // Receive, once (receive_weights): a reflector across the whole beam
-                // averages it to 1, so its plane echo above stays exact; a target smaller
-                // than the beam echoes on the lines whose receive sees it.
-                if (receive) intensity *= receive->at(uint32_t(l), e.particle, e.time_s);
-            }
-            const double position = echo_time * fs;
-            if (!(position >= 0.0) || position >= double(N - 1)) continue;
+            if (incoherent(e)) continue;
+            const auto echo = line_echo(l, axis, e, untilted);
+            if (!echo) continue;
+            const double position = echo->position, intensity = echo->intensity;
+            const std::complex<double> response = echo->response;
             const double weighted = intensity * std::norm(response);
             if (!(weighted > 0.0)) continue;
             reflected[std::size_t(position)] += weighted;
@@ -324,7 +370,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
 
         const std::size_t row = std::size_t(l) * std::size_t(N);
         float* out = rf.values.data() + row;
-        if (with_speckle) {
+        if (with_sums) {
             std::vector<float> quadrature(static_cast<std::size_t>(N));
             convolve(speckle_i.get() + row, N, taps_i, out);
             convolve(speckle_q.get() + row, N, taps_q, quadrature.data());
@@ -359,6 +405,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                 if (it == apertures.end()) it = apertures.emplace(z, f.receive_aperture(z)).first;
                 return it->second;
             };
+            const glm::dvec2 across(axis.direction.y, -axis.direction.x);
             for (const PointEcho& p : points) {
                 const glm::dvec2 d = p.position - to_world.face_in_map - axis.origin;
                 const glm::dvec2 q(glm::dot(d, across), glm::dot(d, axis.direction));

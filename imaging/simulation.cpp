@@ -278,6 +278,7 @@ simulator::EchoEvent<2> on_the_plane(const simulator::EchoEvent<3>& e, const glm
     out.position = glm::vec2(e.position.x, e.position.y) + shift;
     out.bounces = e.bounces;
     out.kind = e.kind;
+    out.rough_bounces = e.rough_bounces;
     out.cos_incidence = e.cos_incidence;
     out.lobe_exponent = e.lobe_exponent;
     out.return_weight = e.return_weight;

@@ -78,6 +78,7 @@ struct Batch {
     std::array<float, N> pending_fluence{}, pending_absorbed{};
     std::array<double, N> time{}, path_length{};
     std::array<uint16_t, N> bounces{};
+    std::array<uint8_t, N> rough_bounces{};  // of those, reflections into a rough lobe
     std::array<InterfaceState, N> in_interface{};
     std::array<int32_t, N> graded_steps{};     // steps since the last interface check in kGraded
     LaneVectors<Dim, kSize> interface_normal;  // normal of the interface being crossed
@@ -102,6 +103,7 @@ struct Batch {
         pending_absorbed[to] = pending_absorbed[from];
         time[to] = time[from], path_length[to] = path_length[from];
         bounces[to] = bounces[from], in_interface[to] = in_interface[from];
+        rough_bounces[to] = rough_bounces[from];
         graded_steps[to] = graded_steps[from];
         particle[to] = particle[from], path[to] = path[from], random[to] = random[from];
         receive_row[to] = receive_row[from];

@@ -27,6 +27,9 @@ struct EchoEvent {
     glm::vec<Dim, float> position;  // mm, map frame
     uint16_t bounces = 0;           // reflections before this event
     EchoKind kind = EchoKind::scatter;
+    // Of those reflections, the ones whose direction was drawn from a rough lobe (at most
+    // 255): after one, the particle's phase is no longer the transmit's.
+    uint8_t rough_bounces = 0;
     // Reflections: cosine of the incidence angle and the exponent c of the lobe cos^c
     // about the mirror direction (>= 1e4: a mirror), from which a receiver estimates how
     // much of the reflected energy heads back the way the particle came.

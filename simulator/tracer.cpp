@@ -209,6 +209,7 @@ class LineTracer {
         b.time[k] = double(s.time_s);
         b.path_length[k] = 0.0;
         b.bounces[k] = 0;
+        b.rough_bounces[k] = 0;
         b.in_interface[k] = kOutside;
         b.graded_steps[k] = 0;
         b.particle[k] = index;
@@ -353,6 +354,7 @@ class LineTracer {
         p.time += 2.0 * to_middle_s;
         p.path_length += 2.0 * crossing.to_middle_mm;
         b.bounces[k]++;
+        if (reflection.diffuse() && b.rough_bounces[k] < 255) b.rough_bounces[k]++;
         out_->stats.reflections++;
         if (reflection.total()) out_->stats.total_reflections++;
     }
@@ -362,8 +364,8 @@ class LineTracer {
                                        float cos_incidence = 1.0f, float lobe_exponent = 1e6f,
                                        double extra_time_s = 0.0, const V& normal = V(0.0f)) {
         out_->echoes.push_back({line_, b.particle[k], float(b.time[k] + extra_time_s), energy,
-                                weight, x, b.bounces[k], kind, cos_incidence, lobe_exponent,
-                                b.return_factor[k], normal, direction});
+                                weight, x, b.bounces[k], kind, b.rough_bounces[k], cos_incidence,
+                                lobe_exponent, b.return_factor[k], normal, direction});
     }
 
     // The fields take_step() reads, from a texel at x.

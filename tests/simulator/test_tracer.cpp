@@ -377,6 +377,37 @@ TEST(Tracer, ASurfaceAgainstAGasIsAMirrorWhateverItsRoughness) {
     }
 }
 
+// Echoes count the reflections taken into a rough lobe (EchoEvent::rough_bounces, after
+// which the image draws them as incoherent clutter): over rough bone every reflection is
+// one, over air (a mirror whatever its roughness) none. The medium scatters, so each path
+// leaves echoes after its reflections too.
+TEST(Tracer, EchoesCountTheReflectionsTakenIntoARoughLobe) {
+    for (const bool gas : {true, false}) {
+        tissue::PropertyMaps maps = over_half_space(80, 161, lossless_medium(1540, 1000), 80,
+                                                    gas ? 343.0f : 3000.0f, gas ? 1.2f : 1900.0f);
+        for (float& r : maps[Property::roughness].voxels()) r = 0.5f;
+        for (float& b : maps[Property::backscatter].voxels()) b = 1.0f;
+        const auto map = tissue::AcousticMap<2>::build(maps);
+        TraceSettings s;
+        s.mode = PhysicsMode::acoustic;
+        s.physics.set(Physics::attenuation, false);
+        s.physics.set(Physics::scattering, true);
+        s.scatter_echo_fraction = 1e-6;
+        s.roulette_energy = 0.0;
+        const auto r = trace(map, parallel_beam({10.0f, 0.5f}, {0.0f, 1.0f}, 4.0f, 400), s);
+        int after_bounces = 0;
+        for (const auto& e : r.echoes) {
+            if (e.bounces == 0) {
+                EXPECT_EQ(e.rough_bounces, 0);
+                continue;
+            }
+            ++after_bounces;
+            EXPECT_EQ(int(e.rough_bounces), gas ? 0 : int(e.bounces)) << (gas ? "air" : "bone");
+        }
+        EXPECT_GT(after_bounces, 100) << (gas ? "air" : "bone");
+    }
+}
+
 // Soft tissue (1540 m/s, 1060 kg/m^3) over bone (3500 m/s, 1900 kg/m^3; shear
 // kShearToLongitudinalSpeed x 3500 m/s), particles meeting the flat interface at 40
 // degrees: past the longitudinal critical angle (26.1), short of the shear one (56.1).

@@ -1,0 +1,61 @@
+#pragma once
+// Echoes of paths that took a rough reflection (simulator::EchoEvent::rough_bounces > 0),
+// gathered into a smooth mean intensity and drawn as speckle of that mean.
+//
+// A particle reflected into a rough lobe leaves in a direction drawn at random: its phase
+// is no longer the transmit's, and what it meets afterwards echoes incoherently. The few
+// particles of a line that take such paths are a sparse sample of a diffuse field; drawn
+// each as one coherent pulse at its line and time, a single path stood 15-49 dB above the
+// brain around it (the transtemporal view's lone spots: docs/guide/simulate.md). Their
+// intensities are estimated instead by adaptive kernel density estimation (the
+// sample-point estimator, Terrell & Scott 1992): each echo's intensity spread by a
+// Gaussian in the image plane whose sigma is half the distance to its k-th nearest such
+// echo of another path, within [min_sigma_mm, max_sigma_mm] (a path met by several
+// interfaces leaves a cluster of echoes on its own line, which says nothing of how
+// densely such paths are sampled). Where the paths are dense the kernels are
+// narrow (down to the pulse's and beam's scale), where they are sparse wide; each echo's
+// kernel is normalised over the lines and samples it reaches, so the total intensity is
+// kept. As the particle count grows the kernels shrink and the estimate converges to the
+// echoes' expected intensity.
+#include <cstdint>
+#include <vector>
+
+#include "imaging/bmode.h"
+#include "probe/transducer.h"
+
+namespace sonotrace::imaging {
+
+struct IncoherentEcho {
+    int line = 0;
+    double range_mm = 0.0;   // along the line, where its time places it (c0 t / 2)
+    double intensity = 0.0;  // as a coherent echo of this intensity would carry
+    uint32_t particle = 0;   // within its line: one path's echoes are not each other's neighbours
+};
+
+// The defaults as measured on the head views (bench/frame_spots.py, 16 seeds; the log of
+// 2026-11-29): wider kernels (k 8, up to 10 mm) removed a few more spots but spread the
+// clutter into the ventricles, whose contrast the craniotomy view must keep at 20 dB.
+struct IncoherentSpread {
+    int neighbours = 16;        // k: the kernel's width follows the k-th nearest echo
+    double min_sigma_mm = 1.0;  // about the pulse's length and the beam's width
+    double max_sigma_mm = 2.5;  // a lone echo is spread over about +-5 mm
+    double bin_mm = 0.5;        // the mean is gathered in range bins this long
+};
+
+// The mean intensity per line and RF sample of `layout` (lines x samples, row-major, per
+// sample: the intensity a coherent echo puts into one sample bin), each echo spread as
+// described above.
+std::vector<float> incoherent_intensity(const probe::ScanGeometry& geometry, const LineData& layout,
+                                        const std::vector<IncoherentEcho>& echoes,
+                                        const IncoherentSpread& spread = {});
+
+// Adds speckle of mean intensity `mean` (as incoherent_intensity gives it) to the
+// in-phase and quadrature scatterer sums that synthesize_rf convolves with the pulse:
+// circular Gaussian numbers (a function of seed, line and sample) correlated across lines
+// as speckle is across a beam (a Gaussian of the receive beam's width, lambda times the
+// receive F-number at the range, FWHM), of variance mean / 2 each.
+void add_incoherent_speckle(const std::vector<float>& mean, const LineData& layout,
+                            const probe::Transducer& t, const probe::ScanGeometry& geometry,
+                            uint64_t seed, float* in_phase, float* quadrature);
+
+}  // namespace sonotrace::imaging
