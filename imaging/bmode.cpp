@@ -141,6 +141,13 @@ double reflection_back_fraction(double cos_incidence, double lobe_exponent,
                                  lobe_exponent, half_acceptance_rad);
 }
 
+double receive_beam_sigma_lines(const probe::Transducer& t, const probe::ScanGeometry& geometry,
+                                double range_mm) {
+    const double range = std::max(range_mm, 1e-3);
+    const double fwhm_mm = t.wavelength_mm() * range / t.receive_aperture_mm(range);
+    return fwhm_mm / base::kFwhmPerSigma / std::max(geometry.line_spacing_mm(range), 1e-6);
+}
+
 LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sources,
                        const std::vector<simulator::EchoEvent<2>>& events,
                        const simulator::EchoProfile<2>& profile, const MapToWorld& to_world,

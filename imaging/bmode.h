@@ -114,6 +114,13 @@ LineData rf_layout(const probe::Transducer& t, const ImagingSettings& settings);
 double reflection_back_fraction(double cos_incidence, double lobe_exponent,
                                 double half_acceptance_rad);
 
+// The receive beam's lateral sigma at a range, in lines: lambda x range / the receive
+// aperture there (the FWHM, lambda times the receive F-number) over kFwhmPerSigma, divided
+// by the line spacing at that range. Speckle and whatever lights it vary across lines on
+// this scale.
+double receive_beam_sigma_lines(const probe::Transducer& t, const probe::ScanGeometry& geometry,
+                                double range_mm);
+
 // Maps a point of the tracer's map frame (mm) to world coordinates (mm), for the speckle
 // field: the plane's origin and axes in the world; and where the probe plane's origin
 // (the face centre, ScanGeometry's frame) lies in the map frame.

@@ -7,7 +7,6 @@
 #include <complex>
 #include <numbers>
 
-#include "tissue/base/fast_math.h"
 #include "tissue/base/hash.h"
 
 namespace sonotrace::imaging {
@@ -184,10 +183,7 @@ void add_incoherent_speckle(const std::vector<float>& mean, const LineData& layo
         auto mean_at = [&](int l) {
             return mean[std::size_t(l) * std::size_t(N) + std::size_t(i)];
         };
-        const double range = std::max(layout.depth_mm(i), 1e-3);
-        const double beam_fwhm_mm = t.wavelength_mm() * range / t.receive_aperture_mm(range);
-        const double sigma =
-            beam_fwhm_mm / base::kFwhmPerSigma / std::max(geometry.line_spacing_mm(range), 1e-6);
+        const double sigma = receive_beam_sigma_lines(t, geometry, layout.depth_mm(i));
         const int reach = sigma < 0.3 ? 0 : int(std::ceil(3.0 * sigma));
         std::vector<double> weight(std::size_t(2 * reach + 1), 1.0);
         for (int k = -reach; k <= reach && reach > 0; ++k)

@@ -287,6 +287,35 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
         }
     });
 
+    // The illumination across lines: each line's is an estimate from its own few
+    // particles of what lights its beam, which varies across lines on the beam's scale, so
+    // a Gaussian of the receive beam's sigma (in lines) pools the neighbours' particles
+    // (in the skull's shadow one or two particles of a line lit a spot of speckle alone).
+    // Only where the map gives the tissue its backscatter, so tissue edges stay sharp;
+    // lines with no light keep none (they have no mean position).
+    if (lit_by_map && L > 1) {
+        tbb::parallel_for(0, N, [&](int i) {
+            const double sigma = receive_beam_sigma_lines(t, geometry, depth[std::size_t(i)]);
+            if (!(sigma >= 0.3)) return;
+            const int reach = int(std::ceil(3.0 * sigma));
+            std::vector<double> weight(std::size_t(2 * reach + 1));
+            std::vector<double> column(static_cast<std::size_t>(L));
+            for (int k = -reach; k <= reach; ++k)
+                weight[std::size_t(k + reach)] = std::exp(-0.5 * k * k / (sigma * sigma));
+            for (int l = 0; l < L; ++l)
+                column[std::size_t(l)] = light[std::size_t(l) * std::size_t(N) + std::size_t(i)];
+            for (int l = 0; l < L; ++l) {
+                double& out = light[std::size_t(l) * std::size_t(N) + std::size_t(i)];
+                if (!(out > 0.0)) continue;
+                double sum = 0.0, weights = 0.0;
+                for (int k = std::max(-reach, -l); k <= std::min(reach, L - 1 - l); ++k) {
+                    const double w = weight[std::size_t(k + reach)];
+                    sum += w * column[std::size_t(l + k)], weights += w;
+                }
+                out = sum / weights;
+            }
+        });
+    }
     // The scatterer field on K sub-lines per gap between lines, interpolated between the
     // lines' mean positions (the nominal line spacing where a line has no echo), so that
     // neighbouring lines see the same scatterers where their beams overlap; each scaled by
