@@ -294,25 +294,33 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     // Only where the map gives the tissue its backscatter, so tissue edges stay sharp;
     // lines with no light keep none (they have no mean position).
     if (lit_by_map && L > 1) {
-        tbb::parallel_for(0, N, [&](int i) {
-            const double sigma = receive_beam_sigma_lines(t, geometry, depth[std::size_t(i)]);
-            if (!(sigma >= 0.3)) return;
-            const int reach = int(std::ceil(3.0 * sigma));
-            std::vector<double> weight(std::size_t(2 * reach + 1));
-            std::vector<double> column(static_cast<std::size_t>(L));
-            for (int k = -reach; k <= reach; ++k)
-                weight[std::size_t(k + reach)] = std::exp(-0.5 * k * k / (sigma * sigma));
+        // Blocks of samples, each copied line by line (the lines' rows are contiguous; a
+        // column at a time was a strided read of every line per sample).
+        constexpr int kBlock = 32;
+        tbb::parallel_for(0, (N + kBlock - 1) / kBlock, [&](int block) {
+            const int i0 = block * kBlock, count = std::min(kBlock, N - i0);
+            std::vector<double> rows(std::size_t(L) * kBlock), weight;
             for (int l = 0; l < L; ++l)
-                column[std::size_t(l)] = light[std::size_t(l) * std::size_t(N) + std::size_t(i)];
-            for (int l = 0; l < L; ++l) {
-                double& out = light[std::size_t(l) * std::size_t(N) + std::size_t(i)];
-                if (!(out > 0.0)) continue;
-                double sum = 0.0, weights = 0.0;
-                for (int k = std::max(-reach, -l); k <= std::min(reach, L - 1 - l); ++k) {
-                    const double w = weight[std::size_t(k + reach)];
-                    sum += w * column[std::size_t(l + k)], weights += w;
+                std::copy_n(light.get() + std::size_t(l) * std::size_t(N) + std::size_t(i0), count,
+                            rows.begin() + std::ptrdiff_t(l) * kBlock);
+            for (int b = 0; b < count; ++b) {
+                const int i = i0 + b;
+                const double sigma = receive_beam_sigma_lines(t, geometry, depth[std::size_t(i)]);
+                if (!(sigma >= 0.3)) continue;
+                const int reach = int(std::ceil(3.0 * sigma));
+                weight.resize(std::size_t(2 * reach + 1));
+                for (int k = -reach; k <= reach; ++k)
+                    weight[std::size_t(k + reach)] = std::exp(-0.5 * k * k / (sigma * sigma));
+                for (int l = 0; l < L; ++l) {
+                    double& out = light[std::size_t(l) * std::size_t(N) + std::size_t(i)];
+                    if (!(out > 0.0)) continue;
+                    double sum = 0.0, weights = 0.0;
+                    for (int k = std::max(-reach, -l); k <= std::min(reach, L - 1 - l); ++k) {
+                        const double w = weight[std::size_t(k + reach)];
+                        sum += w * rows[std::size_t(l + k) * kBlock + std::size_t(b)], weights += w;
+                    }
+                    out = sum / weights;
                 }
-                out = sum / weights;
             }
         });
     }
