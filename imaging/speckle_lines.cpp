@@ -291,8 +291,10 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     // particles of what lights its beam, which varies across lines on the beam's scale, so
     // a Gaussian of the receive beam's sigma (in lines) pools the neighbours' particles
     // (in the skull's shadow one or two particles of a line lit a spot of speckle alone).
-    // Only where the map gives the tissue its backscatter, so tissue edges stay sharp;
-    // lines with no light keep none (they have no mean position).
+    // Only where the map gives the tissue its backscatter, so tissue edges stay sharp.
+    // Lines with no light keep none (they have no mean position) and are left out of
+    // their neighbours' averages: counted as zeros they took light away at the edges of
+    // what is lit (the same spots and contrasts on the head views either way).
     if (lit_by_map && L > 1) {
         // Blocks of samples, each copied line by line (the lines' rows are contiguous; a
         // column at a time was a strided read of every line per sample).
@@ -316,8 +318,9 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
                     if (!(out > 0.0)) continue;
                     double sum = 0.0, weights = 0.0;
                     for (int k = std::max(-reach, -l); k <= std::min(reach, L - 1 - l); ++k) {
-                        const double w = weight[std::size_t(k + reach)];
-                        sum += w * rows[std::size_t(l + k) * kBlock + std::size_t(b)], weights += w;
+                        const double v = rows[std::size_t(l + k) * kBlock + std::size_t(b)];
+                        const double w = v > 0.0 ? weight[std::size_t(k + reach)] : 0.0;
+                        sum += w * v, weights += w;
                     }
                     out = sum / weights;
                 }
