@@ -32,9 +32,9 @@ struct IncoherentEcho {
     uint32_t particle = 0;   // within its line: one path's echoes are not each other's neighbours
 };
 
-// The defaults as measured on the head views (bench/frame_spots.py, 16 seeds; the log of
-// 2026-11-29): wider kernels (k 8, up to 10 mm) removed a few more spots but spread the
-// clutter into the ventricles, whose contrast the craniotomy view must keep at 20 dB.
+// Why these defaults (bench/frame_spots.py on the head views; docs/log has the table):
+// wider kernels removed a few more spots but spread the clutter into the ventricles,
+// whose contrast the craniotomy view must keep at 20 dB.
 struct IncoherentSpread {
     int neighbours = 16;        // k: the kernel's width follows the k-th nearest echo
     double min_sigma_mm = 1.0;  // about the pulse's length and the beam's width

@@ -114,11 +114,7 @@ bool PbvrRenderer::brick_hidden(const glm::ivec3& first, const glm::ivec3& last,
     const float pr = focal_ * bound * (farthest + bound) / (nearest * nearest) / L;
     const float px0 = (centre_x_ + focal_ * u_min) / L, px1 = (centre_x_ + focal_ * u_max) / L;
     const float py0 = (centre_y_ + focal_ * v_min) / L, py1 = (centre_y_ + focal_ * v_max) / L;
-    if (px1 + pr < 0.0f || py1 + pr < 0.0f || px0 - pr > float(camera_.width) ||
-        py0 - pr > float(camera_.height))
-        return true;
-    return occlusion &&
-           nearest > deepest_occlusion(px0 - pr, px1 + pr, py0 - pr, py1 + pr) + kHiddenMargin;
+    return footprint_hidden(px0 - pr, px1 + pr, py0 - pr, py1 + pr, nearest, occlusion);
 }
 
 // A cell is hidden if it lies behind the eye or off the image, or (with `occlusion`) if
@@ -143,11 +139,17 @@ bool PbvrRenderer::cell_hidden(int i, int j, int k, bool occlusion) const {
     // b at depth z moves a projection by at most f b |e| / z^2, and a disc's stretch
     // (add_repetition) is below |e| / z, both for |e| / z <= (|e| + b) / nearest.
     const float pr = focal_ * bound * (glm::length(e) + bound) / (nearest * nearest) / L;
-    if (px + pr < 0.0f || py + pr < 0.0f || px - pr > float(camera_.width) ||
-        py - pr > float(camera_.height))
+    return footprint_hidden(px - pr, px + pr, py - pr, py + pr, nearest, occlusion);
+}
+
+// Whether what draws within image box [x0, x1] x [y0, y1] (pixels), nothing of it nearer
+// than `nearest`, is hidden: off the image, or (with `occlusion`) beyond the occlusion
+// depth of every grid ray around the box, with a margin.
+bool PbvrRenderer::footprint_hidden(float x0, float x1, float y0, float y1, float nearest,
+                                    bool occlusion) const {
+    if (x1 < 0.0f || y1 < 0.0f || x0 > float(camera_.width) || y0 > float(camera_.height))
         return true;
-    return occlusion &&
-           nearest > deepest_occlusion(px - pr, px + pr, py - pr, py + pr) + kHiddenMargin;
+    return occlusion && nearest > deepest_occlusion(x0, x1, y0, y1) + kHiddenMargin;
 }
 
 // The largest occlusion depth of the grid rays around image box [x0, x1] x [y0, y1].

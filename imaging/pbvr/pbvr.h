@@ -351,6 +351,8 @@ class PbvrRenderer {
     bool cell_hidden(int i, int j, int k, bool occlusion) const;
     bool brick_hidden(const glm::ivec3& first, const glm::ivec3& last, bool occlusion) const;
     float deepest_occlusion(float x0, float x1, float y0, float y1) const;
+    bool footprint_hidden(float x0, float x1, float y0, float y1, float nearest,
+                          bool occlusion) const;
     struct Cell {
         uint16_t i, j, k;    // the cell's corner voxel
         uint32_t index;      // linear cell index ((dims - 1) grid): its random stream
