@@ -13,6 +13,12 @@ set(sonotrace_exported_modules
   simulator:sonotrace_simulator imaging:sonotrace_imaging phantoms:sonotrace_phantoms
   validation:sonotrace_validation scene:sonotrace_scene dataset:sonotrace_dataset
   dataset_mpi:sonotrace_dataset_mpi cli:sonotrace_ui)
+# The command line's GPU renderer, where the build has it (OpenGL and EGL).
+set(SONOTRACE_PACKAGE_GL OFF)
+if(TARGET sonotrace_gl_pbvr)
+  list(APPEND sonotrace_exported_modules gl_pbvr:sonotrace_gl_pbvr)
+  set(SONOTRACE_PACKAGE_GL ON)
+endif()
 set(sonotrace_exported_targets "")
 foreach(entry IN LISTS sonotrace_exported_modules)
   string(REPLACE ":" ";" pair "${entry}")

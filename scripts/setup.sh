@@ -42,8 +42,10 @@ packages=(
   libassimp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   # the teaching GUI (Dear ImGui ships its GLFW/OpenGL3 backends as sources), and Xvfb
-  # with Mesa to run it headless in the tests
-  libimgui-dev libglfw3-dev libgl-dev xvfb xauth libgl1-mesa-dri fonts-dejavu-core
+  # with Mesa to run it headless in the tests; EGL for `render --renderer gpu` without a
+  # display (Mesa's software rasteriser where there is no GPU)
+  libimgui-dev libglfw3-dev libgl-dev libegl-dev libegl-mesa0 xvfb xauth libgl1-mesa-dri
+  fonts-dejavu-core
   # the embedded default volume: Colin27 T1 head MRI
   mricron-data
 )

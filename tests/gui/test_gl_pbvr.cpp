@@ -1,13 +1,12 @@
-// The GUI's GPU path for the 3D context (ui/gui/gl_pbvr.h) against the CPU renderer it
-// replaces on screen, in an OpenGL 3.3 core context of Xvfb and Mesa: the same particles
+// The GPU path of the GUI's 3D context and of `render --renderer gpu` (ui/gui/gl_pbvr.h)
+// against the CPU renderer, in the headless OpenGL 3.3 core context the command line
+// opens (ui/gui/headless_gl.h: EGL, Mesa's llvmpipe on a machine without GPU): the same particles
 // (PbvrRenderer::splats), drawn with OpenGL's depth test and averaged on the GPU, give
 // the CPU's ensemble image. The expectation is the CPU renderer's own image, which the
 // PBVR tests validate against the emission-absorption ray caster; the two differ only
 // where particles tie in depth or sit on a disc's edge within float rounding. Stated
 // tolerance: PSNR of 40 dB or more over all pixels and channels.
 #include <gtest/gtest.h>
-
-#include <GLFW/glfw3.h>
 
 #include <cmath>
 #include <cstdio>
@@ -16,33 +15,12 @@
 #include "imaging/pbvr/pbvr.h"
 #include "probe/transducer.h"
 #include "ui/gui/gl_pbvr.h"
+#include "ui/gui/headless_gl.h"
 
 namespace sonotrace {
 namespace {
 
 using namespace imaging::pbvr;
-
-// A hidden window's OpenGL 3.3 core context for the test's lifetime.
-class Context {
-  public:
-    Context() {
-        if (!glfwInit()) return;
-        glfwWindowHint(GLFW_VISIBLE, GLFW_FALSE);
-        glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
-        glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
-        glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
-        window_ = glfwCreateWindow(64, 64, "test_gl_pbvr", nullptr, nullptr);
-        if (window_) glfwMakeContextCurrent(window_);
-    }
-    ~Context() {
-        if (window_) glfwDestroyWindow(window_);
-        glfwTerminate();
-    }
-    bool ok() const { return window_ != nullptr; }
-
-  private:
-    GLFWwindow* window_ = nullptr;
-};
 
 // Nested shells with a smooth modulation: surfaces at several depths, ties rare.
 tissue::Volume shells() {
@@ -61,8 +39,8 @@ tissue::Volume shells() {
 }
 
 TEST(GlPbvr, TheGpuImageIsTheCpuImageOfTheSameParticles) {
-    Context context;
-    ASSERT_TRUE(context.ok()) << "no OpenGL 3.3 context (run under xvfb-run)";
+    const gui::HeadlessGl context;  // throws (the test fails) without an OpenGL 3.3 context
+    std::printf("OpenGL renderer: %s\n", context.renderer().c_str());
     const tissue::Volume volume = shells();
     ColourTransferFunction tf = load_colour_tf("ramp");
     tf.bind(volume);

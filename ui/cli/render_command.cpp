@@ -18,6 +18,10 @@
 #include "tissue/base/error.h"
 #include "tissue/base/memory.h"
 #include "tissue/volume_io.h"
+#ifdef SONOTRACE_HAVE_GL_PBVR
+#include "ui/gui/gl_pbvr.h"
+#include "ui/gui/headless_gl.h"
+#endif
 
 namespace sonotrace::ui {
 
@@ -83,6 +87,11 @@ constexpr ParameterDoc kReferenceDoc = {
     "also render the emission-absorption ray-cast reference to this PNG and report the PSNR"};
 constexpr ParameterDoc kReferenceStepDoc = {"--reference-step", "mm",
                                             "sample spacing of the reference ray caster"};
+constexpr ParameterDoc kRendererDoc = {
+    "--renderer", "",
+    "where the particles are projected: cpu (the reference) or gpu (OpenGL 3.3 through EGL, "
+    "no display needed: the GPU where there is one, else Mesa's software rasteriser; the same "
+    "particles, so the same image within rounding; the regular volume only, no meshes)"};
 constexpr ParameterDoc kOutDoc = {"--out", "", "output PNG"};
 
 // The first Ctrl-C stops the rendering within the repetition in flight (the renderer polls
@@ -124,6 +133,7 @@ CLI::App* add_render_command(CLI::App& app, RenderOptions& options) {
     add_parameter(*cmd, kSectorTfDoc, options.sector_tf);
     add_parameter(*cmd, kReferenceDoc, options.reference);
     add_parameter(*cmd, kReferenceStepDoc, options.reference_step_mm);
+    add_parameter(*cmd, kRendererDoc, options.renderer);
     add_parameter(*cmd, kOutDoc, options.out);
     add_run_options(*cmd, options.json_path, options.threads, options.quiet);
     return cmd;
@@ -157,6 +167,14 @@ int run_render_command(const RenderOptions& options) {
     settings.background = glm::vec3(bg[0], bg[1], bg[2]);
     base::require_in_range("--time-limit", "", options.time_limit_s, 0.0, 1e6, "s");
     settings.validate();
+    if (options.renderer != "cpu" && options.renderer != "gpu")
+        throw base::InputError("--renderer", "", "must be 'cpu' or 'gpu'");
+#ifndef SONOTRACE_HAVE_GL_PBVR
+    if (options.renderer == "gpu")
+        throw base::InputError("--renderer", "",
+                               "gpu: this build has no OpenGL renderer (install libgl-dev and "
+                               "libegl-dev, or run scripts/setup.sh, and rebuild)");
+#endif
     const std::filesystem::path out_path(options.out);
     if (out_path.extension() != ".png")
         throw base::InputError("--out", "", "must name a .png file, got '" + options.out + "'");
@@ -280,6 +298,11 @@ int run_render_command(const RenderOptions& options) {
         settings.cut_away = pbvr::CutAway{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5])};
     }
 
+    if (options.renderer == "gpu" && !meshes.empty())
+        throw base::InputError("--renderer", "",
+                               "gpu draws the regular volume's particles only; tetrahedral "
+                               "meshes (.vtk, a second volume, --sector) need --renderer cpu");
+
     std::optional<pbvr::RenderVolume> volume;
     if (loaded) {
         timer.begin("preparing volume (normalized values)");
@@ -294,6 +317,51 @@ int run_render_command(const RenderOptions& options) {
     if (overlay)
         renderer->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
     timer.end();
+    // The GPU path draws the particles the CPU renderer generates (PbvrRenderer::splats).
+#ifdef SONOTRACE_HAVE_GL_PBVR
+    std::unique_ptr<gui::HeadlessGl> gl;
+    std::unique_ptr<gui::GlPbvr> gpu;
+    if (options.renderer == "gpu") {
+        timer.begin("opening an OpenGL context (EGL)");
+        try {
+            gl = std::make_unique<gui::HeadlessGl>();
+            gpu = std::make_unique<gui::GlPbvr>(camera.width, camera.height,
+                                                settings.subpixel_level, settings.background);
+        } catch (const std::runtime_error& e) {
+            throw base::InputError("--renderer", "",
+                                   std::string("gpu: ") + e.what() + "; --renderer cpu needs none");
+        }
+        if (overlay)
+            gpu->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
+        timer.end();
+        if (!options.quiet)
+            std::fprintf(stderr, "sonotrace: OpenGL renderer: %s\n", gl->renderer().c_str());
+    }
+#endif
+    int repetitions_done = 0;
+    uint64_t particles = 0;
+    // One repetition on the chosen renderer; false if interrupted within it.
+    auto add_repetition = [&]() -> bool {
+#ifdef SONOTRACE_HAVE_GL_PBVR
+        if (gpu) {
+            const std::vector<pbvr::Splat> splats = renderer->splats(uint32_t(repetitions_done));
+            gpu->add_repetition(splats);
+            particles += splats.size();
+            ++repetitions_done;
+            return true;
+        }
+#endif
+        if (!renderer->add_repetition()) return false;
+        particles = renderer->particles_drawn();
+        repetitions_done = renderer->repetitions_done();
+        return true;
+    };
+    auto ensemble_image = [&]() -> pbvr::RgbImage {
+#ifdef SONOTRACE_HAVE_GL_PBVR
+        if (gpu) return gpu->image();
+#endif
+        return renderer->image();
+    };
     json warnings = json::array();
     if (volume && renderer->occupied_cells() == 0) {
         const std::string warning =
@@ -318,7 +386,7 @@ int run_render_command(const RenderOptions& options) {
     renderer->set_cancel(&g_interrupted);
     for (int r = 0; r < settings.repetitions; ++r) {
         const auto t0 = std::chrono::steady_clock::now();
-        if (!renderer->add_repetition()) {
+        if (!add_repetition()) {
             stopped_by = "interrupt";
             break;
         }
@@ -337,7 +405,7 @@ int run_render_command(const RenderOptions& options) {
     }
     bar.finish();
     std::signal(SIGINT, previous_handler);
-    if (renderer->repetitions_done() == 0) {
+    if (repetitions_done == 0) {
         // An interrupt, not bad input: the status says so (130, as every command's).
         if (!options.quiet)
             std::cerr << "sonotrace: interrupted before a repetition finished: nothing written\n";
@@ -345,7 +413,16 @@ int run_render_command(const RenderOptions& options) {
     }
     const double render_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    const pbvr::RgbImage image = renderer->image();
+    const pbvr::RgbImage image = ensemble_image();
+#ifdef SONOTRACE_HAVE_GL_PBVR
+    if (gpu && gpu->clipped() > 0) {
+        const std::string warning =
+            std::to_string(gpu->clipped()) +
+            " particles' discs reached beyond the GPU framebuffer's margin and were partly lost";
+        warnings.push_back(warning);
+        if (!options.quiet) std::cerr << "sonotrace: warning: " << warning << "\n";
+    }
+#endif
 
     json record = {
         {"version", SONOTRACE_VERSION},
@@ -365,12 +442,10 @@ int run_render_command(const RenderOptions& options) {
         {"subpixel_level", settings.subpixel_level},
         {"particle_radius_mm", renderer->particle_radius_mm()},
         {"occupied_cells", renderer->occupied_cells()},
-        {"repetitions", renderer->repetitions_done()},
+        {"renderer", options.renderer},
+        {"repetitions", repetitions_done},
         {"stopped_by", stopped_by},
-        {"particles_per_repetition",
-         renderer->repetitions_done() > 0
-             ? double(renderer->particles_drawn()) / renderer->repetitions_done()
-             : 0.0},
+        {"particles_per_repetition", double(particles) / repetitions_done},
         {"render_s", render_s},
         {"warnings", warnings},
     };
@@ -379,6 +454,9 @@ int run_render_command(const RenderOptions& options) {
                                  settings.cut_away->low.z,  settings.cut_away->high.x,
                                  settings.cut_away->high.y, settings.cut_away->high.z};
     if (overlay) record["frame"] = options.frame;
+#ifdef SONOTRACE_HAVE_GL_PBVR
+    if (gl) record["gl_renderer"] = gl->renderer() + ", OpenGL " + gl->version();
+#endif
     if (!repetition_ms.empty()) {
         std::vector<double> sorted = repetition_ms;
         std::sort(sorted.begin(), sorted.end());

@@ -34,6 +34,7 @@ struct RenderOptions {
     std::string sector_tf = "bmode";
     std::string reference;  // also ray-cast the reference to this PNG and report PSNR
     double reference_step_mm = 0.25;
+    std::string renderer = "cpu";  // or "gpu" (OpenGL through EGL)
     std::string out = "out/render.png";
     std::string json_path;
     int threads = 0;
