@@ -23,7 +23,7 @@
 #include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
 #include "tissue/base/data_dir.h"
-#include "ui/gui/gl_pbvr.h"
+#include "ui/gl/gl_pbvr.h"
 #include "ui/gui/scanner.h"
 
 namespace {

@@ -28,6 +28,8 @@ LAYERS = [
     ("phantoms/scene/", "sonotrace_scene", 5),
     ("phantoms/validation/", "sonotrace_validation", 6),
     ("ui/dataset/", "sonotrace_dataset", 6),
+    # PBVR in OpenGL: imaging's particles drawn by the GUI and the command line.
+    ("ui/gl/", "sonotrace_gl_pbvr", 5),
     ("ui/cli/", "sonotrace_ui", 7),
     # The GUI and the Python module fill frame requests themselves: they sit beside the
     # command line, not on it.

@@ -487,6 +487,7 @@ std::vector<Splat> PbvrRenderer::splats(uint32_t repetition) const {
     std::vector<Splat> out;
     out.reserve(total);
     for (const auto& b : per_block) out.insert(out.end(), b.begin(), b.end());
+    append_mesh_splats(repetition, out);
     return out;
 }
 
@@ -534,7 +535,8 @@ bool PbvrRenderer::add_repetition() {
     };
     generate(uint32_t(repetitions_), splat, counts);
 
-    for (std::size_t m = 0; m < meshes_.size() && !cancelled(); ++m) rasterize_mesh(*meshes_[m], m);
+    for (std::size_t m = 0; m < meshes_.size() && !cancelled(); ++m)
+        rasterize_mesh(*meshes_[m], m, counts);
     if (cancelled()) return false;  // the ensemble is left as it was
 
     // -- average the sub-pixels into the ensemble

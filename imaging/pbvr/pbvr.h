@@ -308,15 +308,18 @@ class PbvrRenderer {
     RgbImage image() const;
     // The particles repetition `repetition` draws (add_repetition draws repetition
     // repetitions_done()), in an order that does not depend on the threads, without
-    // drawing them; meshes are not included. Each is the particle add_repetition
-    // depth-tests: the same disc, depth and colour.
+    // drawing them: the volume's particles, then each mesh's fragments (discs of radius
+    // 1/2 on their sub-pixel's centre). Each is what add_repetition depth-tests: the same
+    // disc, depth and colour.
     std::vector<Splat> splats(uint32_t repetition) const;
     int subpixel_width() const { return sub_width_; }
     int subpixel_height() const { return sub_height_; }
 
     // The particle radius at the orbit target's depth (a cell's scales with its depth).
     float particle_radius_mm() const { return radius_per_depth_ * float(camera_.distance_mm); }
-    uint64_t particles_drawn() const { return particles_; }       // over all repetitions
+    // Over all repetitions: the volume's particles and the meshes' (fragments that became
+    // particles).
+    uint64_t particles_drawn() const { return particles_; }
     std::size_t occupied_cells() const { return cells_.size(); }  // after culling
     // Cells skipped as hidden: those of hidden bricks (transparent or not), and the
     // non-transparent cells hidden one by one.
@@ -401,7 +404,13 @@ class PbvrRenderer {
     std::vector<uint64_t> overlay_;               // its initial content (empty: none)
     struct MeshLayer;
     std::vector<std::unique_ptr<MeshLayer>> meshes_;
-    void rasterize_mesh(const MeshLayer& layer, std::size_t index);
+    void rasterize_mesh(const MeshLayer& layer, std::size_t index,
+                        tbb::enumerable_thread_specific<uint64_t>& counts);
+    template <class Emit>
+    void mesh_fragments(const MeshLayer& layer, std::size_t index, uint32_t repetition,
+                        Emit&& emit) const;
+    // The meshes' fragments of `repetition` as splats (splats()), appended to `out`.
+    void append_mesh_splats(uint32_t repetition, std::vector<Splat>& out) const;
     int repetitions_ = 0;
     uint64_t particles_ = 0;
 };

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 
@@ -15,6 +16,7 @@ namespace sonotrace::imaging::pbvr {
 using base::InputError;
 
 namespace {
+constexpr std::size_t kTetBlock = 1024;  // tetrahedra per task
 // What a renderer of meshes alone renders as its regular volume: nothing.
 const ColourTransferFunction& clear_tf() {
     static const ColourTransferFunction clear(
@@ -64,11 +66,15 @@ void PbvrRenderer::add_mesh(const TetMesh& mesh, const ColourTransferFunction& t
 // are rasterized with perspective-correct interpolation of the scalar and the depth (the
 // scalar is linear on each face in 3D, so this is exact), which gives every sub-pixel's
 // fragment: s_f, s_b, D_f, D_b and the length l of the ray inside.
-void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
+// Every fragment that becomes a particle in `repetition` goes to emit(x, y, entry,
+// block): its sub-pixel, its Z-buffer entry and its block of kTetBlock tetrahedra (blocks
+// in parallel; a block's fragments in one task, in a fixed order).
+template <class Emit>
+void PbvrRenderer::mesh_fragments(const MeshLayer& layer, std::size_t index, uint32_t repetition,
+                                  Emit&& emit) const {
     const TetMesh& mesh = *layer.mesh;
     const Projection p = Projection::of(camera_, settings_.subpixel_level);
     const uint64_t stream_seed = settings_.seed ^ (0x632BE59BD9B4E019ull * (index + 1));
-    const uint32_t repetition = uint32_t(repetitions_);
     constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
     // Per sub-pixel of a footprint: the nearest and farthest face points met.
     struct FaceHits {
@@ -77,11 +83,11 @@ void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
     };
     tbb::enumerable_thread_specific<std::vector<FaceHits>> scratch;
     tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, mesh.tets.size(), 1024),
-        [&](const tbb::blocked_range<std::size_t>& range) {
+        std::size_t(0), (mesh.tets.size() + kTetBlock - 1) / kTetBlock, [&](std::size_t block) {
             if (cancelled()) return;
             std::vector<FaceHits>& hits = scratch.local();
-            for (std::size_t t = range.begin(); t != range.end(); ++t) {
+            const std::size_t last = std::min(mesh.tets.size(), (block + 1) * kTetBlock);
+            for (std::size_t t = block * kTetBlock; t != last; ++t) {
                 const auto& tet = mesh.tets[t];
                 // -- project the corners: screen position, 1/depth, value
                 glm::dvec2 q[4];
@@ -186,17 +192,42 @@ void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index) {
                         const double depth = (1.0 - wd) * hit.near_depth + wd * hit.far_depth;
                         const glm::vec3 colour =
                             layer.tf->colour(float((1.0 - wd) * s_front + wd * s_back));
-                        const uint64_t entry = zbuffer_entry(float(depth), colour, uint32_t(t));
-                        std::atomic<uint64_t>& cell =
-                            zbuffer_[std::size_t(y) * std::size_t(sub_width_) + std::size_t(x)];
-                        uint64_t current = cell.load(std::memory_order_relaxed);
-                        while (entry < current && !cell.compare_exchange_weak(
-                                                      current, entry, std::memory_order_relaxed)) {
-                        }
+                        emit(x, y, zbuffer_entry(float(depth), colour, uint32_t(t)), block);
                     }
                 }
             }
         });
+}
+
+void PbvrRenderer::rasterize_mesh(const MeshLayer& layer, std::size_t index,
+                                  tbb::enumerable_thread_specific<uint64_t>& counts) {
+    mesh_fragments(
+        layer, index, uint32_t(repetitions_), [&](int x, int y, uint64_t entry, std::size_t) {
+            ++counts.local();
+            std::atomic<uint64_t>& cell =
+                zbuffer_[std::size_t(y) * std::size_t(sub_width_) + std::size_t(x)];
+            uint64_t current = cell.load(std::memory_order_relaxed);
+            while (entry < current &&
+                   !cell.compare_exchange_weak(current, entry, std::memory_order_relaxed)) {
+            }
+        });
+}
+
+void PbvrRenderer::append_mesh_splats(uint32_t repetition, std::vector<Splat>& out) const {
+    // A fragment covers its own sub-pixel: a disc of radius 1/2 on the sub-pixel's centre
+    // reaches no other centre. Per block of tetrahedra, in order: the same list on any
+    // thread count.
+    for (std::size_t m = 0; m < meshes_.size(); ++m) {
+        const MeshLayer& layer = *meshes_[m];
+        std::vector<std::vector<Splat>> per_block((layer.mesh->tets.size() + kTetBlock - 1) /
+                                                  kTetBlock);
+        mesh_fragments(layer, m, repetition, [&](int x, int y, uint64_t entry, std::size_t block) {
+            per_block[block].push_back({float(x) + 0.5f, float(y) + 0.5f, 0.5f,
+                                        std::bit_cast<float>(uint32_t(entry >> 32)),
+                                        uint32_t(entry >> 8 & 0xFFFFFFu)});
+        });
+        for (const auto& b : per_block) out.insert(out.end(), b.begin(), b.end());
+    }
 }
 
 }  // namespace sonotrace::imaging::pbvr

@@ -1,6 +1,6 @@
-// The GPU path of the GUI's 3D context and of `render --renderer gpu` (ui/gui/gl_pbvr.h)
+// The GPU path of the GUI's 3D context and of `render --renderer gpu` (ui/gl/gl_pbvr.h)
 // against the CPU renderer, in the headless OpenGL 3.3 core context the command line
-// opens (ui/gui/headless_gl.h: EGL, Mesa's llvmpipe on a machine without GPU): the same particles
+// opens (ui/gl/headless_gl.h: EGL, Mesa's llvmpipe on a machine without GPU): the same particles
 // (PbvrRenderer::splats), drawn with OpenGL's depth test and averaged on the GPU, give
 // the CPU's ensemble image. The expectation is the CPU renderer's own image, which the
 // PBVR tests validate against the emission-absorption ray caster; the two differ only
@@ -14,8 +14,8 @@
 #include "imaging/pbvr/overlay.h"
 #include "imaging/pbvr/pbvr.h"
 #include "probe/transducer.h"
-#include "ui/gui/gl_pbvr.h"
-#include "ui/gui/headless_gl.h"
+#include "ui/gl/gl_pbvr.h"
+#include "ui/gl/headless_gl.h"
 
 namespace sonotrace {
 namespace {

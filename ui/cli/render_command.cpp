@@ -19,8 +19,8 @@
 #include "tissue/base/memory.h"
 #include "tissue/volume_io.h"
 #ifdef SONOTRACE_HAVE_GL_PBVR
-#include "ui/gui/gl_pbvr.h"
-#include "ui/gui/headless_gl.h"
+#include "ui/gl/gl_pbvr.h"
+#include "ui/gl/headless_gl.h"
 #endif
 
 namespace sonotrace::ui {
@@ -91,7 +91,7 @@ constexpr ParameterDoc kRendererDoc = {
     "--renderer", "",
     "where the particles are projected: cpu (the reference) or gpu (OpenGL 3.3 through EGL, "
     "no display needed: the GPU where there is one, else Mesa's software rasteriser; the same "
-    "particles, so the same image within rounding; the regular volume only, no meshes)"};
+    "particles and mesh fragments, so the same image within rounding)"};
 constexpr ParameterDoc kOutDoc = {"--out", "", "output PNG"};
 
 // The first Ctrl-C stops the rendering within the repetition in flight (the renderer polls
@@ -298,11 +298,6 @@ int run_render_command(const RenderOptions& options) {
         settings.cut_away = pbvr::CutAway{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5])};
     }
 
-    if (options.renderer == "gpu" && !meshes.empty())
-        throw base::InputError("--renderer", "",
-                               "gpu draws the regular volume's particles only; tetrahedral "
-                               "meshes (.vtk, a second volume, --sector) need --renderer cpu");
-
     std::optional<pbvr::RenderVolume> volume;
     if (loaded) {
         timer.begin("preparing volume (normalized values)");
@@ -317,7 +312,8 @@ int run_render_command(const RenderOptions& options) {
     if (overlay)
         renderer->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
     timer.end();
-    // The GPU path draws the particles the CPU renderer generates (PbvrRenderer::splats).
+    // The GPU path draws the particles and mesh fragments the CPU renderer generates
+    // (PbvrRenderer::splats).
 #ifdef SONOTRACE_HAVE_GL_PBVR
     std::unique_ptr<gui::HeadlessGl> gl;
     std::unique_ptr<gui::GlPbvr> gpu;

@@ -11,7 +11,7 @@
 
 #include "imaging/video.h"
 #include "ui/gui/controls.h"
-#include "ui/gui/gl_pbvr.h"
+#include "ui/gl/gl_pbvr.h"
 #include "ui/gui/scanner.h"
 
 namespace sonotrace::gui {

@@ -1,4 +1,4 @@
-#include "ui/gui/gl_pbvr.h"
+#include "ui/gl/gl_pbvr.h"
 
 #define GL_GLEXT_PROTOTYPES
 #include <GL/gl.h>

@@ -1,4 +1,4 @@
-#include "ui/gui/headless_gl.h"
+#include "ui/gl/headless_gl.h"
 
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
