@@ -130,6 +130,23 @@ TEST(CliRender, TheGpuRendererDrawsTheCpuImage) {
         dir, "--volume " + write_sphere(dir) + " --tf ramp --width 96 --height 80", 6);
 }
 
+// Without an OpenGL driver (glvnd pointed at no EGL vendor), --renderer gpu is an error
+// naming the option, before any volume is loaded, and writes nothing.
+TEST(CliRender, WithoutOpenGlTheGpuRendererIsAClearError) {
+    ScratchDir dir;
+    const std::string volume = write_sphere(dir);
+    setenv("__EGL_VENDOR_LIBRARY_FILENAMES", (dir / "no_vendor.json").c_str(), 1);
+    const auto r = run(dir, "render --renderer gpu --volume " + volume +
+                                " --tf ramp --width 16 --height 16 --repetitions 1 --out " +
+                                (dir / "out/g.png"));
+    unsetenv("__EGL_VENDOR_LIBRARY_FILENAMES");
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("--renderer: gpu: no headless OpenGL context"), std::string::npos)
+        << r.err;
+    EXPECT_EQ(r.err.find("loading"), std::string::npos) << "loaded before failing: " << r.err;
+    EXPECT_TRUE(files_in(dir / "out").empty());
+}
+
 TEST(CliRender, TheGpuRendererDrawsTheCpuImageOfFusedMeshes) {
     ScratchDir dir;
     const std::string phantoms = std::string(SONOTRACE_SOURCE_DIR) + "/phantoms/pbvr/";

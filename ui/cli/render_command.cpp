@@ -203,6 +203,27 @@ int run_render_command(const RenderOptions& options) {
                                  double(options.subpixel) * double(options.subpixel);
         base::check_allocation(subpixels * 24.0, "--width x --height x --subpixel^2", "");
     }
+    // The GPU path draws the particles and mesh fragments the CPU renderer generates
+    // (PbvrRenderer::splats). Its context is opened before anything is loaded: a machine
+    // without OpenGL fails at once.
+#ifdef SONOTRACE_HAVE_GL_PBVR
+    std::unique_ptr<gui::HeadlessGl> gl;
+    std::unique_ptr<gui::GlPbvr> gpu;
+    if (options.renderer == "gpu") {
+        timer.begin("opening an OpenGL context (EGL)");
+        try {
+            gl = std::make_unique<gui::HeadlessGl>();
+            gpu = std::make_unique<gui::GlPbvr>(options.width, options.height,
+                                                settings.subpixel_level, settings.background);
+        } catch (const std::runtime_error& e) {
+            throw base::InputError("--renderer", "",
+                                   std::string("gpu: ") + e.what() + "; --renderer cpu needs none");
+        }
+        timer.end();
+        if (!options.quiet)
+            std::fprintf(stderr, "sonotrace: OpenGL renderer: %s\n", gl->renderer().c_str());
+    }
+#endif
     if (options.sector && options.frame.empty())
         throw base::InputError("--sector", "", "needs --frame (the frame whose sector to mesh)");
     if (options.volumes.empty()) throw base::InputError("--volume", "", "needs a volume");
@@ -312,27 +333,9 @@ int run_render_command(const RenderOptions& options) {
     if (overlay)
         renderer->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
     timer.end();
-    // The GPU path draws the particles and mesh fragments the CPU renderer generates
-    // (PbvrRenderer::splats).
 #ifdef SONOTRACE_HAVE_GL_PBVR
-    std::unique_ptr<gui::HeadlessGl> gl;
-    std::unique_ptr<gui::GlPbvr> gpu;
-    if (options.renderer == "gpu") {
-        timer.begin("opening an OpenGL context (EGL)");
-        try {
-            gl = std::make_unique<gui::HeadlessGl>();
-            gpu = std::make_unique<gui::GlPbvr>(camera.width, camera.height,
-                                                settings.subpixel_level, settings.background);
-        } catch (const std::runtime_error& e) {
-            throw base::InputError("--renderer", "",
-                                   std::string("gpu: ") + e.what() + "; --renderer cpu needs none");
-        }
-        if (overlay)
-            gpu->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
-        timer.end();
-        if (!options.quiet)
-            std::fprintf(stderr, "sonotrace: OpenGL renderer: %s\n", gl->renderer().c_str());
-    }
+    if (gpu && overlay)
+        gpu->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
 #endif
     int repetitions_done = 0;
     uint64_t particles = 0;
