@@ -9,6 +9,7 @@
 
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 #include "imaging/pbvr/overlay.h"
@@ -247,6 +248,62 @@ TEST(Pbvr, PsnrAgainstTheRayCasterRisesWithRepetitions) {
     ::testing::Test::RecordProperty(
         "psnr_8_32_128",
         std::to_string(db[0]) + " " + std::to_string(db[1]) + " " + std::to_string(db[2]));
+}
+
+// The repetitions of one seed are stratified across each other (CellSequence), so a short
+// run's image is not an average of independent samples; it must still be an unbiased
+// estimate of the converged image. 64 seeds of 2 repetitions each (short runs, drawn
+// independently of each other) are averaged and compared, pixel by pixel and channel by
+// channel, with one seed's 1024 repetitions: sum over samples of (mean of the short runs
+// - long run)^2 / (its variance) must be chi-square with one degree of freedom per
+// sample. The variance is that of the short runs' mean (their sample variance / 64)
+// plus the long run's, bounded by 2 x that sample variance / 1024 as if its repetitions
+// were independent (stratified ones vary less). Neighbouring pixels share particles, so
+// the statistic's spread is wider than chi-square's (0.98-1.11 over four sets of short-run
+// seeds); its mean is the test: within 25 % of 1 (a bias of one standard error per
+// sample doubles it). The same statistic against
+// the long run lifted by 0.01 must exceed 2: the test can fail.
+TEST(Pbvr, ShortStratifiedRunsAverageToTheConvergedImage) {
+    BlobScene scene;
+    scene.camera.width = scene.camera.height = 48;
+    const RenderVolume volume(scene.data, scene.tf);
+    constexpr int kShortRuns = 64, kShortRepetitions = 2, kLongRepetitions = 1024;
+    const std::size_t samples = 3 * std::size_t(48 * 48);
+    std::vector<double> sum(samples, 0.0), squares(samples, 0.0);
+    for (int run = 0; run < kShortRuns; ++run) {
+        RenderSettings settings = scene.settings;
+        settings.seed = uint64_t(1000 + run);
+        PbvrRenderer renderer(volume, scene.tf, scene.camera, settings);
+        for (int r = 0; r < kShortRepetitions; ++r) renderer.add_repetition();
+        const RgbImage image = renderer.image();
+        for (std::size_t i = 0; i < samples; ++i) {
+            const double v = image.pixels[i / 3][int(i % 3)];
+            sum[i] += v, squares[i] += v * v;
+        }
+    }
+    PbvrRenderer long_run(volume, scene.tf, scene.camera, scene.settings);
+    for (int r = 0; r < kLongRepetitions; ++r) long_run.add_repetition();
+    const RgbImage converged = long_run.image();
+    auto statistic = [&](double lift) {
+        double chi2 = 0.0;
+        int degrees = 0;
+        for (std::size_t i = 0; i < samples; ++i) {
+            const double mean = sum[i] / kShortRuns;
+            const double variance = (squares[i] - kShortRuns * mean * mean) / (kShortRuns - 1);
+            const double expected = converged.pixels[i / 3][int(i % 3)] + lift;
+            if (!(variance > 1e-12)) continue;  // every short run the same (background)
+            const double error2 =
+                variance / kShortRuns + double(kShortRepetitions) * variance / kLongRepetitions;
+            chi2 += (mean - expected) * (mean - expected) / error2;
+            ++degrees;
+        }
+        EXPECT_GT(degrees, 1000) << "too few samples vary";
+        return chi2 / std::max(degrees, 1);
+    };
+    const double per_sample = statistic(0.0), lifted = statistic(0.01);
+    std::printf("chi-square per sample: %.3f (lifted by 0.01: %.2f)\n", per_sample, lifted);
+    EXPECT_NEAR(per_sample, 1.0, 0.25);
+    EXPECT_GT(lifted, 2.0);
 }
 
 TEST(Pbvr, RadiusAdaptationMatchesRegenerationAfterAnOpacityEdit) {
