@@ -221,6 +221,13 @@ GlPbvr::GlPbvr(int width, int height, int subpixel_level, const glm::vec3& backg
       background_(background) {
     if (width < 1 || height < 1 || subpixel_level < 1)
         throw std::invalid_argument("GlPbvr: empty image");
+    GLint max_size = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+    if (sub_width_ > max_size || sub_height_ > max_size)
+        throw std::runtime_error("the sub-pixel image (" + std::to_string(sub_width_) + " x " +
+                                 std::to_string(sub_height_) +
+                                 " with its margin) exceeds this OpenGL's largest texture (" +
+                                 std::to_string(max_size) + ")");
     const StateGuard guard;
     const std::string header = "#version 330 core\n" + std::string(kRowMapping);
     splat_program_ = program(kSplatVertex, kSplatFragment);
