@@ -2,7 +2,7 @@
 // start pose's B-mode sector overlaid, 320 x 320, one sub-pixel per pixel): the CPU
 // renderer (generation, projection and averaging on the cores) against the GPU path
 // (generation on the cores, PbvrRenderer::splats; projection, depth test and averaging
-// in OpenGL, gui::GlPbvr, timed to glFinish). Alternates the two, repetition by
+// in OpenGL, gl::GlPbvr, timed to glFinish). Alternates the two, repetition by
 // repetition, and prints the medians as JSON.
 //
 //   xvfb-run -a build/bench/bench_context [repetitions]   # Mesa's llvmpipe, this machine
@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
 
     imaging::pbvr::PbvrRenderer cpu(volume, scene->context_tf, camera, settings);
     cpu.set_overlay(layer);
-    gui::GlPbvr gpu(camera.width, camera.height, 1, settings.background);
+    gl::GlPbvr gpu(camera.width, camera.height, 1, settings.background);
     gpu.set_overlay(layer);
     std::vector<double> cpu_ms, generate_ms, draw_ms, gpu_ms;
     std::size_t particles = 0;

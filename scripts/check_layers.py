@@ -54,6 +54,7 @@ TEST_FOLDERS = {
     "dataset": "sonotrace_dataset",
     "cli": "sonotrace_ui",
     "gui": "sonotrace_gui_core",
+    "gl": "sonotrace_gl_pbvr",
 }
 TEST_RULE = re.compile(r"sonotrace_test\((\w+)\s+\w+\s+MODULES\s+([\w\s]+?)\s+SOURCES\s+([^)]+)\)")
 

@@ -207,14 +207,14 @@ int run_render_command(const RenderOptions& options) {
     // (PbvrRenderer::splats). Its context is opened before anything is loaded: a machine
     // without OpenGL fails at once.
 #ifdef SONOTRACE_HAVE_GL_PBVR
-    std::unique_ptr<gui::HeadlessGl> gl;
-    std::unique_ptr<gui::GlPbvr> gpu;
+    std::unique_ptr<gl::HeadlessGl> gl;
+    std::unique_ptr<gl::GlPbvr> gpu;
     if (options.renderer == "gpu") {
         timer.begin("opening an OpenGL context (EGL)");
         try {
-            gl = std::make_unique<gui::HeadlessGl>();
-            gpu = std::make_unique<gui::GlPbvr>(options.width, options.height,
-                                                settings.subpixel_level, settings.background);
+            gl = std::make_unique<gl::HeadlessGl>();
+            gpu = std::make_unique<gl::GlPbvr>(options.width, options.height,
+                                               settings.subpixel_level, settings.background);
         } catch (const std::runtime_error& e) {
             throw base::InputError("--renderer", "",
                                    std::string("gpu: ") + e.what() + "; --renderer cpu needs none");
@@ -343,7 +343,10 @@ int run_render_command(const RenderOptions& options) {
     auto add_repetition = [&]() -> bool {
 #ifdef SONOTRACE_HAVE_GL_PBVR
         if (gpu) {
+            // splats() stops early on a Ctrl-C (the renderer's cancel flag): such a list
+            // is not a repetition.
             const std::vector<pbvr::Splat> splats = renderer->splats(uint32_t(repetitions_done));
+            if (g_interrupted) return false;
             gpu->add_repetition(splats);
             particles += splats.size();
             ++repetitions_done;

@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace sonotrace::gui {
+namespace sonotrace::gl {
 
 namespace {
 
@@ -395,4 +395,4 @@ imaging::pbvr::RgbImage GlPbvr::image() const {
     return out;
 }
 
-}  // namespace sonotrace::gui
+}  // namespace sonotrace::gl

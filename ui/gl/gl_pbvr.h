@@ -20,7 +20,7 @@
 
 #include "imaging/pbvr/pbvr.h"
 
-namespace sonotrace::gui {
+namespace sonotrace::gl {
 
 // A 2D texture (`reuse`'s name, or a new one) of `internal` format filled from `data`
 // (null: left undefined), clamped at the edges, nearest or linear filtering, tightly
@@ -76,4 +76,4 @@ class GlPbvr {
     bool has_overlay_ = false;
 };
 
-}  // namespace sonotrace::gui
+}  // namespace sonotrace::gl

@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <stdexcept>
 
-namespace sonotrace::gui {
+namespace sonotrace::gl {
 
 namespace {
 
@@ -70,4 +70,4 @@ HeadlessGl::~HeadlessGl() {
     eglTerminate(display_);
 }
 
-}  // namespace sonotrace::gui
+}  // namespace sonotrace::gl

@@ -5,7 +5,7 @@
 // (llvmpipe) where there is none; renderer() says which.
 #include <string>
 
-namespace sonotrace::gui {
+namespace sonotrace::gl {
 
 class HeadlessGl {
   public:
@@ -27,4 +27,4 @@ class HeadlessGl {
     std::string renderer_, version_;
 };
 
-}  // namespace sonotrace::gui
+}  // namespace sonotrace::gl

@@ -32,8 +32,8 @@ void Texture::upload(const cv::Mat& picture) {
         cv::cvtColor(picture, rgba, cv::COLOR_GRAY2RGBA);
     else
         cv::cvtColor(picture, rgba, cv::COLOR_RGB2RGBA);
-    id_ =
-        texture_2d(GL_RGBA, rgba.cols, rgba.rows, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data, true, id_);
+    id_ = gl::texture_2d(GL_RGBA, rgba.cols, rgba.rows, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data, true,
+                         id_);
     width_ = rgba.cols;
     height_ = rgba.rows;
 }
@@ -248,8 +248,8 @@ void App::poll() {
         try {
             if (!gl_context_ || batch->ensemble != gl_ensemble_ ||
                 gl_context_->width() != batch->width || gl_context_->height() != batch->height) {
-                gl_context_ = std::make_unique<GlPbvr>(batch->width, batch->height,
-                                                       batch->subpixel_level, batch->background);
+                gl_context_ = std::make_unique<gl::GlPbvr>(
+                    batch->width, batch->height, batch->subpixel_level, batch->background);
                 gl_ensemble_ = batch->ensemble;
             }
             if (!batch->overlay.empty()) gl_context_->set_overlay(batch->overlay);

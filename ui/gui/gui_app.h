@@ -10,8 +10,8 @@
 #include <string>
 
 #include "imaging/video.h"
-#include "ui/gui/controls.h"
 #include "ui/gl/gl_pbvr.h"
+#include "ui/gui/controls.h"
 #include "ui/gui/scanner.h"
 
 namespace sonotrace::gui {
@@ -138,7 +138,7 @@ class App {
     std::optional<ScanFrame> frame_;  // what the views show
     std::optional<ContextImage> context_;
     Texture slice_texture_, bmode_texture_, context_texture_, energy_texture_;
-    std::unique_ptr<GlPbvr> gl_context_;  // the GPU path's ensemble
+    std::unique_ptr<gl::GlPbvr> gl_context_;  // the GPU path's ensemble
     uint64_t gl_ensemble_ = 0;
     imaging::pbvr::OrbitCamera gl_camera_;
     double gl_seconds_ = 0.0;

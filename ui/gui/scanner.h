@@ -123,7 +123,7 @@ struct ContextImage {
 };
 
 // One repetition of the context's particles for the GPU path (ContextView::gpu): the
-// UI thread draws them into a gui::GlPbvr, a new one whenever `ensemble` changes.
+// UI thread draws them into a gl::GlPbvr, a new one whenever `ensemble` changes.
 struct ContextSplats {
     uint64_t request = 0;
     uint64_t ensemble = 0;  // a new camera, frame or scene starts a new ensemble

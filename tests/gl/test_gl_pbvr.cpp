@@ -39,7 +39,7 @@ tissue::Volume shells() {
 }
 
 TEST(GlPbvr, TheGpuImageIsTheCpuImageOfTheSameParticles) {
-    const gui::HeadlessGl context;  // throws (the test fails) without an OpenGL 3.3 context
+    const gl::HeadlessGl context;  // throws (the test fails) without an OpenGL 3.3 context
     std::printf("OpenGL renderer: %s\n", context.renderer().c_str());
     const tissue::Volume volume = shells();
     ColourTransferFunction tf = load_colour_tf("ramp");
@@ -66,7 +66,7 @@ TEST(GlPbvr, TheGpuImageIsTheCpuImageOfTheSameParticles) {
 
     PbvrRenderer cpu(render_volume, tf, camera, settings);
     cpu.set_overlay(layer);
-    gui::GlPbvr gpu(camera.width, camera.height, settings.subpixel_level, settings.background);
+    gl::GlPbvr gpu(camera.width, camera.height, settings.subpixel_level, settings.background);
     gpu.set_overlay(layer);
     constexpr int kRepetitions = 6;
     std::size_t particles = 0;
@@ -91,8 +91,8 @@ TEST(GlPbvr, TheGpuImageIsTheCpuImageOfTheSameParticles) {
                 kRepetitions, db);
     EXPECT_GE(db, 40.0);
     // And one repetition fewer on the GPU is visibly different: the comparison can fail.
-    gui::GlPbvr short_of_one(camera.width, camera.height, settings.subpixel_level,
-                             settings.background);
+    gl::GlPbvr short_of_one(camera.width, camera.height, settings.subpixel_level,
+                            settings.background);
     short_of_one.set_overlay(layer);
     for (int r = 1; r < kRepetitions; ++r) short_of_one.add_repetition(cpu.splats(uint32_t(r)));
     EXPECT_LT(psnr(short_of_one.image(), reference), db - 3.0);
