@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "probe/transducer.h"
 #include "tests/test_util.h"
@@ -37,6 +38,35 @@ std::string write_sphere(const ScratchDir& dir) {
     return dir / "sphere.json";
 }
 
+// An environment variable set for a scope (the commands run() starts inherit it), then
+// restored: a test's setting does not leak into the tests after it.
+class ScopedEnv {
+  public:
+    ScopedEnv(const char* name, const std::string& value) : name_(name) {
+        if (const char* old = std::getenv(name)) old_ = old;
+        setenv(name, value.c_str(), 1);
+    }
+    ~ScopedEnv() {
+        if (old_)
+            setenv(name_, old_->c_str(), 1);
+        else
+            unsetenv(name_);
+    }
+    ScopedEnv(const ScopedEnv&) = delete;
+    ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+  private:
+    const char* name_;
+    std::optional<std::string> old_;
+};
+
+// The sanitizer options of a GPU run: Mesa's driver keeps allocations past exit, which
+// LeakSanitizer would report (the other options stay).
+std::string asan_options_for_mesa() {
+    const char* asan = std::getenv("ASAN_OPTIONS");
+    return std::string(asan ? asan : "") + ":detect_leaks=0";
+}
+
 TEST(CliRender, WritesTheImageTheReferenceAndTheRecord) {
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
@@ -56,7 +86,6 @@ TEST(CliRender, WritesTheImageTheReferenceAndTheRecord) {
 }
 
 TEST(CliRender, SameImageOnOneAndTwoThreads) {
-    setenv("ASAN_OPTIONS", "detect_leaks=0", 1);  // Mesa keeps allocations past exit
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
     // The GPU draws the particles in the order splats() lists them, whatever the threads.
@@ -66,6 +95,8 @@ TEST(CliRender, SameImageOnOneAndTwoThreads) {
     const std::vector<std::string> renderers{"cpu"};
 #endif
     for (const std::string& renderer : renderers) {
+        std::optional<ScopedEnv> asan;
+        if (renderer == "gpu") asan.emplace("ASAN_OPTIONS", asan_options_for_mesa());
         for (const std::string threads : {"1", "2"}) {
             const auto r = run(dir, "render -q --volume " + volume +
                                         " --tf ramp --width 64 --height 64 "
@@ -113,9 +144,10 @@ double psnr_8bit(const std::vector<uint8_t>& a, const std::vector<uint8_t>& b) {
 
 void expect_gpu_draws_the_cpu_image(const ScratchDir& dir, const std::string& inputs,
                                     int repetitions) {
-    setenv("ASAN_OPTIONS", "detect_leaks=0", 1);  // Mesa keeps allocations past exit
     auto render = [&](const std::string& renderer, int count) {
         const std::string name = renderer + std::to_string(count);
+        std::optional<ScopedEnv> asan;
+        if (renderer == "gpu") asan.emplace("ASAN_OPTIONS", asan_options_for_mesa());
         const auto r =
             run(dir, "render -q " + inputs + " --seed 5 --background 0.1,0.2,0.3" + " --renderer " +
                          renderer + " --repetitions " + std::to_string(count) + " --out " +
@@ -154,11 +186,12 @@ TEST(CliRender, WithoutOpenGlTheGpuRendererIsAClearError) {
     SKIP_WITHOUT_GL();
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
-    setenv("__EGL_VENDOR_LIBRARY_FILENAMES", (dir / "no_vendor.json").c_str(), 1);
+    std::optional<ScopedEnv> no_vendor(std::in_place, "__EGL_VENDOR_LIBRARY_FILENAMES",
+                                       dir / "no_vendor.json");
     const auto r = run(dir, "render --renderer gpu --volume " + volume +
                                 " --tf ramp --width 16 --height 16 --repetitions 1 --out " +
                                 (dir / "out/g.png"));
-    unsetenv("__EGL_VENDOR_LIBRARY_FILENAMES");
+    no_vendor.reset();
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_NE(r.err.find("--renderer: gpu: no headless OpenGL context"), std::string::npos)
         << r.err;
@@ -170,7 +203,7 @@ TEST(CliRender, WithoutOpenGlTheGpuRendererIsAClearError) {
 // sizes (16384 x 16 sub-pixels across: more than any OpenGL's limit).
 TEST(CliRender, TheGpuRendererNamesAnImageTooLargeForIt) {
     SKIP_WITHOUT_GL();
-    setenv("ASAN_OPTIONS", "detect_leaks=0", 1);  // Mesa keeps allocations past exit
+    const ScopedEnv asan("ASAN_OPTIONS", asan_options_for_mesa());
     ScratchDir dir;
     const auto r = run(dir, "render -q --renderer gpu --volume " + write_sphere(dir) +
                                 " --tf ramp --width 16384 --height 1 --subpixel 16 "
