@@ -321,17 +321,17 @@ TEST(CliRender, OverlaysFramesOfEveryProbeTypeAndNamesBadSidecarFields) {
     }
 }
 
-// Ctrl-C stops a long render promptly and writes the repetitions done (the record says
-// so); without it, ten million repetitions would take hours. The signal is sent once the
-// command says the refinement has begun (and half a second later, so that repetitions
-// exist): sent at a fixed time instead, it raced the start-up on a loaded machine.
-TEST(CliRender, CtrlCStopsPromptlyAndWritesTheRepetitionsDone) {
+// Ctrl-C stops a long render promptly, on either renderer, and writes the repetitions done (the
+// record says so); without it, ten million repetitions would take hours. The signal is sent once
+// the command says the refinement has begun (and half a second later, so that repetitions exist):
+// sent at a fixed time instead, it raced the start-up on a loaded machine.
+void expect_ctrl_c_stops_promptly(const std::string& renderer) {
     ScratchDir dir;
     const std::string volume = write_sphere(dir);
     const std::string err = dir / "err.txt";
     std::string script = "(";  // appended piecewise: GCC 12's -Wrestrict misfires on a chain
     script += SONOTRACE_BINARY;
-    script += " render --volume " + volume +
+    script += " render --renderer " + renderer + " --volume " + volume +
               " --tf ramp --width 64 --height 64 --repetitions 10000000 --out " + (dir / "r.png") +
               " --json " + (dir / "r.json") + " 2> " + err + " & pid=$!; i=0; ";
     script += "while ! grep -q Ctrl-C " + err + " && [ $i -lt 600 ]; do sleep 0.1; i=$((i+1)); ";
@@ -347,6 +347,16 @@ TEST(CliRender, CtrlCStopsPromptlyAndWritesTheRepetitionsDone) {
     EXPECT_EQ(record.at("stopped_by"), "interrupt") << record.dump();
     EXPECT_GT(record.at("repetitions").get<int>(), 0);
     EXPECT_LT(record.at("repetitions").get<int>(), 10000000);
+}
+
+TEST(CliRender, CtrlCStopsPromptlyAndWritesTheRepetitionsDone) {
+    expect_ctrl_c_stops_promptly("cpu");
+}
+
+TEST(CliRender, CtrlCStopsTheGpuRendererPromptlyToo) {
+    SKIP_WITHOUT_GL();
+    const ScopedEnv asan("ASAN_OPTIONS", asan_options_for_mesa());
+    expect_ctrl_c_stops_promptly("gpu");
 }
 
 // Ctrl-C before the first repetition ends is an interrupt (130), not bad input (1), and
