@@ -330,13 +330,15 @@ int run_render_command(const RenderOptions& options) {
                            : std::make_unique<pbvr::PbvrRenderer>(camera, settings);
     for (std::size_t m = 0; m < meshes.size(); ++m)
         renderer->add_mesh(*meshes[m], *mesh_tfs[m], depth_sampling);
-    if (overlay)
-        renderer->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
-    timer.end();
+    if (overlay) {
+        std::vector<uint64_t> layer =
+            pbvr::overlay_layer(*overlay, camera, settings.subpixel_level);
 #ifdef SONOTRACE_HAVE_GL_PBVR
-    if (gpu && overlay)
-        gpu->set_overlay(pbvr::overlay_layer(*overlay, camera, settings.subpixel_level));
+        if (gpu) gpu->set_overlay(layer);  // the GPU draws the same surfaces
 #endif
+        renderer->set_overlay(std::move(layer));
+    }
+    timer.end();
     int repetitions_done = 0;
     uint64_t particles = 0;
     // One repetition on the chosen renderer; false if interrupted within it.
