@@ -74,6 +74,22 @@ Crossing<Dim> crossing_of(const InterfaceSearch<Dim>& search, const InterfaceSid
     return c;
 }
 
+// Whether a particle in a gas's transition, whose impedance is `z_here`, stands on the far
+// side of it already (ln Z nearer the far plateau's): moving up grad Z, away from the
+// gas, it is taken by crossing_of as coming out of the gas. It is leaving the transition,
+// not meeting it; reflected there (R^2 = 1), it went into the gas with no decision of its
+// own. Gases only: their impedance lies three orders below tissue's, so the side is never
+// in doubt, where between tissues a particle deep in a wide fringe may stand nearer the
+// far plateau and still be meeting the interface.
+template <int Dim>
+bool leaving_a_gas_transition(const InterfaceSearch<Dim>& search, const Crossing<Dim>& c,
+                              float z_here) {
+    if (!search.gas(c.near_side) || search.gas(c.far_side)) return false;
+    const float here = std::log(std::max(z_here, 1e-12f));
+    return std::abs(here - std::log(std::max(c.far_side.impedance, 1e-12f))) <
+           std::abs(here - std::log(std::max(c.near_side.impedance, 1e-12f)));
+}
+
 // The fractions of the energy an interface reflects and converts into a solid's shear
 // wave (0 between fluids). From the fluid side, fluid_solid_fractions at the incidence;
 // from inside the solid, by reciprocity the fluid side's at the transmitted angle: the same

@@ -48,6 +48,7 @@ class InterfaceSearch {
     float threshold2() const { return threshold2_; }
     float inverse_texel2() const { return inverse_texel2_; }
     int plateau_steps() const { return plateau_steps_; }  // the reach, in half texels
+    bool gas(const Plateau& side) const { return side.refractive_index > gas_index_min_; }
 
     // |grad Z| h / Z above the interface threshold, squared: no root or division.
     template <class Sample>  // Texel or tissue::ImpedanceSample

@@ -287,11 +287,15 @@ class LineTracer {
             p.graded_steps = 0;
             return;
         }
-        p.state = int32_t(kCrossing);
-        out_->stats.interface_events++;
         // The decision stays here, where the transition begins (deeper in, the fringe has
         // bent the particle); the echo is timed where the path crosses (crossing_of).
         const Crossing<Dim> crossing = crossing_of(search_, sides, x, r, t);
+        if (leaving_a_gas_transition(search_, crossing, t.impedance)) {
+            p.state = int32_t(kOutside);
+            return;
+        }
+        p.state = int32_t(kCrossing);
+        out_->stats.interface_events++;
         p.interface_normal = to_lanes(crossing.normal);
         decide_reflection(
             b, k, p, crossing,
