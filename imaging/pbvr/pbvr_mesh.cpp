@@ -166,8 +166,16 @@ void PbvrRenderer::mesh_fragments(const MeshLayer& layer, std::size_t index, uin
                         const double length = double(hit.far_depth - hit.near_depth) *
                                               std::sqrt(1.0 + dx * dx + dy * dy);
                         const double s_front = hit.near_value, s_back = hit.far_value;
-                        // -- a particle with the pre-integrated opacity (eq. 18)
-                        const double r = random.next();
+                        // -- a particle with the pre-integrated opacity (eq. 18). Its
+                        // number is the fragment's own, stratified across repetitions
+                        // (CellSequence): one fragment decides a sub-pixel of a single
+                        // layer alone, so the repetitions cover [0, 1) evenly and that
+                        // image's error falls as 1 / N, not 1 / sqrt(N).
+                        const uint64_t fragment =
+                            base::finalise64(uint64_t(t)) ^
+                            (uint64_t(uint32_t(y)) << 32 | uint64_t(uint32_t(x)));
+                        const double r = CellSequence::of_stream(stream_seed, repetition, fragment)
+                                             .count_uniform();
                         const double alpha = layer.pre.opacity(s_front, s_back, length);
                         if (!(r < alpha)) continue;
                         double wd = 0.5;

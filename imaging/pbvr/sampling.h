@@ -138,8 +138,14 @@ inline uint32_t scramble_reversed(uint32_t x, uint32_t seed) {
 class CellSequence {
   public:
     CellSequence(uint64_t seed, uint32_t repetition, uint32_t cell)
-        : key_(base::finalise64(seed ^ base::finalise64(uint64_t(cell) << 32 | 0xFFFFFFFFu))),
-          reversed_repetition_(sobol::reverse_bits(repetition)) {}
+        : CellSequence(
+              base::finalise64(seed ^ base::finalise64(uint64_t(cell) << 32 | 0xFFFFFFFFu)),
+              repetition) {}
+    // The same for any stream of draws named by a 64-bit key (the tetrahedral path's
+    // fragments, one per tetrahedron and sub-pixel).
+    static CellSequence of_stream(uint64_t seed, uint32_t repetition, uint64_t stream) {
+        return CellSequence(base::finalise64(seed ^ base::finalise64(stream)), repetition);
+    }
     float count_uniform() const {
         const uint64_t h = base::finalise64(key_);
         return value(index(uint32_t(h)), uint32_t(h >> 32), 0);
@@ -154,6 +160,8 @@ class CellSequence {
     }
 
   private:
+    CellSequence(uint64_t key, uint32_t repetition)
+        : key_(key), reversed_repetition_(sobol::reverse_bits(repetition)) {}
     // The Sobol' index of this repetition for one draw: the repetition index shuffled by
     // a nested scramble of its own per draw (Burley's shuffled Owen-scrambled Sobol'),
     // kept below 2^16 (a bijection there). The first 2^m repetitions still take an
