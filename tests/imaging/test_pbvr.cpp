@@ -268,41 +268,26 @@ TEST(Pbvr, ShortStratifiedRunsAverageToTheConvergedImage) {
     scene.camera.width = scene.camera.height = 48;
     const RenderVolume volume(scene.data, scene.tf);
     constexpr int kShortRuns = 64, kShortRepetitions = 2, kLongRepetitions = 1024;
-    const std::size_t samples = 3 * std::size_t(48 * 48);
-    std::vector<double> sum(samples, 0.0), squares(samples, 0.0);
+    ImageEnsemble short_runs;
     for (int run = 0; run < kShortRuns; ++run) {
         RenderSettings settings = scene.settings;
         settings.seed = uint64_t(1000 + run);
         PbvrRenderer renderer(volume, scene.tf, scene.camera, settings);
         for (int r = 0; r < kShortRepetitions; ++r) renderer.add_repetition();
-        const RgbImage image = renderer.image();
-        for (std::size_t i = 0; i < samples; ++i) {
-            const double v = image.pixels[i / 3][int(i % 3)];
-            sum[i] += v, squares[i] += v * v;
-        }
+        short_runs.add(renderer.image());
     }
     PbvrRenderer long_run(volume, scene.tf, scene.camera, scene.settings);
     for (int r = 0; r < kLongRepetitions; ++r) long_run.add_repetition();
     const RgbImage converged = long_run.image();
-    auto statistic = [&](double lift) {
-        double chi2 = 0.0;
-        int degrees = 0;
-        for (std::size_t i = 0; i < samples; ++i) {
-            const double mean = sum[i] / kShortRuns;
-            const double variance = (squares[i] - kShortRuns * mean * mean) / (kShortRuns - 1);
-            const double expected = converged.pixels[i / 3][int(i % 3)] + lift;
-            if (!(variance > 1e-12)) continue;  // every short run the same (background)
-            const double error2 =
-                variance / kShortRuns + double(kShortRepetitions) * variance / kLongRepetitions;
-            chi2 += (mean - expected) * (mean - expected) / error2;
-            ++degrees;
-        }
-        EXPECT_GT(degrees, 1000) << "too few samples vary";
-        return chi2 / std::max(degrees, 1);
-    };
-    const double per_sample = statistic(0.0), lifted = statistic(0.01);
-    std::printf("chi-square per sample: %.3f (lifted by 0.01: %.2f)\n", per_sample, lifted);
-    EXPECT_NEAR(per_sample, 1.0, 0.25);
+    // The long run's variance, as if its repetitions were independent (background: every
+    // short run the same).
+    constexpr double kExtra = double(kShortRepetitions) / kLongRepetitions;
+    const auto statistic = short_runs.against(converged, 0.0, kExtra, 1e-12);
+    const double lifted = short_runs.against(converged, 0.01, kExtra, 1e-12).per_sample;
+    EXPECT_GT(statistic.degrees, 1000) << "too few samples vary";
+    std::printf("chi-square per sample: %.3f (lifted by 0.01: %.2f)\n", statistic.per_sample,
+                lifted);
+    EXPECT_NEAR(statistic.per_sample, 1.0, 0.25);
     EXPECT_GT(lifted, 2.0);
 }
 

@@ -14,6 +14,7 @@
 
 #include "imaging/pbvr/pbvr.h"
 #include "imaging/pbvr/tetra.h"
+#include "tests/imaging/pbvr_test_volumes.h"
 #include "tests/test_util.h"
 
 namespace sonotrace::imaging::pbvr {
@@ -385,20 +386,32 @@ TEST(Tetra, ARegularVolumeAndAMeshFuseAsTheReferenceDoes) {
 // the emission-absorption integral, independent of the particles), the mean squared error
 // over 16 seeds must fall by at least 10 dB per 4x repetitions, from 4 to 16 and from 16 to
 // 64 (independent numbers: 6.2 and 6.0), and reach 55 dB at 64.
-TEST(Tetra, StratifiedFragmentsConvergeAsOneOverTheRepetitions) {
-    const TetMesh& single = single_tetrahedron();
+// One tetrahedron at one sub-pixel a pixel, and its ray integral at 2 um steps
+// (raycast_meshes: a quadrature of the emission-absorption integral, independent of the
+// particles).
+struct OneTetrahedronScene {
     ColourTransferFunction tf = colour_map({0.1f, 0.2f, 0.9f}, {1.0f, 0.9f, 0.2f}, 0.9);
-    tf.bind(single.values_as_volume());
-    const OrbitCamera camera = camera_on({0.6, 0.6, 0.6}, 8.0);
-    RenderSettings settings;
-    settings.subpixel_level = 1;
-    const RgbImage reference = raycast_meshes({{&single, &tf}}, camera, settings, 0.002);
+    OrbitCamera camera = camera_on({0.6, 0.6, 0.6}, 8.0);
+    RgbImage reference;
+    OneTetrahedronScene() {
+        tf.bind(single_tetrahedron().values_as_volume());
+        RenderSettings settings;
+        settings.subpixel_level = 1;
+        reference = raycast_meshes({{&single_tetrahedron(), &tf}}, camera, settings, 0.002);
+    }
+    RgbImage render(int repetitions, uint64_t seed) const {
+        return pbvr::render({{&single_tetrahedron(), &tf}}, camera, DepthSampling::cdf, repetitions,
+                            seed);
+    }
+};
+
+TEST(Tetra, StratifiedFragmentsConvergeAsOneOverTheRepetitions) {
+    const OneTetrahedronScene scene;
     std::vector<double> db;
     for (const int repetitions : {4, 16, 64}) {
         double mse = 0.0;
         for (uint64_t seed = 1; seed <= 16; ++seed) {
-            const double e = rmse(
-                render({{&single, &tf}}, camera, DepthSampling::cdf, repetitions, seed), reference);
+            const double e = rmse(scene.render(repetitions, seed), scene.reference);
             mse += e * e / 16.0;
         }
         db.push_back(-10.0 * std::log10(mse));
@@ -419,41 +432,16 @@ TEST(Tetra, StratifiedFragmentsConvergeAsOneOverTheRepetitions) {
 // seeds; the reference's own error, about 65 dB, is 2 % of the mean's variance here). The
 // same against the reference lifted by 0.02 must exceed 2 (5.7-6.4): the test can fail.
 TEST(Tetra, ShortStratifiedRunsAverageToTheRayIntegral) {
-    const TetMesh& single = single_tetrahedron();
-    ColourTransferFunction tf = colour_map({0.1f, 0.2f, 0.9f}, {1.0f, 0.9f, 0.2f}, 0.9);
-    tf.bind(single.values_as_volume());
-    const OrbitCamera camera = camera_on({0.6, 0.6, 0.6}, 8.0);
-    RenderSettings settings;
-    settings.subpixel_level = 1;
-    const RgbImage reference = raycast_meshes({{&single, &tf}}, camera, settings, 0.002);
-    constexpr int kRuns = 64;
-    const std::size_t samples = 3 * reference.pixels.size();
-    std::vector<double> sum(samples, 0.0), squares(samples, 0.0);
-    for (int run = 0; run < kRuns; ++run) {
-        const RgbImage image =
-            render({{&single, &tf}}, camera, DepthSampling::cdf, 2, uint64_t(100 + run));
-        for (std::size_t i = 0; i < samples; ++i) {
-            const double v = image.pixels[i / 3][int(i % 3)];
-            sum[i] += v, squares[i] += v * v;
-        }
-    }
-    auto statistic = [&](double lift) {
-        double chi2 = 0.0;
-        int degrees = 0;
-        for (std::size_t i = 0; i < samples; ++i) {
-            const double mean = sum[i] / kRuns;
-            const double variance = (squares[i] - kRuns * mean * mean) / (kRuns - 1);
-            if (!(variance > 1e-9)) continue;  // background, or opaque in every run
-            const double d = mean - (reference.pixels[i / 3][int(i % 3)] + lift);
-            chi2 += d * d / (variance / kRuns);
-            ++degrees;
-        }
-        EXPECT_GT(degrees, 300) << "too few samples vary";
-        return chi2 / std::max(degrees, 1);
-    };
-    const double per_sample = statistic(0.0), lifted = statistic(0.02);
-    std::printf("chi-square per sample: %.3f (lifted by 0.02: %.2f)\n", per_sample, lifted);
-    EXPECT_NEAR(per_sample, 1.0, 0.25);
+    const OneTetrahedronScene scene;
+    ImageEnsemble short_runs;
+    for (int run = 0; run < 64; ++run) short_runs.add(scene.render(2, uint64_t(100 + run)));
+    // Samples that never vary: background, or opaque in every run.
+    const auto statistic = short_runs.against(scene.reference, 0.0, 0.0, 1e-9);
+    const double lifted = short_runs.against(scene.reference, 0.02, 0.0, 1e-9).per_sample;
+    EXPECT_GT(statistic.degrees, 300) << "too few samples vary";
+    std::printf("chi-square per sample: %.3f (lifted by 0.02: %.2f)\n", statistic.per_sample,
+                lifted);
+    EXPECT_NEAR(statistic.per_sample, 1.0, 0.25);
     EXPECT_GT(lifted, 2.0);
 }
 

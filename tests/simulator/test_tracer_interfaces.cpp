@@ -287,8 +287,8 @@ TEST(Tracer, AnEchoHappensWhereThePathMeetsTheFaceNotBesideAWall) {
 // away from the gap meet the fringe from behind. Every reflection met from inside the gap
 // (its normal, which faces the particle's side, points into the gap) must carry a return
 // weight of at most 0.01: a particle that slipped in without a decision carries its full
-// weight and bounces between the walls at R^2 = 1 (the temporal view's "particles inside
-// air": docs/log/2026-11-29-temporal-view-at-convergence.md).
+// weight and bounces between the walls at R^2 = 1, as particles did in the gap beside the
+// temporal view's probe.
 TEST(Tracer, ParticlesEnterAGasOnlyByATransmissionDecision) {
     constexpr int kN = 160;
     tissue::PropertyMaps maps = homogeneous(kN, kN, kH, lossless_medium(1540, 1000));
