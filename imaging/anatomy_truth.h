@@ -63,30 +63,68 @@ ClearSamples clear_samples(const LineData& envelope, const probe::ScanGeometry& 
 template <typename Intensity>
 double band_contrast_db(const ClearSamples& samples, Intensity&& intensity, double band_mm = 2.0);
 
+// The same bands, the inside's mean display level against the outside's (`level_db(s)`: a
+// sample's grey level in dB, as the display's TGC and log compression give it): the
+// difference of mean grey levels the eye compares on the picture. Between two regions of
+// developed speckle it equals band_contrast_db (the mean of 10 log10 of an exponential
+// intensity lies 2.51 dB below 10 log10 of its mean on both sides), but a few samples far
+// above the rest cannot dominate it.
+template <typename Level>
+double band_level_difference_db(const ClearSamples& samples, Level&& level_db,
+                                double band_mm = 2.0);
+
 // ---- implementation ----
 
-template <typename Intensity>
-double band_contrast_db(const ClearSamples& samples, Intensity&& intensity, double band_mm) {
+namespace detail {
+
+// Per band of `band_mm` (true depth), the sums of value(s) and the counts of the inside's
+// and the outside's samples; bands with fewer than 20 of either are emptied.
+struct DepthBands {
+    std::vector<double> in, out;
+    std::vector<int> n_in, n_out;
+};
+
+template <typename Value>
+DepthBands depth_bands(const ClearSamples& samples, Value&& value, double band_mm) {
     std::size_t bands = 0;
     for (const auto* list : {&samples.inside, &samples.outside})
         for (const TruthSample& s : *list)
             bands = std::max(bands, std::size_t(s.depth_mm / band_mm) + 1);
-    std::vector<double> in(bands), out(bands);
-    std::vector<int> n_in(bands), n_out(bands);
+    DepthBands b{std::vector<double>(bands), std::vector<double>(bands), std::vector<int>(bands),
+                 std::vector<int>(bands)};
     for (const TruthSample& s : samples.inside) {
-        const std::size_t b = std::size_t(s.depth_mm / band_mm);
-        in[b] += intensity(s), ++n_in[b];
+        const std::size_t k = std::size_t(s.depth_mm / band_mm);
+        b.in[k] += value(s), ++b.n_in[k];
     }
     for (const TruthSample& s : samples.outside) {
-        const std::size_t b = std::size_t(s.depth_mm / band_mm);
-        out[b] += intensity(s), ++n_out[b];
+        const std::size_t k = std::size_t(s.depth_mm / band_mm);
+        b.out[k] += value(s), ++b.n_out[k];
     }
+    for (std::size_t k = 0; k < bands; ++k)
+        if (b.n_in[k] < 20 || b.n_out[k] < 20) b.in[k] = b.out[k] = 0.0, b.n_in[k] = b.n_out[k] = 0;
+    return b;
+}
+
+}  // namespace detail
+
+template <typename Intensity>
+double band_contrast_db(const ClearSamples& samples, Intensity&& intensity, double band_mm) {
+    const detail::DepthBands b = detail::depth_bands(samples, intensity, band_mm);
     double inside = 0.0, expected = 0.0;
-    for (std::size_t b = 0; b < bands; ++b) {
-        if (n_in[b] < 20 || n_out[b] < 20) continue;
-        inside += in[b], expected += n_in[b] * out[b] / n_out[b];
-    }
+    for (std::size_t k = 0; k < b.in.size(); ++k)
+        if (b.n_in[k] > 0) inside += b.in[k], expected += b.n_in[k] * b.out[k] / b.n_out[k];
     return 10.0 * std::log10(inside / expected + 1e-30);
+}
+
+template <typename Level>
+double band_level_difference_db(const ClearSamples& samples, Level&& level_db, double band_mm) {
+    const detail::DepthBands b = detail::depth_bands(samples, level_db, band_mm);
+    double difference = 0.0;
+    int counted = 0;
+    for (std::size_t k = 0; k < b.in.size(); ++k)
+        if (b.n_in[k] > 0)
+            difference += b.in[k] - b.n_in[k] * b.out[k] / b.n_out[k], counted += b.n_in[k];
+    return counted > 0 ? difference / counted : std::nan("");
 }
 
 }  // namespace sonotrace::imaging

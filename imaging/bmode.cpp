@@ -309,28 +309,54 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             psf ? std::size_t(psf->depths()) : 0,
             std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0));
     };
-    // Echoes after a rough reflection are incoherent: gathered over the image and drawn
-    // as speckle of their mean (incoherent_echoes.h), not as a pulse each.
-    auto incoherent = [](const simulator::EchoEvent<2>& e) { return e.rough_bounces > 0; };
-    std::vector<std::vector<IncoherentEcho>> incoherent_of(static_cast<std::size_t>(L));
+    // Echoes after a rough reflection, and rough echoes after mirrors where sparse, are
+    // incoherent: gathered over the image and drawn as speckle of their mean
+    // (incoherent_echoes.h), not as a pulse each.
+    std::vector<std::vector<IncoherentEcho>> incoherent_of(static_cast<std::size_t>(L)),
+        after_mirrors_of(static_cast<std::size_t>(L));
+    std::vector<std::vector<uint32_t>> after_mirrors_event(static_cast<std::size_t>(L));
     tbb::parallel_for(0, L, [&](int l) {
         const ScanLine axis = geometry.line(l);
         std::vector<std::complex<double>> untilted = no_plane_echoes();
         for (uint32_t n = event_start[std::size_t(l)]; n < event_start[std::size_t(l) + 1]; ++n) {
             const auto& e = events[event_order[n]];
-            if (!incoherent(e)) continue;
+            const bool rough_path = after_a_rough_reflection(e);
+            if (!rough_path && !rough_echo_after_mirrors(e)) continue;
             if (const auto echo = line_echo(l, axis, e, untilted)) {
                 const double weighted = echo->intensity * std::norm(echo->response);
-                if (weighted > 0.0)
-                    incoherent_of[std::size_t(l)].push_back(
-                        {l, echo->position / depth_to_samples, weighted, e.particle});
+                if (!(weighted > 0.0)) continue;
+                const IncoherentEcho incoherent{l, echo->position / depth_to_samples, weighted,
+                                                e.particle};
+                if (rough_path) {
+                    incoherent_of[std::size_t(l)].push_back(incoherent);
+                } else {
+                    after_mirrors_of[std::size_t(l)].push_back(incoherent);
+                    after_mirrors_event[std::size_t(l)].push_back(event_order[n]);
+                }
             }
         }
     });
-    std::vector<IncoherentEcho> incoherent_echoes;
-    for (const auto& echoes_of_line : incoherent_of)
-        incoherent_echoes.insert(incoherent_echoes.end(), echoes_of_line.begin(),
-                                 echoes_of_line.end());
+    std::vector<IncoherentEcho> incoherent_echoes, after_mirrors;
+    std::vector<uint32_t> after_mirrors_events;
+    for (int l = 0; l < L; ++l) {
+        const auto line = std::size_t(l);
+        incoherent_echoes.insert(incoherent_echoes.end(), incoherent_of[line].begin(),
+                                 incoherent_of[line].end());
+        after_mirrors.insert(after_mirrors.end(), after_mirrors_of[line].begin(),
+                             after_mirrors_of[line].end());
+        after_mirrors_events.insert(after_mirrors_events.end(), after_mirrors_event[line].begin(),
+                                    after_mirrors_event[line].end());
+    }
+    std::vector<uint8_t> drawn_as_clutter(events.size(), 0);
+    const std::vector<uint8_t> sparse = sparse_echoes(geometry, after_mirrors);
+    for (std::size_t k = 0; k < after_mirrors.size(); ++k)
+        if (sparse[k]) {
+            incoherent_echoes.push_back(after_mirrors[k]);
+            drawn_as_clutter[after_mirrors_events[k]] = 1;
+        }
+    auto incoherent = [&](const simulator::EchoEvent<2>& e, uint32_t event) {
+        return after_a_rough_reflection(e) || drawn_as_clutter[event];
+    };
     const bool with_sums = with_speckle || !incoherent_echoes.empty();
     const auto speckle_i = std::make_unique_for_overwrite<float[]>(with_sums ? size : 0);
     const auto speckle_q = std::make_unique_for_overwrite<float[]>(with_sums ? size : 0);
@@ -363,7 +389,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                     __builtin_prefetch(w + receive->column(ahead.time_s));
             }
             const auto& e = events[event_order[n]];
-            if (incoherent(e)) continue;
+            if (incoherent(e, event_order[n])) continue;
             const auto echo = line_echo(l, axis, e, untilted);
             if (!echo) continue;
             const double position = echo->position, intensity = echo->intensity;

@@ -298,6 +298,15 @@ namespace detail {
 void add_weighted_sub_lines(const std::complex<float>* w0, const std::complex<float>* w1,
                             int j_first, int j_last, const float* first_sub_line, int N,
                             const float* f, int begin, int end, float* sum_i, float* sum_q);
+// The illumination across lines (lines x samples, row-major, in place): a line's light at
+// a sample is an estimate from its own few particles of what lights its beam, which varies
+// across lines on the beam's scale; each becomes the mean of its own and its neighbours'
+// weighted by a Gaussian of sigma_lines[sample] lines (the receive beam's sigma), truncated
+// at 3 sigma and at the frame's edges. Lines that no particle of theirs lit count as
+// zeros and take their share: left out, a line that one or two particles reached stood
+// out against its dark neighbours, and a dark line against its lit ones, as radial bars
+// in the skull's shadow. Samples with sigma under 0.3 lines are left as they are.
+void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines);
 // The speckle term of every line into speckle_i, speckle_q (rf's lines x samples):
 // synthesize_rf's first stage (imaging/speckle_lines.cpp).
 void speckle_lines(const probe::Transducer& t, const PsfTable& psf,

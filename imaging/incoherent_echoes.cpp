@@ -83,7 +83,38 @@ std::vector<double> kernel_sigmas(const std::vector<glm::dvec2>& points,
     return sigma;
 }
 
+// The echoes' points in the image plane (mm) and their paths (line, particle).
+void echo_points(const std::vector<probe::ScanLine>& lines,
+                 const std::vector<IncoherentEcho>& echoes, std::vector<glm::dvec2>* points,
+                 std::vector<uint64_t>* paths) {
+    for (const IncoherentEcho& e : echoes) {
+        const probe::ScanLine& a = lines[std::size_t(e.line)];
+        points->push_back(a.origin + a.direction * e.range_mm);
+        paths->push_back(uint64_t(uint32_t(e.line)) << 32 | e.particle);
+    }
+}
+
+std::vector<probe::ScanLine> scan_lines(const probe::ScanGeometry& geometry, int lines) {
+    std::vector<probe::ScanLine> out;
+    for (int l = 0; l < lines; ++l) out.push_back(geometry.line(l));
+    return out;
+}
+
 }  // namespace
+
+std::vector<uint8_t> sparse_echoes(const probe::ScanGeometry& geometry,
+                                   const std::vector<IncoherentEcho>& echoes,
+                                   const IncoherentSpread& spread) {
+    int lines = 0;
+    for (const IncoherentEcho& e : echoes) lines = std::max(lines, e.line + 1);
+    std::vector<glm::dvec2> points;
+    std::vector<uint64_t> paths;
+    echo_points(scan_lines(geometry, lines), echoes, &points, &paths);
+    const std::vector<double> sigma = kernel_sigmas(points, paths, spread);
+    std::vector<uint8_t> sparse(echoes.size());
+    for (std::size_t e = 0; e < echoes.size(); ++e) sparse[e] = sigma[e] > spread.min_sigma_mm;
+    return sparse;
+}
 
 std::vector<float> incoherent_intensity(const probe::ScanGeometry& geometry, const LineData& layout,
                                         const std::vector<IncoherentEcho>& echoes,
@@ -94,15 +125,10 @@ std::vector<float> incoherent_intensity(const probe::ScanGeometry& geometry, con
     const double bin = spread.bin_mm;
     const double depth = layout.depth_mm(N - 1);
     const int bins = int(depth / bin) + 1;
-    std::vector<probe::ScanLine> lines;
-    for (int l = 0; l < L; ++l) lines.push_back(geometry.line(l));
+    const std::vector<probe::ScanLine> lines = scan_lines(geometry, L);
     std::vector<glm::dvec2> points;
     std::vector<uint64_t> paths;
-    for (const IncoherentEcho& e : echoes) {
-        const probe::ScanLine& a = lines[std::size_t(e.line)];
-        points.push_back(a.origin + a.direction * e.range_mm);
-        paths.push_back(uint64_t(uint32_t(e.line)) << 32 | e.particle);
-    }
+    echo_points(lines, echoes, &points, &paths);
     const std::vector<double> sigma = kernel_sigmas(points, paths, spread);
 
     // One echo's kernel on line l: calls add(bin, weight) for the bins within 3 sigma.

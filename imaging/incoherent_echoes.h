@@ -1,12 +1,18 @@
 #pragma once
-// Echoes of paths that took a rough reflection (simulator::EchoEvent::rough_bounces > 0),
-// gathered into a smooth mean intensity and drawn as speckle of that mean.
+// Echoes drawn as clutter: those of paths that took a rough reflection, and a rough
+// interface's own echo met after mirror-like bounces where such echoes are too sparse to
+// image themselves (rough_echo_after_mirrors, sparse_echoes); gathered into a smooth mean
+// intensity and drawn as speckle of that mean.
 //
 // A particle reflected into a rough lobe leaves in a direction drawn at random: its phase
-// is no longer the transmit's, and what it meets afterwards echoes incoherently. The few
-// particles of a line that take such paths are a sparse sample of a diffuse field; drawn
-// each as one coherent pulse at its line and time, a single path stood 15-49 dB above the
-// brain around it (the transtemporal view's lone spots: docs/guide/simulate.md). Their
+// is no longer the transmit's, and what it meets afterwards echoes incoherently. A rough
+// interface's backscatter (EchoKind::diffuse) is itself a sum over its patch's random
+// heights. Met directly, every particle of a line meets the interface, and their pulses
+// interfere as the skull's bright band; after a mirror-like bounce off the curved skull
+// one particle of a line may meet it, its pulse alone in the image. The few particles of
+// a line that take such paths are a sparse sample of a diffuse field; drawn each as one
+// coherent pulse at its line and time, a single path stood 15-49 dB above the brain
+// around it (the transtemporal view's lone spots: docs/guide/simulate.md). Their
 // intensities are estimated instead by adaptive kernel density estimation (the
 // sample-point estimator, Terrell & Scott 1992): each echo's intensity spread by a
 // Gaussian in the image plane whose sigma is half the distance to its k-th nearest such
@@ -16,14 +22,27 @@
 // narrow (down to the pulse's and beam's scale), where they are sparse wide; each echo's
 // kernel is normalised over the lines and samples it reaches, so the total intensity is
 // kept. As the particle count grows the kernels shrink and the estimate converges to the
-// echoes' expected intensity.
+// echoes' expected intensity. Rough echoes after mirrors whose kernel would be the
+// narrowest anyway (k echoes of other paths within 2 min_sigma_mm) stay pulses: their
+// paths image themselves, as a rough wire's ghost in a flat mirror does, sharp
+// (validate --case mirror_image).
 #include <cstdint>
 #include <vector>
 
 #include "imaging/bmode.h"
 #include "probe/transducer.h"
+#include "simulator/records.h"
 
 namespace sonotrace::imaging {
+
+// Echoes of paths that took a rough reflection: always clutter.
+inline bool after_a_rough_reflection(const simulator::EchoEvent<2>& e) {
+    return e.rough_bounces > 0;
+}
+// A rough interface's echo after mirror-like reflections only: clutter where sparse.
+inline bool rough_echo_after_mirrors(const simulator::EchoEvent<2>& e) {
+    return e.bounces > 0 && e.rough_bounces == 0 && e.kind == simulator::EchoKind::diffuse;
+}
 
 struct IncoherentEcho {
     int line = 0;
@@ -48,6 +67,13 @@ struct IncoherentSpread {
 std::vector<float> incoherent_intensity(const probe::ScanGeometry& geometry, const LineData& layout,
                                         const std::vector<IncoherentEcho>& echoes,
                                         const IncoherentSpread& spread = {});
+
+// For each of `echoes`, whether it is sparse: its kernel (above) would be wider than
+// spread.min_sigma_mm, i.e. fewer than spread.neighbours echoes of other paths among
+// `echoes` lie within 2 min_sigma_mm of it.
+std::vector<uint8_t> sparse_echoes(const probe::ScanGeometry& geometry,
+                                   const std::vector<IncoherentEcho>& echoes,
+                                   const IncoherentSpread& spread = {});
 
 // Adds speckle of mean intensity `mean` (as incoherent_intensity gives it) to the
 // in-phase and quadrature scatterer sums that synthesize_rf convolves with the pulse:

@@ -190,6 +190,37 @@ struct AtDepth {
 
 namespace detail {
 
+void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines) {
+    // Blocks of samples, each copied line by line (the lines' rows are contiguous; a
+    // column at a time was a strided read of every line per sample).
+    constexpr int kBlock = 32;
+    const int L = lines, N = samples;
+    tbb::parallel_for(0, (N + kBlock - 1) / kBlock, [&](int block) {
+        const int i0 = block * kBlock, count = std::min(kBlock, N - i0);
+        std::vector<double> rows(std::size_t(L) * kBlock), weight;
+        for (int l = 0; l < L; ++l)
+            std::copy_n(light + std::size_t(l) * std::size_t(N) + std::size_t(i0), count,
+                        rows.begin() + std::ptrdiff_t(l) * kBlock);
+        for (int b = 0; b < count; ++b) {
+            const int i = i0 + b;
+            const double sigma = sigma_lines[i];
+            if (!(sigma >= 0.3)) continue;
+            const int reach = int(std::ceil(3.0 * sigma));
+            weight.resize(std::size_t(2 * reach + 1));
+            for (int k = -reach; k <= reach; ++k)
+                weight[std::size_t(k + reach)] = std::exp(-0.5 * k * k / (sigma * sigma));
+            for (int l = 0; l < L; ++l) {
+                double sum = 0.0, weights = 0.0;
+                for (int k = std::max(-reach, -l); k <= std::min(reach, L - 1 - l); ++k) {
+                    const double w = weight[std::size_t(k + reach)];
+                    sum += w * rows[std::size_t(l + k) * kBlock + std::size_t(b)], weights += w;
+                }
+                light[std::size_t(l) * std::size_t(N) + std::size_t(i)] = sum / weights;
+            }
+        }
+    });
+}
+
 // The speckle term of every line (see the header): the scatter profile smoothed over a
 // pulse length, the scatterer field on sub-lines between the lines' mean positions, and
 // each line's sum across its beam weighted by the two-way PSF (complex: in-phase and
@@ -238,13 +269,18 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
         const std::size_t row = std::size_t(l) * std::size_t(N);
         double* const light_row = light.get() + row;
         glm::dvec2* const mean_row = mean.get() + row;
+        const probe::ScanLine line = geometry.line(l);
+        // Where the line has no light of its own its mean position is its nominal point,
+        // there for the light its neighbours may lend it (pool_across_lines).
+        auto dark = [&](int i) {
+            light_row[i] = 0.0;
+            mean_row[i] = line.origin + line.direction * depth[std::size_t(i)];
+            lattice[row + std::size_t(i)] = glm::vec3(to_lattice(mean_row[i]));
+        };
         auto no_echo = [&] {
-            std::fill_n(light_row, N, 0.0);
-            std::fill_n(mean_row, N, glm::dvec2(0.0));
+            for (int i = 0; i < N; ++i) dark(i);
         };
         if (l >= profile_lines) return no_echo();
-        const probe::ScanLine line = geometry.line(l);
-        const glm::dvec2 across(-line.direction.y, line.direction.x);
         // The moments and the smoothing's scratch, each padded by r zeros at both ends.
         const std::size_t padded = std::size_t(N + 2 * r);
         const auto buffer = std::make_unique_for_overwrite<Moments[]>(2 * padded);
@@ -275,8 +311,7 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
             const double v = mi[0];
             // Running sums leave rounding residues where there was nothing.
             if (!(v > 1e-9 * peak)) {
-                light_row[i] = 0.0;
-                mean_row[i] = glm::dvec2(0.0);
+                dark(i);
                 continue;
             }
             const double inverse_v = 1.0 / v;
@@ -287,45 +322,15 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
         }
     });
 
-    // The illumination across lines: each line's is an estimate from its own few
-    // particles of what lights its beam, which varies across lines on the beam's scale, so
-    // a Gaussian of the receive beam's sigma (in lines) pools the neighbours' particles
-    // (in the skull's shadow one or two particles of a line lit a spot of speckle alone).
-    // Only where the map gives the tissue its backscatter, so tissue edges stay sharp.
-    // Lines with no light keep none (they have no mean position) and are left out of
-    // their neighbours' averages: counted as zeros they took light away at the edges of
-    // what is lit (the same spots and contrasts on the head views either way).
+    // The illumination across lines (pool_across_lines): each line's is an estimate from
+    // its own few particles of what lights its beam. Only where the map gives the tissue
+    // its backscatter, so tissue edges stay sharp.
     if (lit_by_map && L > 1) {
-        // Blocks of samples, each copied line by line (the lines' rows are contiguous; a
-        // column at a time was a strided read of every line per sample).
-        constexpr int kBlock = 32;
-        tbb::parallel_for(0, (N + kBlock - 1) / kBlock, [&](int block) {
-            const int i0 = block * kBlock, count = std::min(kBlock, N - i0);
-            std::vector<double> rows(std::size_t(L) * kBlock), weight;
-            for (int l = 0; l < L; ++l)
-                std::copy_n(light.get() + std::size_t(l) * std::size_t(N) + std::size_t(i0), count,
-                            rows.begin() + std::ptrdiff_t(l) * kBlock);
-            for (int b = 0; b < count; ++b) {
-                const int i = i0 + b;
-                const double sigma = receive_beam_sigma_lines(t, geometry, depth[std::size_t(i)]);
-                if (!(sigma >= 0.3)) continue;
-                const int reach = int(std::ceil(3.0 * sigma));
-                weight.resize(std::size_t(2 * reach + 1));
-                for (int k = -reach; k <= reach; ++k)
-                    weight[std::size_t(k + reach)] = std::exp(-0.5 * k * k / (sigma * sigma));
-                for (int l = 0; l < L; ++l) {
-                    double& out = light[std::size_t(l) * std::size_t(N) + std::size_t(i)];
-                    if (!(out > 0.0)) continue;
-                    double sum = 0.0, weights = 0.0;
-                    for (int k = std::max(-reach, -l); k <= std::min(reach, L - 1 - l); ++k) {
-                        const double v = rows[std::size_t(l + k) * kBlock + std::size_t(b)];
-                        const double w = v > 0.0 ? weight[std::size_t(k + reach)] : 0.0;
-                        sum += w * v, weights += w;
-                    }
-                    out = sum / weights;
-                }
-            }
-        });
+        std::vector<double> sigma_lines(static_cast<std::size_t>(N));
+        for (int i = 0; i < N; ++i)
+            sigma_lines[std::size_t(i)] =
+                receive_beam_sigma_lines(t, geometry, depth[std::size_t(i)]);
+        pool_across_lines(light.get(), L, N, sigma_lines.data());
     }
     // The scatterer field on K sub-lines per gap between lines, interpolated between the
     // lines' mean positions (the nominal line spacing where a line has no echo), so that

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <functional>
 #include <numbers>
+#include <random>
 
 #include "imaging/anatomy_truth.h"
 #include "imaging/bmode.h"
@@ -25,15 +26,16 @@ using imaging::LineData;
 
 constexpr double kC0 = 1540.0;  // m/s
 
-// One particle per line, leaving the face along the line (an echo's range is that of its
-// unfolded path).
-probe::Sources<2> one_particle_per_line(const probe::Transducer& t) {
+// `per_line` particles per line (one by default), each leaving the face along the line
+// (an echo's range is that of its unfolded path).
+probe::Sources<2> one_particle_per_line(const probe::Transducer& t, int per_line = 1) {
     const probe::ScanGeometry g(t);
-    probe::Sources<2> sources(std::size_t(t.lines));
-    for (int l = 0; l < t.lines; ++l) {
-        sources[std::size_t(l)].line = uint32_t(l);
-        sources[std::size_t(l)].position = glm::vec2(g.line(l).origin);
-        sources[std::size_t(l)].direction = glm::vec2(g.line(l).direction);
+    probe::Sources<2> sources(std::size_t(t.lines) * std::size_t(per_line));
+    for (std::size_t s = 0; s < sources.size(); ++s) {
+        const int l = int(s) / per_line;
+        sources[s].line = uint32_t(l);
+        sources[s].position = glm::vec2(g.line(l).origin);
+        sources[s].direction = glm::vec2(g.line(l).direction);
     }
     return sources;
 }
@@ -56,13 +58,15 @@ LineData point_echo_envelope(const probe::Transducer& t, double one_way_time_s, 
     return imaging::envelope(rf);
 }
 
-// Peak envelope^2 of the central line of the linear preset for one reflection at 20 mm
-// below its face, as `shape` sets the event (kind, normal, direction, incidence).
-double reflection_peak(const std::function<void(simulator::EchoEvent<2>&)>& shape) {
+// The envelope of the linear preset for one reflection at 20 mm below its face on the
+// central line, as `shape` sets the event (kind, normal, direction, incidence); met by
+// `particles` particles of the line, each its own path, if more than one.
+LineData reflection_envelope(const std::function<void(simulator::EchoEvent<2>&)>& shape,
+                             int particles = 1) {
     const probe::Transducer t = probe::find_transducer("linear", "test");
     const probe::ScanGeometry g(t);
     const int line = t.lines / 2;
-    const probe::Sources<2> sources = one_particle_per_line(t);
+    const probe::Sources<2> sources = one_particle_per_line(t, particles);
     simulator::EchoEvent<2> e;
     e.line = uint32_t(line);
     e.time_s = float(20e-3 / kC0);
@@ -72,10 +76,17 @@ double reflection_peak(const std::function<void(simulator::EchoEvent<2>&)>& shap
     e.normal = -glm::vec2(g.line(line).direction);  // a plane facing the probe
     e.direction = glm::vec2(g.line(line).direction);
     shape(e);
+    std::vector<simulator::EchoEvent<2>> events(std::size_t(particles), e);
+    for (int k = 0; k < particles; ++k) events[std::size_t(k)].particle = uint32_t(k);
     imaging::ImagingSettings settings;
     settings.speckle = false;
-    const LineData env =
-        imaging::envelope(imaging::synthesize_rf(t, sources, {e}, {}, {}, settings));
+    return imaging::envelope(imaging::synthesize_rf(t, sources, events, {}, {}, settings));
+}
+
+// Its peak envelope^2 on the central line.
+double reflection_peak(const std::function<void(simulator::EchoEvent<2>&)>& shape) {
+    const LineData env = reflection_envelope(shape);
+    const int line = env.lines / 2;
     double peak = 0.0;
     for (int i = 0; i < env.samples; ++i) peak = std::max(peak, double(env.at(line, i)));
     return peak * peak;
@@ -151,6 +162,40 @@ TEST(Bmode, AfterABounceAReflectorStillSendsBackOnlyWhatHeadsBack) {
         reflection_peak(bounced(simulator::EchoKind::specular, 1e6f, 0.866f));
     ASSERT_GT(mirror_normal, 0.0);
     EXPECT_LT(mirror_oblique, 1e-6 * mirror_normal);
+}
+
+// Which echoes are drawn as clutter (imaging/incoherent_echoes.h). A rough interface's
+// echo (EchoKind::diffuse) is a sum over its patch's random heights, so its phase is
+// random; met after a mirror-like bounce by one particle alone, it is spread as incoherent
+// intensity over a lone echo's kernel (a Gaussian of sigma 2.5 mm, over lines 0.3 mm apart
+// here: 0.3 / (sqrt(2 pi) 2.5) = 5 % of it on the echo's own line in expectation, the rest
+// on its neighbours). Met by 20 particles (more than the kernels' 16 neighbours within
+// 2 mm: paths dense enough to image themselves, as a rough wire's ghost in a flat mirror),
+// it stays a pulse on its own line, as a mirror's echo after the same bounce and a rough
+// interface met directly do.
+TEST(Bmode, AfterABounceALoneRoughEchoIsClutterAndAMirrorsEchoIsAPulse) {
+    auto off_line_share = [](simulator::EchoKind kind, int bounces, int particles = 1) {
+        const LineData env = reflection_envelope(
+            [&](simulator::EchoEvent<2>& e) {
+                e.kind = kind;
+                e.bounces = uint16_t(bounces);
+                e.lobe_exponent = kind == simulator::EchoKind::diffuse ? 3.0f : 1e6f;
+            },
+            particles);
+        double own = 0.0, all = 0.0;
+        for (int l = 0; l < env.lines; ++l)
+            for (int i = 0; i < env.samples; ++i) {
+                const double p = double(env.at(l, i)) * double(env.at(l, i));
+                all += p;
+                if (l == env.lines / 2) own += p;
+            }
+        EXPECT_GT(all, 0.0);
+        return 1.0 - own / all;
+    };
+    EXPECT_GT(off_line_share(simulator::EchoKind::diffuse, 1), 0.8);
+    EXPECT_LT(off_line_share(simulator::EchoKind::diffuse, 1, 20), 1e-9);
+    EXPECT_LT(off_line_share(simulator::EchoKind::specular, 1), 1e-9);
+    EXPECT_LT(off_line_share(simulator::EchoKind::diffuse, 0), 1e-9);
 }
 
 // FWHM of the envelope of line `l` around its peak, in mm of depth (linear interpolation).
@@ -248,6 +293,44 @@ TEST(Bmode, PointEchoHasThePulsesAxialResolution) {
         // Other lines stay silent: a reflection belongs to the line whose particle made it.
         EXPECT_EQ(env.at(0, env.samples / 2), 0.0f) << t.name;
     }
+}
+
+// band_level_difference_db against band_contrast_db on developed speckle (exponential
+// intensities, seed 5): an interior 10 dB below its surroundings reads -10 dB both ways,
+// since the mean of 10 log10 of an exponential intensity lies 10 gamma / ln 10 = 2.51 dB
+// below 10 log10 of its mean on both sides. The level's spread is 5.57 dB (pi 10 /
+// (sqrt 6 ln 10)), so with 20,000 samples a side its standard error is 0.056 dB; 0.25 dB
+// is 4.5 of them. One outside sample 10^5 times the mean (a lone heavy echo) lifts the
+// outside's mean intensity sixfold, and its mean level by 50 dB / 20,000.
+TEST(AnatomyTruth, ALoneHeavySampleMovesTheMeanIntensityNotTheMeanLevel) {
+    std::mt19937_64 random(5);
+    std::exponential_distribution<double> speckle(1.0);
+    imaging::ClearSamples samples;
+    std::vector<double> intensity;
+    for (int n = 0; n < 40000; ++n) {
+        imaging::TruthSample t;
+        t.sample = n;
+        t.depth_mm = 40.0 + 20.0 * double(n % 20000) / 20000.0;  // 10 bands of 2 mm
+        const bool inside = n < 20000;
+        intensity.push_back((inside ? 0.1 : 1.0) * speckle(random));
+        (inside ? samples.inside : samples.outside).push_back(t);
+    }
+    auto mean_intensity = [&] {
+        return imaging::band_contrast_db(samples, [&](const imaging::TruthSample& t) {
+            return intensity[std::size_t(t.sample)];
+        });
+    };
+    auto mean_level = [&] {
+        return imaging::band_level_difference_db(samples, [&](const imaging::TruthSample& t) {
+            return 10.0 * std::log10(intensity[std::size_t(t.sample)]);
+        });
+    };
+    EXPECT_NEAR(mean_intensity(), -10.0, 0.25);
+    EXPECT_NEAR(mean_level(), -10.0, 0.25);
+    const double level_before = mean_level();
+    intensity[30000] = 1e5;              // an outside sample
+    EXPECT_LT(mean_intensity(), -17.0);  // 10 log10 (0.1 / 6): -17.8 dB
+    EXPECT_NEAR(mean_level(), level_before, 0.01);
 }
 
 // The truth's refracted walk (imaging::TruthWalk::refracted) follows the ray equation

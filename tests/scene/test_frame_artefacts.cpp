@@ -48,6 +48,46 @@ TEST(ScattererField, HasUnitMeanSquareWhereverInItsCellAPointLies) {
     }
 }
 
+// pool_across_lines: each line's light at a sample becomes the mean of its neighbours'
+// weighted by a Gaussian of sigma lines, lines without light counting as zeros. Lit and
+// dark lines in turn (a line's particles reaching it or not) pool to half, off by the
+// alternating sum of the weights over their sum: for sigma 1.5, 2 exp(-pi^2 sigma^2 / 2) =
+// 3e-5 by Poisson summation, -1.4e-4 with the weights cut at 3 sigma (5 lines; summed by
+// hand), so 2 +- 2.8e-4 for lines of 4 and 0. Dark lines kept dark, as before, stood as
+// radial bars.
+TEST(PoolAcrossLines, LendsADarkLineItsNeighboursLight) {
+    const int lines = 41, samples = 3;
+    std::vector<double> light(std::size_t(lines * samples));
+    for (int l = 0; l < lines; ++l)
+        for (int i = 0; i < samples; ++i) light[std::size_t(l * samples + i)] = l % 2 ? 0.0 : 4.0;
+    const std::vector<double> sigma(samples, 1.5);
+    imaging::detail::pool_across_lines(light.data(), lines, samples, sigma.data());
+    for (int l = 5; l < lines - 5; ++l)  // 3 sigma from the frame's edges
+        for (int i = 0; i < samples; ++i)
+            EXPECT_NEAR(light[std::size_t(l * samples + i)], 2.0, 4e-4) << "line " << l;
+}
+
+// One lit line among dark ones spreads as the receive beam's Gaussian across its
+// neighbours, its light kept whole (the weights sum to one away from the frame's edges),
+// and a sigma under 0.3 lines (a beam narrower than the line spacing) leaves it as it was.
+TEST(PoolAcrossLines, SpreadsALoneLineAsTheBeamAndKeepsItsLight) {
+    const int lines = 31, samples = 2, lit = 15;
+    std::vector<double> light(std::size_t(lines * samples), 0.0);
+    light[std::size_t(lit * samples)] = light[std::size_t(lit * samples + 1)] = 1.0;
+    const std::vector<double> sigma = {2.0, 0.2};
+    imaging::detail::pool_across_lines(light.data(), lines, samples, sigma.data());
+    double total = 0.0;
+    for (int l = 0; l < lines; ++l) {
+        const double pooled = light[std::size_t(l * samples)];
+        total += pooled;
+        const int k = l - lit;
+        const double gaussian = std::abs(k) <= 6 ? std::exp(-0.5 * k * k / 4.0) : 0.0;
+        EXPECT_NEAR(pooled, gaussian * light[std::size_t(lit * samples)], 1e-12) << "line " << l;
+        EXPECT_EQ(light[std::size_t(l * samples + 1)], l == lit ? 1.0 : 0.0) << "line " << l;
+    }
+    EXPECT_NEAR(total, 1.0, 1e-12);
+}
+
 // spread_over_step: a deposit spreads evenly over the `period` samples from it (the last
 // fractional), sums are kept, and a comb of an integer period becomes constant.
 TEST(SpreadOverStep, SpreadsADepositEvenlyAndFlattensAComb) {
