@@ -300,13 +300,17 @@ void add_weighted_sub_lines(const std::complex<float>* w0, const std::complex<fl
                             const float* f, int begin, int end, float* sum_i, float* sum_q);
 // The illumination across lines (lines x samples, row-major, in place): a line's light at
 // a sample is an estimate from its own few particles of what lights its beam, which varies
-// across lines on the beam's scale; each becomes the mean of its own and its neighbours'
-// weighted by a Gaussian of sigma_lines[sample] lines (the receive beam's sigma), truncated
-// at 3 sigma and at the frame's edges. Lines that no particle of theirs lit count as
-// zeros and take their share: left out, a line that one or two particles reached stood
-// out against its dark neighbours, and a dark line against its lit ones, as radial bars
-// in the skull's shadow. Samples with sigma under 0.3 lines are left as they are.
-void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines);
+// across lines on the beam's scale. Each line's light is spread over the lines by a
+// Gaussian normalised over the frame's lines (so kept whole), of sigma_lines[sample] (the
+// receive beam's sigma, in lines) times d, d the fewest lines either side within which the
+// other lines hold at least its light: 1 in an even field, so the beam's width; more for a
+// line that one heavy particle lit among faint ones, up to widest_lines[sample] (the sample
+// point estimator of kernel density estimation, with the kernel set by mass rather than
+// by count). Lines without light take their shares: left dark, such a line stood as a
+// black radial bar in the skull's shadow, and a line of one heavy particle as a bright
+// one. Samples with sigma under 0.3 lines are left as they are.
+void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines,
+                       const double* widest_lines);
 // The speckle term of every line into speckle_i, speckle_q (rf's lines x samples):
 // synthesize_rf's first stage (imaging/speckle_lines.cpp).
 void speckle_lines(const probe::Transducer& t, const PsfTable& psf,

@@ -190,33 +190,73 @@ struct AtDepth {
 
 namespace detail {
 
-void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines) {
+// The widest pooling of a line's light (pool_across_lines): one particle's light, far above
+// its neighbours', is spread over about +-30 mm (3 sigma) at most. Narrower left the
+// temporal view's rare heavy paths as bright streaks; 20 mm left as many spots (seeds 1-8).
+constexpr double kWidestPoolingMm = 10.0;
+
+void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines,
+                       const double* widest_lines) {
     // Blocks of samples, each copied line by line (the lines' rows are contiguous; a
     // column at a time was a strided read of every line per sample).
     constexpr int kBlock = 32;
     const int L = lines, N = samples;
     tbb::parallel_for(0, (N + kBlock - 1) / kBlock, [&](int block) {
         const int i0 = block * kBlock, count = std::min(kBlock, N - i0);
-        std::vector<double> rows(std::size_t(L) * kBlock), weight;
+        std::vector<double> rows(std::size_t(L) * kBlock), out(static_cast<std::size_t>(L));
+        std::vector<std::vector<double>> kernels;
         for (int l = 0; l < L; ++l)
             std::copy_n(light + std::size_t(l) * std::size_t(N) + std::size_t(i0), count,
                         rows.begin() + std::ptrdiff_t(l) * kBlock);
         for (int b = 0; b < count; ++b) {
             const int i = i0 + b;
-            const double sigma = sigma_lines[i];
-            if (!(sigma >= 0.3)) continue;
-            const int reach = int(std::ceil(3.0 * sigma));
-            weight.resize(std::size_t(2 * reach + 1));
-            for (int k = -reach; k <= reach; ++k)
-                weight[std::size_t(k + reach)] = std::exp(-0.5 * k * k / (sigma * sigma));
-            for (int l = 0; l < L; ++l) {
-                double sum = 0.0, weights = 0.0;
-                for (int k = std::max(-reach, -l); k <= std::min(reach, L - 1 - l); ++k) {
-                    const double w = weight[std::size_t(k + reach)];
-                    sum += w * rows[std::size_t(l + k) * kBlock + std::size_t(b)], weights += w;
+            const double narrowest = sigma_lines[i], widest = std::max(widest_lines[i], narrowest);
+            if (!(narrowest >= 0.3)) continue;
+            auto at = [&](int l) { return rows[std::size_t(l) * kBlock + std::size_t(b)]; };
+            // The kernels of this sample, by d (0: the widest), normalised, made on first use.
+            const int longest = int(std::ceil(widest / narrowest));
+            if (kernels.size() < std::size_t(longest + 1)) kernels.resize(std::size_t(longest + 1));
+            for (std::vector<double>& kernel : kernels) kernel.clear();  // keeps its memory
+            std::fill(out.begin(), out.end(), 0.0);
+            for (int s = 0; s < L; ++s) {
+                const double own = at(s);
+                if (!(own > 0.0)) continue;
+                // d: the lines within which the others hold at least this line's light.
+                double around = 0.0;
+                int kernel = 0;
+                for (int d = 1; double(d) * narrowest < widest; ++d) {
+                    if (s - d >= 0) around += at(s - d);
+                    if (s + d < L) around += at(s + d);
+                    if (around >= own) {
+                        kernel = d;
+                        break;
+                    }
                 }
-                light[std::size_t(l) * std::size_t(N) + std::size_t(i)] = sum / weights;
+                std::vector<double>& weight = kernels[std::size_t(kernel)];
+                if (weight.empty()) {
+                    const double sigma = kernel > 0 ? double(kernel) * narrowest : widest;
+                    const int reach = int(std::ceil(3.0 * sigma));
+                    double total = 0.0;
+                    for (int k = -reach; k <= reach; ++k)
+                        total +=
+                            weight.emplace_back(std::exp(-0.5 * double(k * k) / (sigma * sigma)));
+                    for (double& w : weight) w /= total;
+                }
+                // What reaches past the frame's edges is folded back into it (mirrored at
+                // them), so an even field stays even there and the light is kept.
+                const int reach = int(weight.size() / 2);
+                for (int k = -reach; k <= reach; ++k) {
+                    int l = s + k;
+                    if (l < 0 || l >= L) {
+                        l %= 2 * L;
+                        if (l < 0) l += 2 * L;
+                        if (l >= L) l = 2 * L - 1 - l;
+                    }
+                    out[std::size_t(l)] += own * weight[std::size_t(k + reach)];
+                }
             }
+            for (int l = 0; l < L; ++l)
+                light[std::size_t(l) * std::size_t(N) + std::size_t(i)] = out[std::size_t(l)];
         }
     });
 }
@@ -326,11 +366,14 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     // its own few particles of what lights its beam. Only where the map gives the tissue
     // its backscatter, so tissue edges stay sharp.
     if (lit_by_map && L > 1) {
-        std::vector<double> sigma_lines(static_cast<std::size_t>(N));
-        for (int i = 0; i < N; ++i)
-            sigma_lines[std::size_t(i)] =
-                receive_beam_sigma_lines(t, geometry, depth[std::size_t(i)]);
-        pool_across_lines(light.get(), L, N, sigma_lines.data());
+        std::vector<double> sigma_lines(static_cast<std::size_t>(N)),
+            widest(static_cast<std::size_t>(N));
+        for (int i = 0; i < N; ++i) {
+            const double d = depth[std::size_t(i)];
+            sigma_lines[std::size_t(i)] = receive_beam_sigma_lines(t, geometry, d);
+            widest[std::size_t(i)] = kWidestPoolingMm / std::max(geometry.line_spacing_mm(d), 1e-6);
+        }
+        pool_across_lines(light.get(), L, N, sigma_lines.data(), widest.data());
     }
     // The scatterer field on K sub-lines per gap between lines, interpolated between the
     // lines' mean positions (the nominal line spacing where a line has no echo), so that

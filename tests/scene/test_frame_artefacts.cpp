@@ -48,41 +48,59 @@ TEST(ScattererField, HasUnitMeanSquareWhereverInItsCellAPointLies) {
     }
 }
 
-// pool_across_lines: each line's light at a sample becomes the mean of its neighbours'
-// weighted by a Gaussian of sigma lines, lines without light counting as zeros. Lit and
-// dark lines in turn (a line's particles reaching it or not) pool to half, off by the
-// alternating sum of the weights over their sum: for sigma 1.5, 2 exp(-pi^2 sigma^2 / 2) =
-// 3e-5 by Poisson summation, -1.4e-4 with the weights cut at 3 sigma (5 lines; summed by
-// hand), so 2 +- 2.8e-4 for lines of 4 and 0. Dark lines kept dark, as before, stood as
-// radial bars.
+// pool_across_lines spreads each line's light by a Gaussian of the beam's sigma times d,
+// d the fewest lines either side within which the others hold at least its light. Lit
+// (4) and dark lines in turn (a line's particles reaching it or not): d = 2, sigma 3 lines,
+// and each line pools to half, off by the alternating sum of the weights (cut at 3 sigma,
+// 9 lines) over their sum, -7.8e-4 (summed by hand), so 2 +- 1.6e-3. Dark lines kept
+// dark, as before, stood as radial bars.
 TEST(PoolAcrossLines, LendsADarkLineItsNeighboursLight) {
-    const int lines = 41, samples = 3;
+    const int lines = 81, samples = 3;
     std::vector<double> light(std::size_t(lines * samples));
     for (int l = 0; l < lines; ++l)
         for (int i = 0; i < samples; ++i) light[std::size_t(l * samples + i)] = l % 2 ? 0.0 : 4.0;
-    const std::vector<double> sigma(samples, 1.5);
-    imaging::detail::pool_across_lines(light.data(), lines, samples, sigma.data());
-    for (int l = 5; l < lines - 5; ++l)  // 3 sigma from the frame's edges
+    const std::vector<double> sigma(samples, 1.5), widest(samples, 20.0);
+    imaging::detail::pool_across_lines(light.data(), lines, samples, sigma.data(), widest.data());
+    // Two kernels' reach from the frame's edges, where kernels fold back into the frame.
+    for (int l = 18; l < lines - 18; ++l)
         for (int i = 0; i < samples; ++i)
-            EXPECT_NEAR(light[std::size_t(l * samples + i)], 2.0, 4e-4) << "line " << l;
+            EXPECT_NEAR(light[std::size_t(l * samples + i)], 2.0, 2e-3) << "line " << l;
 }
 
-// One lit line among dark ones spreads as the receive beam's Gaussian across its
-// neighbours, its light kept whole (the weights sum to one away from the frame's edges),
-// and a sigma under 0.3 lines (a beam narrower than the line spacing) leaves it as it was.
-TEST(PoolAcrossLines, SpreadsALoneLineAsTheBeamAndKeepsItsLight) {
-    const int lines = 31, samples = 2, lit = 15;
+// Light up to line 19 and none beyond (a shadow's edge): every lit line has a lit
+// neighbour holding its light (d = 1), so the edge blurs by the beam's sigma (1.5 lines)
+// alone: the lit side keeps 1 more than 3 sigma from the edge, and 5 lines into the dark
+// (one beyond the kernel's reach from the last lit line's) nothing arrives.
+TEST(PoolAcrossLines, KeepsAShadowsEdgeAsSharpAsTheBeam) {
+    const int lines = 40;
+    std::vector<double> light(std::size_t{40});
+    for (int l = 0; l < lines; ++l) light[std::size_t(l)] = l < 20 ? 1.0 : 0.0;
+    const double sigma = 1.5, widest = 20.0;
+    imaging::detail::pool_across_lines(light.data(), lines, 1, &sigma, &widest);
+    for (int l = 0; l < 15; ++l) EXPECT_NEAR(light[std::size_t(l)], 1.0, 1e-12) << "line " << l;
+    EXPECT_LT(light[24], 2e-3);
+    for (int l = 25; l < lines; ++l) EXPECT_EQ(light[std::size_t(l)], 0.0) << "line " << l;
+}
+
+// One lit line among dark ones (one heavy particle's light): no line within the widest
+// reach holds any of it, so it spreads as a Gaussian of the widest sigma (4 lines here)
+// and keeps its light whole; a sigma under 0.3 lines (a beam narrower than the line
+// spacing) leaves it as it was.
+TEST(PoolAcrossLines, SpreadsALoneLineAsWideAsAllowedAndKeepsItsLight) {
+    const int lines = 41, samples = 2, lit = 20;
     std::vector<double> light(std::size_t(lines * samples), 0.0);
     light[std::size_t(lit * samples)] = light[std::size_t(lit * samples + 1)] = 1.0;
-    const std::vector<double> sigma = {2.0, 0.2};
-    imaging::detail::pool_across_lines(light.data(), lines, samples, sigma.data());
-    double total = 0.0;
+    const std::vector<double> sigma = {1.5, 0.2}, widest = {4.0, 4.0};
+    imaging::detail::pool_across_lines(light.data(), lines, samples, sigma.data(), widest.data());
+    double total = 0.0, gaussian_sum = 0.0;
+    for (int k = -12; k <= 12; ++k) gaussian_sum += std::exp(-0.5 * k * k / 16.0);
     for (int l = 0; l < lines; ++l) {
         const double pooled = light[std::size_t(l * samples)];
         total += pooled;
         const int k = l - lit;
-        const double gaussian = std::abs(k) <= 6 ? std::exp(-0.5 * k * k / 4.0) : 0.0;
-        EXPECT_NEAR(pooled, gaussian * light[std::size_t(lit * samples)], 1e-12) << "line " << l;
+        const double expected =
+            std::abs(k) <= 12 ? std::exp(-0.5 * k * k / 16.0) / gaussian_sum : 0.0;
+        EXPECT_NEAR(pooled, expected, 1e-12) << "line " << l;
         EXPECT_EQ(light[std::size_t(l * samples + 1)], l == lit ? 1.0 : 0.0) << "line " << l;
     }
     EXPECT_NEAR(total, 1.0, 1e-12);
