@@ -210,7 +210,10 @@ void pool_across_lines(double* light, int lines, int samples, const double* sigm
                         rows.begin() + std::ptrdiff_t(l) * kBlock);
         for (int b = 0; b < count; ++b) {
             const int i = i0 + b;
-            const double narrowest = sigma_lines[i], widest = std::max(widest_lines[i], narrowest);
+            // Near a phased array's apex the lines converge and the beam spans many of them:
+            // wider than the frame, a kernel spreads evenly, so none is made wider.
+            const double narrowest = std::min(sigma_lines[i], double(L)),
+                         widest = std::clamp(widest_lines[i], narrowest, double(L));
             if (!(narrowest >= 0.3)) continue;
             auto at = [&](int l) { return rows[std::size_t(l) * kBlock + std::size_t(b)]; };
             // The kernels of this sample, by d (0: the widest), normalised, made on first use.
@@ -238,8 +241,8 @@ void pool_across_lines(double* light, int lines, int samples, const double* sigm
                     const int reach = int(std::ceil(3.0 * sigma));
                     double total = 0.0;
                     for (int k = -reach; k <= reach; ++k)
-                        total +=
-                            weight.emplace_back(std::exp(-0.5 * double(k * k) / (sigma * sigma)));
+                        total += weight.emplace_back(
+                            std::exp(-0.5 * double(k) * double(k) / (sigma * sigma)));
                     for (double& w : weight) w /= total;
                 }
                 // What reaches past the frame's edges is folded back into it (mirrored at
