@@ -312,9 +312,10 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
     // Echoes after a rough reflection, and rough echoes after mirrors where sparse, are
     // incoherent: gathered over the image and drawn as speckle of their mean
     // (incoherent_echoes.h), not as a pulse each.
-    std::vector<std::vector<IncoherentEcho>> incoherent_of(static_cast<std::size_t>(L)),
-        after_mirrors_of(static_cast<std::size_t>(L));
-    std::vector<std::vector<uint32_t>> after_mirrors_event(static_cast<std::size_t>(L));
+    // Per line; the rough echoes after mirrors with their events' indices.
+    std::vector<std::vector<IncoherentEcho>> incoherent_of(static_cast<std::size_t>(L));
+    std::vector<std::vector<std::pair<IncoherentEcho, uint32_t>>> after_mirrors_of(
+        static_cast<std::size_t>(L));
     tbb::parallel_for(0, L, [&](int l) {
         const ScanLine axis = geometry.line(l);
         std::vector<std::complex<double>> untilted = no_plane_echoes();
@@ -330,8 +331,7 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
                 if (rough_path) {
                     incoherent_of[std::size_t(l)].push_back(incoherent);
                 } else {
-                    after_mirrors_of[std::size_t(l)].push_back(incoherent);
-                    after_mirrors_event[std::size_t(l)].push_back(event_order[n]);
+                    after_mirrors_of[std::size_t(l)].push_back({incoherent, event_order[n]});
                 }
             }
         }
@@ -342,10 +342,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         const auto line = std::size_t(l);
         incoherent_echoes.insert(incoherent_echoes.end(), incoherent_of[line].begin(),
                                  incoherent_of[line].end());
-        after_mirrors.insert(after_mirrors.end(), after_mirrors_of[line].begin(),
-                             after_mirrors_of[line].end());
-        after_mirrors_events.insert(after_mirrors_events.end(), after_mirrors_event[line].begin(),
-                                    after_mirrors_event[line].end());
+        for (const auto& [echo, event] : after_mirrors_of[line])
+            after_mirrors.push_back(echo), after_mirrors_events.push_back(event);
     }
     std::vector<uint8_t> drawn_as_clutter(events.size(), 0);
     const std::vector<uint8_t> sparse = sparse_echoes(geometry, after_mirrors);
