@@ -213,6 +213,10 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
         double position, intensity;
         std::complex<double> response;
     };
+    // The receive aperture's half-angle at a range (mm): the cone whose echoes it focuses.
+    auto receive_half_angle = [&t](double range_mm) {
+        return std::atan(0.5 * t.receive_aperture_mm(range_mm) / range_mm);
+    };
     auto line_echo = [&](int l, const ScanLine& axis, const simulator::EchoEvent<2>& e,
                          std::vector<std::complex<double>>& untilted) -> std::optional<LineEcho> {
         const auto& line = of_line[std::size_t(l)];
@@ -271,10 +275,8 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             // The amplitude share of the reflector's lobe that heads back the way the
             // particle came, within the receive's half-angle at this range.
             auto heads_back = [&] {
-                const double half_angle =
-                    std::atan(0.5 * t.receive_aperture_mm(range_mm) / range_mm);
-                return std::sqrt(
-                    reflection_back_fraction(double(e.cos_incidence), e.lobe_exponent, half_angle));
+                return std::sqrt(reflection_back_fraction(double(e.cos_incidence), e.lobe_exponent,
+                                                          receive_half_angle(range_mm)));
             };
             if (e.kind == simulator::EchoKind::diffuse) {
                 // The share of the lobe that heads back the way the particle came (by
@@ -309,48 +311,65 @@ LineData synthesize_rf(const probe::Transducer& t, const probe::Sources<2>& sour
             psf ? std::size_t(psf->depths()) : 0,
             std::complex<double>(std::numeric_limits<double>::quiet_NaN(), 0.0));
     };
-    // Echoes after a rough reflection, and rough echoes after mirrors where sparse, are
+    // Echoes after a rough reflection, and rough echoes off the beam (after mirrors, or
+    // turned by refraction and shown far from where they happened) where sparse, are
     // incoherent: gathered over the image and drawn as speckle of their mean
     // (incoherent_echoes.h), not as a pulse each.
-    // Per line; the rough echoes after mirrors with their events' indices.
+    // Per line; the rough echoes off the beam with their events' indices. No receive
+    // half-angle is narrower than the deepest range's: a turn within it leaves the beam at
+    // no range.
     std::vector<std::vector<IncoherentEcho>> incoherent_of(static_cast<std::size_t>(L));
-    std::vector<std::vector<std::pair<IncoherentEcho, uint32_t>>> after_mirrors_of(
+    std::vector<std::vector<std::pair<IncoherentEcho, uint32_t>>> off_beam_of(
         static_cast<std::size_t>(L));
+    const double narrowest_half_angle = receive_half_angle(t.depth_mm);
     tbb::parallel_for(0, L, [&](int l) {
         const ScanLine axis = geometry.line(l);
         std::vector<std::complex<double>> untilted = no_plane_echoes();
         for (uint32_t n = event_start[std::size_t(l)]; n < event_start[std::size_t(l) + 1]; ++n) {
             const auto& e = events[event_order[n]];
             const bool rough_path = after_a_rough_reflection(e);
-            if (!rough_path && !rough_echo_after_mirrors(e)) continue;
-            if (const auto echo = line_echo(l, axis, e, untilted)) {
-                const double weighted = echo->intensity * std::norm(echo->response);
-                if (!(weighted > 0.0)) continue;
-                const IncoherentEcho incoherent{l, echo->position / depth_to_samples, weighted,
-                                                e.particle};
-                if (rough_path) {
-                    incoherent_of[std::size_t(l)].push_back(incoherent);
-                } else {
-                    after_mirrors_of[std::size_t(l)].push_back({incoherent, event_order[n]});
-                }
+            const glm::vec2 launch = e.particle < of_line[std::size_t(l)].size()
+                                         ? sources[of_line[std::size_t(l)][e.particle]].direction
+                                         : glm::vec2(0.0f);
+            const bool after_mirrors = rough_echo_after_mirrors(e);
+            if (!rough_path && !after_mirrors &&
+                !rough_echo_turned_off_the_beam(e, launch, narrowest_half_angle))
+                continue;
+            const auto echo = line_echo(l, axis, e, untilted);
+            if (!echo) continue;
+            const double weighted = echo->intensity * std::norm(echo->response);
+            if (!(weighted > 0.0)) continue;
+            const double range_mm = echo->position / depth_to_samples;
+            const IncoherentEcho incoherent{l, range_mm, weighted, e.particle};
+            auto shown_far = [&] {
+                const glm::dvec2 shown = axis.origin + axis.direction * range_mm;
+                return shown_far_from_its_event(
+                    glm::length(glm::dvec2(e.position) - to_world.face_in_map - shown));
+            };
+            if (rough_path) {
+                incoherent_of[std::size_t(l)].push_back(incoherent);
+            } else if (after_mirrors ||
+                       (rough_echo_turned_off_the_beam(e, launch, receive_half_angle(range_mm)) &&
+                        shown_far())) {
+                off_beam_of[std::size_t(l)].push_back({incoherent, event_order[n]});
             }
         }
     });
-    std::vector<IncoherentEcho> incoherent_echoes, after_mirrors;
-    std::vector<uint32_t> after_mirrors_events;
+    std::vector<IncoherentEcho> incoherent_echoes, off_beam;
+    std::vector<uint32_t> off_beam_events;
     for (int l = 0; l < L; ++l) {
         const auto line = std::size_t(l);
         incoherent_echoes.insert(incoherent_echoes.end(), incoherent_of[line].begin(),
                                  incoherent_of[line].end());
-        for (const auto& [echo, event] : after_mirrors_of[line])
-            after_mirrors.push_back(echo), after_mirrors_events.push_back(event);
+        for (const auto& [echo, event] : off_beam_of[line])
+            off_beam.push_back(echo), off_beam_events.push_back(event);
     }
     std::vector<uint8_t> drawn_as_clutter(events.size(), 0);
-    const std::vector<uint8_t> sparse = sparse_echoes(geometry, after_mirrors);
-    for (std::size_t k = 0; k < after_mirrors.size(); ++k)
+    const std::vector<uint8_t> sparse = sparse_echoes(geometry, off_beam);
+    for (std::size_t k = 0; k < off_beam.size(); ++k)
         if (sparse[k]) {
-            incoherent_echoes.push_back(after_mirrors[k]);
-            drawn_as_clutter[after_mirrors_events[k]] = 1;
+            incoherent_echoes.push_back(off_beam[k]);
+            drawn_as_clutter[off_beam_events[k]] = 1;
         }
     auto incoherent = [&](const simulator::EchoEvent<2>& e, uint32_t event) {
         return after_a_rough_reflection(e) || drawn_as_clutter[event];

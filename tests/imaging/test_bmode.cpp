@@ -198,6 +198,51 @@ TEST(Bmode, AfterABounceALoneRoughEchoIsClutterAndAMirrorsEchoIsAPulse) {
     EXPECT_LT(off_line_share(simulator::EchoKind::diffuse, 0), 1e-9);
 }
 
+// Its share of a line's energy outside the line itself (the central line of the linear
+// test preset), for one particle's rough echo met directly as `shape` sets it up.
+double off_line_share(const std::function<void(simulator::EchoEvent<2>&)>& shape) {
+    const LineData env = reflection_envelope([&](simulator::EchoEvent<2>& e) {
+        e.kind = simulator::EchoKind::diffuse;
+        e.lobe_exponent = 3.0f;
+        shape(e);
+    });
+    double own = 0.0, all = 0.0;
+    for (int l = 0; l < env.lines; ++l)
+        for (int i = 0; i < env.samples; ++i) {
+            const double p = double(env.at(l, i)) * double(env.at(l, i));
+            all += p;
+            if (l == env.lines / 2) own += p;
+        }
+    EXPECT_GT(all, 0.0);
+    return 1.0 - own / all;
+}
+
+// A rough echo met directly by a particle that refraction turned 60 degrees from its
+// launch (beyond the beam's full angular width: the linear preset's receive half-angle at
+// 20 mm is atan(aperture / 40 mm), under 30 degrees for any F-number above 0.87) and
+// shown 30 mm from where it happened (beyond a lone kernel's reach of 3 x 2.5 mm) is a
+// lone path's echo: clutter, more than 80 % of it off its line (5 % expected on it, as
+// above). Turned as far but shown where it happened, or shown as far but not turned, it
+// stays a pulse on its own line.
+TEST(Bmode, ARoughEchoTurnedOffTheBeamAndShownFarFromItIsClutter) {
+    const probe::Transducer t = probe::find_transducer("linear", "test");
+    const probe::ScanGeometry g(t);
+    const probe::ScanLine axis = g.line(t.lines / 2);
+    const double turn = 60.0 / 180.0 * std::numbers::pi;
+    ASSERT_LT(2.0 * std::atan(0.5 * t.receive_aperture_mm(20.0) / 20.0), 0.9 * turn);
+    const glm::vec2 turned =
+        glm::vec2(std::cos(turn) * glm::dvec2(axis.direction) +
+                  std::sin(turn) * glm::dvec2(axis.direction.y, -axis.direction.x));
+    const glm::vec2 aside = 30.0f * glm::vec2(axis.direction.y, -axis.direction.x);
+    EXPECT_GT(off_line_share([&](auto& e) {
+                  e.direction = turned;
+                  e.position += aside;
+              }),
+              0.8);
+    EXPECT_LT(off_line_share([&](auto& e) { e.direction = turned; }), 1e-9);
+    EXPECT_LT(off_line_share([&](auto& e) { e.position += aside; }), 1e-9);
+}
+
 // FWHM of the envelope of line `l` around its peak, in mm of depth (linear interpolation).
 double axial_fwhm_mm(const LineData& env, int l, double* peak_depth) {
     int peak = 0;
