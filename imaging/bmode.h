@@ -308,9 +308,15 @@ void add_weighted_sub_lines(const std::complex<float>* w0, const std::complex<fl
 // point estimator of kernel density estimation, with the kernel set by mass rather than
 // by count). Lines without light take their shares: left dark, such a line stood as a
 // black radial bar in the skull's shadow, and a line of one heavy particle as a bright
-// one. Samples with sigma under 0.3 lines are left as they are.
+// one. Samples with sigma under 0.3 lines are left as they are. With line_spacing_samples
+// (the line spacing at each sample, in samples of depth), what a line pooled with d > 1
+// (heavier than the lines around it) is also spread in depth, as wide as across the lines
+// (the estimator's kernel is round in the image plane): spread across the lines only, a
+// few heavy paths lit zones 20-40 mm wide that ended in depth as sharply as the paths, 15-20
+// dB above the brain beyond. The beam's own pooling (d = 1) stays sharp in depth, as a
+// shadow's onset is.
 void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines,
-                       const double* widest_lines);
+                       const double* widest_lines, const double* line_spacing_samples = nullptr);
 // The speckle term of every line into speckle_i, speckle_q (rf's lines x samples):
 // synthesize_rf's first stage (imaging/speckle_lines.cpp).
 void speckle_lines(const probe::Transducer& t, const PsfTable& psf,

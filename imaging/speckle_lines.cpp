@@ -197,14 +197,21 @@ namespace detail {
 constexpr double kWidestPoolingMm = 10.0;
 
 void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines,
-                       const double* widest_lines) {
+                       const double* widest_lines, const double* line_spacing_samples) {
     // Blocks of samples, each copied line by line (the lines' rows are contiguous; a
     // column at a time was a strided read of every line per sample).
     constexpr int kBlock = 32;
     const int L = lines, N = samples;
+    const std::size_t size = std::size_t(L) * std::size_t(N);
+    // The light pooled from heavy lines (d > 1) and its kernels' sigma (lines) times it,
+    // spread in depth afterwards; empty without line_spacing_samples.
+    std::vector<double> heavy(line_spacing_samples ? size : 0),
+        heavy_sigma(line_spacing_samples ? size : 0);
     tbb::parallel_for(0, (N + kBlock - 1) / kBlock, [&](int block) {
         const int i0 = block * kBlock, count = std::min(kBlock, N - i0);
         std::vector<double> rows(std::size_t(L) * kBlock), out(static_cast<std::size_t>(L));
+        std::vector<double> out_heavy(heavy.empty() ? 0 : std::size_t(L)),
+            out_sigma(heavy.empty() ? 0 : std::size_t(L));
         std::vector<std::vector<double>> kernels;
         for (int l = 0; l < L; ++l)
             std::copy_n(light + std::size_t(l) * std::size_t(N) + std::size_t(i0), count,
@@ -222,6 +229,8 @@ void pool_across_lines(double* light, int lines, int samples, const double* sigm
             if (kernels.size() < std::size_t(longest + 1)) kernels.resize(std::size_t(longest + 1));
             for (std::vector<double>& kernel : kernels) kernel.clear();  // keeps its memory
             std::fill(out.begin(), out.end(), 0.0);
+            std::fill(out_heavy.begin(), out_heavy.end(), 0.0);
+            std::fill(out_sigma.begin(), out_sigma.end(), 0.0);
             for (int s = 0; s < L; ++s) {
                 const double own = at(s);
                 if (!(own > 0.0)) continue;
@@ -236,9 +245,9 @@ void pool_across_lines(double* light, int lines, int samples, const double* sigm
                         break;
                     }
                 }
+                const double sigma = kernel > 0 ? double(kernel) * narrowest : widest;
                 std::vector<double>& weight = kernels[std::size_t(kernel)];
                 if (weight.empty()) {
-                    const double sigma = kernel > 0 ? double(kernel) * narrowest : widest;
                     const int reach = int(std::ceil(3.0 * sigma));
                     double total = 0.0;
                     for (int k = -reach; k <= reach; ++k)
@@ -246,6 +255,8 @@ void pool_across_lines(double* light, int lines, int samples, const double* sigm
                             std::exp(-0.5 * double(k) * double(k) / (sigma * sigma)));
                     for (double& w : weight) w /= total;
                 }
+                const bool spread_in_depth = !heavy.empty() && kernel != 1;
+                std::vector<double>& to = spread_in_depth ? out_heavy : out;
                 // What reaches past the frame's edges is folded back into it (mirrored at
                 // them), so an even field stays even there and the light is kept.
                 const int reach = int(weight.size() / 2);
@@ -256,11 +267,50 @@ void pool_across_lines(double* light, int lines, int samples, const double* sigm
                         if (l < 0) l += 2 * L;
                         if (l >= L) l = 2 * L - 1 - l;
                     }
-                    out[std::size_t(l)] += own * weight[std::size_t(k + reach)];
+                    const double share = own * weight[std::size_t(k + reach)];
+                    to[std::size_t(l)] += share;
+                    if (spread_in_depth) out_sigma[std::size_t(l)] += share * sigma;
                 }
             }
-            for (int l = 0; l < L; ++l)
-                light[std::size_t(l) * std::size_t(N) + std::size_t(i)] = out[std::size_t(l)];
+            for (int l = 0; l < L; ++l) {
+                const std::size_t at_li = std::size_t(l) * std::size_t(N) + std::size_t(i);
+                light[at_li] = out[std::size_t(l)];
+                if (!heavy.empty())
+                    heavy[at_li] = out_heavy[std::size_t(l)],
+                    heavy_sigma[at_li] = out_sigma[std::size_t(l)];
+            }
+        }
+    });
+    if (heavy.empty()) return;
+    // The heavy lines' light in depth, per line: a Gaussian of its kernels' mean sigma (the
+    // light-weighted mean of those pooled into this sample), in samples, normalised over
+    // the line's samples (so kept whole). Its taps by the recurrence g(k + 1) = g(k) a b^k,
+    // a = exp(-1 / 2 s^2), b = exp(-1 / s^2).
+    tbb::parallel_for(0, L, [&](int l) {
+        const std::size_t row = std::size_t(l) * std::size_t(N);
+        std::vector<double> taps;
+        for (int i = 0; i < N; ++i) {
+            const double part = heavy[row + std::size_t(i)];
+            if (!(part > 0.0)) continue;
+            const double s = heavy_sigma[row + std::size_t(i)] / part * line_spacing_samples[i];
+            const int reach = std::min(int(std::ceil(3.0 * s)), N);
+            if (!(s > 0.0) || reach < 1) {
+                light[row + std::size_t(i)] += part;
+                continue;
+            }
+            const int first = std::max(0, i - reach), last = std::min(N - 1, i + reach);
+            taps.assign(std::size_t(last - first + 1), 0.0);
+            const double a = std::exp(-0.5 / (s * s)), b = std::exp(-1.0 / (s * s));
+            double g = 1.0, step = a, total = 1.0;
+            taps[std::size_t(i - first)] = 1.0;
+            for (int k = 1; k <= reach; ++k) {  // g = exp(-k^2 / 2 s^2)
+                g *= step, step *= b;
+                if (i + k <= last) taps[std::size_t(i + k - first)] = g, total += g;
+                if (i - k >= first) taps[std::size_t(i - k - first)] = g, total += g;
+            }
+            const double scale = part / total;
+            for (int j = first; j <= last; ++j)
+                light[row + std::size_t(j)] += taps[std::size_t(j - first)] * scale;
         }
     });
 }
@@ -371,13 +421,17 @@ void speckle_lines(const probe::Transducer& t, const PsfTable& psf,
     // its backscatter, so tissue edges stay sharp.
     if (lit_by_map && L > 1) {
         std::vector<double> sigma_lines(static_cast<std::size_t>(N)),
-            widest(static_cast<std::size_t>(N));
+            widest(static_cast<std::size_t>(N)), line_spacing_samples(static_cast<std::size_t>(N));
+        const double sample_mm = N > 1 ? depth[1] - depth[0] : 1.0;
         for (int i = 0; i < N; ++i) {
             const double d = depth[std::size_t(i)];
+            const double spacing_mm = std::max(geometry.line_spacing_mm(d), 1e-6);
             sigma_lines[std::size_t(i)] = receive_beam_sigma_lines(t, geometry, d);
-            widest[std::size_t(i)] = kWidestPoolingMm / std::max(geometry.line_spacing_mm(d), 1e-6);
+            widest[std::size_t(i)] = kWidestPoolingMm / spacing_mm;
+            line_spacing_samples[std::size_t(i)] = spacing_mm / sample_mm;
         }
-        pool_across_lines(light.get(), L, N, sigma_lines.data(), widest.data());
+        pool_across_lines(light.get(), L, N, sigma_lines.data(), widest.data(),
+                          line_spacing_samples.data());
     }
     // The scatterer field on K sub-lines per gap between lines, interpolated between the
     // lines' mean positions (the nominal line spacing where a line has no echo), so that

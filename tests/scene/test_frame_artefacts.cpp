@@ -124,6 +124,54 @@ TEST(PoolAcrossLines, SpreadsEvenlyWhereTheBeamIsWiderThanTheFrame) {
     EXPECT_NEAR(total, 64.0, 1e-9);
 }
 
+// With the line spacing in samples of depth, what a line pooled heavier than its
+// neighbours is spread in depth as wide as across the lines. One lit sample among dark
+// lines (one heavy particle's light): the widest kernel, 4 lines, across the lines, and 4
+// x 2.5 = 10 samples in depth, a product of the two Gaussians cut at 3 sigma and each
+// normalised (worked here independently of the code's recurrence), to 1e-12; its light
+// kept whole. An even field lit down to sample 60 and dark beyond (a shadow's onset in
+// depth: d = 1 on every line) stays as sharp as it was: nothing beyond sample 60.
+TEST(PoolAcrossLines, SpreadsAHeavyLineInDepthAsAcrossTheLinesAndKeepsAnEvenFieldSharp) {
+    const int lines = 41, samples = 121, lit = 20, at = 60;
+    const std::vector<double> sigma(samples, 1.5), widest(samples, 4.0), spacing(samples, 2.5);
+    std::vector<double> light(std::size_t(lines * samples), 0.0);
+    light[std::size_t(lit * samples + at)] = 1.0;
+    imaging::detail::pool_across_lines(light.data(), lines, samples, sigma.data(), widest.data(),
+                                       spacing.data());
+    auto normalised_gaussian = [](double s, int reach) {
+        std::vector<double> g;
+        double total = 0.0;
+        for (int k = -reach; k <= reach; ++k)
+            total += g.emplace_back(std::exp(-0.5 * k * k / (s * s)));
+        for (double& v : g) v /= total;
+        return g;
+    };
+    const std::vector<double> across = normalised_gaussian(4.0, 12),
+                              deep = normalised_gaussian(10.0, 30);
+    double total = 0.0;
+    for (int l = 0; l < lines; ++l)
+        for (int i = 0; i < samples; ++i) {
+            const double v = light[std::size_t(l * samples + i)];
+            total += v;
+            const int k = l - lit, j = i - at;
+            const double expected = std::abs(k) <= 12 && std::abs(j) <= 30
+                                        ? across[std::size_t(k + 12)] * deep[std::size_t(j + 30)]
+                                        : 0.0;
+            ASSERT_NEAR(v, expected, 1e-12) << "line " << l << ", sample " << i;
+        }
+    EXPECT_NEAR(total, 1.0, 1e-12);
+
+    std::vector<double> onset(std::size_t(lines * samples), 0.0);
+    for (int l = 0; l < lines; ++l)
+        for (int i = 0; i <= at; ++i) onset[std::size_t(l * samples + i)] = 1.0;
+    imaging::detail::pool_across_lines(onset.data(), lines, samples, sigma.data(), widest.data(),
+                                       spacing.data());
+    for (int l = 0; l < lines; ++l)
+        for (int i = 0; i < samples; ++i)
+            ASSERT_NEAR(onset[std::size_t(l * samples + i)], i <= at ? 1.0 : 0.0, 1e-12)
+                << "line " << l << ", sample " << i;
+}
+
 // spread_over_step: a deposit spreads evenly over the `period` samples from it (the last
 // fractional), sums are kept, and a comb of an integer period becomes constant.
 TEST(SpreadOverStep, SpreadsADepositEvenlyAndFlattensAComb) {
