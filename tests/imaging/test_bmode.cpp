@@ -83,6 +83,19 @@ LineData reflection_envelope(const std::function<void(simulator::EchoEvent<2>&)>
     return imaging::envelope(imaging::synthesize_rf(t, sources, events, {}, {}, settings));
 }
 
+// The share of an envelope's energy (envelope^2 summed) off its central line.
+double share_off_the_central_line(const LineData& env) {
+    double own = 0.0, all = 0.0;
+    for (int l = 0; l < env.lines; ++l)
+        for (int i = 0; i < env.samples; ++i) {
+            const double p = double(env.at(l, i)) * double(env.at(l, i));
+            all += p;
+            if (l == env.lines / 2) own += p;
+        }
+    EXPECT_GT(all, 0.0);
+    return 1.0 - own / all;
+}
+
 // Its peak envelope^2 on the central line.
 double reflection_peak(const std::function<void(simulator::EchoEvent<2>&)>& shape) {
     const LineData env = reflection_envelope(shape);
@@ -175,22 +188,13 @@ TEST(Bmode, AfterABounceAReflectorStillSendsBackOnlyWhatHeadsBack) {
 // interface met directly do.
 TEST(Bmode, AfterABounceALoneRoughEchoIsClutterAndAMirrorsEchoIsAPulse) {
     auto off_line_share = [](simulator::EchoKind kind, int bounces, int particles = 1) {
-        const LineData env = reflection_envelope(
+        return share_off_the_central_line(reflection_envelope(
             [&](simulator::EchoEvent<2>& e) {
                 e.kind = kind;
                 e.bounces = uint16_t(bounces);
                 e.lobe_exponent = kind == simulator::EchoKind::diffuse ? 3.0f : 1e6f;
             },
-            particles);
-        double own = 0.0, all = 0.0;
-        for (int l = 0; l < env.lines; ++l)
-            for (int i = 0; i < env.samples; ++i) {
-                const double p = double(env.at(l, i)) * double(env.at(l, i));
-                all += p;
-                if (l == env.lines / 2) own += p;
-            }
-        EXPECT_GT(all, 0.0);
-        return 1.0 - own / all;
+            particles));
     };
     EXPECT_GT(off_line_share(simulator::EchoKind::diffuse, 1), 0.8);
     EXPECT_LT(off_line_share(simulator::EchoKind::diffuse, 1, 20), 1e-9);
@@ -198,23 +202,14 @@ TEST(Bmode, AfterABounceALoneRoughEchoIsClutterAndAMirrorsEchoIsAPulse) {
     EXPECT_LT(off_line_share(simulator::EchoKind::diffuse, 0), 1e-9);
 }
 
-// Its share of a line's energy outside the line itself (the central line of the linear
-// test preset), for one particle's rough echo met directly as `shape` sets it up.
+// One particle's rough echo met directly, as `shape` sets it up: its share off the
+// central line.
 double off_line_share(const std::function<void(simulator::EchoEvent<2>&)>& shape) {
-    const LineData env = reflection_envelope([&](simulator::EchoEvent<2>& e) {
+    return share_off_the_central_line(reflection_envelope([&](simulator::EchoEvent<2>& e) {
         e.kind = simulator::EchoKind::diffuse;
         e.lobe_exponent = 3.0f;
         shape(e);
-    });
-    double own = 0.0, all = 0.0;
-    for (int l = 0; l < env.lines; ++l)
-        for (int i = 0; i < env.samples; ++i) {
-            const double p = double(env.at(l, i)) * double(env.at(l, i));
-            all += p;
-            if (l == env.lines / 2) own += p;
-        }
-    EXPECT_GT(all, 0.0);
-    return 1.0 - own / all;
+    }));
 }
 
 // A rough echo met directly by a particle that refraction turned 60 degrees from its
