@@ -192,9 +192,9 @@ namespace detail {
 
 // The widest pooling of a line's light (pool_across_lines): one particle's light, far above
 // its neighbours', is spread over about +-30 mm (3 sigma) at most, across the lines and in
-// depth. The beam's width alone
-// left the temporal view's rare heavy paths as bright streaks and blocks; 20 mm spread them
-// into more spots than 10 mm (41 against 23 on seeds 1-8).
+// depth. The beam's width alone left the temporal view's rare heavy paths as bright
+// streaks and blocks; 20 mm spread them into more spots than 10 mm (41 against 23 on
+// seeds 1-8).
 constexpr double kWidestPoolingMm = 10.0;
 
 void pool_across_lines(double* light, int lines, int samples, const double* sigma_lines,
